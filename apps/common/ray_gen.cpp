@@ -1,0 +1,89 @@
+#include "common/ray_gen.h"
+
+#include <cmath>
+
+#include "core/vec.h"
+
+namespace kestrel::tools {
+
+std::optional<RayKind> ray_kind_from_name(const std::string& name) {
+  if (name == "primary") return RayKind::primary;
+  if (name == "shadow") return RayKind::shadow;
+  if (name == "diffuse") return RayKind::diffuse;
+  return std::nullopt;
+}
+
+std::vector<Ray> primary_rays(const PinholeCamera& cam, int width, int height) {
+  std::vector<Ray> rays(size_t(width) * height);
+  for (int y = 0; y < height; ++y)
+    for (int x = 0; x < width; ++x) rays[size_t(y) * width + x] = cam.ray(x, y, width, height);
+  return rays;
+}
+
+namespace {
+// splitmix64: a tiny, well-mixed generator; enough for ray directions.
+struct Rng {
+  uint64_t state;
+  uint64_t next() {
+    uint64_t z = (state += 0x9E3779B97F4A7C15ull);
+    z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ull;
+    z = (z ^ (z >> 27)) * 0x94D049BB133111EBull;
+    return z ^ (z >> 31);
+  }
+  float uniform() { return float(next() >> 40) * (1.0f / 16777216.0f); }
+};
+}  // namespace
+
+Vec3 default_light(const Bounds3& b) {
+  const Vec3 c = center(b);
+  return {c.x, b.hi.y - 0.45f * (b.hi.y - b.lo.y), c.z};
+}
+
+std::vector<Ray> secondary_rays(const Accel& accel, const std::vector<Ray>& primary, RayKind kind, Vec3 light,
+                                uint64_t seed) {
+  std::vector<Hit> hits(primary.size());
+  trace(accel, primary, hits, /* any_hit = */ false);
+  Bounds3 box;
+  if (!accel.bvh.empty()) box = {accel.bvh.nodes[0].lo, accel.bvh.nodes[0].hi};
+  const float eps = 1e-4f * std::max(length(extent(box)), 1e-3f);
+  std::vector<Ray> out;
+  out.reserve(primary.size());
+  Rng rng{seed};
+  // Map global prim ids back to leaf order to fetch the triangle.
+  std::vector<uint32_t> slot_of_prim;
+  for (size_t i = 0; i < accel.bvh.prim_ids.size(); ++i) {
+    if (accel.bvh.prim_ids[i] >= slot_of_prim.size()) slot_of_prim.resize(accel.bvh.prim_ids[i] + 1, 0);
+    slot_of_prim[accel.bvh.prim_ids[i]] = uint32_t(i);
+  }
+  for (size_t i = 0; i < primary.size(); ++i) {
+    const Hit& h = hits[i];
+    if (!h.hit()) continue;
+    const Ray& r = primary[i];
+    const Triangle& tri = accel.triangles[slot_of_prim[h.prim_id]];
+    Vec3 n = normalize(cross(tri.v1 - tri.v0, tri.v2 - tri.v0));
+    if (dot(n, r.dir) > 0) n = -n;
+    const Vec3 p = r.org + r.dir * h.t + n * eps;
+    if (kind == RayKind::shadow) {
+      const Vec3 d = light - p;
+      out.push_back(Ray{p, d, 0.0f, 1.0f - 1e-4f});
+    } else {
+      // Cosine-weighted hemisphere about n (Malley's method) in an orthonormal frame.
+      const float u1 = rng.uniform(), u2 = rng.uniform();
+      const float radius = std::sqrt(u1), phi = 6.28318530718f * u2;
+      const Vec3 t = std::fabs(n.x) > 0.9f ? normalize(cross(n, Vec3{0, 1, 0})) : normalize(cross(n, Vec3{1, 0, 0}));
+      const Vec3 bt = cross(n, t);
+      const Vec3 d = t * (radius * std::cos(phi)) + bt * (radius * std::sin(phi)) + n * std::sqrt(std::max(0.0f, 1.0f - u1));
+      out.push_back(Ray{p, d, 0.0f, INFINITY});
+    }
+  }
+  return out;
+}
+
+std::vector<Ray> make_rays(const Accel& accel, const Scene& scene, const PinholeCamera& cam, int width, int height,
+                           RayKind kind, uint64_t seed) {
+  std::vector<Ray> primary = primary_rays(cam, width, height);
+  if (kind == RayKind::primary) return primary;
+  return secondary_rays(accel, primary, kind, default_light(scene_bounds(scene)), seed);
+}
+
+}  // namespace kestrel::tools

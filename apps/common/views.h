@@ -1,0 +1,30 @@
+// Cameras for the tools: the framing view of any scene and the named views of
+// ../shared/scenes/README.md (e.g. the inside-Sponza view).
+#pragma once
+#include <optional>
+#include <string>
+
+#include "kestrel/trace.h"
+
+namespace kestrel::tools {
+
+/// A pinhole camera: eye, target, +Y up, vertical field of view in degrees.
+struct PinholeCamera {
+  Vec3 eye, target;
+  float vfov_degrees = 45.0f;
+  /// Ray through pixel (px, py) of a width x height image (py = 0 at the top), at the
+  /// pixel's centre offset by (jx, jy) in [0, 1).
+  Ray ray(int px, int py, int width, int height, float jx = 0.5f, float jy = 0.5f) const;
+};
+
+/// Bounds of every valid triangle of the scene.
+Bounds3 scene_bounds(const Scene& scene);
+
+/// The framing view: target the box centre, eye = target + normalize(0.3, 0.35, -1) * r /
+/// sin(vfov / 2), r = half the box diagonal, vfov 45.
+PinholeCamera framing_view(const Scene& scene);
+
+/// A named view ("framing" always exists; "inside" for Dabrovic Sponza). nullopt if unknown.
+std::optional<PinholeCamera> named_view(const Scene& scene, const std::string& name);
+
+}  // namespace kestrel::tools

@@ -1,0 +1,81 @@
+// kestrel public API: triangle meshes, materials, textures and scenes; loading and validation.
+#pragma once
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "kestrel/types.h"
+
+namespace kestrel {
+
+/// An 8-bit RGBA texture, rows top to bottom (as decoded from PNG/JPEG).
+struct Texture {
+  std::string name;
+  int width = 0, height = 0;
+  std::vector<uint8_t> rgba;  ///< width * height * 4 bytes
+};
+
+/// A metallic-roughness material (glTF 2.0 model; OBJ/MTL mapped onto it).
+struct Material {
+  std::string name;
+  Vec3 base_color{0.8f, 0.8f, 0.8f};  ///< linear RGB
+  float metallic = 0.0f;               ///< [0, 1]
+  float roughness = 1.0f;              ///< perceptual roughness, [0, 1]
+  Vec3 emission{0, 0, 0};              ///< linear RGB radiance scale (W/sr/m^2 units of the scene)
+  int base_color_texture = -1;         ///< index into Scene::textures, or -1
+  int metallic_roughness_texture = -1; ///< glTF: G = roughness, B = metallic
+  int emission_texture = -1;
+  int normal_texture = -1;
+};
+
+/// A triangle mesh in world space. Triangle i is (indices[3i], indices[3i+1], indices[3i+2]);
+/// normals and uvs are per vertex when present (same count as positions) or empty.
+struct TriangleMesh {
+  std::string name;
+  std::vector<Vec3> positions;
+  std::vector<Vec3> normals;
+  std::vector<Vec2> uvs;
+  std::vector<uint32_t> indices;
+  std::vector<uint32_t> material_ids;  ///< one per triangle (index into Scene::materials)
+  size_t triangle_count() const { return indices.size() / 3; }
+};
+
+/// What validation found. Invalid triangles keep their ids (so OBJ numbering is preserved)
+/// but never reach a builder.
+struct ValidationReport {
+  size_t triangle_count = 0;           ///< all triangles, valid or not
+  size_t valid_triangle_count = 0;
+  size_t nonfinite_triangle_count = 0; ///< a vertex with a NaN or Inf coordinate
+  size_t bad_index_triangle_count = 0; ///< an index past the vertex array
+  size_t degenerate_triangle_count = 0;///< zero area (collinear or repeated vertices)
+  size_t empty_mesh_count = 0;         ///< meshes with no triangle
+  /// One line, e.g. "66445 triangles: 66445 valid, 0 non-finite, 0 bad index, 0 degenerate".
+  std::string summary() const;
+};
+
+/// A scene: meshes (prim ids run over meshes in order), materials and textures.
+struct Scene {
+  std::string source;  ///< file it was loaded from, or "builtin:NAME"
+  std::vector<TriangleMesh> meshes;
+  std::vector<Material> materials;
+  std::vector<Texture> textures;
+  size_t triangle_count() const;
+};
+
+/// Per-triangle validity over the whole scene (global prim ids) plus the counts.
+struct SceneValidation {
+  ValidationReport report;
+  std::vector<uint8_t> valid;  ///< one per global prim id: 1 if the triangle may be built
+};
+
+/// Checks every triangle: finite vertices, indices in range, non-zero area.
+SceneValidation validate_scene(const Scene& scene);
+
+/// Loads an OBJ (+MTL), glTF or GLB file, or a built-in scene named "builtin:cornell_box".
+/// Throws Error naming the file (and line, where the format has lines) on failure.
+Scene load_scene(const std::string& path);
+
+/// Names accepted by load_scene after "builtin:".
+std::vector<std::string> builtin_scene_names();
+
+}  // namespace kestrel

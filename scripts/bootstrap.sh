@@ -1,0 +1,45 @@
+#!/usr/bin/env bash
+# kestrel set-up on a fresh Debian 12 machine: installs what is missing, builds (Release),
+# then runs the main job (`demo`) or the whole test suite (`test`).
+#   bash scripts/bootstrap.sh demo   # install + build + render the built-in Cornell box
+#   bash scripts/bootstrap.sh test   # install + build + run every test (ctest)
+set -euo pipefail
+mode=${1:-demo}
+here=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
+build_dir=${KESTREL_BUILD_DIR:-$here/build/release}
+
+packages=(build-essential cmake ninja-build ccache pkg-config
+  libtbb-dev libtinyobjloader-dev libtinygltf-dev nlohmann-json3-dev libstb-dev
+  libpng-dev libcli11-dev libfmt-dev libgtest-dev libgmock-dev libbenchmark-dev
+  libembree-dev python3)
+missing=()
+for p in "${packages[@]}"; do
+  dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
+done
+if [ ${#missing[@]} -gt 0 ]; then
+  echo "bootstrap: installing ${missing[*]}"
+  sudo_cmd=()
+  [ "$(id -u)" -ne 0 ] && sudo_cmd=(sudo)
+  export DEBIAN_FRONTEND=noninteractive
+  "${sudo_cmd[@]}" apt-get update -qq
+  "${sudo_cmd[@]}" apt-get install -y -qq "${missing[@]}"
+fi
+
+launcher=()
+command -v ccache >/dev/null && launcher=(-DCMAKE_CXX_COMPILER_LAUNCHER=ccache)
+cmake -S "$here" -B "$build_dir" -G Ninja -DCMAKE_BUILD_TYPE=Release "${launcher[@]}"
+cmake --build "$build_dir" -j "$(nproc)"
+
+case "$mode" in
+  demo)
+    mkdir -p "$here/out"
+    "$build_dir/apps/kestrel/kestrel" preview builtin:cornell_box -o "$here/out/cornell_box.png"
+    ;;
+  test)
+    labels=()
+    # CI runs everything except the long benchmarks-as-tests; locally too unless told otherwise.
+    cd "$build_dir" && ctest --output-on-failure -j "$(nproc)" "${labels[@]}"
+    ;;
+  build) ;;
+  *) echo "usage: bootstrap.sh demo|test|build" >&2; exit 2 ;;
+esac

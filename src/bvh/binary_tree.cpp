@@ -1,0 +1,119 @@
+#include "bvh/binary_tree.h"
+
+#include <algorithm>
+#include <atomic>
+#include <memory>
+
+#include "core/parallel.h"
+#include "core/vec.h"
+
+namespace kestrel {
+
+Bounds3 child_bounds(const BinaryTree& tree, uint32_t ref) {
+  if (BinaryTree::is_leaf(ref)) {
+    const PrimRef& p = tree.leaves[BinaryTree::leaf_index(ref)];
+    return {p.lo, p.hi};
+  }
+  return tree.bounds[ref];
+}
+
+float child_area(const BinaryTree& tree, uint32_t ref) { return half_area(child_bounds(tree, ref)); }
+
+float child_cost(const BinaryTree& tree, uint32_t ref, const BuildConfig& config) {
+  if (BinaryTree::is_leaf(ref)) return config.intersection_cost * child_area(tree, ref);
+  return tree.cost[ref];
+}
+
+uint32_t child_count(const BinaryTree& tree, uint32_t ref) {
+  return BinaryTree::is_leaf(ref) ? 1u : tree.count[ref];
+}
+
+void refit_node(BinaryTree& tree, uint32_t node, const BuildConfig& config) {
+  const uint32_t l = tree.left[node], r = tree.right[node];
+  const Bounds3 b = merge(child_bounds(tree, l), child_bounds(tree, r));
+  const uint32_t n = child_count(tree, l) + child_count(tree, r);
+  const float area = half_area(b);
+  float c = config.traversal_cost * area + child_cost(tree, l, config) + child_cost(tree, r, config);
+  if (n <= config.max_leaf_size) c = std::min(c, config.intersection_cost * area * float(n));
+  tree.bounds[node] = b;
+  tree.count[node] = n;
+  tree.cost[node] = c;
+}
+
+void bottom_up(BinaryTree& tree, const BuildConfig& config,
+               void (*visit)(BinaryTree&, uint32_t, const BuildConfig&, void*), void* user) {
+  const size_t inner = tree.inner_count();
+  if (inner == 0) return;
+  std::unique_ptr<std::atomic<uint32_t>[]> arrivals(new std::atomic<uint32_t>[inner]);
+  for (size_t i = 0; i < inner; ++i) arrivals[i].store(0, std::memory_order_relaxed);
+  parallel_for(0, tree.leaves.size(), 4096, [&](size_t b, size_t e) {
+    for (size_t leaf = b; leaf < e; ++leaf) {
+      uint32_t node = tree.leaf_parent[leaf];
+      while (node != BinaryTree::no_parent) {
+        // The first child to arrive stops; the second sees the first's writes (acq_rel).
+        if (arrivals[node].fetch_add(1, std::memory_order_acq_rel) == 0) break;
+        refit_node(tree, node, config);
+        if (visit) visit(tree, node, config, user);
+        node = tree.parent[node];
+      }
+    }
+  });
+}
+
+namespace {
+void gather_leaves(const BinaryTree& tree, uint32_t ref, std::vector<uint32_t>& out) {
+  // Collapsed subtrees hold at most max_leaf_size (<= 255) primitives.
+  uint32_t stack[512];  // a subtree of k leaves never needs more than k + 1 entries
+  int top = 0;
+  stack[top++] = ref;
+  while (top) {
+    uint32_t r = stack[--top];
+    if (BinaryTree::is_leaf(r)) {
+      out.push_back(tree.leaves[BinaryTree::leaf_index(r)].prim_id);
+    } else {
+      stack[top++] = tree.right[r];
+      stack[top++] = tree.left[r];
+    }
+  }
+}
+}  // namespace
+
+Bvh2 emit_bvh2(const BinaryTree& tree, const BuildConfig& config) {
+  Bvh2 out;
+  const size_t n = tree.leaves.size();
+  if (n == 0) return out;
+  out.prim_ids.reserve(n);
+  out.nodes.reserve(2 * n);
+  const uint32_t root = n == 1 ? BinaryTree::leaf_bit : 0u;
+  // (tree reference, output node) pairs, depth first.
+  std::vector<std::pair<uint32_t, uint32_t>> stack;
+  stack.push_back({root, 0});
+  out.nodes.emplace_back();
+  while (!stack.empty()) {
+    auto [ref, o] = stack.back();
+    stack.pop_back();
+    const Bounds3 b = child_bounds(tree, ref);
+    bool make_leaf = BinaryTree::is_leaf(ref);
+    if (!make_leaf && tree.count[ref] <= config.max_leaf_size) {
+      const float area = half_area(b);
+      const float split = config.traversal_cost * area + child_cost(tree, tree.left[ref], config) +
+                          child_cost(tree, tree.right[ref], config);
+      make_leaf = config.intersection_cost * area * float(tree.count[ref]) <= split;
+    }
+    if (make_leaf) {
+      const uint32_t first = uint32_t(out.prim_ids.size());
+      gather_leaves(tree, ref, out.prim_ids);
+      out.nodes[o] = Bvh2Node{b.lo, first, b.hi, uint32_t(out.prim_ids.size() - first)};
+    } else {
+      const uint32_t pair = uint32_t(out.nodes.size());
+      out.nodes.emplace_back();
+      out.nodes.emplace_back();
+      out.nodes[o] = Bvh2Node{b.lo, pair, b.hi, 0};
+      stack.push_back({tree.right[ref], pair + 1});
+      stack.push_back({tree.left[ref], pair});
+    }
+  }
+  return out;
+}
+
+}  // namespace kestrel

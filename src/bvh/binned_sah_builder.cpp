@@ -1,0 +1,280 @@
+// Binned SAH (Wald 2007, "On fast construction of SAH-based bounding volume hierarchies").
+//
+// Centroids are binned on all three axes at once (up to 32 bins), the bins are swept from
+// both ends, and the references are partitioned in place. Each node carries its geometric
+// and centroid bounds from its parent's partition pass, so no extra pass over the range is
+// needed. Large ranges are binned in parallel over fixed chunks (merged in chunk order, so
+// results do not depend on the thread count); subtrees are built in parallel through
+// core/parallel.h with node slots fixed in advance (node_slots.h).
+#include <algorithm>
+#include <atomic>
+#include <limits>
+#include <vector>
+
+#include "bvh/builders.h"
+#include "bvh/node_slots.h"
+#include "bvh/sah.h"
+#include "core/parallel.h"
+#include "core/simd/vec4f.h"
+#include "core/vec.h"
+
+namespace kestrel {
+
+namespace {
+
+using simd::Vec4f;
+
+constexpr int max_bins = 32;
+constexpr size_t parallel_binning_threshold = 1u << 16;
+constexpr size_t binning_chunk = 1u << 14;
+
+/// Bounds of a range: geometric, and of the doubled centroids (lo + hi).
+struct RangeInfo {
+  Vec4f geom_lo, geom_hi, cent_lo, cent_hi;
+  size_t begin, end;
+  static RangeInfo empty_at(size_t begin) {
+    return {Vec4f(std::numeric_limits<float>::infinity()), Vec4f(-std::numeric_limits<float>::infinity()),
+            Vec4f(std::numeric_limits<float>::infinity()), Vec4f(-std::numeric_limits<float>::infinity()),
+            begin, begin};
+  }
+  void add(Vec4f lo, Vec4f hi) {
+    geom_lo = min(geom_lo, lo);
+    geom_hi = max(geom_hi, hi);
+    Vec4f c = lo + hi;
+    cent_lo = min(cent_lo, c);
+    cent_hi = max(cent_hi, c);
+  }
+};
+
+struct Bins {
+  Vec4f lo[3][max_bins], hi[3][max_bins];
+  uint32_t count[3][max_bins];
+  void clear(int bin_count) {
+    for (int a = 0; a < 3; ++a)
+      for (int b = 0; b < bin_count; ++b) {
+        lo[a][b] = Vec4f(std::numeric_limits<float>::infinity());
+        hi[a][b] = Vec4f(-std::numeric_limits<float>::infinity());
+        count[a][b] = 0;
+      }
+  }
+  void merge(const Bins& o, int bin_count) {
+    for (int a = 0; a < 3; ++a)
+      for (int b = 0; b < bin_count; ++b) {
+        lo[a][b] = min(lo[a][b], o.lo[a][b]);
+        hi[a][b] = max(hi[a][b], o.hi[a][b]);
+        count[a][b] += o.count[a][b];
+      }
+  }
+};
+
+struct BinMapping {
+  Vec4f offset, scale;
+  int bin_count;
+  BinMapping(const RangeInfo& info, int bins) : offset(info.cent_lo), bin_count(bins) {
+    // Slightly under bins/extent so the largest centroid lands in the last bin, not past it.
+    Vec4f ext = info.cent_hi - info.cent_lo;
+    alignas(16) float e[4], s[4];
+    ext.store(e);
+    for (int a = 0; a < 4; ++a) s[a] = e[a] > 0.0f ? float(bins) * 0.99999f / e[a] : 0.0f;
+    scale = Vec4f::load(s);
+  }
+  void bin_of(Vec4f lo, Vec4f hi, int* out) const {
+    simd::to_int((lo + hi - offset) * scale, out);
+    for (int a = 0; a < 3; ++a) out[a] = std::clamp(out[a], 0, bin_count - 1);
+  }
+};
+
+struct BinnedBuilder {
+  PrimRef* refs;
+  const BuildConfig& config;
+  NodeSlots& slots;
+  int bin_count;
+  std::atomic<size_t> leaf_count{0};
+
+  Vec4f ref_lo(size_t i) const { return Vec4f::load(&refs[i].lo); }
+  Vec4f ref_hi(size_t i) const { return Vec4f::load(&refs[i].hi); }
+
+  void bin_range(const BinMapping& map, size_t begin, size_t end, Bins& bins) const {
+    bins.clear(bin_count);
+    int b[4];
+    for (size_t i = begin; i < end; ++i) {
+      Vec4f lo = ref_lo(i), hi = ref_hi(i);
+      map.bin_of(lo, hi, b);
+      for (int a = 0; a < 3; ++a) {
+        bins.lo[a][b[a]] = min(bins.lo[a][b[a]], lo);
+        bins.hi[a][b[a]] = max(bins.hi[a][b[a]], hi);
+        bins.count[a][b[a]]++;
+      }
+    }
+  }
+
+  void bin(const BinMapping& map, const RangeInfo& info, Bins& bins) const {
+    const size_t n = info.end - info.begin;
+    if (n < parallel_binning_threshold) return bin_range(map, info.begin, info.end, bins);
+    const size_t chunks = chunk_count(n, binning_chunk);
+    std::vector<Bins> partial(chunks);
+    parallel_for(0, chunks, 1, [&](size_t cb, size_t ce) {
+      for (size_t c = cb; c < ce; ++c)
+        bin_range(map, info.begin + c * binning_chunk, std::min(info.end, info.begin + (c + 1) * binning_chunk),
+                  partial[c]);
+    });
+    bins = partial[0];
+    for (size_t c = 1; c < chunks; ++c) bins.merge(partial[c], bin_count);
+  }
+
+  void make_leaf(uint32_t slot, const RangeInfo& info) {
+    Bvh2Node& node = slots[slot];
+    alignas(16) float lo[4], hi[4];
+    info.geom_lo.store(lo);
+    info.geom_hi.store(hi);
+    node = Bvh2Node{{lo[0], lo[1], lo[2]}, uint32_t(info.begin), {hi[0], hi[1], hi[2]},
+                    uint32_t(info.end - info.begin)};
+    leaf_count.fetch_add(1, std::memory_order_relaxed);
+  }
+
+  // Splits [begin, end) at its middle (all centroids equal: no SAH split exists).
+  void split_middle(const RangeInfo& info, RangeInfo& left, RangeInfo& right) const {
+    size_t mid = info.begin + (info.end - info.begin) / 2;
+    left = RangeInfo::empty_at(info.begin);
+    right = RangeInfo::empty_at(mid);
+    for (size_t i = info.begin; i < mid; ++i) left.add(ref_lo(i), ref_hi(i));
+    for (size_t i = mid; i < info.end; ++i) right.add(ref_lo(i), ref_hi(i));
+    left.end = mid;
+    right.end = info.end;
+  }
+
+  void build(uint32_t slot, uint32_t pair, const RangeInfo& info) {
+    const size_t n = info.end - info.begin;
+    if (n == 1) return make_leaf(slot, info);
+    const float node_area = simd::half_area(info.geom_lo, info.geom_hi);
+    const BinMapping map(info, bin_count);
+    RangeInfo left, right;
+    alignas(16) float cext[4];
+    (info.cent_hi - info.cent_lo).store(cext);
+    if (cext[0] <= 0.0f && cext[1] <= 0.0f && cext[2] <= 0.0f) {
+      if (n <= config.max_leaf_size) return make_leaf(slot, info);
+      split_middle(info, left, right);
+    } else {
+      Bins bins;
+      bin(map, info, bins);
+      // Sweep: right-to-left suffix areas, then left-to-right costs.
+      float best_cost = std::numeric_limits<float>::infinity();
+      int best_axis = -1, best_split = 0;
+      for (int a = 0; a < 3; ++a) {
+        if (cext[a] <= 0.0f) continue;
+        float right_area[max_bins];
+        uint32_t right_count[max_bins];
+        Vec4f lo(std::numeric_limits<float>::infinity()), hi(-std::numeric_limits<float>::infinity());
+        uint32_t count = 0;
+        for (int b = bin_count - 1; b > 0; --b) {
+          lo = min(lo, bins.lo[a][b]);
+          hi = max(hi, bins.hi[a][b]);
+          count += bins.count[a][b];
+          right_area[b] = simd::half_area(lo, hi);
+          right_count[b] = count;
+        }
+        lo = Vec4f(std::numeric_limits<float>::infinity());
+        hi = Vec4f(-std::numeric_limits<float>::infinity());
+        count = 0;
+        for (int b = 0; b < bin_count - 1; ++b) {
+          lo = min(lo, bins.lo[a][b]);
+          hi = max(hi, bins.hi[a][b]);
+          count += bins.count[a][b];
+          if (count == 0 || right_count[b + 1] == 0) continue;
+          float c = split_cost(config, node_area, simd::half_area(lo, hi), count, right_area[b + 1],
+                               right_count[b + 1]);
+          if (c < best_cost) {
+            best_cost = c;
+            best_axis = a;
+            best_split = b + 1;
+          }
+        }
+      }
+      if (n <= config.max_leaf_size && leaf_cost(config, n) <= best_cost) return make_leaf(slot, info);
+      if (best_axis < 0) {
+        split_middle(info, left, right);
+      } else {
+        partition(map, best_axis, best_split, info, left, right);
+      }
+    }
+    slots[slot] = Bvh2Node{{}, pair, {}, 0};
+    alignas(16) float lo[4], hi[4];
+    info.geom_lo.store(lo);
+    info.geom_hi.store(hi);
+    slots[slot].lo = {lo[0], lo[1], lo[2]};
+    slots[slot].hi = {hi[0], hi[1], hi[2]};
+    const size_t left_count = left.end - left.begin;
+    auto build_left = [&] { build(pair, pair + 2, left); };
+    auto build_right = [&] { build(pair + 1, right_descendants(pair, left_count), right); };
+    if (n > config.parallel_threshold) {
+      parallel_invoke(build_left, build_right);
+    } else {
+      build_left();
+      build_right();
+    }
+  }
+
+  // In-place two-pointer partition that also gathers both sides' bounds.
+  void partition(const BinMapping& map, int axis, int split, const RangeInfo& info, RangeInfo& left,
+                 RangeInfo& right) const {
+    left = RangeInfo::empty_at(info.begin);
+    right = RangeInfo::empty_at(info.end);
+    size_t i = info.begin, j = info.end;
+    int b[4];
+    auto goes_left = [&](size_t k, Vec4f lo, Vec4f hi) {
+      map.bin_of(lo, hi, b);
+      return b[axis] < split;
+    };
+    while (true) {
+      while (i < j) {
+        Vec4f lo = ref_lo(i), hi = ref_hi(i);
+        if (!goes_left(i, lo, hi)) break;
+        left.add(lo, hi);
+        ++i;
+      }
+      while (i < j) {
+        Vec4f lo = ref_lo(j - 1), hi = ref_hi(j - 1);
+        if (goes_left(j - 1, lo, hi)) break;
+        right.add(lo, hi);
+        --j;
+      }
+      if (i >= j) break;
+      std::swap(refs[i], refs[j - 1]);
+    }
+    left.end = i;
+    right.begin = i;
+    right.end = info.end;
+  }
+};
+
+}  // namespace
+
+Bvh2 build_binned_sah(std::span<const PrimRef> input, const BuildConfig& config) {
+  std::vector<PrimRef> refs(input.begin(), input.end());
+  const size_t n = refs.size();
+  NodeSlots slots(n);
+  BinnedBuilder builder{refs.data(), config, slots, int(config.bin_count)};
+  RangeInfo root = RangeInfo::empty_at(0);
+  {
+    const size_t chunks = chunk_count(n, binning_chunk);
+    std::vector<RangeInfo> partial(chunks, RangeInfo::empty_at(0));
+    parallel_for(0, chunks, 1, [&](size_t cb, size_t ce) {
+      for (size_t c = cb; c < ce; ++c)
+        for (size_t i = c * binning_chunk; i < std::min(n, (c + 1) * binning_chunk); ++i)
+          partial[c].add(builder.ref_lo(i), builder.ref_hi(i));
+    });
+    for (const RangeInfo& p : partial) {
+      root.geom_lo = min(root.geom_lo, p.geom_lo);
+      root.geom_hi = max(root.geom_hi, p.geom_hi);
+      root.cent_lo = min(root.cent_lo, p.cent_lo);
+      root.cent_hi = max(root.cent_hi, p.cent_hi);
+    }
+    root.end = n;
+  }
+  builder.build(0, 1, root);
+  std::vector<uint32_t> ids(n);
+  for (size_t i = 0; i < n; ++i) ids[i] = refs[i].prim_id;
+  return compact_slots(slots, builder.leaf_count.load(), ids);
+}
+
+}  // namespace kestrel

@@ -1,0 +1,78 @@
+// Builder selection by name or quality, config checks, and the build_bvh() entry point.
+#include <fmt/format.h>
+
+#include "bvh/builders.h"
+#include "kestrel/error.h"
+
+namespace kestrel {
+
+std::optional<Builder> builder_from_name(const std::string& name) {
+  if (name == "median") return Builder::median;
+  if (name == "sweep") return Builder::sweep;
+  if (name == "binned") return Builder::binned;
+  if (name == "lbvh") return Builder::lbvh;
+  if (name == "treelet") return Builder::treelet;
+  return std::nullopt;
+}
+
+const char* builder_name(Builder builder) {
+  switch (builder) {
+    case Builder::median: return "median";
+    case Builder::sweep: return "sweep";
+    case Builder::binned: return "binned";
+    case Builder::lbvh: return "lbvh";
+    case Builder::treelet: return "treelet";
+  }
+  return "?";
+}
+
+std::optional<BuildQuality> quality_from_name(const std::string& name) {
+  if (name == "fast") return BuildQuality::fast;
+  if (name == "balanced") return BuildQuality::balanced;
+  if (name == "high") return BuildQuality::high;
+  return std::nullopt;
+}
+
+Builder resolve_builder(const BuildConfig& config) {
+  if (config.builder) return *config.builder;
+  switch (config.quality) {
+    case BuildQuality::fast: return Builder::lbvh;
+    case BuildQuality::balanced: return Builder::binned;
+    case BuildQuality::high: return Builder::sweep;
+  }
+  return Builder::binned;
+}
+
+void check_build_config(const BuildConfig& c) {
+  auto bad = [](const std::string& what) { throw Error(ErrorCode::invalid_argument, "BuildConfig: " + what); };
+  if (!(c.traversal_cost >= 0.0f) || !(c.traversal_cost < 1e6f))
+    bad(fmt::format("traversal_cost = {} must be finite and >= 0", c.traversal_cost));
+  if (!(c.intersection_cost > 0.0f) || !(c.intersection_cost < 1e6f))
+    bad(fmt::format("intersection_cost = {} must be finite and > 0", c.intersection_cost));
+  if (c.max_leaf_size < 1 || c.max_leaf_size > 255)
+    bad(fmt::format("max_leaf_size = {} must be in [1, 255]", c.max_leaf_size));
+  if (c.bin_count < 2 || c.bin_count > 32)
+    bad(fmt::format("bin_count = {} must be in [2, 32]", c.bin_count));
+  if (c.morton_bits != 30 && c.morton_bits != 63)
+    bad(fmt::format("morton_bits = {} must be 30 or 63", c.morton_bits));
+  if (c.treelet_leaf_count < 3 || c.treelet_leaf_count > 7)
+    bad(fmt::format("treelet_leaf_count = {} must be in [3, 7]", c.treelet_leaf_count));
+  if (c.treelet_rounds > 16) bad(fmt::format("treelet_rounds = {} must be <= 16", c.treelet_rounds));
+}
+
+Bvh2 build_bvh(std::span<const PrimRef> refs, const BuildConfig& config) {
+  check_build_config(config);
+  if (refs.empty()) return {};
+  if (refs.size() >= 0x7FFFFFFFu)
+    throw Error(ErrorCode::unsupported, fmt::format("build_bvh: {} primitives exceed 2^31 - 1", refs.size()));
+  switch (resolve_builder(config)) {
+    case Builder::median: return build_median(refs, config);
+    case Builder::sweep: return build_sweep_sah(refs, config);
+    case Builder::binned: return build_binned_sah(refs, config);
+    case Builder::lbvh: return build_lbvh(refs, config);
+    case Builder::treelet: return build_treelet(refs, config);
+  }
+  return {};
+}
+
+}  // namespace kestrel

@@ -1,0 +1,48 @@
+// SAH cost and structure figures of a Bvh2.
+#include <algorithm>
+
+#include "core/vec.h"
+#include "kestrel/bvh.h"
+
+namespace kestrel {
+
+BvhMetrics compute_metrics(const Bvh2& bvh, const BuildConfig& config) {
+  BvhMetrics m;
+  m.node_count = bvh.nodes.size();
+  m.prim_count = bvh.prim_ids.size();
+  if (bvh.empty()) return m;
+  m.leaf_size_histogram.assign(config.max_leaf_size + 1, 0);
+  double inner_area = 0, leaf_area_prims = 0;
+  double depth_sum = 0;
+  std::vector<std::pair<uint32_t, uint32_t>> stack{{0, 0}};
+  while (!stack.empty()) {
+    auto [i, depth] = stack.back();
+    stack.pop_back();
+    const Bvh2Node& node = bvh.nodes[i];
+    const double area = half_area(Bounds3{node.lo, node.hi});
+    m.max_depth = std::max(m.max_depth, depth);
+    if (node.is_leaf()) {
+      ++m.leaf_count;
+      leaf_area_prims += area * node.count;
+      depth_sum += depth;
+      if (node.count >= m.leaf_size_histogram.size()) m.leaf_size_histogram.resize(node.count + 1, 0);
+      ++m.leaf_size_histogram[node.count];
+    } else {
+      ++m.inner_count;
+      inner_area += area;
+      stack.push_back({node.index, depth + 1});
+      stack.push_back({node.index + 1, depth + 1});
+    }
+  }
+  const double root_area = half_area(Bounds3{bvh.nodes[0].lo, bvh.nodes[0].hi});
+  const double norm = root_area > 0 ? 1.0 / root_area : 0.0;
+  m.sah_cost = (config.traversal_cost * inner_area + config.intersection_cost * leaf_area_prims) * norm;
+  m.sah_cost_unit = (inner_area + leaf_area_prims) * norm;
+  m.mean_leaf_depth = m.leaf_count ? depth_sum / m.leaf_count : 0.0;
+  m.bytes_per_prim = m.prim_count ? double(m.node_count * sizeof(Bvh2Node) + m.prim_count * sizeof(uint32_t)) /
+                                        double(m.prim_count)
+                                  : 0.0;
+  return m;
+}
+
+}  // namespace kestrel

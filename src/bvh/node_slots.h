@@ -1,0 +1,40 @@
+// Deterministic node placement for parallel top-down builders.
+//
+// A subtree over n primitives has at most 2n - 1 nodes, so each subtree can be given a fixed
+// range of slots before its children are built, whatever thread builds them: a node whose
+// children pair sits at slots [d, d+1] puts the left child's descendants from d + 2 and the
+// right child's from d + 2 * left_count. The slot array has gaps (leaves holding several
+// primitives use fewer nodes); compact_slots() closes them in one depth-first pass. This is
+// what makes a parallel build bit-identical to a serial one.
+#pragma once
+#include <cstdint>
+#include <memory>
+#include <span>
+
+#include "kestrel/bvh.h"
+
+namespace kestrel {
+
+/// Uninitialised storage for 2n slots (the nodes are written before being read).
+struct NodeSlots {
+  explicit NodeSlots(size_t prim_count);
+  Bvh2Node* data() { return slots_.get(); }
+  Bvh2Node& operator[](size_t i) { return slots_[i]; }
+
+ private:
+  struct Free {
+    void operator()(Bvh2Node* p) const;
+  };
+  std::unique_ptr<Bvh2Node[], Free> slots_;
+};
+
+/// Descendant range start of the right child, given the pair at `pair` and left count.
+inline uint32_t right_descendants(uint32_t pair, size_t left_count) {
+  return pair + 2 * static_cast<uint32_t>(left_count);
+}
+
+/// Closes the gaps: the tree rooted at slot 0, with leaves indexing `ordered_prim_ids`,
+/// becomes a compact Bvh2 (depth-first, children pairs adjacent).
+Bvh2 compact_slots(NodeSlots& slots, size_t leaf_count, std::span<const uint32_t> ordered_prim_ids);
+
+}  // namespace kestrel

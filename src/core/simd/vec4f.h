@@ -1,0 +1,40 @@
+// 4-wide float vector over SSE2 (part of the x86-64 baseline, so no dispatch is needed).
+// Used for box arithmetic in builders: a PrimRef or node half loads as one Vec4f.
+#pragma once
+#include <immintrin.h>
+
+namespace kestrel::simd {
+
+struct Vec4f {
+  __m128 v;
+  Vec4f() = default;
+  explicit Vec4f(__m128 x) : v(x) {}
+  explicit Vec4f(float s) : v(_mm_set1_ps(s)) {}
+  static Vec4f load(const void* p) { return Vec4f(_mm_load_ps(static_cast<const float*>(p))); }
+  static Vec4f loadu(const void* p) { return Vec4f(_mm_loadu_ps(static_cast<const float*>(p))); }
+  void store(void* p) const { _mm_store_ps(static_cast<float*>(p), v); }
+  void storeu(void* p) const { _mm_storeu_ps(static_cast<float*>(p), v); }
+  float operator[](int i) const {
+    alignas(16) float f[4];
+    _mm_store_ps(f, v);
+    return f[i];
+  }
+};
+inline Vec4f operator+(Vec4f a, Vec4f b) { return Vec4f(_mm_add_ps(a.v, b.v)); }
+inline Vec4f operator-(Vec4f a, Vec4f b) { return Vec4f(_mm_sub_ps(a.v, b.v)); }
+inline Vec4f operator*(Vec4f a, Vec4f b) { return Vec4f(_mm_mul_ps(a.v, b.v)); }
+inline Vec4f min(Vec4f a, Vec4f b) { return Vec4f(_mm_min_ps(a.v, b.v)); }
+inline Vec4f max(Vec4f a, Vec4f b) { return Vec4f(_mm_max_ps(a.v, b.v)); }
+/// Truncating float -> int32 per lane, stored to out[4].
+inline void to_int(Vec4f a, int* out) {
+  _mm_storeu_si128(reinterpret_cast<__m128i*>(out), _mm_cvttps_epi32(a.v));
+}
+/// Half surface area of the box [lo, hi] (lanes 0..2), 0 if empty on any axis.
+inline float half_area(Vec4f lo, Vec4f hi) {
+  Vec4f d = max(hi - lo, Vec4f(0.0f));
+  alignas(16) float e[4];
+  d.store(e);
+  return e[0] * e[1] + e[1] * e[2] + e[2] * e[0];
+}
+
+}  // namespace kestrel::simd

@@ -1,0 +1,20 @@
+// PNG output through stb_image_write.
+#define STB_IMAGE_WRITE_IMPLEMENTATION
+#define STB_IMAGE_WRITE_STATIC
+#include <fmt/format.h>
+#include <stb_image_write.h>
+
+#include "kestrel/error.h"
+#include "kestrel/io.h"
+
+namespace kestrel {
+
+void write_png(const std::string& path, int width, int height, std::span<const uint8_t> rgb) {
+  if (width <= 0 || height <= 0 || rgb.size() != size_t(width) * height * 3)
+    throw Error(ErrorCode::invalid_argument,
+                fmt::format("{}: {} bytes is not a {}x{} RGB image", path, rgb.size(), width, height));
+  if (!stbi_write_png(path.c_str(), width, height, 3, rgb.data(), width * 3))
+    throw Error(ErrorCode::io_error, fmt::format("{}: cannot write PNG", path));
+}
+
+}  // namespace kestrel

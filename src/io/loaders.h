@@ -1,0 +1,20 @@
+// Scene file loaders behind load_scene().
+#pragma once
+#include <string>
+
+#include "kestrel/scene.h"
+
+namespace kestrel {
+
+/// Wavefront OBJ + MTL (tinyobjloader). Triangles numbered in `f` order, k-gons fanned.
+Scene load_obj(const std::string& path);
+/// glTF 2.0, .gltf or .glb (tinygltf): the default scene's node hierarchy flattened to
+/// world space, one mesh per (node, mesh), primitives in order.
+Scene load_gltf(const std::string& path);
+/// Built-in scenes by name ("cornell_box").
+Scene make_builtin_scene(const std::string& name);
+
+/// Throws Error(file_not_found) unless `path` names a readable regular file.
+void require_readable_file(const std::string& path);
+
+}  // namespace kestrel

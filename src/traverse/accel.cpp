@@ -1,0 +1,45 @@
+// Scene -> Accel: validation, prim refs, the BVH, and triangles copied into leaf order.
+#include <fmt/format.h>
+
+#include "core/parallel.h"
+#include "core/timer.h"
+#include "geometry/prim_ref.h"
+#include "kestrel/error.h"
+#include "traverse/traverse_bvh2.h"
+
+namespace kestrel {
+
+Accel make_accel(Bvh2 bvh, std::span<const Triangle> all_triangles) {
+  const BvhMetrics m = compute_metrics(bvh, BuildConfig{});
+  if (m.max_depth > max_traversal_depth) {
+    throw Error(ErrorCode::unsupported,
+                fmt::format("BVH depth {} exceeds the traversal limit {}", m.max_depth, max_traversal_depth));
+  }
+  Accel accel;
+  accel.triangles.resize(bvh.prim_ids.size());
+  parallel_for(0, bvh.prim_ids.size(), 16384, [&](size_t b, size_t e) {
+    for (size_t i = b; i < e; ++i) accel.triangles[i] = all_triangles[bvh.prim_ids[i]];
+  });
+  accel.bvh = std::move(bvh);
+  return accel;
+}
+
+Accel build_accel(const Scene& scene, const BuildConfig& config) {
+  Timer timer;
+  SceneValidation validation = validate_scene(scene);
+  std::vector<PrimRef> refs = make_prim_refs(scene, validation);
+  Bvh2 bvh = build_bvh(refs, config);
+  if (compute_metrics(bvh, config).max_depth > max_traversal_depth) {
+    // Pathological primitive distributions can make SAH trees very deep; the median split
+    // bounds the depth by log2(n).
+    BuildConfig fallback = config;
+    fallback.builder = Builder::median;
+    bvh = build_bvh(refs, fallback);
+  }
+  Accel accel = make_accel(std::move(bvh), gather_triangles(scene, validation));
+  accel.validation = std::move(validation);
+  accel.build_ms = timer.ms();
+  return accel;
+}
+
+}  // namespace kestrel
