@@ -20,7 +20,7 @@ struct BuildOptions {
   std::string builder;
   std::string quality = "balanced";
   float traversal_cost = 1.0f, intersection_cost = 1.0f;
-  uint32_t max_leaf_size = 8, bin_count = 16, morton_bits = 30;
+  uint32_t max_leaf_size = 8, bin_count = 32, morton_bits = 30;
   int threads = 0;
   void add_to(CLI::App& cmd);
   BuildConfig config() const;  ///< throws Error on an unknown builder/quality

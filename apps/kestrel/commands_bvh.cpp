@@ -19,7 +19,7 @@ void BuildOptions::add_to(CLI::App& cmd) {
   cmd.add_option("--traversal-cost", traversal_cost, "SAH Ct, cost of an inner node visit");
   cmd.add_option("--intersection-cost", intersection_cost, "SAH Ci, cost of a triangle test");
   cmd.add_option("--max-leaf-size", max_leaf_size, "primitives per leaf, at most");
-  cmd.add_option("--bins", bin_count, "binned SAH bins per axis (2..32)");
+  cmd.add_option("--bins", bin_count, "binned SAH bins per axis at the top levels (8..32)");
   cmd.add_option("--morton-bits", morton_bits, "lbvh/treelet Morton code bits (30 or 63)");
 }
 

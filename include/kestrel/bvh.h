@@ -42,7 +42,8 @@ struct BuildConfig {
   float traversal_cost = 1.0f;           ///< Ct: cost of visiting an inner node (2 box tests)
   float intersection_cost = 1.0f;        ///< Ci: cost of one ray-triangle test
   uint32_t max_leaf_size = 8;            ///< primitives per leaf, at most (1..255)
-  uint32_t bin_count = 16;               ///< binned: bins per axis (2..32)
+  uint32_t bin_count = 32;               ///< binned: bins per axis at the top levels (8..32;
+                                         ///< nodes of n primitives use max(8, min(n/4, this)))
   uint32_t morton_bits = 30;             ///< lbvh/treelet: 30 (10 per axis) or 63 (21 per axis)
   uint32_t treelet_leaf_count = 7;       ///< treelet: leaves per treelet (3..7)
   uint32_t treelet_rounds = 3;           ///< treelet: bottom-up restructuring passes

@@ -9,35 +9,16 @@
 
 namespace kestrel {
 
-Bounds3 child_bounds(const BinaryTree& tree, uint32_t ref) {
-  if (BinaryTree::is_leaf(ref)) {
-    const PrimRef& p = tree.leaves[BinaryTree::leaf_index(ref)];
-    return {p.lo, p.hi};
-  }
-  return tree.bounds[ref];
-}
-
-float child_area(const BinaryTree& tree, uint32_t ref) { return half_area(child_bounds(tree, ref)); }
-
-float child_cost(const BinaryTree& tree, uint32_t ref, const BuildConfig& config) {
-  if (BinaryTree::is_leaf(ref)) return config.intersection_cost * child_area(tree, ref);
-  return tree.cost[ref];
-}
-
-uint32_t child_count(const BinaryTree& tree, uint32_t ref) {
-  return BinaryTree::is_leaf(ref) ? 1u : tree.count[ref];
-}
-
-void refit_node(BinaryTree& tree, uint32_t node, const BuildConfig& config) {
-  const uint32_t l = tree.left[node], r = tree.right[node];
-  const Bounds3 b = merge(child_bounds(tree, l), child_bounds(tree, r));
-  const uint32_t n = child_count(tree, l) + child_count(tree, r);
-  const float area = half_area(b);
-  float c = config.traversal_cost * area + child_cost(tree, l, config) + child_cost(tree, r, config);
-  if (n <= config.max_leaf_size) c = std::min(c, config.intersection_cost * area * float(n));
-  tree.bounds[node] = b;
-  tree.count[node] = n;
-  tree.cost[node] = c;
+void BinaryTree::allocate(size_t n) {
+  leaves.resize(n);
+  leaf_parent.resize(n);
+  const size_t inner = n ? n - 1 : 0;
+  left.resize(inner);
+  right.resize(inner);
+  parent.resize(inner);
+  bounds.resize(inner);
+  count.resize(inner);
+  cost.resize(inner);
 }
 
 void bottom_up(BinaryTree& tree, const BuildConfig& config,
@@ -84,10 +65,9 @@ Bvh2 emit_bvh2(const BinaryTree& tree, const BuildConfig& config) {
   if (n == 0) return out;
   out.prim_ids.reserve(n);
   out.nodes.reserve(2 * n);
-  const uint32_t root = n == 1 ? BinaryTree::leaf_bit : 0u;
   // (tree reference, output node) pairs, depth first.
   std::vector<std::pair<uint32_t, uint32_t>> stack;
-  stack.push_back({root, 0});
+  stack.push_back({tree.root, 0});
   out.nodes.emplace_back();
   while (!stack.empty()) {
     auto [ref, o] = stack.back();

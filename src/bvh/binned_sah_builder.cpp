@@ -25,6 +25,9 @@ namespace {
 using simd::Vec4f;
 
 constexpr int max_bins = 32;
+// Ranges this small are split by an exact sweep over centroid-sorted primitives instead of
+// bins: cheaper than clearing and sweeping 3 x bin_count bins, and never worse in SAH.
+constexpr size_t exact_sweep_max = 12;
 constexpr size_t parallel_binning_threshold = 1u << 16;
 constexpr size_t binning_chunk = 1u << 14;
 
@@ -77,11 +80,15 @@ struct BinMapping {
     ext.store(e);
     for (int a = 0; a < 4; ++a) s[a] = e[a] > 0.0f ? float(bins) * 0.99999f / e[a] : 0.0f;
     scale = Vec4f::load(s);
+    top = Vec4f(float(bins - 1));
   }
+  // Clamped in float before truncation: two SIMD ops instead of three integer clamps.
+  // The partition calls the same function, so a reference always lands in the bin it was
+  // counted in (a mismatch could leave one side empty).
   void bin_of(Vec4f lo, Vec4f hi, int* out) const {
-    simd::to_int((lo + hi - offset) * scale, out);
-    for (int a = 0; a < 3; ++a) out[a] = std::clamp(out[a], 0, bin_count - 1);
+    simd::to_int(min(max((lo + hi - offset) * scale, Vec4f(0.0f)), top), out);
   }
+  Vec4f top = Vec4f(0.0f);
 };
 
 struct BinnedBuilder {
@@ -95,7 +102,7 @@ struct BinnedBuilder {
   Vec4f ref_hi(size_t i) const { return Vec4f::load(&refs[i].hi); }
 
   void bin_range(const BinMapping& map, size_t begin, size_t end, Bins& bins) const {
-    bins.clear(bin_count);
+    bins.clear(map.bin_count);
     int b[4];
     for (size_t i = begin; i < end; ++i) {
       Vec4f lo = ref_lo(i), hi = ref_hi(i);
@@ -119,7 +126,7 @@ struct BinnedBuilder {
                   partial[c]);
     });
     bins = partial[0];
-    for (size_t c = 1; c < chunks; ++c) bins.merge(partial[c], bin_count);
+    for (size_t c = 1; c < chunks; ++c) bins.merge(partial[c], map.bin_count);
   }
 
   void make_leaf(uint32_t slot, const RangeInfo& info) {
@@ -147,14 +154,20 @@ struct BinnedBuilder {
     const size_t n = info.end - info.begin;
     if (n == 1) return make_leaf(slot, info);
     const float node_area = simd::half_area(info.geom_lo, info.geom_hi);
-    const BinMapping map(info, bin_count);
     RangeInfo left, right;
     alignas(16) float cext[4];
     (info.cent_hi - info.cent_lo).store(cext);
     if (cext[0] <= 0.0f && cext[1] <= 0.0f && cext[2] <= 0.0f) {
       if (n <= config.max_leaf_size) return make_leaf(slot, info);
       split_middle(info, left, right);
+    } else if (n <= exact_sweep_max) {
+      if (!exact_split(info, node_area, left, right)) return make_leaf(slot, info);
     } else {
+      // Bins scale with the range: the top levels (few nodes, many references) get the full
+      // count -- coarse bins there cut through clustered objects -- while small nodes, where
+      // the per-bin sweep would dominate, get fewer.
+      const int bins_here = std::clamp(int(n / 4), 8, bin_count);
+      const BinMapping map(info, bins_here);
       Bins bins;
       bin(map, info, bins);
       // Sweep: right-to-left suffix areas, then left-to-right costs.
@@ -166,7 +179,7 @@ struct BinnedBuilder {
         uint32_t right_count[max_bins];
         Vec4f lo(std::numeric_limits<float>::infinity()), hi(-std::numeric_limits<float>::infinity());
         uint32_t count = 0;
-        for (int b = bin_count - 1; b > 0; --b) {
+        for (int b = map.bin_count - 1; b > 0; --b) {
           lo = min(lo, bins.lo[a][b]);
           hi = max(hi, bins.hi[a][b]);
           count += bins.count[a][b];
@@ -176,7 +189,7 @@ struct BinnedBuilder {
         lo = Vec4f(std::numeric_limits<float>::infinity());
         hi = Vec4f(-std::numeric_limits<float>::infinity());
         count = 0;
-        for (int b = 0; b < bin_count - 1; ++b) {
+        for (int b = 0; b < map.bin_count - 1; ++b) {
           lo = min(lo, bins.lo[a][b]);
           hi = max(hi, bins.hi[a][b]);
           count += bins.count[a][b];
@@ -212,6 +225,64 @@ struct BinnedBuilder {
       build_left();
       build_right();
     }
+  }
+
+  // Exact SAH over the sorted centroids of a small range; false when a leaf is cheaper.
+  bool exact_split(const RangeInfo& info, float node_area, RangeInfo& left, RangeInfo& right) const {
+    const size_t n = info.end - info.begin;
+    const PrimRef* r = refs + info.begin;
+    uint8_t order[3][exact_sweep_max];
+    float right_area[exact_sweep_max];
+    float best_cost = std::numeric_limits<float>::infinity();
+    int best_axis = 0;
+    size_t best_left = 0;
+    for (int a = 0; a < 3; ++a) {
+      uint8_t* o = order[a];
+      // Insertion sort of (key, index) by doubled centroid; ties keep range order, which is
+      // itself deterministic, so the result does not depend on threads.
+      float key[exact_sweep_max];
+      for (size_t i = 0; i < n; ++i) {
+        const float k = r[i].lo[a] + r[i].hi[a];
+        size_t j = i;
+        while (j > 0 && key[j - 1] > k) {
+          key[j] = key[j - 1];
+          o[j] = o[j - 1];
+          --j;
+        }
+        key[j] = k;
+        o[j] = uint8_t(i);
+      }
+      Vec4f lo(std::numeric_limits<float>::infinity()), hi(-std::numeric_limits<float>::infinity());
+      for (size_t i = n; i-- > 1;) {
+        lo = min(lo, Vec4f::load(&r[o[i]].lo));
+        hi = max(hi, Vec4f::load(&r[o[i]].hi));
+        right_area[i] = simd::half_area(lo, hi);
+      }
+      lo = Vec4f(std::numeric_limits<float>::infinity());
+      hi = Vec4f(-std::numeric_limits<float>::infinity());
+      for (size_t i = 0; i + 1 < n; ++i) {
+        lo = min(lo, Vec4f::load(&r[o[i]].lo));
+        hi = max(hi, Vec4f::load(&r[o[i]].hi));
+        const float c = split_cost(config, node_area, simd::half_area(lo, hi), i + 1, right_area[i + 1], n - i - 1);
+        if (c < best_cost) {
+          best_cost = c;
+          best_axis = a;
+          best_left = i + 1;
+        }
+      }
+    }
+    if (n <= config.max_leaf_size && leaf_cost(config, n) <= best_cost) return false;
+    PrimRef sorted[exact_sweep_max];
+    for (size_t i = 0; i < n; ++i) sorted[i] = r[order[best_axis][i]];
+    left = RangeInfo::empty_at(info.begin);
+    right = RangeInfo::empty_at(info.begin + best_left);
+    for (size_t i = 0; i < n; ++i) {
+      refs[info.begin + i] = sorted[i];
+      (i < best_left ? left : right).add(Vec4f::load(&sorted[i].lo), Vec4f::load(&sorted[i].hi));
+    }
+    left.end = info.begin + best_left;
+    right.end = info.end;
+    return true;
   }
 
   // In-place two-pointer partition that also gathers both sides' bounds.

@@ -51,8 +51,8 @@ void check_build_config(const BuildConfig& c) {
     bad(fmt::format("intersection_cost = {} must be finite and > 0", c.intersection_cost));
   if (c.max_leaf_size < 1 || c.max_leaf_size > 255)
     bad(fmt::format("max_leaf_size = {} must be in [1, 255]", c.max_leaf_size));
-  if (c.bin_count < 2 || c.bin_count > 32)
-    bad(fmt::format("bin_count = {} must be in [2, 32]", c.bin_count));
+  if (c.bin_count < 8 || c.bin_count > 32)
+    bad(fmt::format("bin_count = {} must be in [8, 32]", c.bin_count));
   if (c.morton_bits != 30 && c.morton_bits != 63)
     bad(fmt::format("morton_bits = {} must be 30 or 63", c.morton_bits));
   if (c.treelet_leaf_count < 3 || c.treelet_leaf_count > 7)

@@ -1,11 +1,21 @@
 // Linear BVH: Morton codes of the centroids (30 bits = 10 per axis, or 63 = 21 per axis),
-// a parallel radix sort, and the hierarchy emitted in parallel, one inner node per
-// adjacent key pair, as in Karras 2012 ("Maximizing parallelism in the construction of
-// BVHs, octrees, and k-d trees"). Equal codes are disambiguated by position, so duplicate
-// centroids still give a valid tree. Bounds and SAH costs are then computed bottom-up and
-// subtrees collapsed into leaves where the SAH prefers it (binary_tree.h).
+// a parallel radix sort, and the hierarchy of Karras 2012 ("Maximizing parallelism in the
+// construction of BVHs, octrees, and k-d trees"): inner node i separates sorted keys i and
+// i + 1, and every node splits its key range where its highest differing bit flips. Equal
+// codes are disambiguated by position (key, index), so duplicates still give a valid tree.
+//
+// The hierarchy is emitted bottom-up in the same pass that computes bounds and SAH costs
+// (the agglomerative order of Apetrei 2014): a range [l, r] joins the neighbouring
+// boundary, l - 1 or r, across which fewer leading bits differ; the second child to reach
+// a node continues upwards. In a sorted key sequence the highest differing bit of two
+// boundaries is never the same, so this is exactly Karras' topology (the tests check it
+// against the top-down binary-search emission below) -- with no binary searches and one
+// pass over the nodes instead of two. Subtrees are then collapsed into leaves where the
+// SAH prefers it (binary_tree.h).
 #include <algorithm>
+#include <atomic>
 #include <bit>
+#include <new>
 
 #include "bvh/binary_tree.h"
 #include "bvh/builders.h"
@@ -51,72 +61,126 @@ uint64_t morton_code<uint64_t>(Vec3 q) {
          spread_bits_21(uint64_t(q.z));
 }
 
+// "Distance" of the keys across boundary i (between sorted keys i and i + 1): the xor of
+// the (key, index) pairs, compared lexicographically. Smaller = longer common prefix.
 template <class Key>
-struct KarrasHierarchy {
-  const std::vector<Key>& keys;
-  int64_t n;
-
-  // Length of the common prefix of keys i and j (augmented by the index for equal keys),
-  // or -1 when j is out of range.
-  int delta(int64_t i, int64_t j) const {
-    if (j < 0 || j >= n) return -1;
-    Key a = keys[i], b = keys[j];
-    if (a == b) return int(sizeof(Key) * 8) + std::countl_zero(uint32_t(i ^ j));
-    return std::countl_zero(Key(a ^ b));
-  }
-
-  void emit(int64_t i, BinaryTree& tree) const {
-    const int d = delta(i, i + 1) - delta(i, i - 1) >= 0 ? 1 : -1;
-    const int delta_min = delta(i, i - d);
-    int64_t l_max = 2;
-    while (delta(i, i + l_max * d) > delta_min) l_max *= 2;
-    int64_t l = 0;
-    for (int64_t t = l_max / 2; t >= 1; t /= 2)
-      if (delta(i, i + (l + t) * d) > delta_min) l += t;
-    const int64_t j = i + l * d;
-    const int delta_node = delta(i, j);
-    int64_t s = 0;
-    for (int64_t div = 2;; div *= 2) {
-      int64_t t = (l + div - 1) / div;
-      if (delta(i, i + (s + t) * d) > delta_node) s += t;
-      if (t == 1) break;
-    }
-    const int64_t gamma = i + s * d + std::min(d, 0);
-    const uint32_t left = std::min(i, j) == gamma ? uint32_t(gamma) | BinaryTree::leaf_bit : uint32_t(gamma);
-    const uint32_t right =
-        std::max(i, j) == gamma + 1 ? uint32_t(gamma + 1) | BinaryTree::leaf_bit : uint32_t(gamma + 1);
-    tree.left[i] = left;
-    tree.right[i] = right;
-    // Each node has exactly one parent, so these writes never race.
-    if (BinaryTree::is_leaf(left)) tree.leaf_parent[gamma] = uint32_t(i);
-    else tree.parent[gamma] = uint32_t(i);
-    if (BinaryTree::is_leaf(right)) tree.leaf_parent[gamma + 1] = uint32_t(i);
-    else tree.parent[gamma + 1] = uint32_t(i);
+struct Boundary {
+  Key key_xor;
+  uint32_t index_xor;
+  bool operator<(const Boundary& o) const {
+    return key_xor < o.key_xor || (key_xor == o.key_xor && index_xor < o.index_xor);
   }
 };
 
 template <class Key>
-void build_hierarchy(std::span<const PrimRef> refs, const BuildConfig& config, int bits_per_axis,
-                     BinaryTree& tree) {
+struct SortedKeys {
+  const Key* keys;
+  uint32_t n;
+  Boundary<Key> at(uint32_t i) const { return {Key(keys[i] ^ keys[i + 1]), i ^ (i + 1)}; }
+  // Karras' delta: length of the common prefix of (key, index) at i and j; -1 out of range.
+  int delta(int64_t i, int64_t j) const {
+    if (j < 0 || j >= int64_t(n)) return -1;
+    const Key a = keys[i], b = keys[j];
+    if (a == b) return int(sizeof(Key) * 8) + std::countl_zero(uint32_t(i ^ j));
+    return std::countl_zero(Key(a ^ b));
+  }
+};
+
+inline void set_parent(BinaryTree& tree, uint32_t child, uint32_t parent) {
+  if (BinaryTree::is_leaf(child)) tree.leaf_parent[BinaryTree::leaf_index(child)] = parent;
+  else tree.parent[child] = parent;
+}
+
+// Bottom-up emission with bounds and costs (see the file comment).
+template <class Key>
+void emit_bottom_up(const SortedKeys<Key>& sk, BinaryTree& tree, const BuildConfig& config) {
+  const uint32_t n = sk.n;
+  constexpr uint32_t none = 0xFFFFFFFFu;
+  RawArray<std::atomic<uint32_t>> other(n - 1);
+  parallel_for(0, n - 1, 65536, [&](size_t b, size_t e) {
+    for (size_t i = b; i < e; ++i) new (&other[i]) std::atomic<uint32_t>(none);
+  });
+  parallel_for(0, n, 8192, [&](size_t b, size_t e) {
+    for (uint32_t i = uint32_t(b); i < uint32_t(e); ++i) {
+      uint32_t l = i, r = i, node = i | BinaryTree::leaf_bit;
+      while (true) {
+        if (l == 0 && r == n - 1) {
+          tree.root = node;
+          set_parent(tree, node, BinaryTree::no_parent);
+          break;
+        }
+        const bool join_right = l == 0 || (r != n - 1 && sk.at(r) < sk.at(l - 1));
+        const uint32_t parent = join_right ? r : l - 1;
+        (join_right ? tree.left : tree.right)[parent] = node;
+        set_parent(tree, node, parent);
+        // The first child to arrive leaves its outer bound and stops; the second takes it
+        // (acq_rel: it also sees the first child's writes).
+        const uint32_t bound = other[parent].exchange(join_right ? l : r, std::memory_order_acq_rel);
+        if (bound == none) break;
+        (join_right ? r : l) = bound;
+        node = parent;
+        refit_node(tree, parent, config);
+      }
+    }
+  });
+}
+
+// Top-down emission with binary searches (Karras 2012, Figure 4), then bounds bottom-up.
+template <class Key>
+void emit_top_down(const SortedKeys<Key>& sk, BinaryTree& tree, const BuildConfig& config) {
+  const int64_t n = sk.n;
+  parallel_for(0, size_t(n - 1), 4096, [&](size_t b, size_t e) {
+    for (int64_t i = int64_t(b); i < int64_t(e); ++i) {
+      const int d = sk.delta(i, i + 1) - sk.delta(i, i - 1) >= 0 ? 1 : -1;
+      const int delta_min = sk.delta(i, i - d);
+      int64_t l_max = 2;
+      while (sk.delta(i, i + l_max * d) > delta_min) l_max *= 2;
+      int64_t l = 0;
+      for (int64_t t = l_max / 2; t >= 1; t /= 2)
+        if (sk.delta(i, i + (l + t) * d) > delta_min) l += t;
+      const int64_t j = i + l * d;
+      const int delta_node = sk.delta(i, j);
+      int64_t s = 0;
+      for (int64_t div = 2;; div *= 2) {
+        const int64_t t = (l + div - 1) / div;
+        if (sk.delta(i, i + (s + t) * d) > delta_node) s += t;
+        if (t == 1) break;
+      }
+      const int64_t gamma = i + s * d + std::min(d, 0);
+      const uint32_t left = std::min(i, j) == gamma ? uint32_t(gamma) | BinaryTree::leaf_bit : uint32_t(gamma);
+      const uint32_t right = std::max(i, j) == gamma + 1 ? uint32_t(gamma + 1) | BinaryTree::leaf_bit : uint32_t(gamma + 1);
+      tree.left[i] = left;
+      tree.right[i] = right;
+      set_parent(tree, left, uint32_t(i));  // one parent per node: no races
+      set_parent(tree, right, uint32_t(i));
+    }
+  });
+  tree.root = 0;
+  tree.parent[0] = BinaryTree::no_parent;
+  bottom_up(tree, config, nullptr, nullptr);
+}
+
+template <class Key>
+BinaryTree build_tree(std::span<const PrimRef> refs, const BuildConfig& config, int bits_per_axis, bool top_down) {
   const size_t n = refs.size();
+  BinaryTree tree;
+  tree.allocate(n);
   // Centroid bounds, reduced over fixed chunks.
   constexpr size_t chunk = 1u << 14;
   const size_t chunks = chunk_count(n, chunk);
   std::vector<Bounds3> partial(chunks);
   parallel_for(0, chunks, 1, [&](size_t cb, size_t ce) {
     for (size_t c = cb; c < ce; ++c)
-      for (size_t i = c * chunk; i < std::min(n, (c + 1) * chunk); ++i)
-        extend(partial[c], refs[i].lo + refs[i].hi);
+      for (size_t i = c * chunk; i < std::min(n, (c + 1) * chunk); ++i) extend(partial[c], refs[i].lo + refs[i].hi);
   });
   Bounds3 cb;
   for (const Bounds3& p : partial) extend(cb, p);
   const float cells = float(1u << bits_per_axis);
   const Vec3 ext = extent(cb);
-  const Vec3 scale{ext.x > 0 ? cells / ext.x : 0.0f, ext.y > 0 ? cells / ext.y : 0.0f,
-                   ext.z > 0 ? cells / ext.z : 0.0f};
+  const Vec3 scale{ext.x > 0 ? cells / ext.x : 0.0f, ext.y > 0 ? cells / ext.y : 0.0f, ext.z > 0 ? cells / ext.z : 0.0f};
   const float top = cells - 1.0f;
-  std::vector<Key> keys(n);
-  std::vector<uint32_t> order(n);
+  RawArray<Key> keys(n);
+  RawArray<uint32_t> order(n);
   parallel_for(0, n, 16384, [&](size_t b, size_t e) {
     for (size_t i = b; i < e; ++i) {
       Vec3 q = (refs[i].lo + refs[i].hi - cb.lo) * scale;
@@ -126,41 +190,33 @@ void build_hierarchy(std::span<const PrimRef> refs, const BuildConfig& config, i
     }
   });
   radix_sort(keys, order, 3 * bits_per_axis);
-
-  tree.leaves.resize(n);
   parallel_for(0, n, 16384, [&](size_t b, size_t e) {
     for (size_t i = b; i < e; ++i) tree.leaves[i] = refs[order[i]];
   });
-  const size_t inner = n - 1;
-  tree.left.resize(inner);
-  tree.right.resize(inner);
-  tree.parent.resize(inner);
-  tree.leaf_parent.resize(n);
-  tree.bounds.resize(inner);
-  tree.count.resize(inner);
-  tree.cost.resize(inner);
-  if (inner == 0) {
+  if (n == 1) {
+    tree.root = BinaryTree::leaf_bit;
     tree.leaf_parent[0] = BinaryTree::no_parent;
-    return;
+    return tree;
   }
-  tree.parent[0] = BinaryTree::no_parent;
-  KarrasHierarchy<Key> h{keys, int64_t(n)};
-  parallel_for(0, inner, 4096, [&](size_t b, size_t e) {
-    for (size_t i = b; i < e; ++i) h.emit(int64_t(i), tree);
-  });
-  bottom_up(tree, config, nullptr, nullptr);
+  const SortedKeys<Key> sk{keys.data(), uint32_t(n)};
+  if (top_down) emit_top_down(sk, tree, config);
+  else emit_bottom_up(sk, tree, config);
+  return tree;
+}
+
+BinaryTree build_any(std::span<const PrimRef> refs, const BuildConfig& config, bool top_down) {
+  return config.morton_bits == 63 ? build_tree<uint64_t>(refs, config, 21, top_down)
+                                  : build_tree<uint32_t>(refs, config, 10, top_down);
 }
 
 }  // namespace
 
 BinaryTree build_lbvh_tree(std::span<const PrimRef> refs, const BuildConfig& config) {
-  BinaryTree tree;
-  if (config.morton_bits == 63) {
-    build_hierarchy<uint64_t>(refs, config, 21, tree);
-  } else {
-    build_hierarchy<uint32_t>(refs, config, 10, tree);
-  }
-  return tree;
+  return build_any(refs, config, /* top_down = */ false);
+}
+
+BinaryTree build_lbvh_tree_karras(std::span<const PrimRef> refs, const BuildConfig& config) {
+  return build_any(refs, config, /* top_down = */ true);
 }
 
 Bvh2 build_lbvh(std::span<const PrimRef> refs, const BuildConfig& config) {

@@ -2,13 +2,13 @@
 // Chunks are fixed by size, not by thread, so the output never depends on the thread count.
 #pragma once
 #include <cstdint>
-#include <vector>
+#include "core/raw_array.h"
 
 namespace kestrel {
 
 /// Sorts keys ascending (low `key_bits` bits significant), permuting values alongside.
-void radix_sort(std::vector<uint32_t>& keys, std::vector<uint32_t>& values, int key_bits);
+void radix_sort(RawArray<uint32_t>& keys, RawArray<uint32_t>& values, int key_bits);
 /// 64-bit keys (e.g. 63-bit Morton codes).
-void radix_sort(std::vector<uint64_t>& keys, std::vector<uint32_t>& values, int key_bits);
+void radix_sort(RawArray<uint64_t>& keys, RawArray<uint32_t>& values, int key_bits);
 
 }  // namespace kestrel

@@ -1,46 +1,80 @@
 #include "geometry/prim_ref.h"
 
+#include <algorithm>
+
 #include "core/parallel.h"
+#include "core/raw_array.h"
 #include "core/vec.h"
+#include "geometry/triangle_classify.h"
 
 namespace kestrel {
 
 namespace {
+
 // Visits (global id, mesh, local triangle) in parallel chunks, mesh by mesh.
 template <class F>
 void for_each_triangle(const Scene& scene, F&& f) {
   size_t offset = 0;
   for (const TriangleMesh& mesh : scene.meshes) {
-    size_t n = mesh.triangle_count();
+    const size_t n = mesh.triangle_count();
     parallel_for(0, n, 16384, [&](size_t b, size_t e) {
       for (size_t i = b; i < e; ++i) f(offset + i, mesh, i);
     });
     offset += n;
   }
 }
+
+PrimRef triangle_ref(const TriangleMesh& mesh, size_t t, uint32_t gid) {
+  const uint32_t* idx = &mesh.indices[3 * t];
+  const Vec3 a = mesh.positions[idx[0]], b = mesh.positions[idx[1]], c = mesh.positions[idx[2]];
+  PrimRef r;
+  r.lo = min(min(a, b), c);
+  r.hi = max(max(a, b), c);
+  r.prim_id = gid;
+  return r;
+}
+
+// Slot of each valid triangle among the valid ones (exclusive scan), and their count.
+size_t valid_slots(std::span<const uint8_t> valid, std::vector<uint32_t>& slot) {
+  slot.resize(valid.size());
+  uint32_t running = 0;
+  for (size_t i = 0; i < valid.size(); ++i) {
+    slot[i] = running;
+    running += valid[i];
+  }
+  return running;
+}
+
 }  // namespace
 
 std::vector<PrimRef> make_prim_refs(const Scene& scene, const SceneValidation& validation) {
-  // Exclusive scan of validity gives each valid triangle its slot, independent of threads.
-  const size_t total = validation.valid.size();
-  std::vector<uint32_t> slot(total);
-  uint32_t running = 0;
-  for (size_t i = 0; i < total; ++i) {
-    slot[i] = running;
-    running += validation.valid[i];
-  }
-  std::vector<PrimRef> refs(running);
+  std::vector<uint32_t> slot;
+  std::vector<PrimRef> refs(valid_slots(validation.valid, slot));
   for_each_triangle(scene, [&](size_t gid, const TriangleMesh& mesh, size_t t) {
-    if (!validation.valid[gid]) return;
-    const uint32_t* idx = &mesh.indices[3 * t];
-    Bounds3 b;
-    extend(b, mesh.positions[idx[0]]);
-    extend(b, mesh.positions[idx[1]]);
-    extend(b, mesh.positions[idx[2]]);
-    PrimRef& r = refs[slot[gid]];
-    r.lo = b.lo;
-    r.hi = b.hi;
-    r.prim_id = static_cast<uint32_t>(gid);
+    if (validation.valid[gid]) refs[slot[gid]] = triangle_ref(mesh, t, uint32_t(gid));
+  });
+  return refs;
+}
+
+std::vector<PrimRef> validate_and_make_prim_refs(const Scene& scene, SceneValidation& validation) {
+  const size_t total = scene.triangle_count();
+  std::vector<uint8_t> kind(total);
+  RawArray<PrimRef> all(total);
+  size_t offset = 0;
+  for (const TriangleMesh& mesh : scene.meshes) {
+    if (mesh.triangle_count() == 0) ++validation.report.empty_mesh_count;
+    offset += mesh.triangle_count();
+  }
+  for_each_triangle(scene, [&](size_t gid, const TriangleMesh& mesh, size_t t) {
+    kind[gid] = classify_triangle(mesh, t);
+    if (kind[gid] == tri_valid) all[gid] = triangle_ref(mesh, t, uint32_t(gid));
+  });
+  tally(kind, validation);
+  std::vector<uint32_t> slot;
+  std::vector<PrimRef> refs(valid_slots(validation.valid, slot));
+  parallel_for(0, total, 65536, [&](size_t b, size_t e) {
+    for (size_t i = b; i < e; ++i)
+      if (validation.valid[i]) refs[slot[i]] = all[i];
   });
   return refs;
 }
@@ -51,6 +85,27 @@ std::vector<Triangle> gather_triangles(const Scene& scene, const SceneValidation
     if (!validation.valid[gid]) return;
     const uint32_t* idx = &mesh.indices[3 * t];
     tris[gid] = {mesh.positions[idx[0]], mesh.positions[idx[1]], mesh.positions[idx[2]]};
+  });
+  return tris;
+}
+
+std::vector<Triangle> gather_triangles(const Scene& scene, std::span<const uint32_t> prim_ids) {
+  // First global id of each mesh, to map a global id back to (mesh, local triangle).
+  std::vector<size_t> first;
+  size_t offset = 0;
+  for (const TriangleMesh& mesh : scene.meshes) {
+    first.push_back(offset);
+    offset += mesh.triangle_count();
+  }
+  std::vector<Triangle> tris(prim_ids.size());
+  parallel_for(0, prim_ids.size(), 16384, [&](size_t b, size_t e) {
+    for (size_t i = b; i < e; ++i) {
+      const uint32_t gid = prim_ids[i];
+      const size_t m = size_t(std::upper_bound(first.begin(), first.end(), size_t(gid)) - first.begin()) - 1;
+      const TriangleMesh& mesh = scene.meshes[m];
+      const uint32_t* idx = &mesh.indices[3 * (gid - first[m])];
+      tris[i] = {mesh.positions[idx[0]], mesh.positions[idx[1]], mesh.positions[idx[2]]};
+    }
   });
   return tris;
 }

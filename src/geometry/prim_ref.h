@@ -1,5 +1,6 @@
 // Turning scene triangles into builder input (PrimRefs) and intersection input (Triangles).
 #pragma once
+#include <span>
 #include <vector>
 
 #include "kestrel/bvh.h"
@@ -11,7 +12,14 @@ namespace kestrel {
 /// parallel. Invalid triangles (see validate_scene) are skipped.
 std::vector<PrimRef> make_prim_refs(const Scene& scene, const SceneValidation& validation);
 
+/// Validation and PrimRefs in one pass over the vertices (each triangle's vertices are read
+/// once): what build_accel uses.
+std::vector<PrimRef> validate_and_make_prim_refs(const Scene& scene, SceneValidation& validation);
+
 /// All triangles of the scene by global id (invalid ones are zero triangles: never hit).
 std::vector<Triangle> gather_triangles(const Scene& scene, const SceneValidation& validation);
+
+/// The triangles of the given global prim ids, in that order (e.g. a BVH's leaf order).
+std::vector<Triangle> gather_triangles(const Scene& scene, std::span<const uint32_t> prim_ids);
 
 }  // namespace kestrel

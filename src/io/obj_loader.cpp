@@ -14,6 +14,7 @@
 #include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <limits>
 #include <sstream>
 #include <unordered_map>
 
@@ -28,10 +29,9 @@ namespace {
   throw Error(ErrorCode::parse_error, fmt::format("{}:{}: {}", path, line, what));
 }
 
-bool parse_float(const char*& p, const char* end) {
+bool parse_float(const char*& p, const char* end, float& v) {
   while (p < end && (*p == ' ' || *p == '\t')) ++p;
   if (p >= end) return false;
-  float v;
   auto [next, ec] = std::from_chars(p, end, v);
   if (ec != std::errc() && ec != std::errc::result_out_of_range) return false;
   if (next < end && !(*next == ' ' || *next == '\t' || *next == '\r')) return false;
@@ -40,7 +40,11 @@ bool parse_float(const char*& p, const char* end) {
 }
 
 // Checks `v x y z [w]` and `f a b c ...` (each a, a/b, a//c or a/b/c, non-zero integers).
-void check_obj_lines(const std::string& path, const std::string& text) {
+// Returns the (0-based) ids of vertices with a NaN or Inf coordinate: tinyobjloader reads
+// those as 0, which would turn a corrupt vertex into a plausible one.
+std::vector<size_t> check_obj_lines(const std::string& path, const std::string& text) {
+  std::vector<size_t> nonfinite;
+  size_t vertex_id = 0;
   size_t line = 0;
   const char* p = text.data();
   const char* const end = p + text.size();
@@ -52,8 +56,14 @@ void check_obj_lines(const std::string& path, const std::string& text) {
     while (q < eol && (*q == ' ' || *q == '\t')) ++q;
     if (q + 1 < eol && q[0] == 'v' && (q[1] == ' ' || q[1] == '\t')) {
       q += 1;
-      for (int k = 0; k < 3; ++k)
-        if (!parse_float(q, eol)) malformed(path, line, "vertex needs three numbers");
+      bool finite = true;
+      for (int k = 0; k < 3; ++k) {
+        float value;
+        if (!parse_float(q, eol, value)) malformed(path, line, "vertex needs three numbers");
+        finite &= std::isfinite(value);
+      }
+      if (!finite) nonfinite.push_back(vertex_id);
+      ++vertex_id;
     } else if (q + 1 < eol && q[0] == 'f' && (q[1] == ' ' || q[1] == '\t')) {
       q += 1;
       int corners = 0;
@@ -79,6 +89,7 @@ void check_obj_lines(const std::string& path, const std::string& text) {
     }
     p = eol + 1;
   }
+  return nonfinite;
 }
 
 struct CornerKey {
@@ -118,7 +129,7 @@ Scene load_obj(const std::string& path) {
     std::ifstream f(path, std::ios::binary);
     text.assign(std::istreambuf_iterator<char>(f), std::istreambuf_iterator<char>());
   }
-  check_obj_lines(path, text);
+  const std::vector<size_t> nonfinite_vertices = check_obj_lines(path, text);
 
   // The MTL files named by `mtllib` are read here and handed over as text, so a missing
   // .mtl is not fatal (its materials fall back to the default).
@@ -144,6 +155,9 @@ Scene load_obj(const std::string& path) {
     throw Error(ErrorCode::parse_error, fmt::format("{}: {}", path, reader.Error()));
   const std::vector<tinyobj::material_t>& materials = reader.GetMaterials();
   const tinyobj::attrib_t& attrib = reader.GetAttrib();
+  std::vector<float> vertices = attrib.vertices;
+  for (size_t v : nonfinite_vertices)
+    if (3 * v + 2 < vertices.size()) vertices[3 * v] = std::numeric_limits<float>::quiet_NaN();
   Scene scene;
   scene.source = path;
   for (const auto& m : materials) scene.materials.push_back(convert_material(m));
@@ -152,13 +166,13 @@ Scene load_obj(const std::string& path) {
 
   TriangleMesh mesh;
   mesh.name = std::filesystem::path(path).stem().string();
-  const size_t vertex_count = attrib.vertices.size() / 3;
+  const size_t vertex_count = vertices.size() / 3;
   const bool has_extra = !attrib.normals.empty() || !attrib.texcoords.empty();
   std::unordered_map<CornerKey, uint32_t, CornerHash> corner_of;
   if (!has_extra) {
     mesh.positions.resize(vertex_count);
     for (size_t i = 0; i < vertex_count; ++i)
-      mesh.positions[i] = {attrib.vertices[3 * i], attrib.vertices[3 * i + 1], attrib.vertices[3 * i + 2]};
+      mesh.positions[i] = {vertices[3 * i], vertices[3 * i + 1], vertices[3 * i + 2]};
   }
   // Out-of-range corners map to an index past the vertex array: validation counts them.
   const uint32_t bad_index = 0xFFFFFFFFu;
@@ -169,7 +183,7 @@ Scene load_obj(const std::string& path) {
                                              uint32_t(mesh.positions.size()));
     if (fresh) {
       const int v = c.vertex_index;
-      mesh.positions.push_back({attrib.vertices[3 * v], attrib.vertices[3 * v + 1], attrib.vertices[3 * v + 2]});
+      mesh.positions.push_back({vertices[3 * v], vertices[3 * v + 1], vertices[3 * v + 2]});
       if (!attrib.normals.empty()) {
         const int n = c.normal_index;
         mesh.normals.push_back(n >= 0 && size_t(3 * n + 2) < attrib.normals.size()

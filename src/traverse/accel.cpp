@@ -26,8 +26,8 @@ Accel make_accel(Bvh2 bvh, std::span<const Triangle> all_triangles) {
 
 Accel build_accel(const Scene& scene, const BuildConfig& config) {
   Timer timer;
-  SceneValidation validation = validate_scene(scene);
-  std::vector<PrimRef> refs = make_prim_refs(scene, validation);
+  SceneValidation validation;
+  std::vector<PrimRef> refs = validate_and_make_prim_refs(scene, validation);
   Bvh2 bvh = build_bvh(refs, config);
   if (compute_metrics(bvh, config).max_depth > max_traversal_depth) {
     // Pathological primitive distributions can make SAH trees very deep; the median split
@@ -36,7 +36,9 @@ Accel build_accel(const Scene& scene, const BuildConfig& config) {
     fallback.builder = Builder::median;
     bvh = build_bvh(refs, fallback);
   }
-  Accel accel = make_accel(std::move(bvh), gather_triangles(scene, validation));
+  Accel accel;
+  accel.triangles = gather_triangles(scene, bvh.prim_ids);
+  accel.bvh = std::move(bvh);
   accel.validation = std::move(validation);
   accel.build_ms = timer.ms();
   return accel;

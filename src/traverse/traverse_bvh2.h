@@ -13,28 +13,38 @@ namespace kestrel {
 /// Deepest tree the fixed traversal stack supports; build_accel guarantees it.
 inline constexpr uint32_t max_traversal_depth = 255;
 
-/// Ray data for slab tests. Zero direction components are replaced by a tiny value of the
-/// same sign, so 1/d is finite and (lo - org) * inv never makes 0 * inf = NaN for rays
-/// parallel to an axis or lying in a slab plane.
+/// Ray data for slab tests (Williams et al. 2005 with the robustness of Ize 2013).
+/// inv = 1 / dir, so an axis-parallel ray has inv = +-inf; the near and far planes of each
+/// axis are picked by the sign bit of dir, not by comparing the two distances. When the
+/// origin lies exactly on a slab plane, (plane - org) * inf is NaN, and the comparisons
+/// below ignore NaN: the slab is then inclusive, so a ray running along a box face still
+/// reaches the triangles whose edges lie on that face.
 struct SlabRay {
   Vec3 org, inv;
+  int near_is_hi[3];  // 1 when dir < 0 on the axis (or -0): enter through the box's hi plane
   explicit SlabRay(const Ray& r) : org(r.org) {
-    auto safe_inv = [](float d) {
-      constexpr float tiny = 1e-30f;
-      return 1.0f / (std::fabs(d) < tiny ? std::copysign(tiny, d) : d);
-    };
-    inv = {safe_inv(r.dir.x), safe_inv(r.dir.y), safe_inv(r.dir.z)};
+    inv = {1.0f / r.dir.x, 1.0f / r.dir.y, 1.0f / r.dir.z};
+    near_is_hi[0] = std::signbit(r.dir.x);
+    near_is_hi[1] = std::signbit(r.dir.y);
+    near_is_hi[2] = std::signbit(r.dir.z);
   }
+  // max / min that keep `acc` when `candidate` is NaN (acc is never NaN).
+  static float max_keep(float candidate, float acc) { return candidate > acc ? candidate : acc; }
+  static float min_keep(float candidate, float acc) { return candidate < acc ? candidate : acc; }
   /// Entry distance into the node's box if it overlaps (tmin, tmax), else +inf.
-  /// tfar is scaled by 1 + 2 gamma(3) (Ize 2013) so rounding never loses a box the
-  /// watertight triangle test would hit.
+  /// tfar is scaled by 1 + 2 gamma(3) so rounding never loses a box the watertight
+  /// triangle test would hit.
   float enter(const Bvh2Node& n, float tmin, float tmax) const {
-    float tx0 = (n.lo.x - org.x) * inv.x, tx1 = (n.hi.x - org.x) * inv.x;
-    float ty0 = (n.lo.y - org.y) * inv.y, ty1 = (n.hi.y - org.y) * inv.y;
-    float tz0 = (n.lo.z - org.z) * inv.z, tz1 = (n.hi.z - org.z) * inv.z;
-    float tnear = std::fmax(std::fmax(std::fmin(tx0, tx1), std::fmin(ty0, ty1)), std::fmax(std::fmin(tz0, tz1), tmin));
-    float tfar = std::fmin(std::fmin(std::fmax(tx0, tx1), std::fmax(ty0, ty1)), std::fmax(tz0, tz1));
-    tfar = std::fmin(tfar * 1.0000003576f, tmax);
+    const float* lo = &n.lo.x;
+    const float* hi = &n.hi.x;
+    float tnear = tmin, tfar = tmax;
+    for (int a = 0; a < 3; ++a) {
+      const float o = (&org.x)[a], i = (&inv.x)[a];
+      const float t_near = ((near_is_hi[a] ? hi[a] : lo[a]) - o) * i;
+      const float t_far = ((near_is_hi[a] ? lo[a] : hi[a]) - o) * i * 1.0000003576f;
+      tnear = max_keep(t_near, tnear);
+      tfar = min_keep(t_far, tfar);
+    }
     return tnear <= tfar ? tnear : INFINITY;
   }
 };

@@ -30,11 +30,13 @@ inline void to_int(Vec4f a, int* out) {
   _mm_storeu_si128(reinterpret_cast<__m128i*>(out), _mm_cvttps_epi32(a.v));
 }
 /// Half surface area of the box [lo, hi] (lanes 0..2), 0 if empty on any axis.
+/// d.x*d.y + d.y*d.z + d.z*d.x as d * d.yzx, summed over lanes 0..2, all in registers.
 inline float half_area(Vec4f lo, Vec4f hi) {
-  Vec4f d = max(hi - lo, Vec4f(0.0f));
-  alignas(16) float e[4];
-  d.store(e);
-  return e[0] * e[1] + e[1] * e[2] + e[2] * e[0];
+  const __m128 d = _mm_max_ps(_mm_sub_ps(hi.v, lo.v), _mm_setzero_ps());
+  const __m128 p = _mm_mul_ps(d, _mm_shuffle_ps(d, d, _MM_SHUFFLE(3, 0, 2, 1)));
+  __m128 s = _mm_add_ss(p, _mm_shuffle_ps(p, p, _MM_SHUFFLE(1, 1, 1, 1)));
+  s = _mm_add_ss(s, _mm_movehl_ps(p, p));
+  return _mm_cvtss_f32(s);
 }
 
 }  // namespace kestrel::simd

@@ -1,0 +1,110 @@
+// The `kestrel` binary end to end: help, errors and exit codes, and a rays -> trace -> hits
+// round trip checked against the library.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <array>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <sys/wait.h>
+
+#include "kestrel/kestrel.h"
+#include "support/oracles.h"
+
+namespace kestrel {
+namespace {
+
+struct CliRun {
+  int status;
+  std::string out;  // stdout and stderr
+};
+
+CliRun run(const std::string& args) {
+  const std::string cmd = std::string(KESTREL_CLI) + " " + args + " 2>&1";
+  CliRun r{0, ""};
+  FILE* p = popen(cmd.c_str(), "r");
+  std::array<char, 4096> buf;
+  while (size_t n = fread(buf.data(), 1, buf.size(), p)) r.out.append(buf.data(), n);
+  const int st = pclose(p);
+  r.status = WIFEXITED(st) ? WEXITSTATUS(st) : -1;
+  return r;
+}
+
+TEST(Cli, HelpForEveryCommand) {
+  for (const char* c : {"", "bvh", "trace", "rays", "preview"}) {
+    const CliRun r = run(std::string(c) + " --help");
+    EXPECT_EQ(r.status, 0) << c << ": " << r.out;
+    EXPECT_NE(r.out.find("Usage"), std::string::npos) << c;
+  }
+}
+
+TEST(Cli, BadInputIsAOneLineErrorAndNonZeroExit) {
+  CliRun r = run("bvh /nonexistent/model.obj");
+  EXPECT_EQ(r.status, 1);
+  EXPECT_NE(r.out.find("/nonexistent/model.obj"), std::string::npos) << r.out;
+  EXPECT_EQ(std::count(r.out.begin(), r.out.end(), '\n'), 1) << r.out;
+  r = run("bvh builtin:cornell_box --builder quantum");
+  EXPECT_NE(r.status, 0);
+  EXPECT_NE(r.out.find("quantum"), std::string::npos) << r.out;
+  r = run("bvh builtin:cornell_box --bins 99");
+  EXPECT_NE(r.status, 0);
+  r = run("trace builtin:cornell_box --rays /nonexistent.rays --hits /tmp/x.hits");
+  EXPECT_EQ(r.status, 1);
+  r = run("frobnicate");
+  EXPECT_NE(r.status, 0);
+  r = run("preview --res 0x10");
+  EXPECT_EQ(r.status, 1);
+  const std::string nan_obj = test::write_temp_file("all_nan.obj", "v nan 0 0\nv 0 nan 0\nv 0 0 nan\nf 1 2 3\n");
+  r = run("bvh " + nan_obj);
+  EXPECT_EQ(r.status, 1);
+  EXPECT_NE(r.out.find("no valid triangle"), std::string::npos) << r.out;
+}
+
+TEST(Cli, BvhReportsMetricsAsJson) {
+  const CliRun r = run("bvh builtin:cornell_box --builder sweep --threads 1 --repeat 2 --json");
+  ASSERT_EQ(r.status, 0) << r.out;
+  for (const char* key : {"\"sah_cost\"", "\"build_ms\"", "\"leaf_size_histogram\"", "\"bytes_per_prim\"", "\"valid\": true"})
+    EXPECT_NE(r.out.find(key), std::string::npos) << key;
+}
+
+TEST(Cli, RaysTraceHitsRoundTripMatchesTheLibrary) {
+  const auto dir = std::filesystem::temp_directory_path() / "kestrel_tests";
+  std::filesystem::create_directories(dir);
+  const std::string rays = (dir / "cb.rays").string(), hits = (dir / "cb.hits").string();
+  for (const char* kind : {"primary", "diffuse"}) {
+    CliRun r = run(std::string("rays builtin:cornell_box --kind ") + kind + " --res 64x48 -o " + rays);
+    ASSERT_EQ(r.status, 0) << r.out;
+    for (const char* builder : {"binned", "lbvh"}) {
+      r = run("trace builtin:cornell_box --rays " + rays + " --hits " + hits + " --builder " + builder + " --threads 2");
+      ASSERT_EQ(r.status, 0) << r.out;
+      EXPECT_NE(r.out.find("Mrays/s"), std::string::npos);
+      const auto in = read_rays(rays);
+      const auto out = read_hits(hits);
+      ASSERT_EQ(in.size(), out.size());
+      const Accel accel = build_accel(load_scene("builtin:cornell_box"), BuildConfig{});
+      for (size_t i = 0; i < in.size(); ++i) {
+        const Hit h = intersect(accel, in[i]);
+        ASSERT_EQ(out[i].hit(), h.hit()) << i;
+        if (h.hit()) ASSERT_EQ(out[i].t, h.t) << i;
+      }
+    }
+    r = run("trace builtin:cornell_box --any-hit --rays " + rays + " --hits " + hits);
+    ASSERT_EQ(r.status, 0) << r.out;
+  }
+}
+
+TEST(Cli, PreviewWritesAPng) {
+  const std::string png = (std::filesystem::temp_directory_path() / "kestrel_tests" / "p.png").string();
+  std::filesystem::create_directories(std::filesystem::path(png).parent_path());
+  std::filesystem::remove(png);
+  const CliRun r = run("preview -o " + png + " --res 64x64");
+  ASSERT_EQ(r.status, 0) << r.out;
+  std::ifstream f(png, std::ios::binary);
+  char sig[8] = {};
+  f.read(sig, 8);
+  EXPECT_EQ(std::string(sig + 1, 3), "PNG");
+}
+
+}  // namespace
+}  // namespace kestrel

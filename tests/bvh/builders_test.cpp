@@ -1,0 +1,257 @@
+// Every builder against the oracles: validate(), brute force ray by ray, serial vs
+// parallel bit-identity, SAH ordering, and the LBVH's two emissions.
+#include <gtest/gtest.h>
+
+#include <cstring>
+
+#include "bvh/binary_tree.h"
+#include "geometry/prim_ref.h"
+#include "kestrel/kestrel.h"
+#include "support/oracles.h"
+
+namespace kestrel {
+namespace {
+
+using test::all_builders;
+
+BuildConfig config_for(Builder b) {
+  BuildConfig c;
+  c.builder = b;
+  return c;
+}
+
+std::vector<PrimRef> refs_of(const Scene& scene) { return make_prim_refs(scene, validate_scene(scene)); }
+
+class EveryBuilder : public ::testing::TestWithParam<Builder> {};
+
+TEST_P(EveryBuilder, ValidOnRandomSoups) {
+  for (uint64_t seed : {1, 2, 3}) {
+    for (size_t n : {1, 2, 3, 7, 100, 5000}) {
+      const Scene scene = test::random_soup(n, 0.1f, seed);
+      const auto refs = refs_of(scene);
+      const BuildConfig config = config_for(GetParam());
+      const Bvh2 bvh = build_bvh(refs, config);
+      EXPECT_EQ(validate_bvh(bvh, refs, config.max_leaf_size), "") << "n = " << n << ", seed " << seed;
+    }
+  }
+}
+
+TEST_P(EveryBuilder, MatchesBruteForceRayByRay) {
+  const Scene scene = test::random_soup(3000, 0.08f, 7);
+  const test::Soup soup = test::flatten(scene);
+  const Accel accel = build_accel(scene, config_for(GetParam()));
+  const auto rays = test::random_rays(4000, 11);
+  size_t hits = 0;
+  for (size_t i = 0; i < rays.size(); ++i) {
+    const Hit want = intersect_brute_force(soup.triangles, soup.valid, rays[i], false);
+    const Hit got = intersect(accel, rays[i]);
+    ASSERT_EQ(got.hit(), want.hit()) << "ray " << i;
+    if (!want.hit()) continue;
+    ++hits;
+    // Same watertight test on the same vertices: t is bit-identical. A different prim is
+    // only allowed when it is hit at exactly the same t (shared edges, duplicates).
+    ASSERT_EQ(got.t, want.t) << "ray " << i;
+    if (got.prim_id != want.prim_id) {
+      Ray r = rays[i];
+      const Hit alt = intersect_brute_force(std::span(&soup.triangles[got.prim_id], 1), {}, r, false);
+      ASSERT_EQ(alt.t, want.t) << "ray " << i << " hit prim " << got.prim_id << " at a different t";
+    }
+    const Hit any = intersect_any(accel, rays[i]);
+    ASSERT_TRUE(any.hit()) << "ray " << i;
+    ASSERT_GT(any.t, rays[i].tmin);
+    ASSERT_LT(any.t, rays[i].tmax);
+  }
+  EXPECT_GT(hits, rays.size() / 4);  // the rays do test something
+  for (size_t i = 0; i < rays.size(); ++i) {
+    const Hit want = intersect_brute_force(soup.triangles, soup.valid, rays[i], true);
+    ASSERT_EQ(intersect_any(accel, rays[i]).hit(), want.hit()) << "ray " << i;
+  }
+}
+
+TEST_P(EveryBuilder, SerialAndParallelBuildsAreIdentical) {
+  const Scene scene = test::random_soup(60000, 0.02f, 5);
+  const auto refs = refs_of(scene);
+  BuildConfig config = config_for(GetParam());
+  config.parallel_threshold = 256;  // exercise the parallel paths at this size
+  Bvh2 serial, parallel;
+  {
+    ThreadLimit one(1);
+    serial = build_bvh(refs, config);
+  }
+  {
+    ThreadLimit all(4);
+    parallel = build_bvh(refs, config);
+  }
+  ASSERT_EQ(serial.nodes.size(), parallel.nodes.size());
+  ASSERT_EQ(serial.prim_ids, parallel.prim_ids);
+  EXPECT_EQ(std::memcmp(serial.nodes.data(), parallel.nodes.data(), serial.nodes.size() * sizeof(Bvh2Node)), 0);
+}
+
+TEST_P(EveryBuilder, IdenticalCentroidsStillGiveAValidTree) {
+  // 300 copies of one triangle: no spatial split exists; leaves must still respect the limit.
+  Scene scene;
+  TriangleMesh mesh;
+  mesh.positions = {{0, 0, 0}, {1, 0, 0}, {0, 1, 0}};
+  for (int i = 0; i < 300; ++i) mesh.indices.insert(mesh.indices.end(), {0, 1, 2});
+  scene.meshes.push_back(mesh);
+  const auto refs = refs_of(scene);
+  const BuildConfig config = config_for(GetParam());
+  const Bvh2 bvh = build_bvh(refs, config);
+  EXPECT_EQ(validate_bvh(bvh, refs, config.max_leaf_size), "");
+}
+
+TEST_P(EveryBuilder, RespectsLeafSizeAndCosts) {
+  const Scene scene = test::random_soup(2000, 0.05f, 9);
+  const auto refs = refs_of(scene);
+  BuildConfig config = config_for(GetParam());
+  config.max_leaf_size = 3;
+  config.traversal_cost = 4.0f;  // expensive nodes push towards full leaves
+  const Bvh2 bvh = build_bvh(refs, config);
+  EXPECT_EQ(validate_bvh(bvh, refs, 3), "");
+  const BvhMetrics m = compute_metrics(bvh, config);
+  size_t prims = 0;
+  for (size_t k = 0; k < m.leaf_size_histogram.size(); ++k) {
+    prims += k * m.leaf_size_histogram[k];
+    if (k > 3) EXPECT_EQ(m.leaf_size_histogram[k], 0u);
+  }
+  EXPECT_EQ(prims, refs.size());
+}
+
+INSTANTIATE_TEST_SUITE_P(Builders, EveryBuilder, ::testing::ValuesIn(test::all_builders()),
+                         [](const auto& info) { return std::string(builder_name(info.param)); });
+
+double sah_of(const Scene& scene, Builder b) {
+  const auto refs = refs_of(scene);
+  const BuildConfig c = config_for(b);
+  return compute_metrics(build_bvh(refs, c), c).sah_cost;
+}
+
+TEST(SahOrder, SweepBeatsBinnedAndTreeletBeatsLbvh) {
+  for (uint64_t seed : {21, 22}) {
+    const Scene scene = test::random_soup(20000, 0.03f, seed);
+    const double sweep = sah_of(scene, Builder::sweep), binned = sah_of(scene, Builder::binned);
+    const double lbvh = sah_of(scene, Builder::lbvh), treelet = sah_of(scene, Builder::treelet);
+    const double median = sah_of(scene, Builder::median);
+    EXPECT_LE(sweep, binned);
+    EXPECT_LE(binned, 1.03 * sweep);
+    EXPECT_LT(treelet, lbvh);
+    EXPECT_LT(sweep, median);
+  }
+}
+
+TEST(SahOrder, HoldsOnSharedScenes) {
+  for (const char* rel : {"teapot/teapot.obj", "stanford_bunny/stanford_bunny.obj"}) {
+    auto path = test::shared_scene(rel);
+    if (!path) GTEST_SKIP() << "shared scenes not found";
+    const Scene scene = load_scene(*path);
+    const double sweep = sah_of(scene, Builder::sweep), binned = sah_of(scene, Builder::binned);
+    const double lbvh = sah_of(scene, Builder::lbvh), treelet = sah_of(scene, Builder::treelet);
+    EXPECT_LE(sweep, binned) << rel;
+    EXPECT_LE(binned, 1.03 * sweep) << rel;
+    EXPECT_LT(treelet, 0.90 * lbvh) << rel;
+    EXPECT_LE(treelet, 1.05 * sweep) << rel;
+  }
+}
+
+TEST(Lbvh, BottomUpEmissionEqualsKarrasTopDown) {
+  for (uint32_t bits : {30u, 63u}) {
+    for (size_t n : {2, 3, 17, 4000}) {
+      Scene scene = test::random_soup(n, 0.1f, 33 + n);
+      if (n == 17) {  // duplicate centroids: equal Morton codes
+        auto& m = scene.meshes[0];
+        for (size_t i = 3; i < 9; ++i) m.positions[i] = m.positions[i % 3];
+      }
+      const auto refs = refs_of(scene);
+      BuildConfig c;
+      c.morton_bits = bits;
+      const BinaryTree a = build_lbvh_tree(refs, c), b = build_lbvh_tree_karras(refs, c);
+      // Same topology up to inner node numbering: compare the emitted BVHs.
+      const Bvh2 ea = emit_bvh2(a, c), eb = emit_bvh2(b, c);
+      ASSERT_EQ(ea.prim_ids, eb.prim_ids) << "n = " << n << ", bits " << bits;
+      ASSERT_EQ(ea.nodes.size(), eb.nodes.size());
+      EXPECT_EQ(std::memcmp(ea.nodes.data(), eb.nodes.data(), ea.nodes.size() * sizeof(Bvh2Node)), 0);
+    }
+  }
+}
+
+TEST(BuildConfig, OutOfRangeValuesAreErrors) {
+  const Scene scene = test::random_soup(10, 0.1f, 1);
+  const auto refs = refs_of(scene);
+  auto expect_error = [&](auto mutate, const char* field) {
+    BuildConfig c;
+    mutate(c);
+    try {
+      build_bvh(refs, c);
+      ADD_FAILURE() << "no error for " << field;
+    } catch (const Error& e) {
+      EXPECT_EQ(e.code(), ErrorCode::invalid_argument);
+      EXPECT_NE(std::string(e.what()).find(field), std::string::npos) << e.what();
+    }
+  };
+  expect_error([](BuildConfig& c) { c.max_leaf_size = 0; }, "max_leaf_size");
+  expect_error([](BuildConfig& c) { c.bin_count = 64; }, "bin_count");
+  expect_error([](BuildConfig& c) { c.morton_bits = 32; }, "morton_bits");
+  expect_error([](BuildConfig& c) { c.intersection_cost = std::nanf(""); }, "intersection_cost");
+  expect_error([](BuildConfig& c) { c.treelet_leaf_count = 9; }, "treelet_leaf_count");
+}
+
+TEST(BuildConfig, QualityPicksAnUnpatentedBuilder) {
+  for (auto q : {BuildQuality::fast, BuildQuality::balanced, BuildQuality::high}) {
+    BuildConfig c;
+    c.quality = q;
+    EXPECT_NE(resolve_builder(c), Builder::treelet);
+  }
+  EXPECT_EQ(builder_from_name("binned"), Builder::binned);
+  EXPECT_FALSE(builder_from_name("nope").has_value());
+}
+
+TEST(BuildBvh, EmptyInputGivesEmptyTree) {
+  const Bvh2 bvh = build_bvh({}, BuildConfig{});
+  EXPECT_TRUE(bvh.empty());
+  EXPECT_EQ(validate_bvh(bvh, {}, 8), "");
+  Accel accel = build_accel(Scene{}, BuildConfig{});
+  EXPECT_FALSE(intersect(accel, Ray{{0, 0, 0}, {0, 0, 1}}).hit());
+}
+
+TEST(Validate, CatchesBrokenTrees) {
+  const Scene scene = test::random_soup(50, 0.1f, 4);
+  const auto refs = refs_of(scene);
+  const Bvh2 good = build_bvh(refs, BuildConfig{});
+  ASSERT_EQ(validate_bvh(good, refs, 8), "");
+  Bvh2 bad = good;
+  bad.prim_ids[0] = bad.prim_ids[1];  // one primitive twice, one missing
+  EXPECT_NE(validate_bvh(bad, refs, 8), "");
+  bad = good;
+  bad.nodes[0].lo.x += 0.5f;  // root no longer encloses its children
+  EXPECT_NE(validate_bvh(bad, refs, 8), "");
+  bad = good;
+  for (auto& n : bad.nodes)
+    if (!n.is_leaf()) {
+      n.index = 1;  // cycle / shared children
+    }
+  EXPECT_NE(validate_bvh(bad, refs, 8), "");
+}
+
+TEST(Metrics, SahOfAKnownTree) {
+  // Two unit squares side by side in two leaves: root area known, children half each.
+  Scene scene;
+  TriangleMesh mesh;
+  mesh.positions = {{0, 0, 0}, {1, 0, 0}, {0, 1, 0}, {10, 0, 0}, {11, 0, 0}, {10, 1, 0}};
+  mesh.indices = {0, 1, 2, 3, 4, 5};
+  scene.meshes.push_back(mesh);
+  const auto refs = refs_of(scene);
+  BuildConfig c;
+  c.builder = Builder::sweep;
+  c.traversal_cost = 0.5f;  // split cost 0.5 + (1 + 1) / 11 beats the 2-triangle leaf (2)
+  c.intersection_cost = 1.0f;
+  const Bvh2 bvh = build_bvh(refs, c);
+  const BvhMetrics m = compute_metrics(bvh, c);
+  ASSERT_EQ(m.leaf_count, 2u);
+  // Flat boxes: half areas are x*y (z extent 0): root 11, leaves 1 and 1.
+  EXPECT_NEAR(m.sah_cost, (0.5 * 11 + 1.0 * 1 + 1.0 * 1) / 11, 1e-6);
+  EXPECT_NEAR(m.sah_cost_unit, (11.0 + 1 + 1) / 11, 1e-6);
+  EXPECT_EQ(m.max_depth, 1u);
+}
+
+}  // namespace
+}  // namespace kestrel

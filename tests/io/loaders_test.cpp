@@ -1,0 +1,234 @@
+// Scene loading: every shared scene loads with the triangle counts of its README; bad input
+// gives an Error naming the file (and line); validation counts and skips bad triangles.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+
+#include "kestrel/kestrel.h"
+#include "support/oracles.h"
+
+namespace kestrel {
+namespace {
+
+// Runs f and returns the Error it throws (fails the test when it does not throw).
+template <class F>
+Error error_of(F&& f) {
+  try {
+    f();
+  } catch (const Error& e) {
+    return e;
+  }
+  ADD_FAILURE() << "expected a kestrel::Error";
+  return Error(ErrorCode::invalid_argument, "");
+}
+
+void expect_mentions(const Error& e, const std::string& text) {
+  EXPECT_NE(std::string(e.what()).find(text), std::string::npos) << "'" << e.what() << "' lacks '" << text << "'";
+}
+
+struct SceneCount {
+  const char* rel;
+  size_t triangles;
+};
+
+class SharedScenes : public ::testing::TestWithParam<SceneCount> {};
+
+TEST_P(SharedScenes, LoadWithTheReadmeTriangleCount) {
+  auto path = test::shared_scene(GetParam().rel);
+  if (!path) GTEST_SKIP() << "shared scenes not found";
+  const Scene scene = load_scene(*path);
+  const SceneValidation v = validate_scene(scene);
+  EXPECT_EQ(scene.triangle_count(), GetParam().triangles) << v.report.summary();
+  EXPECT_GT(v.report.valid_triangle_count, 0u);
+  EXPECT_FALSE(scene.materials.empty());
+}
+
+// Scene-level (flattened) counts from ../shared/scenes/README.md.
+INSTANTIATE_TEST_SUITE_P(
+    All, SharedScenes,
+    ::testing::Values(SceneCount{"cornell_box/cornell_box.obj", 36}, SceneCount{"teapot/teapot.obj", 6320},
+                      SceneCount{"dabrovic_sponza/sponza.obj", 66445}, SceneCount{"stanford_bunny/stanford_bunny.obj", 69451},
+                      SceneCount{"lamborghini/lamborghini.obj", 145917}, SceneCount{"bunny_grid/bunny_grid.obj", 1111218},
+                      SceneCount{"gltf_flight_helmet/FlightHelmet.gltf", 94722},
+                      SceneCount{"gltf_water_bottle/WaterBottle.gltf", 4510},
+                      SceneCount{"gltf_box_animated/BoxAnimated.gltf", 254},
+                      SceneCount{"gltf_cesium_milk_truck/CesiumMilkTruck.gltf", 3624},
+                      SceneCount{"gltf_truck_fleet/truck_fleet.gltf", 231936},
+                      SceneCount{"gltf_animated_morph_cube/AnimatedMorphCube.gltf", 12},
+                      SceneCount{"gltf_morph_stress_test/MorphStressTest.gltf", 2412}, SceneCount{"gltf_fox/Fox.glb", 576},
+                      SceneCount{"gltf_cornell_box/cornell_box.gltf", 36}),
+    [](const auto& info) {
+      std::string s = std::filesystem::path(info.param.rel).parent_path().string();
+      for (char& c : s)
+        if (!std::isalnum(static_cast<unsigned char>(c))) c = '_';
+      return s;
+    });
+
+TEST(Gltf, CornellBoxMatchesTheObjTriangleForTriangle) {
+  auto obj = test::shared_scene("cornell_box/cornell_box.obj");
+  auto gltf = test::shared_scene("gltf_cornell_box/cornell_box.gltf");
+  if (!obj || !gltf) GTEST_SKIP();
+  const test::Soup a = test::flatten(load_scene(*obj)), b = test::flatten(load_scene(*gltf));
+  ASSERT_EQ(a.triangles.size(), b.triangles.size());
+  for (size_t i = 0; i < a.triangles.size(); ++i)
+    for (int k = 0; k < 3; ++k) {
+      const Vec3 p = k == 0 ? a.triangles[i].v0 : k == 1 ? a.triangles[i].v1 : a.triangles[i].v2;
+      const Vec3 q = k == 0 ? b.triangles[i].v0 : k == 1 ? b.triangles[i].v1 : b.triangles[i].v2;
+      EXPECT_NEAR(p.x, q.x, 1e-5f);
+      EXPECT_NEAR(p.y, q.y, 1e-5f);
+      EXPECT_NEAR(p.z, q.z, 1e-5f);
+    }
+  // The light keeps its emission (KHR_materials_emissive_strength).
+  const Scene s = load_scene(*gltf);
+  bool emissive = false;
+  for (const Material& m : s.materials) emissive |= m.emission.x > 1.0f;
+  EXPECT_TRUE(emissive);
+}
+
+TEST(Gltf, TexturesAndMaterialsAreRead) {
+  auto path = test::shared_scene("gltf_water_bottle/WaterBottle.gltf");
+  if (!path) GTEST_SKIP();
+  const Scene s = load_scene(*path);
+  ASSERT_FALSE(s.textures.empty());
+  EXPECT_GT(s.textures[0].width, 0);
+  EXPECT_EQ(s.textures[0].rgba.size(), size_t(s.textures[0].width) * s.textures[0].height * 4);
+  ASSERT_GE(s.materials.size(), 1u);
+  EXPECT_GE(s.materials[0].base_color_texture, 0);
+  EXPECT_GE(s.materials[0].metallic_roughness_texture, 0);
+  EXPECT_FALSE(s.meshes[0].uvs.empty());
+  EXPECT_FALSE(s.meshes[0].normals.empty());
+}
+
+TEST(Obj, FanTriangulationFollowsFileOrder) {
+  const std::string path = test::write_temp_file("quad.obj",
+      "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nv 0 0 1\nf 1 2 3 4\nf 1 2 5\n");
+  const Scene s = load_scene(path);
+  ASSERT_EQ(s.triangle_count(), 3u);
+  const auto& idx = s.meshes[0].indices;
+  EXPECT_EQ(std::vector<uint32_t>(idx.begin(), idx.end()), (std::vector<uint32_t>{0, 1, 2, 0, 2, 3, 0, 1, 4}));
+}
+
+TEST(Obj, MissingFileNamesTheFile) {
+  const Error e = error_of([] { load_scene("/nonexistent/dir/scene.obj"); });
+  EXPECT_EQ(e.code(), ErrorCode::file_not_found);
+  expect_mentions(e, "/nonexistent/dir/scene.obj");
+}
+
+TEST(Obj, MalformedLinesNameFileAndLine) {
+  const std::string bad_vertex = test::write_temp_file("bad_vertex.obj", "v 0 0 0\nv 1 0 0\nv 1 abc 0\nf 1 2 3\n");
+  Error e = error_of([&] { load_scene(bad_vertex); });
+  EXPECT_EQ(e.code(), ErrorCode::parse_error);
+  expect_mentions(e, bad_vertex + ":3");
+  const std::string short_face = test::write_temp_file("short_face.obj", "v 0 0 0\nv 1 0 0\nv 1 1 0\n\nf 1 2\n");
+  e = error_of([&] { load_scene(short_face); });
+  expect_mentions(e, short_face + ":5");
+  const std::string zero_index = test::write_temp_file("zero_index.obj", "v 0 0 0\nv 1 0 0\nv 1 1 0\nf 0 1 2\n");
+  expect_mentions(error_of([&] { load_scene(zero_index); }), zero_index + ":4");
+  // Truncated in the middle of a vertex line.
+  const std::string truncated = test::write_temp_file("truncated.obj", "v 0 0 0\nv 1 0 0\nv 1 1");
+  expect_mentions(error_of([&] { load_scene(truncated); }), truncated + ":3");
+}
+
+TEST(Obj, BadTrianglesAreCountedAndSkipped) {
+  const std::string path = test::write_temp_file("bad_tris.obj",
+      "v 0 0 0\nv 1 0 0\nv 0 1 0\nv nan 0 0\nv 2 0 0\n"
+      "f 1 2 3\n"      // good
+      "f 1 2 4\n"      // NaN vertex
+      "f 1 2 9\n"      // index past the end
+      "f 1 2 5\n"      // collinear: zero area
+      "f 1 1 3\n"      // repeated vertex
+      "f 2 3 1\n");    // good
+  const Scene s = load_scene(path);
+  const SceneValidation v = validate_scene(s);
+  EXPECT_EQ(v.report.triangle_count, 6u);
+  EXPECT_EQ(v.report.valid_triangle_count, 2u);
+  EXPECT_EQ(v.report.nonfinite_triangle_count, 1u);
+  EXPECT_EQ(v.report.bad_index_triangle_count, 1u);
+  EXPECT_EQ(v.report.degenerate_triangle_count, 2u);
+  // Valid triangles keep their file ids; the BVH never sees the others.
+  const Accel accel = build_accel(s, BuildConfig{});
+  EXPECT_EQ(accel.bvh.prim_ids.size(), 2u);
+  const Hit h = intersect(accel, Ray{{0.2f, 0.2f, 1}, {0, 0, -1}});
+  ASSERT_TRUE(h.hit());
+  EXPECT_TRUE(h.prim_id == 0 || h.prim_id == 5);
+}
+
+TEST(Scene, EmptyMeshesAndScenesAreReported) {
+  Scene s;
+  s.meshes.resize(2);
+  const SceneValidation v = validate_scene(s);
+  EXPECT_EQ(v.report.empty_mesh_count, 2u);
+  EXPECT_EQ(v.report.valid_triangle_count, 0u);
+  const std::string empty = test::write_temp_file("empty.obj", "# nothing here\n");
+  EXPECT_EQ(load_scene(empty).triangle_count(), 0u);
+}
+
+TEST(Scene, UnknownFormatAndBuiltins) {
+  const std::string path = test::write_temp_file("scene.xyz", "hello");
+  EXPECT_EQ(error_of([&] { load_scene(path); }).code(), ErrorCode::unsupported);
+  EXPECT_EQ(error_of([] { load_scene("builtin:nope"); }).code(), ErrorCode::invalid_argument);
+  EXPECT_EQ(load_scene("builtin:cornell_box").triangle_count(), 32u);
+}
+
+TEST(Gltf, MalformedAndTruncatedFilesAreErrors) {
+  const std::string not_json = test::write_temp_file("broken.gltf", "{ \"asset\": { \"version\": \"2.0\" ");
+  Error e = error_of([&] { load_scene(not_json); });
+  EXPECT_EQ(e.code(), ErrorCode::parse_error);
+  expect_mentions(e, not_json);
+  // A valid header whose buffer is shorter than its accessors claim.
+  const std::string short_buffer = test::write_temp_file("short.gltf", R"({
+    "asset": {"version": "2.0"}, "scene": 0, "scenes": [{"nodes": [0]}], "nodes": [{"mesh": 0}],
+    "meshes": [{"primitives": [{"attributes": {"POSITION": 0}}]}],
+    "buffers": [{"byteLength": 12, "uri": "data:application/octet-stream;base64,AAAAAAAAAAAAAAAA"}],
+    "bufferViews": [{"buffer": 0, "byteOffset": 0, "byteLength": 12}],
+    "accessors": [{"bufferView": 0, "componentType": 5126, "count": 3, "type": "VEC3"}]})");
+  e = error_of([&] { load_scene(short_buffer); });
+  EXPECT_EQ(e.code(), ErrorCode::parse_error);
+  expect_mentions(e, short_buffer);
+  // A truncated binary glTF.
+  if (auto fox = test::shared_scene("gltf_fox/Fox.glb")) {
+    std::ifstream in(*fox, std::ios::binary);
+    std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+    const std::string cut = test::write_temp_file("cut.glb", bytes.substr(0, bytes.size() / 2));
+    e = error_of([&] { load_scene(cut); });
+    expect_mentions(e, cut);
+  }
+}
+
+TEST(RaysFiles, RoundTripAndCorruption) {
+  std::vector<Ray> rays = test::random_rays(100, 4);
+  const std::string path = test::write_temp_file("a.rays", "");
+  write_rays(path, rays);
+  const std::vector<Ray> back = read_rays(path);
+  ASSERT_EQ(back.size(), rays.size());
+  for (size_t i = 0; i < rays.size(); ++i) {
+    EXPECT_EQ(back[i].org.x, rays[i].org.x);
+    EXPECT_EQ(back[i].dir.z, rays[i].dir.z);
+    EXPECT_EQ(back[i].tmax, rays[i].tmax);
+  }
+  std::vector<Hit> hits(3);
+  hits[1] = Hit{2.5f, 7};
+  const std::string hpath = test::write_temp_file("a.hits", "");
+  write_hits(hpath, hits);
+  const auto hback = read_hits(hpath);
+  ASSERT_EQ(hback.size(), 3u);
+  EXPECT_TRUE(std::isinf(hback[0].t));
+  EXPECT_EQ(hback[0].prim_id, invalid_id);
+  EXPECT_EQ(hback[1].prim_id, 7u);
+  EXPECT_EQ(hback[1].t, 2.5f);
+  // Truncated: the header promises 100 rays.
+  std::ifstream in(path, std::ios::binary);
+  std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  const std::string cut = test::write_temp_file("cut.rays", bytes.substr(0, bytes.size() - 5));
+  Error e = error_of([&] { read_rays(cut); });
+  EXPECT_EQ(e.code(), ErrorCode::parse_error);
+  expect_mentions(e, cut);
+  const std::string wrong = test::write_temp_file("wrong.rays", std::string("HITS\x01\0\0\0", 8) + std::string(8, '\0'));
+  expect_mentions(error_of([&] { read_rays(wrong); }), "magic");
+  EXPECT_EQ(error_of([&] { read_rays("/nonexistent.rays"); }).code(), ErrorCode::file_not_found);
+}
+
+}  // namespace
+}  // namespace kestrel

@@ -1,0 +1,139 @@
+#include "support/oracles.h"
+
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <map>
+
+#include "core/vec.h"
+#include "geometry/prim_ref.h"
+
+namespace kestrel::test {
+
+uint64_t Rng::next() {
+  uint64_t z = (state += 0x9E3779B97F4A7C15ull);
+  z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ull;
+  z = (z ^ (z >> 27)) * 0x94D049BB133111EBull;
+  return z ^ (z >> 31);
+}
+float Rng::uniform() { return float(next() >> 40) * (1.0f / 16777216.0f); }
+float Rng::uniform(float lo, float hi) { return lo + (hi - lo) * uniform(); }
+Vec3 Rng::in_box(Vec3 lo, Vec3 hi) { return {uniform(lo.x, hi.x), uniform(lo.y, hi.y), uniform(lo.z, hi.z)}; }
+Vec3 Rng::on_sphere() {
+  const float z = uniform(-1.0f, 1.0f), phi = uniform(0.0f, 6.2831853f);
+  const float r = std::sqrt(std::max(0.0f, 1.0f - z * z));
+  return {r * std::cos(phi), r * std::sin(phi), z};
+}
+
+Scene random_soup(size_t n, float size, uint64_t seed) {
+  Rng rng{seed};
+  Scene scene;
+  scene.source = "test:soup";
+  TriangleMesh mesh;
+  for (size_t i = 0; i < n; ++i) {
+    const Vec3 a = rng.in_box({0, 0, 0}, {1, 1, 1});
+    for (int k = 0; k < 3; ++k) {
+      mesh.positions.push_back(k == 0 ? a : a + rng.on_sphere() * rng.uniform(0.05f * size, size));
+      mesh.indices.push_back(uint32_t(mesh.positions.size() - 1));
+    }
+    mesh.material_ids.push_back(0);
+  }
+  scene.meshes.push_back(std::move(mesh));
+  scene.materials.push_back(Material{});
+  return scene;
+}
+
+Scene closed_sphere(int subdivisions, Vec3 c, float radius) {
+  const float t = (1.0f + std::sqrt(5.0f)) / 2.0f;
+  std::vector<Vec3> v = {{-1, t, 0}, {1, t, 0}, {-1, -t, 0}, {1, -t, 0}, {0, -1, t}, {0, 1, t},
+                         {0, -1, -t}, {0, 1, -t}, {t, 0, -1}, {t, 0, 1}, {-t, 0, -1}, {-t, 0, 1}};
+  for (Vec3& p : v) p = normalize(p);
+  std::vector<uint32_t> f = {0, 11, 5, 0, 5, 1, 0, 1, 7, 0, 7, 10, 0, 10, 11, 1, 5, 9, 5, 11, 4, 11, 10, 2, 10, 7, 6,
+                             7, 1, 8, 3, 9, 4, 3, 4, 2, 3, 2, 6, 3, 6, 8, 3, 8, 9, 4, 9, 5, 2, 4, 11, 6, 2, 10, 8, 6, 7,
+                             9, 8, 1};
+  for (int s = 0; s < subdivisions; ++s) {
+    std::map<std::pair<uint32_t, uint32_t>, uint32_t> mid;
+    auto midpoint = [&](uint32_t a, uint32_t b) {
+      auto key = std::minmax(a, b);
+      auto it = mid.find(key);
+      if (it != mid.end()) return it->second;
+      v.push_back(normalize(v[a] + v[b]));
+      return mid[key] = uint32_t(v.size() - 1);
+    };
+    std::vector<uint32_t> g;
+    for (size_t i = 0; i < f.size(); i += 3) {
+      const uint32_t a = f[i], b = f[i + 1], cc = f[i + 2];
+      const uint32_t ab = midpoint(a, b), bc = midpoint(b, cc), ca = midpoint(cc, a);
+      g.insert(g.end(), {a, ab, ca, b, bc, ab, cc, ca, bc, ab, bc, ca});
+    }
+    f.swap(g);
+  }
+  Scene scene;
+  scene.source = "test:sphere";
+  TriangleMesh mesh;
+  for (const Vec3& p : v) mesh.positions.push_back(c + p * radius);
+  mesh.indices = f;
+  mesh.material_ids.assign(f.size() / 3, 0);
+  scene.meshes.push_back(std::move(mesh));
+  scene.materials.push_back(Material{});
+  return scene;
+}
+
+Scene closed_box(Vec3 lo, Vec3 hi) {
+  Scene scene;
+  scene.source = "test:box";
+  TriangleMesh mesh;
+  for (int i = 0; i < 8; ++i) mesh.positions.push_back({i & 1 ? hi.x : lo.x, i & 2 ? hi.y : lo.y, i & 4 ? hi.z : lo.z});
+  mesh.indices = {0, 2, 1, 1, 2, 3, 4, 5, 6, 5, 7, 6, 0, 1, 4, 1, 5, 4, 2, 6, 3, 3, 6, 7, 0, 4, 2, 2, 4, 6, 1, 3, 5, 3, 7, 5};
+  mesh.material_ids.assign(12, 0);
+  scene.meshes.push_back(std::move(mesh));
+  scene.materials.push_back(Material{});
+  return scene;
+}
+
+std::vector<Ray> random_rays(size_t n, uint64_t seed) {
+  Rng rng{seed};
+  std::vector<Ray> rays(n);
+  for (size_t i = 0; i < n; ++i) {
+    Ray& r = rays[i];
+    r.org = rng.in_box({-0.5f, -0.5f, -0.5f}, {1.5f, 1.5f, 1.5f});
+    r.dir = rng.in_box({0, 0, 0}, {1, 1, 1}) - r.org;
+    switch (i % 8) {
+      case 1: r.dir.x = 0; break;                  // parallel to the yz plane
+      case 2: r.dir.y = r.dir.z = 0; break;        // along x
+      case 3: r.tmax = rng.uniform(0.2f, 1.0f); break;
+      case 4: r.tmin = rng.uniform(0.1f, 0.6f); break;
+      default: break;
+    }
+    if (r.dir.x == 0 && r.dir.y == 0 && r.dir.z == 0) r.dir = {0, 0, 1};
+  }
+  return rays;
+}
+
+std::optional<std::string> shared_scene(const std::string& rel) {
+  const std::string p = std::string(KESTREL_SCENE_ROOT) + "/" + rel;
+  if (std::filesystem::exists(p)) return p;
+  return std::nullopt;
+}
+
+Soup flatten(const Scene& scene) {
+  Soup soup;
+  const SceneValidation v = validate_scene(scene);
+  soup.triangles = gather_triangles(scene, v);
+  soup.valid = v.valid;
+  return soup;
+}
+
+std::vector<Builder> all_builders() {
+  return {Builder::median, Builder::sweep, Builder::binned, Builder::lbvh, Builder::treelet};
+}
+
+std::string write_temp_file(const std::string& name, const std::string& contents) {
+  const auto dir = std::filesystem::temp_directory_path() / "kestrel_tests";
+  std::filesystem::create_directories(dir);
+  const std::string path = (dir / name).string();
+  std::ofstream(path, std::ios::binary) << contents;
+  return path;
+}
+
+}  // namespace kestrel::test

@@ -1,0 +1,52 @@
+// Test support: scene generators with known properties and paths to the shared scenes.
+#pragma once
+#include <cstdint>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "kestrel/kestrel.h"
+
+namespace kestrel::test {
+
+/// splitmix64, fixed seeds everywhere.
+struct Rng {
+  uint64_t state;
+  uint64_t next();
+  float uniform();                       ///< [0, 1)
+  float uniform(float lo, float hi);
+  Vec3 in_box(Vec3 lo, Vec3 hi);
+  Vec3 on_sphere();                      ///< unit vector, uniform
+};
+
+/// n random triangles in the unit cube with edge lengths up to `size` (a soup: overlaps,
+/// slivers and all).
+Scene random_soup(size_t n, float size, uint64_t seed);
+
+/// A closed, watertight triangulated sphere (subdivided icosahedron), vertices shared.
+Scene closed_sphere(int subdivisions, Vec3 center, float radius);
+
+/// A closed axis-aligned box of 12 triangles (many rays hit its edges exactly).
+Scene closed_box(Vec3 lo, Vec3 hi);
+
+/// n rays from points in [-0.5, 1.5]^3 towards points in the unit cube; some with
+/// axis-parallel directions (exact zeros), some with finite tmax, some with tmin > 0.
+std::vector<Ray> random_rays(size_t n, uint64_t seed);
+
+/// Path of a shared scene (../shared/scenes/REL), or nullopt when the folder is absent.
+std::optional<std::string> shared_scene(const std::string& rel);
+
+/// Every triangle by global id plus validity, for brute force.
+struct Soup {
+  std::vector<Triangle> triangles;
+  std::vector<uint8_t> valid;
+};
+Soup flatten(const Scene& scene);
+
+/// Every builder, for parameterised tests.
+std::vector<Builder> all_builders();
+
+/// Writes text to a fresh file under the test temp dir and returns its path.
+std::string write_temp_file(const std::string& name, const std::string& contents);
+
+}  // namespace kestrel::test
