@@ -57,13 +57,14 @@ std::string scene_label(const std::string& path) {
 
 int main(int argc, char** argv) {
   CLI::App app{"kestrel build benchmark (builders x scenes, Embree side by side)"};
-  std::string scenes_arg, json_path = "build_bench.json", md_path;
+  std::string scenes_arg, builders_arg, json_path = "build_bench.json", md_path;
   std::string scene_root = KESTREL_SCENE_ROOT;
   int repeat = 5, threads = 1;
   double max_seconds_per_cell = 20.0;
   bool quick = false;
   app.add_option("--scenes", scenes_arg, "comma-separated scene files (default: the shared scenes)");
   app.add_option("--scene-root", scene_root, "folder of the shared scenes");
+  app.add_option("--builders", builders_arg, "comma-separated kestrel builders (default: all)");
   app.add_option("--repeat", repeat, "rounds (median reported)")->check(CLI::Range(1, 100));
   app.add_option("--threads", threads, "threads for kestrel and Embree (1 = single-thread figures)");
   app.add_option("--max-seconds", max_seconds_per_cell, "stop repeating a cell after this much time");
@@ -82,7 +83,19 @@ int main(int argc, char** argv) {
   } else {
     scenes = default_scenes(scene_root);
   }
-  const Builder builders[] = {Builder::median, Builder::sweep, Builder::binned, Builder::lbvh, Builder::treelet};
+  std::vector<Builder> builders = {Builder::median, Builder::sweep, Builder::binned, Builder::lbvh, Builder::treelet};
+  if (!builders_arg.empty()) {
+    builders.clear();
+    std::stringstream ss(builders_arg);
+    for (std::string s; std::getline(ss, s, ',');) {
+      auto b = builder_from_name(s);
+      if (!b) {
+        std::fprintf(stderr, "kestrel_build_bench: unknown builder '%s'\n", s.c_str());
+        return 2;
+      }
+      builders.push_back(*b);
+    }
+  }
   ThreadLimit limit(threads);
   std::vector<Row> rows;
   try {

@@ -100,6 +100,9 @@ struct BvhMetrics {
   double bytes_per_prim = 0;                ///< nodes + prim ids
 };
 
+/// Depth of the deepest leaf (the root is at depth 0); 0 for an empty tree.
+uint32_t max_depth(const Bvh2& bvh);
+
 /// Computes SAH cost (Goldsmith & Salmon / MacDonald & Booth), counts, depth, leaf sizes.
 BvhMetrics compute_metrics(const Bvh2& bvh, const BuildConfig& config);
 

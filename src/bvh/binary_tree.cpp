@@ -64,35 +64,30 @@ Bvh2 emit_bvh2(const BinaryTree& tree, const BuildConfig& config) {
   const size_t n = tree.leaves.size();
   if (n == 0) return out;
   out.prim_ids.reserve(n);
-  out.nodes.reserve(2 * n);
-  // (tree reference, output node) pairs, depth first.
+  out.nodes.resize(2 * n - 1);
+  // (tree reference, output node) pairs, depth first. Depth is bounded by the tree's
+  // height; the stack grows only if a tree is unusually deep.
   std::vector<std::pair<uint32_t, uint32_t>> stack;
+  stack.reserve(256);
   stack.push_back({tree.root, 0});
-  out.nodes.emplace_back();
+  uint32_t next = 1;
   while (!stack.empty()) {
     auto [ref, o] = stack.back();
     stack.pop_back();
     const Bounds3 b = child_bounds(tree, ref);
-    bool make_leaf = BinaryTree::is_leaf(ref);
-    if (!make_leaf && tree.count[ref] <= config.max_leaf_size) {
-      const float area = half_area(b);
-      const float split = config.traversal_cost * area + child_cost(tree, tree.left[ref], config) +
-                          child_cost(tree, tree.right[ref], config);
-      make_leaf = config.intersection_cost * area * float(tree.count[ref]) <= split;
-    }
-    if (make_leaf) {
+    if (BinaryTree::is_leaf(ref) || prefers_leaf(tree, ref)) {
       const uint32_t first = uint32_t(out.prim_ids.size());
       gather_leaves(tree, ref, out.prim_ids);
       out.nodes[o] = Bvh2Node{b.lo, first, b.hi, uint32_t(out.prim_ids.size() - first)};
     } else {
-      const uint32_t pair = uint32_t(out.nodes.size());
-      out.nodes.emplace_back();
-      out.nodes.emplace_back();
+      const uint32_t pair = next;
+      next += 2;
       out.nodes[o] = Bvh2Node{b.lo, pair, b.hi, 0};
       stack.push_back({tree.right[ref], pair + 1});
       stack.push_back({tree.left[ref], pair});
     }
   }
+  out.nodes.resize(next);
   return out;
 }
 

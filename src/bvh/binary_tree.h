@@ -24,7 +24,8 @@ struct BinaryTree {
   RawArray<uint32_t> parent;        ///< per inner node; no_parent for the root
   RawArray<uint32_t> leaf_parent;   ///< per leaf; no_parent when the leaf is the root
   RawArray<Bounds3> bounds;         ///< per inner node
-  RawArray<uint32_t> count;         ///< primitives below each inner node
+  RawArray<uint32_t> count;         ///< primitives below each inner node | collapse_bit
+  static constexpr uint32_t collapse_bit = 0x80000000u;  ///< set: one leaf is cheaper than the subtree
   RawArray<float> cost;             ///< SAH cost (absolute: area x cost) of each inner node
   uint32_t root = 0;                ///< child reference of the root
 
@@ -50,8 +51,10 @@ inline float child_cost(const BinaryTree& tree, uint32_t ref, const BuildConfig&
   return tree.cost[ref];
 }
 inline uint32_t child_count(const BinaryTree& tree, uint32_t ref) {
-  return BinaryTree::is_leaf(ref) ? 1u : tree.count[ref];
+  return BinaryTree::is_leaf(ref) ? 1u : tree.count[ref] & ~BinaryTree::collapse_bit;
 }
+/// Whether the SAH prefers the inner node's subtree as a single leaf (set by refit_node).
+inline bool prefers_leaf(const BinaryTree& tree, uint32_t node) { return tree.count[node] & BinaryTree::collapse_bit; }
 
 /// Recomputes an inner node's bounds, count and cost from its children.
 inline void refit_node(BinaryTree& tree, uint32_t node, const BuildConfig& config) {
@@ -59,11 +62,12 @@ inline void refit_node(BinaryTree& tree, uint32_t node, const BuildConfig& confi
   const Bounds3 b = merge(child_bounds(tree, l), child_bounds(tree, r));
   const uint32_t n = child_count(tree, l) + child_count(tree, r);
   const float area = half_area(b);
-  float c = config.traversal_cost * area + child_cost(tree, l, config) + child_cost(tree, r, config);
-  if (n <= config.max_leaf_size) c = std::min(c, config.intersection_cost * area * float(n));
+  const float split = config.traversal_cost * area + child_cost(tree, l, config) + child_cost(tree, r, config);
+  const float leaf = config.intersection_cost * area * float(n);
+  const bool collapse = n <= config.max_leaf_size && leaf <= split;
   tree.bounds[node] = b;
-  tree.count[node] = n;
-  tree.cost[node] = c;
+  tree.count[node] = n | (collapse ? BinaryTree::collapse_bit : 0u);
+  tree.cost[node] = collapse ? leaf : split;
 }
 
 /// Bottom-up pass in parallel (a node is handled by whichever of its children's walks

@@ -96,23 +96,41 @@ struct BinnedBuilder {
   const BuildConfig& config;
   NodeSlots& slots;
   int bin_count;
-  std::atomic<size_t> leaf_count{0};
 
   Vec4f ref_lo(size_t i) const { return Vec4f::load(&refs[i].lo); }
   Vec4f ref_hi(size_t i) const { return Vec4f::load(&refs[i].hi); }
 
+  // Alternate references go to two bin sets, merged at the end: runs of neighbouring
+  // references fall in the same bin, and one set would serialise on its read-modify-writes.
   void bin_range(const BinMapping& map, size_t begin, size_t end, Bins& bins) const {
+    Bins odd;
     bins.clear(map.bin_count);
-    int b[4];
-    for (size_t i = begin; i < end; ++i) {
-      Vec4f lo = ref_lo(i), hi = ref_hi(i);
-      map.bin_of(lo, hi, b);
+    odd.clear(map.bin_count);
+    int b0[4], b1[4];
+    size_t i = begin;
+    for (; i + 1 < end; i += 2) {
+      const Vec4f lo0 = ref_lo(i), hi0 = ref_hi(i), lo1 = ref_lo(i + 1), hi1 = ref_hi(i + 1);
+      map.bin_of(lo0, hi0, b0);
+      map.bin_of(lo1, hi1, b1);
       for (int a = 0; a < 3; ++a) {
-        bins.lo[a][b[a]] = min(bins.lo[a][b[a]], lo);
-        bins.hi[a][b[a]] = max(bins.hi[a][b[a]], hi);
-        bins.count[a][b[a]]++;
+        bins.lo[a][b0[a]] = min(bins.lo[a][b0[a]], lo0);
+        bins.hi[a][b0[a]] = max(bins.hi[a][b0[a]], hi0);
+        bins.count[a][b0[a]]++;
+        odd.lo[a][b1[a]] = min(odd.lo[a][b1[a]], lo1);
+        odd.hi[a][b1[a]] = max(odd.hi[a][b1[a]], hi1);
+        odd.count[a][b1[a]]++;
       }
     }
+    if (i < end) {
+      const Vec4f lo = ref_lo(i), hi = ref_hi(i);
+      map.bin_of(lo, hi, b0);
+      for (int a = 0; a < 3; ++a) {
+        bins.lo[a][b0[a]] = min(bins.lo[a][b0[a]], lo);
+        bins.hi[a][b0[a]] = max(bins.hi[a][b0[a]], hi);
+        bins.count[a][b0[a]]++;
+      }
+    }
+    bins.merge(odd, map.bin_count);
   }
 
   void bin(const BinMapping& map, const RangeInfo& info, Bins& bins) const {
@@ -136,7 +154,6 @@ struct BinnedBuilder {
     info.geom_hi.store(hi);
     node = Bvh2Node{{lo[0], lo[1], lo[2]}, uint32_t(info.begin), {hi[0], hi[1], hi[2]},
                     uint32_t(info.end - info.begin)};
-    leaf_count.fetch_add(1, std::memory_order_relaxed);
   }
 
   // Splits [begin, end) at its middle (all centroids equal: no SAH split exists).
@@ -345,7 +362,7 @@ Bvh2 build_binned_sah(std::span<const PrimRef> input, const BuildConfig& config)
   builder.build(0, 1, root);
   std::vector<uint32_t> ids(n);
   for (size_t i = 0; i < n; ++i) ids[i] = refs[i].prim_id;
-  return compact_slots(slots, builder.leaf_count.load(), ids);
+  return compact_slots(slots, ids);
 }
 
 }  // namespace kestrel

@@ -16,6 +16,7 @@
 #include <atomic>
 #include <bit>
 #include <new>
+#include <utility>
 
 #include "bvh/binary_tree.h"
 #include "bvh/builders.h"
@@ -86,42 +87,60 @@ struct SortedKeys {
   }
 };
 
+constexpr uint32_t no_bound = 0xFFFFFFFFu;
+
 inline void set_parent(BinaryTree& tree, uint32_t child, uint32_t parent) {
   if (BinaryTree::is_leaf(child)) tree.leaf_parent[BinaryTree::leaf_index(child)] = parent;
   else tree.parent[child] = parent;
 }
 
-// Bottom-up emission with bounds and costs (see the file comment).
+// One leaf's walk up the tree (see the file comment). `Exchange` swaps the outer bound left
+// at a node: an atomic exchange when walks run in parallel, a plain swap when serial.
+template <class Key, class Exchange>
+inline void walk_up(const SortedKeys<Key>& sk, BinaryTree& tree, const BuildConfig& config, uint32_t i,
+                    Exchange&& exchange) {
+  const uint32_t n = sk.n;
+  uint32_t l = i, r = i, node = i | BinaryTree::leaf_bit;
+  while (true) {
+    if (l == 0 && r == n - 1) {
+      tree.root = node;
+      set_parent(tree, node, BinaryTree::no_parent);
+      return;
+    }
+    const bool join_right = l == 0 || (r != n - 1 && sk.at(r) < sk.at(l - 1));
+    const uint32_t parent = join_right ? r : l - 1;
+    (join_right ? tree.left : tree.right)[parent] = node;
+    set_parent(tree, node, parent);
+    // The first child to arrive leaves its outer bound and stops; the second takes it.
+    const uint32_t bound = exchange(parent, join_right ? l : r);
+    if (bound == no_bound) return;
+    (join_right ? r : l) = bound;
+    node = parent;
+    refit_node(tree, parent, config);
+  }
+}
+
 template <class Key>
 void emit_bottom_up(const SortedKeys<Key>& sk, BinaryTree& tree, const BuildConfig& config) {
   const uint32_t n = sk.n;
-  constexpr uint32_t none = 0xFFFFFFFFu;
+  if (current_thread_count() == 1) {
+    // Serial: the same walks in the same order, without atomic read-modify-writes.
+    RawArray<uint32_t> other(n - 1);
+    std::fill(other.begin(), other.end(), no_bound);
+    for (uint32_t i = 0; i < n; ++i)
+      walk_up(sk, tree, config, i, [&](uint32_t node, uint32_t bound) { return std::exchange(other[node], bound); });
+    return;
+  }
   RawArray<std::atomic<uint32_t>> other(n - 1);
   parallel_for(0, n - 1, 65536, [&](size_t b, size_t e) {
-    for (size_t i = b; i < e; ++i) new (&other[i]) std::atomic<uint32_t>(none);
+    for (size_t i = b; i < e; ++i) new (&other[i]) std::atomic<uint32_t>(no_bound);
   });
   parallel_for(0, n, 8192, [&](size_t b, size_t e) {
-    for (uint32_t i = uint32_t(b); i < uint32_t(e); ++i) {
-      uint32_t l = i, r = i, node = i | BinaryTree::leaf_bit;
-      while (true) {
-        if (l == 0 && r == n - 1) {
-          tree.root = node;
-          set_parent(tree, node, BinaryTree::no_parent);
-          break;
-        }
-        const bool join_right = l == 0 || (r != n - 1 && sk.at(r) < sk.at(l - 1));
-        const uint32_t parent = join_right ? r : l - 1;
-        (join_right ? tree.left : tree.right)[parent] = node;
-        set_parent(tree, node, parent);
-        // The first child to arrive leaves its outer bound and stops; the second takes it
-        // (acq_rel: it also sees the first child's writes).
-        const uint32_t bound = other[parent].exchange(join_right ? l : r, std::memory_order_acq_rel);
-        if (bound == none) break;
-        (join_right ? r : l) = bound;
-        node = parent;
-        refit_node(tree, parent, config);
-      }
-    }
+    for (uint32_t i = uint32_t(b); i < uint32_t(e); ++i)
+      walk_up(sk, tree, config, i, [&](uint32_t node, uint32_t bound) {
+        // acq_rel: the second walk also sees everything the first wrote below the node.
+        return other[node].exchange(bound, std::memory_order_acq_rel);
+      });
   });
 }
 

@@ -19,7 +19,6 @@ struct MedianBuilder {
   std::vector<PrimRef>& refs;
   const BuildConfig& config;
   NodeSlots& slots;
-  std::atomic<size_t> leaf_count{0};
 
   Bounds3 bounds_of(size_t begin, size_t end, Bounds3* centroids) const {
     Bounds3 b, c;
@@ -33,7 +32,6 @@ struct MedianBuilder {
 
   void make_leaf(uint32_t slot, const Bounds3& b, size_t begin, size_t end) {
     slots[slot] = Bvh2Node{b.lo, uint32_t(begin), b.hi, uint32_t(end - begin)};
-    leaf_count.fetch_add(1, std::memory_order_relaxed);
   }
 
   void build(uint32_t slot, uint32_t pair, size_t begin, size_t end) {
@@ -75,7 +73,7 @@ Bvh2 build_median(std::span<const PrimRef> input, const BuildConfig& config) {
   builder.build(0, 1, 0, refs.size());
   std::vector<uint32_t> ids(refs.size());
   for (size_t i = 0; i < refs.size(); ++i) ids[i] = refs[i].prim_id;
-  return compact_slots(slots, builder.leaf_count.load(), ids);
+  return compact_slots(slots, ids);
 }
 
 }  // namespace kestrel

@@ -6,6 +6,24 @@
 
 namespace kestrel {
 
+uint32_t max_depth(const Bvh2& bvh) {
+  if (bvh.empty()) return 0;
+  uint32_t deepest = 0;
+  std::vector<std::pair<uint32_t, uint32_t>> stack{{0, 0}};
+  while (!stack.empty()) {
+    auto [i, depth] = stack.back();
+    stack.pop_back();
+    const Bvh2Node& node = bvh.nodes[i];
+    if (node.is_leaf()) {
+      deepest = std::max(deepest, depth);
+    } else {
+      stack.push_back({node.index, depth + 1});
+      stack.push_back({node.index + 1, depth + 1});
+    }
+  }
+  return deepest;
+}
+
 BvhMetrics compute_metrics(const Bvh2& bvh, const BuildConfig& config) {
   BvhMetrics m;
   m.node_count = bvh.nodes.size();

@@ -1,5 +1,7 @@
 #include "bvh/node_slots.h"
 
+#include "core/memory.h"
+
 #include <cstdlib>
 #include <new>
 #include <vector>
@@ -7,17 +9,14 @@
 namespace kestrel {
 
 NodeSlots::NodeSlots(size_t prim_count)
-    : slots_(static_cast<Bvh2Node*>(::operator new[](sizeof(Bvh2Node) * (2 * prim_count + 2),
-                                                     std::align_val_t(alignof(Bvh2Node))))) {}
+    : slots_(static_cast<Bvh2Node*>(allocate_buffer(sizeof(Bvh2Node) * (2 * prim_count + 2), alignof(Bvh2Node)))) {}
 
-void NodeSlots::Free::operator()(Bvh2Node* p) const {
-  ::operator delete[](p, std::align_val_t(alignof(Bvh2Node)));
-}
+void NodeSlots::Free::operator()(Bvh2Node* p) const { free_buffer(p); }
 
-Bvh2 compact_slots(NodeSlots& slots, size_t leaf_count, std::span<const uint32_t> ordered_prim_ids) {
+Bvh2 compact_slots(NodeSlots& slots, std::span<const uint32_t> ordered_prim_ids) {
   Bvh2 out;
   out.prim_ids.assign(ordered_prim_ids.begin(), ordered_prim_ids.end());
-  out.nodes.resize(2 * leaf_count - 1);
+  out.nodes.resize(2 * ordered_prim_ids.size() - 1);  // at most; trimmed below
   // (slot index, output index) pairs; depth first, left child first.
   std::vector<std::pair<uint32_t, uint32_t>> stack;
   stack.reserve(128);

@@ -35,6 +35,6 @@ inline uint32_t right_descendants(uint32_t pair, size_t left_count) {
 
 /// Closes the gaps: the tree rooted at slot 0, with leaves indexing `ordered_prim_ids`,
 /// becomes a compact Bvh2 (depth-first, children pairs adjacent).
-Bvh2 compact_slots(NodeSlots& slots, size_t leaf_count, std::span<const uint32_t> ordered_prim_ids);
+Bvh2 compact_slots(NodeSlots& slots, std::span<const uint32_t> ordered_prim_ids);
 
 }  // namespace kestrel

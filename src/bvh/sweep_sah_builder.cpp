@@ -27,7 +27,6 @@ struct SweepBuilder {
   std::vector<uint8_t> goes_left;   // per ref index, set for the chosen left side
   std::vector<uint32_t> scratch;    // stable-partition buffer, same ranges as `order`
   std::vector<float> right_area;    // suffix areas, same ranges as `order`
-  std::atomic<size_t> leaf_count{0};
 
   Bounds3 ref_bounds(uint32_t i) const { return {refs[i].lo, refs[i].hi}; }
 
@@ -37,8 +36,7 @@ struct SweepBuilder {
     for (size_t i = begin; i < end; ++i) extend(node_bounds, ref_bounds(order[0][i]));
     if (n == 1) {
       slots[slot] = Bvh2Node{node_bounds.lo, uint32_t(begin), node_bounds.hi, 1};
-      leaf_count.fetch_add(1, std::memory_order_relaxed);
-      return;
+        return;
     }
     const float node_area = half_area(node_bounds);
     float best_cost = std::numeric_limits<float>::infinity();
@@ -66,8 +64,7 @@ struct SweepBuilder {
     }
     if (n <= config.max_leaf_size && leaf_cost(config, n) <= best_cost) {
       slots[slot] = Bvh2Node{node_bounds.lo, uint32_t(begin), node_bounds.hi, uint32_t(n)};
-      leaf_count.fetch_add(1, std::memory_order_relaxed);
-      return;
+        return;
     }
     const size_t mid = begin + best_left;
     for (size_t i = begin; i < end; ++i) goes_left[order[best_axis][i]] = i < mid;
@@ -111,7 +108,7 @@ Bvh2 build_sweep_sah(std::span<const PrimRef> refs, const BuildConfig& config) {
   b.build(0, 1, 0, n);
   std::vector<uint32_t> ids(n);
   for (size_t i = 0; i < n; ++i) ids[i] = refs[b.order[0][i]].prim_id;
-  return compact_slots(slots, b.leaf_count.load(), ids);
+  return compact_slots(slots, ids);
 }
 
 }  // namespace kestrel

@@ -31,7 +31,7 @@ struct TreeletParams {
 
 void restructure_node(BinaryTree& tree, uint32_t root, const BuildConfig& config, void* user) {
   const TreeletParams& params = *static_cast<const TreeletParams*>(user);
-  if (tree.count[root] < params.min_prims) return;
+  if (child_count(tree, root) < params.min_prims) return;
 
   // Grow the treelet: open the largest-area inner leaf until there are leaf_target leaves.
   uint32_t leaves[max_treelet_leaves];

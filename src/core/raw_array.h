@@ -7,6 +7,8 @@
 #include <new>
 #include <type_traits>
 
+#include "core/memory.h"
+
 namespace kestrel {
 
 template <class T>
@@ -19,7 +21,7 @@ class RawArray {
   explicit RawArray(size_t n) { resize(n); }
   void resize(size_t n) {
     size_ = n;
-    data_.reset(n ? static_cast<T*>(::operator new(sizeof(T) * n, std::align_val_t(64))) : nullptr);
+    data_.reset(n ? static_cast<T*>(allocate_buffer(sizeof(T) * n, 64)) : nullptr);
   }
   T& operator[](size_t i) { return data_[i]; }
   const T& operator[](size_t i) const { return data_[i]; }
@@ -37,7 +39,7 @@ class RawArray {
 
  private:
   struct Free {
-    void operator()(T* p) const { ::operator delete(p, std::align_val_t(64)); }
+    void operator()(T* p) const { free_buffer(p); }
   };
   std::unique_ptr<T[], Free> data_;
   size_t size_ = 0;

@@ -3,7 +3,6 @@
 #include <algorithm>
 
 #include "core/parallel.h"
-#include "core/raw_array.h"
 #include "core/vec.h"
 #include "geometry/triangle_classify.h"
 
@@ -59,23 +58,20 @@ std::vector<PrimRef> make_prim_refs(const Scene& scene, const SceneValidation& v
 std::vector<PrimRef> validate_and_make_prim_refs(const Scene& scene, SceneValidation& validation) {
   const size_t total = scene.triangle_count();
   std::vector<uint8_t> kind(total);
-  RawArray<PrimRef> all(total);
-  size_t offset = 0;
-  for (const TriangleMesh& mesh : scene.meshes) {
+  // Every triangle's ref at its global id, then the valid ones compacted forward in place
+  // (slot <= id, so nothing is overwritten before it is read).
+  std::vector<PrimRef> refs(total);
+  for (const TriangleMesh& mesh : scene.meshes)
     if (mesh.triangle_count() == 0) ++validation.report.empty_mesh_count;
-    offset += mesh.triangle_count();
-  }
   for_each_triangle(scene, [&](size_t gid, const TriangleMesh& mesh, size_t t) {
     kind[gid] = classify_triangle(mesh, t);
-    if (kind[gid] == tri_valid) all[gid] = triangle_ref(mesh, t, uint32_t(gid));
+    if (kind[gid] == tri_valid) refs[gid] = triangle_ref(mesh, t, uint32_t(gid));
   });
   tally(kind, validation);
-  std::vector<uint32_t> slot;
-  std::vector<PrimRef> refs(valid_slots(validation.valid, slot));
-  parallel_for(0, total, 65536, [&](size_t b, size_t e) {
-    for (size_t i = b; i < e; ++i)
-      if (validation.valid[i]) refs[slot[i]] = all[i];
-  });
+  size_t valid = 0;
+  for (size_t i = 0; i < total; ++i)
+    if (validation.valid[i]) refs[valid++] = refs[i];
+  refs.resize(valid);
   return refs;
 }
 

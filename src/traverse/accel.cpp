@@ -10,10 +10,9 @@
 namespace kestrel {
 
 Accel make_accel(Bvh2 bvh, std::span<const Triangle> all_triangles) {
-  const BvhMetrics m = compute_metrics(bvh, BuildConfig{});
-  if (m.max_depth > max_traversal_depth) {
+  if (const uint32_t depth = max_depth(bvh); depth > max_traversal_depth) {
     throw Error(ErrorCode::unsupported,
-                fmt::format("BVH depth {} exceeds the traversal limit {}", m.max_depth, max_traversal_depth));
+                fmt::format("BVH depth {} exceeds the traversal limit {}", depth, max_traversal_depth));
   }
   Accel accel;
   accel.triangles.resize(bvh.prim_ids.size());
@@ -29,7 +28,11 @@ Accel build_accel(const Scene& scene, const BuildConfig& config) {
   SceneValidation validation;
   std::vector<PrimRef> refs = validate_and_make_prim_refs(scene, validation);
   Bvh2 bvh = build_bvh(refs, config);
-  if (compute_metrics(bvh, config).max_depth > max_traversal_depth) {
+  // LBVH depth is bounded by its key bits (at most 3 x 21 + 32 levels) and the median split
+  // by log2(n); the SAH-driven trees are checked.
+  const Builder builder = resolve_builder(config);
+  const bool bounded_depth = builder == Builder::lbvh || builder == Builder::median;
+  if (!bounded_depth && max_depth(bvh) > max_traversal_depth) {
     // Pathological primitive distributions can make SAH trees very deep; the median split
     // bounds the depth by log2(n).
     BuildConfig fallback = config;
