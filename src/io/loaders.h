@@ -14,6 +14,9 @@ Scene load_gltf(const std::string& path);
 /// Built-in scenes by name ("cornell_box").
 Scene make_builtin_scene(const std::string& name);
 
+/// Decodes a PNG/JPEG/... image to RGBA8; Error naming the file when it cannot.
+Texture load_texture(const std::string& path);
+
 /// Throws Error(file_not_found) unless `path` names a readable regular file.
 void require_readable_file(const std::string& path);
 

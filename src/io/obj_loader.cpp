@@ -15,6 +15,7 @@
 #include <filesystem>
 #include <fstream>
 #include <limits>
+#include <map>
 #include <sstream>
 #include <unordered_map>
 
@@ -160,7 +161,27 @@ Scene load_obj(const std::string& path) {
     if (3 * v + 2 < vertices.size()) vertices[3 * v] = std::numeric_limits<float>::quiet_NaN();
   Scene scene;
   scene.source = path;
-  for (const auto& m : materials) scene.materials.push_back(convert_material(m));
+  // Texture maps named by the MTL (map_Kd, map_Ke), each file decoded once. A missing or
+  // undecodable image leaves the material untextured; it does not fail the scene.
+  std::map<std::string, int> texture_of;
+  auto texture = [&](const std::string& name) -> int {
+    if (name.empty()) return -1;
+    auto [it, fresh] = texture_of.try_emplace(name, -1);
+    if (fresh) {
+      try {
+        scene.textures.push_back(load_texture((dir / name).string()));
+        it->second = int(scene.textures.size() - 1);
+      } catch (const Error&) {
+      }
+    }
+    return it->second;
+  };
+  for (const auto& m : materials) {
+    Material material = convert_material(m);
+    material.base_color_texture = texture(m.diffuse_texname);
+    material.emission_texture = texture(m.emissive_texname);
+    scene.materials.push_back(material);
+  }
   const uint32_t default_material = uint32_t(scene.materials.size());
   scene.materials.push_back(Material{.name = "default"});
 

@@ -101,6 +101,22 @@ TEST(Gltf, TexturesAndMaterialsAreRead) {
   EXPECT_FALSE(s.meshes[0].normals.empty());
 }
 
+TEST(Obj, MtlTexturesAreDecoded) {
+  auto path = test::shared_scene("dabrovic_sponza/sponza.obj");
+  if (!path) GTEST_SKIP();
+  const Scene s = load_scene(*path);
+  int textured = 0;
+  for (const Material& m : s.materials)
+    if (m.base_color_texture >= 0) {
+      ++textured;
+      const Texture& t = s.textures[m.base_color_texture];
+      EXPECT_GT(t.width, 0);
+      EXPECT_EQ(t.rgba.size(), size_t(t.width) * t.height * 4);
+    }
+  EXPECT_GT(textured, 0);
+  EXPECT_FALSE(s.meshes[0].uvs.empty());
+}
+
 TEST(Obj, FanTriangulationFollowsFileOrder) {
   const std::string path = test::write_temp_file("quad.obj",
       "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nv 0 0 1\nf 1 2 3 4\nf 1 2 5\n");
