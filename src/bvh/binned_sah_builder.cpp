@@ -27,7 +27,7 @@ using simd::Vec4f;
 constexpr int max_bins = 32;
 // Ranges this small are split by an exact sweep over centroid-sorted primitives instead of
 // bins: cheaper than clearing and sweeping 3 x bin_count bins, and never worse in SAH.
-constexpr size_t exact_sweep_max = 12;
+constexpr size_t exact_sweep_max = 8;
 constexpr size_t parallel_binning_threshold = 1u << 16;
 constexpr size_t binning_chunk = 1u << 14;
 
