@@ -10,6 +10,18 @@ namespace kestrel {
 
 namespace {
 
+// Triangles reference vertices in arbitrary order (scanned and exported meshes often
+// scramble them), so vertex reads miss the caches; asking for the vertices of the triangle
+// `prefetch_distance` ahead overlaps those misses.
+constexpr size_t prefetch_distance = 16;
+
+inline void prefetch_vertices(const TriangleMesh& mesh, size_t t) {
+  const uint32_t* idx = &mesh.indices[3 * t];
+  const size_t vertex_count = mesh.positions.size();
+  for (int k = 0; k < 3; ++k)
+    if (idx[k] < vertex_count) __builtin_prefetch(&mesh.positions[idx[k]]);
+}
+
 // Visits (global id, mesh, local triangle) in parallel chunks, mesh by mesh.
 template <class F>
 void for_each_triangle(const Scene& scene, F&& f) {
@@ -17,7 +29,10 @@ void for_each_triangle(const Scene& scene, F&& f) {
   for (const TriangleMesh& mesh : scene.meshes) {
     const size_t n = mesh.triangle_count();
     parallel_for(0, n, 16384, [&](size_t b, size_t e) {
-      for (size_t i = b; i < e; ++i) f(offset + i, mesh, i);
+      for (size_t i = b; i < e; ++i) {
+        if (i + prefetch_distance < e) prefetch_vertices(mesh, i + prefetch_distance);
+        f(offset + i, mesh, i);
+      }
     });
     offset += n;
   }
@@ -93,14 +108,25 @@ std::vector<Triangle> gather_triangles(const Scene& scene, std::span<const uint3
     first.push_back(offset);
     offset += mesh.triangle_count();
   }
+  auto locate = [&](uint32_t gid) -> std::pair<const TriangleMesh*, size_t> {
+    const size_t m = size_t(std::upper_bound(first.begin(), first.end(), size_t(gid)) - first.begin()) - 1;
+    return {&scene.meshes[m], gid - first[m]};
+  };
   std::vector<Triangle> tris(prim_ids.size());
   parallel_for(0, prim_ids.size(), 16384, [&](size_t b, size_t e) {
     for (size_t i = b; i < e; ++i) {
-      const uint32_t gid = prim_ids[i];
-      const size_t m = size_t(std::upper_bound(first.begin(), first.end(), size_t(gid)) - first.begin()) - 1;
-      const TriangleMesh& mesh = scene.meshes[m];
-      const uint32_t* idx = &mesh.indices[3 * (gid - first[m])];
-      tris[i] = {mesh.positions[idx[0]], mesh.positions[idx[1]], mesh.positions[idx[2]]};
+      // Two stages ahead: the index triple far ahead, the vertices of a nearer triangle.
+      if (i + 2 * prefetch_distance < e) {
+        auto [mesh, t] = locate(prim_ids[i + 2 * prefetch_distance]);
+        __builtin_prefetch(&mesh->indices[3 * t]);
+      }
+      if (i + prefetch_distance < e) {
+        auto [mesh, t] = locate(prim_ids[i + prefetch_distance]);
+        prefetch_vertices(*mesh, t);
+      }
+      auto [mesh, t] = locate(prim_ids[i]);
+      const uint32_t* idx = &mesh->indices[3 * t];
+      tris[i] = {mesh->positions[idx[0]], mesh->positions[idx[1]], mesh->positions[idx[2]]};
     }
   });
   return tris;
