@@ -118,7 +118,7 @@ int main(int argc, char** argv) {
         BuildConfig config;
         config.builder = b;
         Timer t0;
-        std::vector<PrimRef> refs = make_prim_refs(scene, validation);
+        Buffer<PrimRef> refs = make_prim_refs(scene, validation);
         Bvh2 bvh = build_bvh(refs, config);
         row.bvh_ms.push_back(t0.ms());
         Timer t1;

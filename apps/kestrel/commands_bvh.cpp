@@ -69,7 +69,7 @@ void run_bvh(const BvhArgs& a) {
   if (validation.report.valid_triangle_count == 0)
     throw Error(ErrorCode::invalid_geometry, fmt::format("{}: no valid triangle ({})", a.scene, validation.report.summary()));
   std::vector<double> ref_ms, build_ms;
-  std::vector<PrimRef> refs;
+  Buffer<PrimRef> refs;
   Bvh2 bvh;
   for (int r = 0; r < std::max(1, a.repeat); ++r) {
     Timer t0;

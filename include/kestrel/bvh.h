@@ -8,6 +8,7 @@
 #include <string>
 #include <vector>
 
+#include "kestrel/buffer.h"
 #include "kestrel/types.h"
 
 namespace kestrel {
@@ -66,7 +67,7 @@ static_assert(sizeof(Bvh2Node) == 32);
 /// The canonical binary BVH: nodes[0] is the root (when non-empty); leaves reference
 /// contiguous runs of prim_ids. Every other layout is a conversion of this one.
 struct Bvh2 {
-  std::vector<Bvh2Node> nodes;
+  Buffer<Bvh2Node> nodes;
   std::vector<uint32_t> prim_ids;
   bool empty() const { return nodes.empty(); }
 };

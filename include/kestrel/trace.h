@@ -38,7 +38,7 @@ struct Triangle {
 /// A scene ready to trace: the BVH over its valid triangles and their vertices in leaf order.
 struct Accel {
   Bvh2 bvh;
-  std::vector<Triangle> triangles;  ///< triangles[i] is primitive bvh.prim_ids[i]
+  Buffer<Triangle> triangles;       ///< triangles[i] is primitive bvh.prim_ids[i]
   SceneValidation validation;
   double build_ms = 0;              ///< prim refs + builder + triangle copy, wall clock
 };

@@ -28,6 +28,8 @@ constexpr int max_bins = 32;
 // Ranges this small are split by an exact sweep over centroid-sorted primitives instead of
 // bins: cheaper than clearing and sweeping 3 x bin_count bins, and never worse in SAH.
 constexpr size_t exact_sweep_max = 8;
+// Ranges at least this large are binned into two alternating bin sets (see bin_range).
+constexpr size_t two_set_min = 256;
 constexpr size_t parallel_binning_threshold = 1u << 16;
 constexpr size_t binning_chunk = 1u << 14;
 
@@ -103,11 +105,23 @@ struct BinnedBuilder {
   // Alternate references go to two bin sets, merged at the end: runs of neighbouring
   // references fall in the same bin, and one set would serialise on its read-modify-writes.
   void bin_range(const BinMapping& map, size_t begin, size_t end, Bins& bins) const {
-    Bins odd;
     bins.clear(map.bin_count);
-    odd.clear(map.bin_count);
     int b0[4], b1[4];
     size_t i = begin;
+    if (end - begin < two_set_min) {  // small ranges: clearing and merging a second set costs more
+      for (; i < end; ++i) {
+        const Vec4f lo = ref_lo(i), hi = ref_hi(i);
+        map.bin_of(lo, hi, b0);
+        for (int a = 0; a < 3; ++a) {
+          bins.lo[a][b0[a]] = min(bins.lo[a][b0[a]], lo);
+          bins.hi[a][b0[a]] = max(bins.hi[a][b0[a]], hi);
+          bins.count[a][b0[a]]++;
+        }
+      }
+      return;
+    }
+    Bins odd;
+    odd.clear(map.bin_count);
     for (; i + 1 < end; i += 2) {
       const Vec4f lo0 = ref_lo(i), hi0 = ref_hi(i), lo1 = ref_lo(i + 1), hi1 = ref_hi(i + 1);
       map.bin_of(lo0, hi0, b0);
@@ -171,6 +185,7 @@ struct BinnedBuilder {
     const size_t n = info.end - info.begin;
     if (n == 1) return make_leaf(slot, info);
     const float node_area = simd::half_area(info.geom_lo, info.geom_hi);
+    const float inv_area = inverse_area(node_area);
     RangeInfo left, right;
     alignas(16) float cext[4];
     (info.cent_hi - info.cent_lo).store(cext);
@@ -178,7 +193,7 @@ struct BinnedBuilder {
       if (n <= config.max_leaf_size) return make_leaf(slot, info);
       split_middle(info, left, right);
     } else if (n <= exact_sweep_max) {
-      if (!exact_split(info, node_area, left, right)) return make_leaf(slot, info);
+      if (!exact_split(info, inv_area, left, right)) return make_leaf(slot, info);
     } else {
       // Bins scale with the range: the top levels (few nodes, many references) get the full
       // count -- coarse bins there cut through clustered objects -- while small nodes, where
@@ -211,7 +226,7 @@ struct BinnedBuilder {
           hi = max(hi, bins.hi[a][b]);
           count += bins.count[a][b];
           if (count == 0 || right_count[b + 1] == 0) continue;
-          float c = split_cost(config, node_area, simd::half_area(lo, hi), count, right_area[b + 1],
+          float c = split_cost(config, inv_area, simd::half_area(lo, hi), count, right_area[b + 1],
                                right_count[b + 1]);
           if (c < best_cost) {
             best_cost = c;
@@ -245,7 +260,7 @@ struct BinnedBuilder {
   }
 
   // Exact SAH over the sorted centroids of a small range; false when a leaf is cheaper.
-  bool exact_split(const RangeInfo& info, float node_area, RangeInfo& left, RangeInfo& right) const {
+  bool exact_split(const RangeInfo& info, float inv_area, RangeInfo& left, RangeInfo& right) const {
     const size_t n = info.end - info.begin;
     const PrimRef* r = refs + info.begin;
     uint8_t order[3][exact_sweep_max];
@@ -259,7 +274,7 @@ struct BinnedBuilder {
       // itself deterministic, so the result does not depend on threads.
       float key[exact_sweep_max];
       for (size_t i = 0; i < n; ++i) {
-        const float k = r[i].lo[a] + r[i].hi[a];
+        const float k = (&r[i].lo.x)[a] + (&r[i].hi.x)[a];
         size_t j = i;
         while (j > 0 && key[j - 1] > k) {
           key[j] = key[j - 1];
@@ -280,7 +295,7 @@ struct BinnedBuilder {
       for (size_t i = 0; i + 1 < n; ++i) {
         lo = min(lo, Vec4f::load(&r[o[i]].lo));
         hi = max(hi, Vec4f::load(&r[o[i]].hi));
-        const float c = split_cost(config, node_area, simd::half_area(lo, hi), i + 1, right_area[i + 1], n - i - 1);
+        const float c = split_cost(config, inv_area, simd::half_area(lo, hi), i + 1, right_area[i + 1], n - i - 1);
         if (c < best_cost) {
           best_cost = c;
           best_axis = a;
@@ -302,28 +317,27 @@ struct BinnedBuilder {
     return true;
   }
 
-  // In-place two-pointer partition that also gathers both sides' bounds.
+  // In-place two-pointer partition that also gathers both sides' bounds. A reference goes
+  // left when its bin on `axis` is below `split`; since bins are truncated, clamped values
+  // of (c - offset) * scale, that is exactly (c - offset) * scale < split, computed with the
+  // same float operations as in binning, so every reference lands on the side it was
+  // counted on.
   void partition(const BinMapping& map, int axis, int split, const RangeInfo& info, RangeInfo& left,
                  RangeInfo& right) const {
     left = RangeInfo::empty_at(info.begin);
     right = RangeInfo::empty_at(info.end);
-    size_t i = info.begin, j = info.end;
-    int b[4];
-    auto goes_left = [&](size_t k, Vec4f lo, Vec4f hi) {
-      map.bin_of(lo, hi, b);
-      return b[axis] < split;
+    const float offset = map.offset[axis], scale = map.scale[axis], bound = float(split);
+    auto goes_left = [&](size_t k) {
+      return ((&refs[k].lo.x)[axis] + (&refs[k].hi.x)[axis] - offset) * scale < bound;
     };
+    size_t i = info.begin, j = info.end;
     while (true) {
-      while (i < j) {
-        Vec4f lo = ref_lo(i), hi = ref_hi(i);
-        if (!goes_left(i, lo, hi)) break;
-        left.add(lo, hi);
+      while (i < j && goes_left(i)) {
+        left.add(ref_lo(i), ref_hi(i));
         ++i;
       }
-      while (i < j) {
-        Vec4f lo = ref_lo(j - 1), hi = ref_hi(j - 1);
-        if (goes_left(j - 1, lo, hi)) break;
-        right.add(lo, hi);
+      while (i < j && !goes_left(j - 1)) {
+        right.add(ref_lo(j - 1), ref_hi(j - 1));
         --j;
       }
       if (i >= j) break;
@@ -338,7 +352,7 @@ struct BinnedBuilder {
 }  // namespace
 
 Bvh2 build_binned_sah(std::span<const PrimRef> input, const BuildConfig& config) {
-  std::vector<PrimRef> refs(input.begin(), input.end());
+  Buffer<PrimRef> refs(input.begin(), input.end());
   const size_t n = refs.size();
   NodeSlots slots(n);
   BinnedBuilder builder{refs.data(), config, slots, int(config.bin_count)};

@@ -16,7 +16,7 @@ namespace kestrel {
 namespace {
 
 struct MedianBuilder {
-  std::vector<PrimRef>& refs;
+  Buffer<PrimRef>& refs;
   const BuildConfig& config;
   NodeSlots& slots;
 
@@ -48,7 +48,7 @@ struct MedianBuilder {
                      });
     if (n <= config.max_leaf_size) {
       Bounds3 l = bounds_of(begin, mid, nullptr), r = bounds_of(mid, end, nullptr);
-      float split = split_cost(config, half_area(node_bounds), half_area(l), mid - begin,
+      float split = split_cost(config, inverse_area(half_area(node_bounds)), half_area(l), mid - begin,
                                half_area(r), end - mid);
       if (leaf_cost(config, n) <= split) return make_leaf(slot, node_bounds, begin, end);
     }
@@ -67,7 +67,7 @@ struct MedianBuilder {
 }  // namespace
 
 Bvh2 build_median(std::span<const PrimRef> input, const BuildConfig& config) {
-  std::vector<PrimRef> refs(input.begin(), input.end());
+  Buffer<PrimRef> refs(input.begin(), input.end());
   NodeSlots slots(refs.size());
   MedianBuilder builder{refs, config, slots};
   builder.build(0, 1, 0, refs.size());

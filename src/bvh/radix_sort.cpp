@@ -67,11 +67,29 @@ void radix_sort_impl(RawArray<Key>& keys, RawArray<uint32_t>& values, int key_bi
 }
 
 // LSD radix sort of 64-bit words on bits [first_bit, first_bit + key_bits).
+// Serial: the counts of every digit are gathered in one pass over the words (the keys do
+// not change between passes, only their order), then each pass is a single scatter.
+// Parallel: per pass, per-chunk counts of the current order, then a parallel scatter.
+// Both are stable sorts, so they give the same order.
 void radix_sort_packed(RawArray<uint64_t>& words, int first_bit, int key_bits) {
   const size_t n = words.size();
   if (n < 2) return;
+  const int digits = (key_bits + digit_bits - 1) / digit_bits;
   RawArray<uint64_t> tmp(n);
   const size_t chunks = chunk_count(n, sort_chunk);
+  if (current_thread_count() == 1 || chunks == 1) {
+    std::vector<uint32_t> hist(size_t(digits) * bucket_count, 0u);
+    for (size_t i = 0; i < n; ++i)
+      for (int d = 0; d < digits; ++d) hist[d * bucket_count + ((words[i] >> (first_bit + d * digit_bits)) & (bucket_count - 1))]++;
+    for (int d = 0; d < digits; ++d) {
+      std::vector<uint32_t> offset(hist.begin() + d * bucket_count, hist.begin() + (d + 1) * bucket_count);
+      if (scan_offsets(offset, 1, n)) continue;
+      const int shift = first_bit + d * digit_bits;
+      for (size_t i = 0; i < n; ++i) tmp[offset[(words[i] >> shift) & (bucket_count - 1)]++] = words[i];
+      words.swap(tmp);
+    }
+    return;
+  }
   std::vector<uint32_t> hist(chunks * bucket_count);
   for (int shift = first_bit; shift < first_bit + key_bits; shift += digit_bits) {
     std::fill(hist.begin(), hist.end(), 0u);

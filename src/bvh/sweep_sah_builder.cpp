@@ -38,7 +38,7 @@ struct SweepBuilder {
       slots[slot] = Bvh2Node{node_bounds.lo, uint32_t(begin), node_bounds.hi, 1};
         return;
     }
-    const float node_area = half_area(node_bounds);
+    const float inv_area = inverse_area(half_area(node_bounds));
     float best_cost = std::numeric_limits<float>::infinity();
     int best_axis = 0;
     size_t best_left = n / 2;
@@ -53,7 +53,7 @@ struct SweepBuilder {
       for (size_t i = begin; i + 1 < end; ++i) {
         extend(acc, ref_bounds(o[i]));
         size_t left_count = i + 1 - begin;
-        float c = split_cost(config, node_area, half_area(acc), left_count, right_area[i + 1],
+        float c = split_cost(config, inv_area, half_area(acc), left_count, right_area[i + 1],
                              n - left_count);
         if (c < best_cost) {
           best_cost = c;

@@ -61,21 +61,21 @@ size_t valid_slots(std::span<const uint8_t> valid, std::vector<uint32_t>& slot) 
 
 }  // namespace
 
-std::vector<PrimRef> make_prim_refs(const Scene& scene, const SceneValidation& validation) {
+Buffer<PrimRef> make_prim_refs(const Scene& scene, const SceneValidation& validation) {
   std::vector<uint32_t> slot;
-  std::vector<PrimRef> refs(valid_slots(validation.valid, slot));
+  Buffer<PrimRef> refs(valid_slots(validation.valid, slot));
   for_each_triangle(scene, [&](size_t gid, const TriangleMesh& mesh, size_t t) {
     if (validation.valid[gid]) refs[slot[gid]] = triangle_ref(mesh, t, uint32_t(gid));
   });
   return refs;
 }
 
-std::vector<PrimRef> validate_and_make_prim_refs(const Scene& scene, SceneValidation& validation) {
+Buffer<PrimRef> validate_and_make_prim_refs(const Scene& scene, SceneValidation& validation) {
   const size_t total = scene.triangle_count();
   std::vector<uint8_t> kind(total);
   // Every triangle's ref at its global id, then the valid ones compacted forward in place
   // (slot <= id, so nothing is overwritten before it is read).
-  std::vector<PrimRef> refs(total);
+  Buffer<PrimRef> refs(total);
   for (const TriangleMesh& mesh : scene.meshes)
     if (mesh.triangle_count() == 0) ++validation.report.empty_mesh_count;
   for_each_triangle(scene, [&](size_t gid, const TriangleMesh& mesh, size_t t) {
@@ -83,6 +83,7 @@ std::vector<PrimRef> validate_and_make_prim_refs(const Scene& scene, SceneValida
     if (kind[gid] == tri_valid) refs[gid] = triangle_ref(mesh, t, uint32_t(gid));
   });
   tally(kind, validation);
+  if (validation.report.valid_triangle_count == total) return refs;  // the common case
   size_t valid = 0;
   for (size_t i = 0; i < total; ++i)
     if (validation.valid[i]) refs[valid++] = refs[i];
@@ -90,17 +91,20 @@ std::vector<PrimRef> validate_and_make_prim_refs(const Scene& scene, SceneValida
   return refs;
 }
 
-std::vector<Triangle> gather_triangles(const Scene& scene, const SceneValidation& validation) {
-  std::vector<Triangle> tris(validation.valid.size());
+Buffer<Triangle> gather_triangles(const Scene& scene, const SceneValidation& validation) {
+  Buffer<Triangle> tris(validation.valid.size());
   for_each_triangle(scene, [&](size_t gid, const TriangleMesh& mesh, size_t t) {
-    if (!validation.valid[gid]) return;
+    if (!validation.valid[gid]) {
+      tris[gid] = Triangle{};
+      return;
+    }
     const uint32_t* idx = &mesh.indices[3 * t];
     tris[gid] = {mesh.positions[idx[0]], mesh.positions[idx[1]], mesh.positions[idx[2]]};
   });
   return tris;
 }
 
-std::vector<Triangle> gather_triangles(const Scene& scene, std::span<const uint32_t> prim_ids) {
+Buffer<Triangle> gather_triangles(const Scene& scene, std::span<const uint32_t> prim_ids) {
   // First global id of each mesh, to map a global id back to (mesh, local triangle).
   std::vector<size_t> first;
   size_t offset = 0;
@@ -112,7 +116,7 @@ std::vector<Triangle> gather_triangles(const Scene& scene, std::span<const uint3
     const size_t m = size_t(std::upper_bound(first.begin(), first.end(), size_t(gid)) - first.begin()) - 1;
     return {&scene.meshes[m], gid - first[m]};
   };
-  std::vector<Triangle> tris(prim_ids.size());
+  Buffer<Triangle> tris(prim_ids.size());
   parallel_for(0, prim_ids.size(), 16384, [&](size_t b, size_t e) {
     for (size_t i = b; i < e; ++i) {
       // Two stages ahead: the index triple far ahead, the vertices of a nearer triangle.

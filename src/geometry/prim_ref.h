@@ -10,16 +10,16 @@ namespace kestrel {
 
 /// One PrimRef per valid triangle (prim_id = global triangle id, in scene order), in
 /// parallel. Invalid triangles (see validate_scene) are skipped.
-std::vector<PrimRef> make_prim_refs(const Scene& scene, const SceneValidation& validation);
+Buffer<PrimRef> make_prim_refs(const Scene& scene, const SceneValidation& validation);
 
 /// Validation and PrimRefs in one pass over the vertices (each triangle's vertices are read
 /// once): what build_accel uses.
-std::vector<PrimRef> validate_and_make_prim_refs(const Scene& scene, SceneValidation& validation);
+Buffer<PrimRef> validate_and_make_prim_refs(const Scene& scene, SceneValidation& validation);
 
 /// All triangles of the scene by global id (invalid ones are zero triangles: never hit).
-std::vector<Triangle> gather_triangles(const Scene& scene, const SceneValidation& validation);
+Buffer<Triangle> gather_triangles(const Scene& scene, const SceneValidation& validation);
 
 /// The triangles of the given global prim ids, in that order (e.g. a BVH's leaf order).
-std::vector<Triangle> gather_triangles(const Scene& scene, std::span<const uint32_t> prim_ids);
+Buffer<Triangle> gather_triangles(const Scene& scene, std::span<const uint32_t> prim_ids);
 
 }  // namespace kestrel

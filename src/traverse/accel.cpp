@@ -26,7 +26,7 @@ Accel make_accel(Bvh2 bvh, std::span<const Triangle> all_triangles) {
 Accel build_accel(const Scene& scene, const BuildConfig& config) {
   Timer timer;
   SceneValidation validation;
-  std::vector<PrimRef> refs = validate_and_make_prim_refs(scene, validation);
+  Buffer<PrimRef> refs = validate_and_make_prim_refs(scene, validation);
   Bvh2 bvh = build_bvh(refs, config);
   // LBVH depth is bounded by its key bits (at most 3 x 21 + 32 levels) and the median split
   // by log2(n); the SAH-driven trees are checked.

@@ -20,7 +20,7 @@ BuildConfig config_for(Builder b) {
   return c;
 }
 
-std::vector<PrimRef> refs_of(const Scene& scene) { return make_prim_refs(scene, validate_scene(scene)); }
+Buffer<PrimRef> refs_of(const Scene& scene) { return make_prim_refs(scene, validate_scene(scene)); }
 
 class EveryBuilder : public ::testing::TestWithParam<Builder> {};
 

@@ -38,7 +38,7 @@ std::optional<std::string> shared_scene(const std::string& rel);
 
 /// Every triangle by global id plus validity, for brute force.
 struct Soup {
-  std::vector<Triangle> triangles;
+  Buffer<Triangle> triangles;
   std::vector<uint8_t> valid;
 };
 Soup flatten(const Scene& scene);
