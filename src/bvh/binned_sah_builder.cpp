@@ -62,6 +62,14 @@ struct Bins {
         count[a][b] = 0;
       }
   }
+  /// Adds a reference with bounds [lo, hi] to its bin on each axis.
+  void add(const int* bin, Vec4f lo, Vec4f hi) {
+    for (int a = 0; a < 3; ++a) {
+      this->lo[a][bin[a]] = min(this->lo[a][bin[a]], lo);
+      this->hi[a][bin[a]] = max(this->hi[a][bin[a]], hi);
+      count[a][bin[a]]++;
+    }
+  }
   void merge(const Bins& o, int bin_count) {
     for (int a = 0; a < 3; ++a)
       for (int b = 0; b < bin_count; ++b) {
@@ -112,11 +120,7 @@ struct BinnedBuilder {
       for (; i < end; ++i) {
         const Vec4f lo = ref_lo(i), hi = ref_hi(i);
         map.bin_of(lo, hi, b0);
-        for (int a = 0; a < 3; ++a) {
-          bins.lo[a][b0[a]] = min(bins.lo[a][b0[a]], lo);
-          bins.hi[a][b0[a]] = max(bins.hi[a][b0[a]], hi);
-          bins.count[a][b0[a]]++;
-        }
+        bins.add(b0, lo, hi);
       }
       return;
     }
@@ -126,23 +130,13 @@ struct BinnedBuilder {
       const Vec4f lo0 = ref_lo(i), hi0 = ref_hi(i), lo1 = ref_lo(i + 1), hi1 = ref_hi(i + 1);
       map.bin_of(lo0, hi0, b0);
       map.bin_of(lo1, hi1, b1);
-      for (int a = 0; a < 3; ++a) {
-        bins.lo[a][b0[a]] = min(bins.lo[a][b0[a]], lo0);
-        bins.hi[a][b0[a]] = max(bins.hi[a][b0[a]], hi0);
-        bins.count[a][b0[a]]++;
-        odd.lo[a][b1[a]] = min(odd.lo[a][b1[a]], lo1);
-        odd.hi[a][b1[a]] = max(odd.hi[a][b1[a]], hi1);
-        odd.count[a][b1[a]]++;
-      }
+      bins.add(b0, lo0, hi0);
+      odd.add(b1, lo1, hi1);
     }
     if (i < end) {
       const Vec4f lo = ref_lo(i), hi = ref_hi(i);
       map.bin_of(lo, hi, b0);
-      for (int a = 0; a < 3; ++a) {
-        bins.lo[a][b0[a]] = min(bins.lo[a][b0[a]], lo);
-        bins.hi[a][b0[a]] = max(bins.hi[a][b0[a]], hi);
-        bins.count[a][b0[a]]++;
-      }
+      bins.add(b0, lo, hi);
     }
     bins.merge(odd, map.bin_count);
   }
@@ -249,14 +243,9 @@ struct BinnedBuilder {
     slots[slot].lo = {lo[0], lo[1], lo[2]};
     slots[slot].hi = {hi[0], hi[1], hi[2]};
     const size_t left_count = left.end - left.begin;
-    auto build_left = [&] { build(pair, pair + 2, left); };
-    auto build_right = [&] { build(pair + 1, right_descendants(pair, left_count), right); };
-    if (n > config.parallel_threshold) {
-      parallel_invoke(build_left, build_right);
-    } else {
-      build_left();
-      build_right();
-    }
+    build_children(
+        n > config.parallel_threshold, [&] { build(pair, pair + 2, left); },
+        [&] { build(pair + 1, right_descendants(pair, left_count), right); });
   }
 
   // Exact SAH over the sorted centroids of a small range; false when a leaf is cheaper.

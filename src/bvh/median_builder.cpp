@@ -53,14 +53,9 @@ struct MedianBuilder {
       if (leaf_cost(config, n) <= split) return make_leaf(slot, node_bounds, begin, end);
     }
     slots[slot] = Bvh2Node{node_bounds.lo, pair, node_bounds.hi, 0};
-    auto left = [&] { build(pair, pair + 2, begin, mid); };
-    auto right = [&] { build(pair + 1, right_descendants(pair, mid - begin), mid, end); };
-    if (n > config.parallel_threshold) {
-      parallel_invoke(left, right);
-    } else {
-      left();
-      right();
-    }
+    build_children(
+        n > config.parallel_threshold, [&] { build(pair, pair + 2, begin, mid); },
+        [&] { build(pair + 1, right_descendants(pair, mid - begin), mid, end); });
   }
 };
 

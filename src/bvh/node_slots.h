@@ -11,6 +11,7 @@
 #include <memory>
 #include <span>
 
+#include "core/parallel.h"
 #include "kestrel/bvh.h"
 
 namespace kestrel {
@@ -31,6 +32,17 @@ struct NodeSlots {
 /// Descendant range start of the right child, given the pair at `pair` and left count.
 inline uint32_t right_descendants(uint32_t pair, size_t left_count) {
   return pair + 2 * static_cast<uint32_t>(left_count);
+}
+
+/// Builds the two subtrees of a node: in parallel (through core/parallel.h) for large
+/// ranges, else one after the other. Slots are fixed in advance, so both give the same tree.
+inline void build_children(bool parallel, FunctionRef<void()> left, FunctionRef<void()> right) {
+  if (parallel) {
+    parallel_invoke(left, right);
+  } else {
+    left();
+    right();
+  }
 }
 
 /// Closes the gaps: the tree rooted at slot 0, with leaves indexing `ordered_prim_ids`,

@@ -76,14 +76,9 @@ struct SweepBuilder {
       std::copy(scratch.begin() + begin, scratch.begin() + end, o + begin);
     }
     slots[slot] = Bvh2Node{node_bounds.lo, pair, node_bounds.hi, 0};
-    auto left = [&] { build(pair, pair + 2, begin, mid); };
-    auto right = [&] { build(pair + 1, right_descendants(pair, mid - begin), mid, end); };
-    if (n > config.parallel_threshold) {
-      parallel_invoke(left, right);
-    } else {
-      left();
-      right();
-    }
+    build_children(
+        n > config.parallel_threshold, [&] { build(pair, pair + 2, begin, mid); },
+        [&] { build(pair + 1, right_descendants(pair, mid - begin), mid, end); });
   }
 };
 
