@@ -7,6 +7,7 @@
 // results do not depend on the thread count); subtrees are built in parallel through
 // core/parallel.h with node slots fixed in advance (node_slots.h).
 #include <algorithm>
+#include <cstring>
 #include <atomic>
 #include <limits>
 #include <vector>
@@ -28,6 +29,14 @@ constexpr int max_bins = 32;
 // Ranges this small are split by an exact sweep over centroid-sorted primitives instead of
 // bins: cheaper than clearing and sweeping 3 x bin_count bins, and never worse in SAH.
 constexpr size_t exact_sweep_max = 8;
+// Small inputs (a whole build of at most small_input references takes microseconds) use the
+// exact sweep up to exact_sweep_cap references: with few, large primitives, coarse bins
+// choose visibly worse splits.
+constexpr size_t small_input = 4096;
+constexpr size_t exact_sweep_cap = 64;
+// Ranges at least this large get their binned split refined exactly (refine_and_partition);
+// below it the sort would cost more than it gains over the plain binned split.
+constexpr size_t refine_min = 256;
 // Ranges at least this large are binned into two alternating bin sets (see bin_range).
 constexpr size_t two_set_min = 256;
 constexpr size_t parallel_binning_threshold = 1u << 16;
@@ -106,6 +115,7 @@ struct BinnedBuilder {
   const BuildConfig& config;
   NodeSlots& slots;
   int bin_count;
+  size_t exact_max;  // exact sweep for ranges up to this size
 
   Vec4f ref_lo(size_t i) const { return Vec4f::load(&refs[i].lo); }
   Vec4f ref_hi(size_t i) const { return Vec4f::load(&refs[i].hi); }
@@ -186,7 +196,7 @@ struct BinnedBuilder {
     if (cext[0] <= 0.0f && cext[1] <= 0.0f && cext[2] <= 0.0f) {
       if (n <= config.max_leaf_size) return make_leaf(slot, info);
       split_middle(info, left, right);
-    } else if (n <= exact_sweep_max) {
+    } else if (n <= exact_max) {
       if (!exact_split(info, inv_area, left, right)) return make_leaf(slot, info);
     } else {
       // Bins scale with the range: the top levels (few nodes, many references) get the full
@@ -229,12 +239,16 @@ struct BinnedBuilder {
           }
         }
       }
-      if (n <= config.max_leaf_size && leaf_cost(config, n) <= best_cost) return make_leaf(slot, info);
-      if (best_axis < 0) {
-        split_middle(info, left, right);
-      } else {
-        partition(map, best_axis, best_split, info, left, right);
+      if (best_axis >= 0) {
+        if (n >= refine_min) {
+          best_cost = refine_and_partition(best_axis, best_split, map, inv_area, info, left, right);
+        } else {
+          partition(map, best_axis, best_split, info, left, right);
+        }
       }
+      // A leaf is weighed against the refined split (refinement only reorders the range).
+      if (n <= config.max_leaf_size && leaf_cost(config, n) <= best_cost) return make_leaf(slot, info);
+      if (best_axis < 0) split_middle(info, left, right);
     }
     slots[slot] = Bvh2Node{{}, pair, {}, 0};
     alignas(16) float lo[4], hi[4];
@@ -252,8 +266,8 @@ struct BinnedBuilder {
   bool exact_split(const RangeInfo& info, float inv_area, RangeInfo& left, RangeInfo& right) const {
     const size_t n = info.end - info.begin;
     const PrimRef* r = refs + info.begin;
-    uint8_t order[3][exact_sweep_max];
-    float right_area[exact_sweep_max];
+    uint8_t order[3][exact_sweep_cap];
+    float right_area[exact_sweep_cap];
     float best_cost = std::numeric_limits<float>::infinity();
     int best_axis = 0;
     size_t best_left = 0;
@@ -261,7 +275,7 @@ struct BinnedBuilder {
       uint8_t* o = order[a];
       // Insertion sort of (key, index) by doubled centroid; ties keep range order, which is
       // itself deterministic, so the result does not depend on threads.
-      float key[exact_sweep_max];
+      float key[exact_sweep_cap];
       for (size_t i = 0; i < n; ++i) {
         const float k = (&r[i].lo.x)[a] + (&r[i].hi.x)[a];
         size_t j = i;
@@ -293,7 +307,7 @@ struct BinnedBuilder {
       }
     }
     if (n <= config.max_leaf_size && leaf_cost(config, n) <= best_cost) return false;
-    PrimRef sorted[exact_sweep_max];
+    PrimRef sorted[exact_sweep_cap];
     for (size_t i = 0; i < n; ++i) sorted[i] = r[order[best_axis][i]];
     left = RangeInfo::empty_at(info.begin);
     right = RangeInfo::empty_at(info.begin + best_left);
@@ -306,19 +320,14 @@ struct BinnedBuilder {
     return true;
   }
 
-  // In-place two-pointer partition that also gathers both sides' bounds. A reference goes
-  // left when its bin on `axis` is below `split`; since bins are truncated, clamped values
-  // of (c - offset) * scale, that is exactly (c - offset) * scale < split, computed with the
-  // same float operations as in binning, so every reference lands on the side it was
-  // counted on.
+  // Partitions at a bin boundary: a reference goes left when its bin on `axis` is below
+  // `split`, i.e. (c - offset) * scale < split with the same float operations as binning.
   void partition(const BinMapping& map, int axis, int split, const RangeInfo& info, RangeInfo& left,
                  RangeInfo& right) const {
+    const float offset = map.offset[axis], scale = map.scale[axis], bound = float(split);
+    auto goes_left = [&](size_t k) { return ((&refs[k].lo.x)[axis] + (&refs[k].hi.x)[axis] - offset) * scale < bound; };
     left = RangeInfo::empty_at(info.begin);
     right = RangeInfo::empty_at(info.end);
-    const float offset = map.offset[axis], scale = map.scale[axis], bound = float(split);
-    auto goes_left = [&](size_t k) {
-      return ((&refs[k].lo.x)[axis] + (&refs[k].hi.x)[axis] - offset) * scale < bound;
-    };
     size_t i = info.begin, j = info.end;
     while (true) {
       while (i < j && goes_left(i)) {
@@ -336,6 +345,92 @@ struct BinnedBuilder {
     right.begin = i;
     right.end = info.end;
   }
+
+  // Refines the chosen bin boundary, then partitions. On regular structures (grids,
+  // tessellated planes) bin boundaries cut through rows of centroids, so the references of
+  // the two bins at the boundary are gathered in the middle of the range, sorted by
+  // centroid, and the exact SAH split among them is taken (the binned split is one of the
+  // candidates: never worse). In bin units x = (c - offset) * scale, "bin < b" is exactly
+  // x < b, computed with the same float operations as in binning. Returns the split's cost.
+  float refine_and_partition(int axis, int split, const BinMapping& map, float inv_area, const RangeInfo& info,
+                             RangeInfo& left, RangeInfo& right) const {
+    const float offset = map.offset[axis], scale = map.scale[axis];
+    const float below = float(split - 1), above = float(split + 1);  // middle: bins split-1, split
+    auto position = [&](size_t k) { return ((&refs[k].lo.x)[axis] + (&refs[k].hi.x)[axis] - offset) * scale; };
+    // Two Hoare passes, each swapping only misplaced references and gathering the bounds of
+    // the side it closes: [lower + middle | upper], then [lower | middle].
+    auto hoare = [&](size_t begin, size_t end, float bound, RangeInfo* left_info, RangeInfo* right_info) {
+      size_t i = begin, j = end;
+      while (true) {
+        while (i < j && position(i) < bound) {
+          if (left_info) left_info->add(ref_lo(i), ref_hi(i));
+          ++i;
+        }
+        while (i < j && !(position(j - 1) < bound)) {
+          if (right_info) right_info->add(ref_lo(j - 1), ref_hi(j - 1));
+          --j;
+        }
+        if (i >= j) return i;
+        std::swap(refs[i], refs[j - 1]);
+      }
+    };
+    RangeInfo lower = RangeInfo::empty_at(info.begin), upper = RangeInfo::empty_at(info.end);
+    const size_t gt = hoare(info.begin, info.end, above, nullptr, &upper);
+    const size_t lt = hoare(info.begin, gt, below, &lower, nullptr);
+    const size_t m = gt - lt, n_lower = lt - info.begin, n_upper = info.end - gt;
+    PrimRef* mid = refs + lt;
+    // Sorted as packed (order-preserving key bits, position) words, then permuted once. Ties
+    // keep the partition's order, which is deterministic.
+    thread_local std::vector<uint64_t> order;
+    thread_local std::vector<PrimRef> sorted;
+    thread_local std::vector<float> suffix_area;
+    order.resize(m);
+    for (size_t k = 0; k < m; ++k) {
+      const float key = (&mid[k].lo.x)[axis] + (&mid[k].hi.x)[axis];
+      uint32_t bits;
+      std::memcpy(&bits, &key, 4);
+      bits = (bits & 0x80000000u) ? ~bits : bits | 0x80000000u;  // float order as unsigned order
+      order[k] = uint64_t(bits) << 32 | uint32_t(k);
+    }
+    std::sort(order.begin(), order.end());
+    sorted.resize(m);
+    for (size_t k = 0; k < m; ++k) sorted[k] = mid[uint32_t(order[k])];
+    std::copy(sorted.begin(), sorted.end(), mid);
+    // Exact sweep over the m + 1 split positions in the middle.
+    suffix_area.resize(m + 1);
+    Vec4f lo = upper.geom_lo, hi = upper.geom_hi;
+    suffix_area[m] = n_upper ? simd::half_area(lo, hi) : 0.0f;
+    for (size_t k = m; k-- > 0;) {
+      lo = min(lo, Vec4f::load(&mid[k].lo));
+      hi = max(hi, Vec4f::load(&mid[k].hi));
+      suffix_area[k] = simd::half_area(lo, hi);
+    }
+    lo = lower.geom_lo;
+    hi = lower.geom_hi;
+    float best_cost = std::numeric_limits<float>::infinity();
+    size_t best_k = 0;
+    for (size_t k = 0; k <= m; ++k) {
+      if (k > 0) {
+        lo = min(lo, Vec4f::load(&mid[k - 1].lo));
+        hi = max(hi, Vec4f::load(&mid[k - 1].hi));
+      }
+      const size_t nl = n_lower + k, nr = n_upper + (m - k);
+      if (nl == 0 || nr == 0) continue;
+      const float c = split_cost(config, inv_area, simd::half_area(lo, hi), nl, suffix_area[k], nr);
+      if (c < best_cost) {
+        best_cost = c;
+        best_k = k;
+      }
+    }
+    left = lower;
+    right = upper;
+    for (size_t k = 0; k < m; ++k) (k < best_k ? left : right).add(Vec4f::load(&mid[k].lo), Vec4f::load(&mid[k].hi));
+    left.begin = info.begin;
+    left.end = lt + best_k;
+    right.begin = lt + best_k;
+    right.end = info.end;
+    return best_cost;
+  }
 };
 
 }  // namespace
@@ -344,7 +439,8 @@ Bvh2 build_binned_sah(std::span<const PrimRef> input, const BuildConfig& config)
   Buffer<PrimRef> refs(input.begin(), input.end());
   const size_t n = refs.size();
   NodeSlots slots(n);
-  BinnedBuilder builder{refs.data(), config, slots, int(config.bin_count)};
+  BinnedBuilder builder{refs.data(), config, slots, int(config.bin_count),
+                        n <= small_input ? exact_sweep_cap : exact_sweep_max};
   RangeInfo root = RangeInfo::empty_at(0);
   {
     const size_t chunks = chunk_count(n, binning_chunk);
