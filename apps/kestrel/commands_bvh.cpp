@@ -13,7 +13,9 @@
 namespace kestrel::cli {
 
 void BuildOptions::add_to(CLI::App& cmd) {
-  cmd.add_option("--builder", builder, "median | sweep | binned | lbvh | treelet (overrides --quality)");
+  cmd.add_option("--builder", builder,
+                 "median | sweep | binned | lbvh | treelet (overrides --quality). treelet = Karras & Aila 2013 "
+                 "treelet restructuring, covered by NVIDIA patents (US 10331632); never a default");
   cmd.add_option("--quality", quality, "fast (lbvh) | balanced (binned) | high (sweep)");
   cmd.add_option("--threads", threads, "worker threads (0 = all)")->check(CLI::Range(0, 1024));
   cmd.add_option("--traversal-cost", traversal_cost, "SAH Ct, cost of an inner node visit");
