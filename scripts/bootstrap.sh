@@ -36,9 +36,7 @@ case "$mode" in
     "$build_dir/apps/kestrel/kestrel" preview builtin:cornell_box -o "$here/out/cornell_box.png"
     ;;
   test)
-    labels=()
-    # CI runs everything except the long benchmarks-as-tests; locally too unless told otherwise.
-    cd "$build_dir" && ctest --output-on-failure -j "$(nproc)" "${labels[@]}"
+    cd "$build_dir" && ctest --output-on-failure -j "$(nproc)"
     ;;
   build) ;;
   *) echo "usage: bootstrap.sh demo|test|build" >&2; exit 2 ;;

@@ -34,6 +34,12 @@ struct Rng {
 };
 }  // namespace
 
+std::vector<uint32_t> leaf_slots(const Accel& accel) {
+  std::vector<uint32_t> slot(accel.validation.valid.size(), 0);
+  for (size_t i = 0; i < accel.bvh.prim_ids.size(); ++i) slot[accel.bvh.prim_ids[i]] = uint32_t(i);
+  return slot;
+}
+
 Vec3 default_light(const Bounds3& b) {
   const Vec3 c = center(b);
   return {c.x, b.hi.y - 0.45f * (b.hi.y - b.lo.y), c.z};
@@ -49,12 +55,7 @@ std::vector<Ray> secondary_rays(const Accel& accel, const std::vector<Ray>& prim
   std::vector<Ray> out;
   out.reserve(primary.size());
   Rng rng{seed};
-  // Map global prim ids back to leaf order to fetch the triangle.
-  std::vector<uint32_t> slot_of_prim;
-  for (size_t i = 0; i < accel.bvh.prim_ids.size(); ++i) {
-    if (accel.bvh.prim_ids[i] >= slot_of_prim.size()) slot_of_prim.resize(accel.bvh.prim_ids[i] + 1, 0);
-    slot_of_prim[accel.bvh.prim_ids[i]] = uint32_t(i);
-  }
+  const std::vector<uint32_t> slot_of_prim = leaf_slots(accel);
   for (size_t i = 0; i < primary.size(); ++i) {
     const Hit& h = hits[i];
     if (!h.hit()) continue;

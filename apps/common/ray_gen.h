@@ -24,6 +24,10 @@ std::vector<Ray> primary_rays(const PinholeCamera& cam, int width, int height);
 std::vector<Ray> secondary_rays(const Accel& accel, const std::vector<Ray>& primary, RayKind kind,
                                 Vec3 light, uint64_t seed);
 
+/// Leaf-order slot of every prim id in the Accel (invalid ids map to 0), so a hit's
+/// triangle is accel.triangles[slots[hit.prim_id]].
+std::vector<uint32_t> leaf_slots(const Accel& accel);
+
 /// The default point light: above the centre of the scene box, 45% of its height from the top
 /// (inside enclosed scenes such as Sponza and the Cornell box).
 Vec3 default_light(const Bounds3& scene_box);

@@ -6,6 +6,7 @@
 #include <memory>
 
 #include "commands.h"
+#include "common/ray_gen.h"
 #include "common/views.h"
 #include "core/parallel.h"
 #include "core/timer.h"
@@ -37,9 +38,7 @@ void run_preview(const PreviewArgs& a) {
   const Accel accel = build_accel(scene, config);
   if (accel.validation.report.valid_triangle_count == 0)
     throw Error(ErrorCode::invalid_geometry, fmt::format("{}: no valid triangle", a.scene));
-  // Leaf-order slot of each prim id, to fetch the hit triangle's normal.
-  std::vector<uint32_t> slot_of(accel.validation.valid.size(), 0);
-  for (size_t i = 0; i < accel.bvh.prim_ids.size(); ++i) slot_of[accel.bvh.prim_ids[i]] = uint32_t(i);
+  const std::vector<uint32_t> slot_of = tools::leaf_slots(accel);  // to fetch hit normals
   std::vector<uint8_t> rgb(size_t(w) * h * 3);
   std::vector<float> depth(size_t(w) * h, INFINITY);
   std::vector<Vec3> normal(size_t(w) * h);

@@ -46,10 +46,6 @@ struct Accel {
 /// Builds an Accel over a scene's valid triangles (invalid ones are counted and skipped).
 Accel build_accel(const Scene& scene, const BuildConfig& config);
 
-/// Builds an Accel from prebuilt parts (the BVH must have been built over these triangles'
-/// global prim ids, indexing `all_triangles`).
-Accel make_accel(Bvh2 bvh, std::span<const Triangle> all_triangles);
-
 /// Closest hit along the ray (watertight, Woop et al. 2013), or a miss.
 Hit intersect(const Accel& accel, const Ray& ray);
 /// Any hit in (tmin, tmax): t of the hit found (not necessarily the closest), or a miss.

@@ -320,29 +320,41 @@ struct BinnedBuilder {
     return true;
   }
 
-  // Partitions at a bin boundary: a reference goes left when its bin on `axis` is below
-  // `split`, i.e. (c - offset) * scale < split with the same float operations as binning.
-  void partition(const BinMapping& map, int axis, int split, const RangeInfo& info, RangeInfo& left,
-                 RangeInfo& right) const {
-    const float offset = map.offset[axis], scale = map.scale[axis], bound = float(split);
-    auto goes_left = [&](size_t k) { return ((&refs[k].lo.x)[axis] + (&refs[k].hi.x)[axis] - offset) * scale < bound; };
-    left = RangeInfo::empty_at(info.begin);
-    right = RangeInfo::empty_at(info.end);
-    size_t i = info.begin, j = info.end;
+  // Position of a reference in bin units on `axis`: x = (c - offset) * scale, with c the
+  // doubled centroid. Its bin is trunc(clamp(x)), so "bin < b" is exactly x < b -- computed
+  // with the same float operations as in binning, so every reference lands on the side it
+  // was counted on.
+  float position(size_t k, int axis, const BinMapping& map) const {
+    return ((&refs[k].lo.x)[axis] + (&refs[k].hi.x)[axis] - map.offset[axis]) * map.scale[axis];
+  }
+
+  // Hoare partition of [begin, end) into x < bound | x >= bound; swaps only misplaced
+  // references and gathers the bounds of either side when asked. Returns the split point.
+  size_t hoare(size_t begin, size_t end, int axis, const BinMapping& map, float bound, RangeInfo* left_info,
+               RangeInfo* right_info) const {
+    size_t i = begin, j = end;
     while (true) {
-      while (i < j && goes_left(i)) {
-        left.add(ref_lo(i), ref_hi(i));
+      while (i < j && position(i, axis, map) < bound) {
+        if (left_info) left_info->add(ref_lo(i), ref_hi(i));
         ++i;
       }
-      while (i < j && !goes_left(j - 1)) {
-        right.add(ref_lo(j - 1), ref_hi(j - 1));
+      while (i < j && !(position(j - 1, axis, map) < bound)) {
+        if (right_info) right_info->add(ref_lo(j - 1), ref_hi(j - 1));
         --j;
       }
-      if (i >= j) break;
+      if (i >= j) return i;
       std::swap(refs[i], refs[j - 1]);
     }
-    left.end = i;
-    right.begin = i;
+  }
+
+  // Partitions at a bin boundary: a reference goes left when its bin on `axis` is below `split`.
+  void partition(const BinMapping& map, int axis, int split, const RangeInfo& info, RangeInfo& left,
+                 RangeInfo& right) const {
+    left = RangeInfo::empty_at(info.begin);
+    right = RangeInfo::empty_at(info.end);
+    const size_t mid = hoare(info.begin, info.end, axis, map, float(split), &left, &right);
+    left.end = mid;
+    right.begin = mid;
     right.end = info.end;
   }
 
@@ -350,33 +362,14 @@ struct BinnedBuilder {
   // tessellated planes) bin boundaries cut through rows of centroids, so the references of
   // the two bins at the boundary are gathered in the middle of the range, sorted by
   // centroid, and the exact SAH split among them is taken (the binned split is one of the
-  // candidates: never worse). In bin units x = (c - offset) * scale, "bin < b" is exactly
-  // x < b, computed with the same float operations as in binning. Returns the split's cost.
+  // candidates: never worse). Returns the split's cost.
   float refine_and_partition(int axis, int split, const BinMapping& map, float inv_area, const RangeInfo& info,
                              RangeInfo& left, RangeInfo& right) const {
-    const float offset = map.offset[axis], scale = map.scale[axis];
     const float below = float(split - 1), above = float(split + 1);  // middle: bins split-1, split
-    auto position = [&](size_t k) { return ((&refs[k].lo.x)[axis] + (&refs[k].hi.x)[axis] - offset) * scale; };
-    // Two Hoare passes, each swapping only misplaced references and gathering the bounds of
-    // the side it closes: [lower + middle | upper], then [lower | middle].
-    auto hoare = [&](size_t begin, size_t end, float bound, RangeInfo* left_info, RangeInfo* right_info) {
-      size_t i = begin, j = end;
-      while (true) {
-        while (i < j && position(i) < bound) {
-          if (left_info) left_info->add(ref_lo(i), ref_hi(i));
-          ++i;
-        }
-        while (i < j && !(position(j - 1) < bound)) {
-          if (right_info) right_info->add(ref_lo(j - 1), ref_hi(j - 1));
-          --j;
-        }
-        if (i >= j) return i;
-        std::swap(refs[i], refs[j - 1]);
-      }
-    };
+    // Two passes: [lower + middle | upper], then [lower | middle].
     RangeInfo lower = RangeInfo::empty_at(info.begin), upper = RangeInfo::empty_at(info.end);
-    const size_t gt = hoare(info.begin, info.end, above, nullptr, &upper);
-    const size_t lt = hoare(info.begin, gt, below, &lower, nullptr);
+    const size_t gt = hoare(info.begin, info.end, axis, map, above, nullptr, &upper);
+    const size_t lt = hoare(info.begin, gt, axis, map, below, &lower, nullptr);
     const size_t m = gt - lt, n_lower = lt - info.begin, n_upper = info.end - gt;
     PrimRef* mid = refs + lt;
     // Sorted as packed (order-preserving key bits, position) words, then permuted once. Ties

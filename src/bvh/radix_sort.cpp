@@ -32,61 +32,29 @@ bool scan_offsets(std::vector<uint32_t>& hist, size_t chunks, size_t n) {
   return false;
 }
 
-template <class Key>
-void radix_sort_impl(RawArray<Key>& keys, RawArray<uint32_t>& values, int key_bits) {
-  const size_t n = keys.size();
-  if (n < 2) return;
-  RawArray<Key> keys_tmp(n);
-  RawArray<uint32_t> values_tmp(n);
-  const size_t chunks = chunk_count(n, sort_chunk);
-  std::vector<uint32_t> hist(chunks * bucket_count);
-  for (int shift = 0; shift < key_bits; shift += digit_bits) {
-    std::fill(hist.begin(), hist.end(), 0u);
-    parallel_for(0, chunks, 1, [&](size_t cb, size_t ce) {
-      for (size_t c = cb; c < ce; ++c) {
-        uint32_t* h = &hist[c * bucket_count];
-        const size_t e = std::min(n, (c + 1) * sort_chunk);
-        for (size_t i = c * sort_chunk; i < e; ++i) h[(keys[i] >> shift) & (bucket_count - 1)]++;
-      }
-    });
-    if (scan_offsets(hist, chunks, n)) continue;
-    parallel_for(0, chunks, 1, [&](size_t cb, size_t ce) {
-      for (size_t c = cb; c < ce; ++c) {
-        uint32_t* offset = &hist[c * bucket_count];
-        const size_t e = std::min(n, (c + 1) * sort_chunk);
-        for (size_t i = c * sort_chunk; i < e; ++i) {
-          uint32_t o = offset[(keys[i] >> shift) & (bucket_count - 1)]++;
-          keys_tmp[o] = keys[i];
-          values_tmp[o] = values[i];
-        }
-      }
-    });
-    keys.swap(keys_tmp);
-    values.swap(values_tmp);
-  }
-}
-
-// LSD radix sort of 64-bit words on bits [first_bit, first_bit + key_bits).
-// Serial: the counts of every digit are gathered in one pass over the words (the keys do
-// not change between passes, only their order), then each pass is a single scatter.
+// LSD radix sort of records on the key bits [first_bit, first_bit + key_bits) that
+// key_of(record) returns. Serial: the counts of every digit are gathered in one pass (the
+// keys do not change between passes, only their order), then each pass is one scatter.
 // Parallel: per pass, per-chunk counts of the current order, then a parallel scatter.
 // Both are stable sorts, so they give the same order.
-void radix_sort_packed(RawArray<uint64_t>& words, int first_bit, int key_bits) {
-  const size_t n = words.size();
+template <class Record, class KeyOf>
+void lsd_sort(RawArray<Record>& records, int first_bit, int key_bits, KeyOf key_of) {
+  const size_t n = records.size();
   if (n < 2) return;
   const int digits = (key_bits + digit_bits - 1) / digit_bits;
-  RawArray<uint64_t> tmp(n);
+  auto digit = [&](const Record& r, int shift) { return size_t(key_of(r) >> shift) & (bucket_count - 1); };
+  RawArray<Record> tmp(n);
   const size_t chunks = chunk_count(n, sort_chunk);
   if (current_thread_count() == 1 || chunks == 1) {
     std::vector<uint32_t> hist(size_t(digits) * bucket_count, 0u);
     for (size_t i = 0; i < n; ++i)
-      for (int d = 0; d < digits; ++d) hist[d * bucket_count + ((words[i] >> (first_bit + d * digit_bits)) & (bucket_count - 1))]++;
+      for (int d = 0; d < digits; ++d) hist[d * bucket_count + digit(records[i], first_bit + d * digit_bits)]++;
     for (int d = 0; d < digits; ++d) {
       std::vector<uint32_t> offset(hist.begin() + d * bucket_count, hist.begin() + (d + 1) * bucket_count);
       if (scan_offsets(offset, 1, n)) continue;
       const int shift = first_bit + d * digit_bits;
-      for (size_t i = 0; i < n; ++i) tmp[offset[(words[i] >> shift) & (bucket_count - 1)]++] = words[i];
-      words.swap(tmp);
+      for (size_t i = 0; i < n; ++i) tmp[offset[digit(records[i], shift)]++] = records[i];
+      records.swap(tmp);
     }
     return;
   }
@@ -97,7 +65,7 @@ void radix_sort_packed(RawArray<uint64_t>& words, int first_bit, int key_bits) {
       for (size_t c = cb; c < ce; ++c) {
         uint32_t* h = &hist[c * bucket_count];
         const size_t e = std::min(n, (c + 1) * sort_chunk);
-        for (size_t i = c * sort_chunk; i < e; ++i) h[(words[i] >> shift) & (bucket_count - 1)]++;
+        for (size_t i = c * sort_chunk; i < e; ++i) h[digit(records[i], shift)]++;
       }
     });
     if (scan_offsets(hist, chunks, n)) continue;
@@ -105,33 +73,55 @@ void radix_sort_packed(RawArray<uint64_t>& words, int first_bit, int key_bits) {
       for (size_t c = cb; c < ce; ++c) {
         uint32_t* offset = &hist[c * bucket_count];
         const size_t e = std::min(n, (c + 1) * sort_chunk);
-        for (size_t i = c * sort_chunk; i < e; ++i) tmp[offset[(words[i] >> shift) & (bucket_count - 1)]++] = words[i];
+        for (size_t i = c * sort_chunk; i < e; ++i) tmp[offset[digit(records[i], shift)]++] = records[i];
       }
     });
-    words.swap(tmp);
+    records.swap(tmp);
   }
 }
+
+// Sorts (key, value) pairs through records that carry both, so each pass moves one record.
+template <class Record, class Key>
+void sort_pairs(RawArray<Key>& keys, RawArray<uint32_t>& values, int first_bit, int key_bits,
+                Record (*pack)(Key, uint32_t), void (*unpack)(const Record&, Key&, uint32_t&),
+                uint64_t (*key_of)(const Record&)) {
+  const size_t n = keys.size();
+  RawArray<Record> records(n);
+  parallel_for(0, n, 65536, [&](size_t b, size_t e) {
+    for (size_t i = b; i < e; ++i) records[i] = pack(keys[i], values[i]);
+  });
+  lsd_sort(records, first_bit, key_bits, key_of);
+  parallel_for(0, n, 65536, [&](size_t b, size_t e) {
+    for (size_t i = b; i < e; ++i) unpack(records[i], keys[i], values[i]);
+  });
+}
+
+struct KeyValue64 {
+  uint64_t key;
+  uint32_t value;
+};
 
 }  // namespace
 
 void radix_sort(RawArray<uint32_t>& keys, RawArray<uint32_t>& values, int key_bits) {
-  // Packed as (key << 32 | value) and sorted on the high half: one 8-byte scatter per
-  // element and pass instead of two 4-byte ones into separate arrays.
-  const size_t n = keys.size();
-  RawArray<uint64_t> packed(n);
-  parallel_for(0, n, 65536, [&](size_t b, size_t e) {
-    for (size_t i = b; i < e; ++i) packed[i] = uint64_t(keys[i]) << 32 | values[i];
-  });
-  radix_sort_packed(packed, 32, key_bits);
-  parallel_for(0, n, 65536, [&](size_t b, size_t e) {
-    for (size_t i = b; i < e; ++i) {
-      keys[i] = uint32_t(packed[i] >> 32);
-      values[i] = uint32_t(packed[i]);
-    }
-  });
+  // Packed as (key << 32 | value): one 8-byte record per element, sorted on the high half.
+  sort_pairs<uint64_t, uint32_t>(
+      keys, values, 32, key_bits, [](uint32_t k, uint32_t v) { return uint64_t(k) << 32 | v; },
+      [](const uint64_t& r, uint32_t& k, uint32_t& v) {
+        k = uint32_t(r >> 32);
+        v = uint32_t(r);
+      },
+      [](const uint64_t& r) { return r; });
 }
+
 void radix_sort(RawArray<uint64_t>& keys, RawArray<uint32_t>& values, int key_bits) {
-  radix_sort_impl(keys, values, key_bits);
+  sort_pairs<KeyValue64, uint64_t>(
+      keys, values, 0, key_bits, [](uint64_t k, uint32_t v) { return KeyValue64{k, v}; },
+      [](const KeyValue64& r, uint64_t& k, uint32_t& v) {
+        k = r.key;
+        v = r.value;
+      },
+      [](const KeyValue64& r) { return r.key; });
 }
 
 }  // namespace kestrel

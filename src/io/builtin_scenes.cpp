@@ -1,5 +1,6 @@
 // Built-in scenes, so the CLI and tests work with no file at all.
 #include <fmt/format.h>
+#include <fmt/ranges.h>
 
 #include "kestrel/error.h"
 #include "io/loaders.h"
@@ -62,8 +63,8 @@ std::vector<std::string> builtin_scene_names() { return {"cornell_box"}; }
 
 Scene make_builtin_scene(const std::string& name) {
   if (name == "cornell_box") return cornell_box();
-  throw Error(ErrorCode::invalid_argument,
-              fmt::format("builtin:{}: no such built-in scene (known: cornell_box)", name));
+  throw Error(ErrorCode::invalid_argument, fmt::format("builtin:{}: no such built-in scene (known: {})", name,
+                                                       fmt::join(builtin_scene_names(), ", ")));
 }
 
 }  // namespace kestrel

@@ -156,9 +156,14 @@ Scene load_obj(const std::string& path) {
     throw Error(ErrorCode::parse_error, fmt::format("{}: {}", path, reader.Error()));
   const std::vector<tinyobj::material_t>& materials = reader.GetMaterials();
   const tinyobj::attrib_t& attrib = reader.GetAttrib();
-  std::vector<float> vertices = attrib.vertices;
-  for (size_t v : nonfinite_vertices)
-    if (3 * v + 2 < vertices.size()) vertices[3 * v] = std::numeric_limits<float>::quiet_NaN();
+  // Restore NaN for vertices whose text was not finite (a copy only when there are some).
+  std::vector<float> patched;
+  if (!nonfinite_vertices.empty()) {
+    patched = attrib.vertices;
+    for (size_t v : nonfinite_vertices)
+      if (3 * v + 2 < patched.size()) patched[3 * v] = std::numeric_limits<float>::quiet_NaN();
+  }
+  const std::vector<float>& vertices = nonfinite_vertices.empty() ? attrib.vertices : patched;
   Scene scene;
   scene.source = path;
   // Texture maps named by the MTL (map_Kd, map_Ke), each file decoded once. A missing or

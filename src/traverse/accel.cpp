@@ -9,20 +9,6 @@
 
 namespace kestrel {
 
-Accel make_accel(Bvh2 bvh, std::span<const Triangle> all_triangles) {
-  if (const uint32_t depth = max_depth(bvh); depth > max_traversal_depth) {
-    throw Error(ErrorCode::unsupported,
-                fmt::format("BVH depth {} exceeds the traversal limit {}", depth, max_traversal_depth));
-  }
-  Accel accel;
-  accel.triangles.resize(bvh.prim_ids.size());
-  parallel_for(0, bvh.prim_ids.size(), 16384, [&](size_t b, size_t e) {
-    for (size_t i = b; i < e; ++i) accel.triangles[i] = all_triangles[bvh.prim_ids[i]];
-  });
-  accel.bvh = std::move(bvh);
-  return accel;
-}
-
 Accel build_accel(const Scene& scene, const BuildConfig& config) {
   Timer timer;
   SceneValidation validation;
