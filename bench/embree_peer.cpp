@@ -2,6 +2,7 @@
 
 #include <embree3/rtcore.h>
 
+#include <algorithm>
 #include <atomic>
 #include <cmath>
 #include <limits>
@@ -124,6 +125,65 @@ bool EmbreeScene::occluded(const Ray& ray) const {
   RTCRay r{ray.org.x, ray.org.y, ray.org.z, ray.tmin, ray.dir.x, ray.dir.y, ray.dir.z, 0.0f, ray.tmax, 0xFFFFFFFFu, 0, 0};
   rtcOccluded1(impl_->scene, &ctx, &r);
   return r.tfar == -std::numeric_limits<float>::infinity();
+}
+
+void EmbreeScene::intersect(std::span<const Ray> rays, std::span<Hit> hits) const {
+  RTCIntersectContext ctx;
+  rtcInitIntersectContext(&ctx);
+  for (size_t i = 0; i < rays.size(); ++i) {
+    const Ray& ray = rays[i];
+    RTCRayHit rh;
+    rh.ray = {ray.org.x, ray.org.y, ray.org.z, ray.tmin, ray.dir.x, ray.dir.y, ray.dir.z, 0.0f, ray.tmax, 0xFFFFFFFFu, 0, 0};
+    rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
+    rh.hit.primID = RTC_INVALID_GEOMETRY_ID;
+    rtcIntersect1(impl_->scene, &ctx, &rh);
+    Hit& hit = hits[i];
+    if (rh.hit.geomID != RTC_INVALID_GEOMETRY_ID) {
+      hit = {rh.ray.tfar, rh.hit.primID, rh.hit.u, rh.hit.v};
+    } else {
+      hit = Hit{};
+    }
+  }
+}
+
+void EmbreeScene::occluded(std::span<const Ray> rays, std::span<uint8_t> out) const {
+  RTCIntersectContext ctx;
+  rtcInitIntersectContext(&ctx);
+  for (size_t i = 0; i < rays.size(); ++i) {
+    const Ray& ray = rays[i];
+    RTCRay r{ray.org.x, ray.org.y, ray.org.z, ray.tmin, ray.dir.x, ray.dir.y, ray.dir.z, 0.0f, ray.tmax, 0xFFFFFFFFu, 0, 0};
+    rtcOccluded1(impl_->scene, &ctx, &r);
+    out[i] = r.tfar == -std::numeric_limits<float>::infinity();
+  }
+}
+
+void EmbreeScene::intersect16(std::span<const Ray> rays, std::span<Hit> hits) const {
+  RTCIntersectContext ctx;
+  rtcInitIntersectContext(&ctx);
+  ctx.flags = RTC_INTERSECT_CONTEXT_FLAG_COHERENT;
+  alignas(64) RTCRayHit16 rh;
+  alignas(64) int valid[16];
+  for (size_t base = 0; base < rays.size(); base += 16) {
+    const size_t n = std::min<size_t>(16, rays.size() - base);
+    for (size_t k = 0; k < 16; ++k) {
+      const Ray& r = rays[base + std::min(k, n - 1)];
+      valid[k] = k < n ? -1 : 0;
+      rh.ray.org_x[k] = r.org.x, rh.ray.org_y[k] = r.org.y, rh.ray.org_z[k] = r.org.z;
+      rh.ray.dir_x[k] = r.dir.x, rh.ray.dir_y[k] = r.dir.y, rh.ray.dir_z[k] = r.dir.z;
+      rh.ray.tnear[k] = r.tmin, rh.ray.tfar[k] = r.tmax, rh.ray.time[k] = 0;
+      rh.ray.mask[k] = 0xFFFFFFFFu, rh.ray.id[k] = 0, rh.ray.flags[k] = 0;
+      rh.hit.geomID[k] = RTC_INVALID_GEOMETRY_ID;
+      rh.hit.primID[k] = RTC_INVALID_GEOMETRY_ID;
+    }
+    rtcIntersect16(valid, impl_->scene, &ctx, &rh);
+    for (size_t k = 0; k < n; ++k) {
+      Hit& hit = hits[base + k];
+      if (rh.hit.geomID[k] != RTC_INVALID_GEOMETRY_ID)
+        hit = {rh.ray.tfar[k], rh.hit.primID[k], rh.hit.u[k], rh.hit.v[k]};
+      else
+        hit = Hit{};
+    }
+  }
 }
 
 std::string embree_version() { return RTC_VERSION_STRING; }

@@ -30,6 +30,11 @@ class EmbreeScene {
   /// Any hit: t is set to tmax's hit marker (Embree reports no distance for occlusion):
   /// returns a Hit whose prim_id is 0 (not a real id) when occluded, else a miss.
   bool occluded(const Ray& ray) const;
+  /// Batches, one rtcIntersect1 / rtcOccluded1 per ray (one intersect context per batch).
+  void intersect(std::span<const Ray> rays, std::span<Hit> hits) const;
+  void occluded(std::span<const Ray> rays, std::span<uint8_t> occluded) const;
+  /// Closest hits through rtcIntersect16 (packets of 16 consecutive rays, SoA).
+  void intersect16(std::span<const Ray> rays, std::span<Hit> hits) const;
   /// Embree's memory for this scene's BVH (rtcGetSceneBounds does not expose it; we use
   /// the device memory monitor), bytes.
   size_t memory_bytes() const;

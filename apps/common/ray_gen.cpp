@@ -34,10 +34,20 @@ struct Rng {
 };
 }  // namespace
 
-std::vector<uint32_t> leaf_slots(const Accel& accel) {
-  std::vector<uint32_t> slot(accel.validation.valid.size(), 0);
-  for (size_t i = 0; i < accel.bvh.prim_ids.size(); ++i) slot[accel.bvh.prim_ids[i]] = uint32_t(i);
-  return slot;
+std::vector<Triangle> scene_triangles(const Scene& scene) {
+  std::vector<Triangle> tris;
+  tris.reserve(scene.triangle_count());
+  for (const TriangleMesh& mesh : scene.meshes) {
+    const size_t nv = mesh.positions.size();
+    for (size_t t = 0; t < mesh.triangle_count(); ++t) {
+      const uint32_t* idx = &mesh.indices[3 * t];
+      if (idx[0] < nv && idx[1] < nv && idx[2] < nv)
+        tris.push_back({mesh.positions[idx[0]], mesh.positions[idx[1]], mesh.positions[idx[2]]});
+      else
+        tris.push_back({});
+    }
+  }
+  return tris;
 }
 
 Vec3 default_light(const Bounds3& b) {
@@ -45,22 +55,22 @@ Vec3 default_light(const Bounds3& b) {
   return {c.x, b.hi.y - 0.45f * (b.hi.y - b.lo.y), c.z};
 }
 
-std::vector<Ray> secondary_rays(const Accel& accel, const std::vector<Ray>& primary, RayKind kind, Vec3 light,
+std::vector<Ray> secondary_rays(const Accel& accel, const Scene& scene, const std::vector<Ray>& primary, RayKind kind, Vec3 light,
                                 uint64_t seed) {
   std::vector<Hit> hits(primary.size());
   trace(accel, primary, hits, /* any_hit = */ false);
   Bounds3 box;
-  if (!accel.bvh.empty()) box = {accel.bvh.nodes[0].lo, accel.bvh.nodes[0].hi};
+  if (accel.prim_count) box = accel.bounds;
   const float eps = 1e-4f * std::max(length(extent(box)), 1e-3f);
   std::vector<Ray> out;
   out.reserve(primary.size());
   Rng rng{seed};
-  const std::vector<uint32_t> slot_of_prim = leaf_slots(accel);
+  const std::vector<Triangle> tris = scene_triangles(scene);
   for (size_t i = 0; i < primary.size(); ++i) {
     const Hit& h = hits[i];
     if (!h.hit()) continue;
     const Ray& r = primary[i];
-    const Triangle& tri = accel.triangles[slot_of_prim[h.prim_id]];
+    const Triangle& tri = tris[h.prim_id];
     Vec3 n = normalize(cross(tri.v1 - tri.v0, tri.v2 - tri.v0));
     if (dot(n, r.dir) > 0) n = -n;
     const Vec3 p = r.org + r.dir * h.t + n * eps;
@@ -84,7 +94,7 @@ std::vector<Ray> make_rays(const Accel& accel, const Scene& scene, const Pinhole
                            RayKind kind, uint64_t seed) {
   std::vector<Ray> primary = primary_rays(cam, width, height);
   if (kind == RayKind::primary) return primary;
-  return secondary_rays(accel, primary, kind, default_light(scene_bounds(scene)), seed);
+  return secondary_rays(accel, scene, primary, kind, default_light(scene_bounds(scene)), seed);
 }
 
 }  // namespace kestrel::tools

@@ -21,12 +21,12 @@ std::vector<Ray> primary_rays(const PinholeCamera& cam, int width, int height);
 /// short of the light) or a cosine-distributed diffuse ray about the geometric normal
 /// facing the incoming ray. Misses produce no ray. Origins are offset along the normal by a
 /// small fraction of the scene size. Deterministic for a seed.
-std::vector<Ray> secondary_rays(const Accel& accel, const std::vector<Ray>& primary, RayKind kind,
+std::vector<Ray> secondary_rays(const Accel& accel, const Scene& scene, const std::vector<Ray>& primary, RayKind kind,
                                 Vec3 light, uint64_t seed);
 
-/// Leaf-order slot of every prim id in the Accel (invalid ids map to 0), so a hit's
-/// triangle is accel.triangles[slots[hit.prim_id]].
-std::vector<uint32_t> leaf_slots(const Accel& accel);
+/// Every triangle of the scene by global prim id (bad-index triangles are zero), so a
+/// hit's triangle is scene_triangles(scene)[hit.prim_id].
+std::vector<Triangle> scene_triangles(const Scene& scene);
 
 /// The default point light: above the centre of the scene box, 45% of its height from the top
 /// (inside enclosed scenes such as Sponza and the Cornell box).

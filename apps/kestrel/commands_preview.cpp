@@ -38,7 +38,7 @@ void run_preview(const PreviewArgs& a) {
   const Accel accel = build_accel(scene, config);
   if (accel.validation.report.valid_triangle_count == 0)
     throw Error(ErrorCode::invalid_geometry, fmt::format("{}: no valid triangle", a.scene));
-  const std::vector<uint32_t> slot_of = tools::leaf_slots(accel);  // to fetch hit normals
+  const std::vector<Triangle> tris = tools::scene_triangles(scene);  // to fetch hit normals
   std::vector<uint8_t> rgb(size_t(w) * h * 3);
   std::vector<float> depth(size_t(w) * h, INFINITY);
   std::vector<Vec3> normal(size_t(w) * h);
@@ -49,7 +49,7 @@ void run_preview(const PreviewArgs& a) {
         const Ray ray = cam->ray(x, int(y), w, h);
         const Hit hit = intersect(accel, ray);
         if (!hit.hit()) continue;
-        const Triangle& tri = accel.triangles[slot_of[hit.prim_id]];
+        const Triangle& tri = tris[hit.prim_id];
         Vec3 n = normalize(cross(tri.v1 - tri.v0, tri.v2 - tri.v0));
         if (dot(n, ray.dir) > 0) n = -n;
         depth[y * w + x] = hit.t * length(ray.dir);
@@ -73,8 +73,8 @@ void run_preview(const PreviewArgs& a) {
   }
   write_png(a.out, w, h, rgb);
   fmt::print("scene    {} ({})\n", a.scene, accel.validation.report.summary());
-  fmt::print("bvh      {}: {} nodes, built in {:.2f} ms\n", builder_name(resolve_builder(config)),
-             accel.bvh.nodes.size(), accel.build_ms);
+  fmt::print("bvh      {}: {} bytes, built in {:.2f} ms\n", builder_name(resolve_builder(config)),
+             accel.memory_bytes(), accel.build_ms);
   fmt::print("render   {}x{} in {:.2f} ms ({:.2f} Mrays/s)\n", w, h, trace_ms, double(w) * h / (trace_ms * 1e3));
   fmt::print("wrote    {}\n", a.out);
 }

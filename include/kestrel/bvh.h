@@ -36,6 +36,13 @@ enum class Builder {
 /// No quality maps to `treelet` (patented, opt-in only).
 enum class BuildQuality { fast, balanced, high };
 
+/// Memory layout an Accel traces: the binary tree (scalar reference traversal) or a wide
+/// tree collapsed from it (SIMD traversal). `automatic` picks the fastest for the machine.
+enum class Layout { automatic, bvh2, bvh4, bvh8 };
+/// Parses "auto", "bvh2", "bvh4", "bvh8".
+std::optional<Layout> layout_from_name(const std::string& name);
+const char* layout_name(Layout layout);
+
 /// Build parameters. Costs are in units of one ray–box-pair test; areas are surface areas.
 struct BuildConfig {
   std::optional<Builder> builder;        ///< explicit builder; when empty `quality` decides
@@ -49,6 +56,7 @@ struct BuildConfig {
   uint32_t treelet_leaf_count = 7;       ///< treelet: leaves per treelet (3..7)
   uint32_t treelet_rounds = 3;           ///< treelet: bottom-up restructuring passes
   size_t parallel_threshold = 4096;      ///< subtrees smaller than this build on one task
+  Layout layout = Layout::automatic;     ///< build_accel: the layout the Bvh2 becomes
 };
 
 /// Canonical binary BVH node, 32 bytes = one half cache line. The two 16-byte rows are the
@@ -69,6 +77,50 @@ static_assert(sizeof(Bvh2Node) == 32);
 struct Bvh2 {
   Buffer<Bvh2Node> nodes;
   std::vector<uint32_t> prim_ids;
+  bool empty() const { return nodes.empty(); }
+};
+
+/// Wide-node child reference: an inner node's index, or wide_leaf_bit | the first
+/// TriangleBlock of a leaf (its blocks run to the one whose prim_id[0] has block_last_bit),
+/// or wide_empty for an unused slot (whose box is empty: lo = +inf, hi = -inf).
+inline constexpr uint32_t wide_leaf_bit = 0x80000000u;
+inline constexpr uint32_t wide_empty = 0xFFFFFFFFu;
+inline constexpr uint32_t block_last_bit = 0x80000000u;
+
+/// 4-wide node, structure of arrays, 112 bytes: bounds[0..5] = lo.x, hi.x, lo.y, hi.y,
+/// lo.z, hi.z of the four children (one 128-bit row each), then the child references.
+struct alignas(16) Bvh4Node {
+  float bounds[6][4];
+  uint32_t child[4];
+};
+static_assert(sizeof(Bvh4Node) == 112);
+
+/// 8-wide node, structure of arrays, 224 bytes: six 256-bit rows of child bounds (as in
+/// Bvh4Node) and eight child references.
+struct alignas(32) Bvh8Node {
+  float bounds[6][8];
+  uint32_t child[8];
+};
+static_assert(sizeof(Bvh8Node) == 224);
+
+/// Four triangles for one SIMD leaf test, 160 bytes: v[vertex][axis][lane] then the global
+/// prim ids (prim_id[0] also carries block_last_bit). A leaf of k triangles has ceil(k/4)
+/// blocks; unused lanes repeat the leaf's last triangle (same id, so never a different hit).
+struct alignas(16) TriangleBlock {
+  float v[3][3][4];
+  uint32_t prim_id[4];
+};
+static_assert(sizeof(TriangleBlock) == 160);
+
+/// Wide BVHs: nodes[0] is the root (always an inner node); leaves are runs of blocks.
+struct Bvh4 {
+  Buffer<Bvh4Node> nodes;
+  Buffer<TriangleBlock> blocks;
+  bool empty() const { return nodes.empty(); }
+};
+struct Bvh8 {
+  Buffer<Bvh8Node> nodes;
+  Buffer<TriangleBlock> blocks;
   bool empty() const { return nodes.empty(); }
 };
 

@@ -35,24 +35,71 @@ struct Triangle {
   Vec3 v0, v1, v2;
 };
 
-/// A scene ready to trace: the BVH over its valid triangles and their vertices in leaf order.
+/// A scene ready to trace: a BVH over its valid triangles in one layout.
+/// Layout bvh2 fills `bvh` and `triangles`; bvh4 / bvh8 fill `bvh4` / `bvh8` only (the
+/// binary tree they were collapsed from is released).
 struct Accel {
+  Layout layout = Layout::bvh2;
   Bvh2 bvh;
-  Buffer<Triangle> triangles;       ///< triangles[i] is primitive bvh.prim_ids[i]
+  Buffer<Triangle> triangles;       ///< bvh2: triangles[i] is primitive bvh.prim_ids[i]
+  Bvh4 bvh4;
+  Bvh8 bvh8;
+  Bounds3 bounds;                   ///< of the valid triangles (empty box when none)
+  size_t prim_count = 0;            ///< valid triangles in the BVH
   SceneValidation validation;
-  double build_ms = 0;              ///< prim refs + builder + triangle copy, wall clock
+  double build_ms = 0;              ///< prim refs + builder + collapse + triangle copy, wall
+  /// Bytes of the traversal structure: nodes + triangles (+ prim ids for bvh2).
+  size_t memory_bytes() const;
 };
 
-/// Builds an Accel over a scene's valid triangles (invalid ones are counted and skipped).
+/// Builds an Accel over a scene's valid triangles (invalid ones are counted and skipped),
+/// in config.layout (automatic: the fastest layout for this machine's instruction set).
 Accel build_accel(const Scene& scene, const BuildConfig& config);
 
-/// Closest hit along the ray (watertight, Woop et al. 2013), or a miss.
+/// Refits an Accel to the scene's current vertex positions (same meshes, same triangles,
+/// moved vertices): boxes are recomputed bottom-up, the tree topology is kept. Throws
+/// Error(invalid_argument) if the triangle count changed or a triangle became invalid
+/// (NaN/Inf or degenerate): rebuild instead.
+void refit_accel(Accel& accel, const Scene& scene);
+
+/// Instruction sets with a traversal kernel. sse2 is the x86-64 baseline (always there);
+/// avx2 needs AVX2+FMA+BMI; avx512 needs AVX-512 F/VL/BW/DQ.
+enum class Isa { sse2, avx2, avx512 };
+const char* isa_name(Isa isa);
+/// Parses "sse2", "avx2", "avx512".
+std::optional<Isa> isa_from_name(const std::string& name);
+/// Whether this CPU (and OS) runs the ISA.
+bool isa_supported(Isa isa);
+/// The best ISA of this CPU.
+Isa host_isa();
+/// The ISA used when TraceOptions leaves it open: host_isa(), or the KESTREL_ISA
+/// environment variable, or what set_default_isa chose. Throws if unsupported.
+Isa default_isa();
+void set_default_isa(Isa isa);
+
+/// Per-call choices; empty means the default (the fastest for the machine and ray kind).
+struct TraceOptions {
+  std::optional<Isa> isa;
+  std::optional<bool> packets;      ///< coherent-ray packets (closest hit, wide layouts)
+};
+
+/// Closest hit along the ray (watertight, Woop et al. 2013), or a miss. When several
+/// triangles are hit at exactly the same t, the smallest prim id wins, so every layout,
+/// kernel and thread count returns the same hit.
 Hit intersect(const Accel& accel, const Ray& ray);
 /// Any hit in (tmin, tmax): t of the hit found (not necessarily the closest), or a miss.
 Hit intersect_any(const Accel& accel, const Ray& ray);
 
-/// Traces a batch, spread over the current thread pool in chunks.
-void trace(const Accel& accel, std::span<const Ray> rays, std::span<Hit> hits, bool any_hit);
+/// Traces a batch (closest hit), spread over the current thread pool in chunks.
+/// hits.size() must equal rays.size().
+void trace(const Accel& accel, std::span<const Ray> rays, std::span<Hit> hits,
+           const TraceOptions& options = {});
+/// Occlusion for a batch: occluded[i] = 1 when ray i hits anything in (tmin, tmax).
+void occluded(const Accel& accel, std::span<const Ray> rays, std::span<uint8_t> occluded,
+              const TraceOptions& options = {});
+/// Batch closest or any hit into Hits (any hit: t of a hit found, not necessarily nearest).
+void trace(const Accel& accel, std::span<const Ray> rays, std::span<Hit> hits, bool any_hit,
+           const TraceOptions& options = {});
 
 /// Reference: every valid triangle against the ray (the tests' oracle).
 Hit intersect_brute_force(std::span<const Triangle> triangles, std::span<const uint8_t> valid,

@@ -28,9 +28,10 @@ struct WatertightRay {
   }
 };
 
-/// Intersects one triangle; on a hit in (tmin, t_best) writes t, u, v and returns true.
-inline bool intersect_triangle(const WatertightRay& wr, const Triangle& tri, float tmin,
-                               float t_best, float& t_out, float& u_out, float& v_out) {
+/// Intersects one triangle; on a hit at t > tmin writes t, u, v and returns true.
+/// Every traversal kernel reproduces these operations bit for bit (see wide_kernels.inl).
+inline bool watertight_hit(const WatertightRay& wr, const Triangle& tri, float tmin, float& t_out,
+                           float& u_out, float& v_out) {
   const Vec3 a{tri.v0.x - wr.org.x, tri.v0.y - wr.org.y, tri.v0.z - wr.org.z};
   const Vec3 b{tri.v1.x - wr.org.x, tri.v1.y - wr.org.y, tri.v1.z - wr.org.z};
   const Vec3 c{tri.v2.x - wr.org.x, tri.v2.y - wr.org.y, tri.v2.z - wr.org.z};
@@ -52,19 +53,40 @@ inline bool intersect_triangle(const WatertightRay& wr, const Triangle& tri, flo
   // barycentric sum U*Az + V*Bz + W*Cz: on long, thin triangles hit close to the origin that
   // sum cancels large vertex distances and loses several digits (2% seen on a real scene),
   // while the plane distance stays accurate. The hit/miss decision above is unchanged, so
-  // the test stays watertight.
-  const Vec3 e1{b.x - a.x, b.y - a.y, b.z - a.z}, e2{c.x - a.x, c.y - a.y, c.z - a.z};
+  // the test stays watertight. It is evaluated in the permuted axes (kx, ky, kz) so the SIMD
+  // kernels reuse the vertex differences they already hold.
+  const float ax_ = a[wr.kx], ay_ = a[wr.ky], az_ = a[wr.kz];
+  const Vec3 e1{b[wr.kx] - ax_, b[wr.ky] - ay_, b[wr.kz] - az_};
+  const Vec3 e2{c[wr.kx] - ax_, c[wr.ky] - ay_, c[wr.kz] - az_};
   const Vec3 n{e1.y * e2.z - e1.z * e2.y, e1.z * e2.x - e1.x * e2.z, e1.x * e2.y - e1.y * e2.x};
-  const float n_dot_d = n.x * wr.dir.x + n.y * wr.dir.y + n.z * wr.dir.z;
+  const float n_dot_d = n.x * wr.dir[wr.kx] + n.y * wr.dir[wr.ky] + n.z * wr.dir[wr.kz];
   if (n_dot_d == 0.0f) return false;
-  const float t = (n.x * a.x + n.y * a.y + n.z * a.z) / n_dot_d;
-  if (!(t > tmin && t < t_best)) return false;
+  const float t = (n.x * ax_ + n.y * ay_ + n.z * az_) / n_dot_d;
+  if (!(t > tmin)) return false;
   const float inv_det = 1.0f / det;
   t_out = t;
   // u, v, w are weights of vertices 0, 1, 2 (edge functions opposite each vertex).
   u_out = v * inv_det;
   v_out = w * inv_det;
   return true;
+}
+
+/// Intersects one triangle; on a hit in (tmin, t_best) writes t, u, v and returns true.
+inline bool intersect_triangle(const WatertightRay& wr, const Triangle& tri, float tmin,
+                               float t_best, float& t_out, float& u_out, float& v_out) {
+  float t, u, v;
+  if (!watertight_hit(wr, tri, tmin, t, u, v) || !(t < t_best)) return false;
+  t_out = t;
+  u_out = u;
+  v_out = v;
+  return true;
+}
+
+/// Closest-hit acceptance: a candidate at t <= best_t replaces the best hit when nearer, or
+/// equally near with a smaller prim id (so ties resolve the same in every traversal order).
+/// With no hit yet (best_id == invalid_id) best_t is the ray's tmax, which is exclusive.
+inline bool closer_hit(float t, uint32_t id, float best_t, uint32_t best_id) {
+  return t < best_t || (t == best_t && best_id != invalid_id && id < best_id);
 }
 
 /// A ray is traceable when every component is finite and the direction is non-zero.

@@ -1,23 +1,116 @@
-// Closest-hit and any-hit queries over an Accel, the batch entry point, and brute force.
+// Closest-hit and any-hit queries over an Accel: the scalar Bvh2 reference, the dispatch to
+// the wide SIMD kernels (chosen once from the CPU's features), batches, and brute force.
+#include <fmt/format.h>
+
+#include <atomic>
+#include <cstdlib>
+
 #include "core/parallel.h"
 #include "geometry/triangle_intersect.h"
+#include "kestrel/error.h"
+#include "traverse/kernels.h"
 #include "traverse/traverse_bvh2.h"
 
 namespace kestrel {
 
+// ---- instruction sets -------------------------------------------------------------------
+
+const char* isa_name(Isa isa) {
+  switch (isa) {
+    case Isa::sse2: return "sse2";
+    case Isa::avx2: return "avx2";
+    case Isa::avx512: return "avx512";
+  }
+  return "?";
+}
+
+std::optional<Isa> isa_from_name(const std::string& name) {
+  if (name == "sse2") return Isa::sse2;
+  if (name == "avx2") return Isa::avx2;
+  if (name == "avx512") return Isa::avx512;
+  return std::nullopt;
+}
+
+bool isa_supported(Isa isa) {
+  // libgcc's CPU model checks CPUID and that the OS saves the wider registers (XGETBV).
+  __builtin_cpu_init();
+  switch (isa) {
+    case Isa::sse2: return true;
+    case Isa::avx2:
+      return __builtin_cpu_supports("avx2") && __builtin_cpu_supports("fma") && __builtin_cpu_supports("bmi") &&
+             __builtin_cpu_supports("bmi2") && __builtin_cpu_supports("popcnt");
+    case Isa::avx512:
+      return isa_supported(Isa::avx2) && __builtin_cpu_supports("avx512f") && __builtin_cpu_supports("avx512vl") &&
+             __builtin_cpu_supports("avx512bw") && __builtin_cpu_supports("avx512dq");
+  }
+  return false;
+}
+
+Isa host_isa() {
+  static const Isa best = isa_supported(Isa::avx512) ? Isa::avx512 : isa_supported(Isa::avx2) ? Isa::avx2 : Isa::sse2;
+  return best;
+}
+
+namespace {
+std::atomic<int> g_default_isa{-1};
+
+void require_supported(Isa isa) {
+  if (!isa_supported(isa))
+    throw Error(ErrorCode::invalid_argument, fmt::format("ISA '{}' is not supported by this CPU (best: {})",
+                                                         isa_name(isa), isa_name(host_isa())));
+}
+
+const kernels::Table& table_for(Isa isa) {
+  switch (isa) {
+    case Isa::avx512: return kernels::table_avx512();
+    case Isa::avx2: return kernels::table_avx2();
+    default: return kernels::table_sse2();
+  }
+}
+}  // namespace
+
+Isa default_isa() {
+  int v = g_default_isa.load(std::memory_order_relaxed);
+  if (v < 0) {
+    Isa isa = host_isa();
+    if (const char* env = std::getenv("KESTREL_ISA"); env && *env) {
+      auto parsed = isa_from_name(env);
+      if (!parsed) throw Error(ErrorCode::invalid_argument, fmt::format("KESTREL_ISA='{}': expected sse2, avx2 or avx512", env));
+      require_supported(*parsed);
+      isa = *parsed;
+    }
+    v = int(isa);
+    g_default_isa.store(v, std::memory_order_relaxed);
+  }
+  return Isa(v);
+}
+
+void set_default_isa(Isa isa) {
+  require_supported(isa);
+  g_default_isa.store(int(isa), std::memory_order_relaxed);
+}
+
+// ---- scalar Bvh2 reference ----------------------------------------------------------------
+
 namespace {
 template <bool AnyHit>
-Hit intersect_impl(const Accel& accel, const Ray& ray) {
+Hit intersect_bvh2(const Accel& accel, const Ray& ray) {
   Hit hit;
   if (!is_traceable(ray)) return hit;
   const WatertightRay wr(ray);
   float tmax = ray.tmax;
   const Triangle* tris = accel.triangles.data();
+  const uint32_t* ids = accel.bvh.prim_ids.data();
   uint32_t best = invalid_id;
   traverse_bvh2<AnyHit>(accel.bvh, ray, tmax, [&](uint32_t first, uint32_t count, float& t) {
     for (uint32_t i = first; i < first + count; ++i) {
-      if (intersect_triangle(wr, tris[i], ray.tmin, t, t, hit.u, hit.v)) {
-        best = i;
+      float tc, uc, vc;
+      if (!watertight_hit(wr, tris[i], ray.tmin, tc, uc, vc)) continue;
+      if (AnyHit ? tc < t : closer_hit(tc, ids[i], t, best)) {
+        t = tc;
+        best = ids[i];
+        hit.u = uc;
+        hit.v = vc;
         if constexpr (AnyHit) return true;
       }
     }
@@ -25,21 +118,98 @@ Hit intersect_impl(const Accel& accel, const Ray& ray) {
   });
   if (best != invalid_id) {
     hit.t = tmax;
-    hit.prim_id = accel.bvh.prim_ids[best];
+    hit.prim_id = best;
+  } else {
+    hit.u = hit.v = 0;
   }
   return hit;
 }
+
+// Rays that cannot hit (NaN/Inf, zero direction, tmin > tmax) never reach a kernel.
+template <class Fn>
+void run_kernel(std::span<const Ray> rays, std::span<Hit> hits, Fn&& fn) {
+  size_t i = 0;
+  const size_t n = rays.size();
+  while (i < n) {
+    size_t j = i;
+    while (j < n && is_traceable(rays[j])) ++j;
+    if (j > i) fn(rays.data() + i, hits.data() + i, j - i);
+    if (j < n) hits[j] = Hit{};
+    i = j + 1;
+  }
+}
+
+void trace_range(const Accel& accel, std::span<const Ray> rays, std::span<Hit> hits, bool any_hit,
+                 const kernels::Table& k, bool packets) {
+  switch (accel.layout) {
+    case Layout::bvh4:
+      if (accel.bvh4.empty()) break;
+      run_kernel(rays, hits, [&](const Ray* r, Hit* h, size_t n) {
+        (any_hit ? k.any4 : packets ? k.packet4 : k.closest4)(accel.bvh4.nodes.data(), accel.bvh4.blocks.data(), r, h, n);
+      });
+      return;
+    case Layout::bvh8:
+      if (accel.bvh8.empty()) break;
+      run_kernel(rays, hits, [&](const Ray* r, Hit* h, size_t n) {
+        (any_hit ? k.any8 : packets ? k.packet8 : k.closest8)(accel.bvh8.nodes.data(), accel.bvh8.blocks.data(), r, h, n);
+      });
+      return;
+    default:
+      if (any_hit) {
+        for (size_t i = 0; i < rays.size(); ++i) hits[i] = intersect_bvh2<true>(accel, rays[i]);
+      } else {
+        for (size_t i = 0; i < rays.size(); ++i) hits[i] = intersect_bvh2<false>(accel, rays[i]);
+      }
+      return;
+  }
+  for (Hit& h : hits) h = Hit{};  // empty wide BVH
+}
+
+void check_sizes(size_t rays, size_t out) {
+  if (rays != out)
+    throw Error(ErrorCode::invalid_argument, fmt::format("trace: {} rays but room for {} results", rays, out));
+}
 }  // namespace
 
-Hit intersect(const Accel& accel, const Ray& ray) { return intersect_impl<false>(accel, ray); }
-Hit intersect_any(const Accel& accel, const Ray& ray) { return intersect_impl<true>(accel, ray); }
+Hit intersect(const Accel& accel, const Ray& ray) {
+  Hit hit;
+  trace_range(accel, std::span(&ray, 1), std::span(&hit, 1), false, table_for(default_isa()), false);
+  return hit;
+}
 
-void trace(const Accel& accel, std::span<const Ray> rays, std::span<Hit> hits, bool any_hit) {
+Hit intersect_any(const Accel& accel, const Ray& ray) {
+  Hit hit;
+  trace_range(accel, std::span(&ray, 1), std::span(&hit, 1), true, table_for(default_isa()), false);
+  return hit;
+}
+
+void trace(const Accel& accel, std::span<const Ray> rays, std::span<Hit> hits, bool any_hit,
+           const TraceOptions& options) {
+  check_sizes(rays.size(), hits.size());
+  const Isa isa = options.isa.value_or(default_isa());
+  require_supported(isa);
+  const kernels::Table& k = table_for(isa);
+  const bool packets = options.packets.value_or(false);
   parallel_for(0, rays.size(), 1024, [&](size_t b, size_t e) {
-    if (any_hit) {
-      for (size_t i = b; i < e; ++i) hits[i] = intersect_impl<true>(accel, rays[i]);
-    } else {
-      for (size_t i = b; i < e; ++i) hits[i] = intersect_impl<false>(accel, rays[i]);
+    trace_range(accel, rays.subspan(b, e - b), hits.subspan(b, e - b), any_hit, k, packets);
+  });
+}
+
+void trace(const Accel& accel, std::span<const Ray> rays, std::span<Hit> hits, const TraceOptions& options) {
+  trace(accel, rays, hits, false, options);
+}
+
+void occluded(const Accel& accel, std::span<const Ray> rays, std::span<uint8_t> out, const TraceOptions& options) {
+  check_sizes(rays.size(), out.size());
+  const Isa isa = options.isa.value_or(default_isa());
+  require_supported(isa);
+  const kernels::Table& k = table_for(isa);
+  parallel_for(0, rays.size(), 1024, [&](size_t b, size_t e) {
+    Hit local[256];
+    for (size_t i = b; i < e; i += 256) {
+      const size_t n = std::min<size_t>(256, e - i);
+      trace_range(accel, rays.subspan(i, n), std::span(local, n), true, k, false);
+      for (size_t j = 0; j < n; ++j) out[i + j] = local[j].hit();
     }
   });
 }
@@ -52,9 +222,10 @@ Hit intersect_brute_force(std::span<const Triangle> triangles, std::span<const u
   float t = ray.tmax;
   for (size_t i = 0; i < triangles.size(); ++i) {
     if (!valid.empty() && !valid[i]) continue;
-    if (intersect_triangle(wr, triangles[i], ray.tmin, t, t, hit.u, hit.v)) {
-      hit.prim_id = uint32_t(i);
-      hit.t = t;
+    float tc, uc, vc;
+    if (watertight_hit(wr, triangles[i], ray.tmin, tc, uc, vc) && tc < t) {
+      t = tc;
+      hit = {tc, uint32_t(i), uc, vc};
       if (any_hit) break;
     }
   }

@@ -50,7 +50,7 @@ TEST_P(EmbreeDiff, SameClosestHitsAndOcclusionAsEmbree) {
   std::vector<Ray> rays = tools::primary_rays(*cam, GetParam().width, GetParam().height);
   const size_t primary_count = rays.size();
   for (auto kind : {tools::RayKind::diffuse, tools::RayKind::shadow}) {
-    auto more = tools::secondary_rays(reference, std::vector<Ray>(rays.begin(), rays.begin() + primary_count), kind,
+    auto more = tools::secondary_rays(reference, scene, std::vector<Ray>(rays.begin(), rays.begin() + primary_count), kind,
                                       tools::default_light(tools::scene_bounds(scene)), 5);
     rays.insert(rays.end(), more.begin(), more.end());
   }

@@ -1,0 +1,319 @@
+// Trace benchmark: kestrel against Embree on the same rays, in the same run, one thread.
+//
+// For each scene: primary rays from its view (the inside camera for Sponza), shadow rays
+// (any hit) from the primary hits towards a point light, and diffuse bounce rays. Each ray
+// set is traced by kestrel (the library's default choice, and optionally every layout x ISA)
+// and by Embree (rtcIntersect1 / rtcOccluded1, and rtcIntersect16 for packets), runs
+// alternating A B A B; medians of Mrays/s, the ratio, and how many hits agree.
+// With --amortization, also the build-vs-trace curve (see docs/benchmarks.md).
+//
+//   kestrel_trace_bench [--scenes a.obj,...] [--res 1280x720] [--repeat 5] [--all-kernels]
+//                       [--json F] [--markdown F] [--amortization F.csv] [--quick]
+#include <fmt/format.h>
+
+#include <CLI/CLI.hpp>
+#include <algorithm>
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+
+#include "common/ray_gen.h"
+#include "common/views.h"
+#include "core/timer.h"
+#include "kestrel/kestrel.h"
+#ifdef KESTREL_HAVE_EMBREE
+#include "embree_peer.h"
+#endif
+
+namespace {
+
+using namespace kestrel;
+
+double median_of(std::vector<double> v) {
+  if (v.empty()) return 0;
+  std::sort(v.begin(), v.end());
+  const size_t n = v.size();
+  return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
+}
+
+struct SceneSpec {
+  std::string path, view;
+};
+
+std::string label(const std::string& path) {
+  if (path.rfind("builtin:", 0) == 0) return path.substr(8);
+  return std::filesystem::path(path).stem().string();
+}
+
+std::vector<SceneSpec> default_scenes(const std::string& root) {
+  std::vector<SceneSpec> out;
+  for (auto [rel, view] : {std::pair{"dabrovic_sponza/sponza.obj", "inside"}, {"lamborghini/lamborghini.obj", "framing"},
+                           {"bunny_grid/bunny_grid.obj", "framing"}, {"teapot/teapot.obj", "framing"},
+                           {"cornell_box/cornell_box.obj", "framing"}}) {
+    const std::string p = root + "/" + rel;
+    if (std::filesystem::exists(p)) out.push_back({p, view});
+  }
+  if (out.empty()) out.push_back({"builtin:cornell_box", "front"});
+  return out;
+}
+
+struct Result {
+  std::string scene, kind, kestrel_variant, peer;
+  size_t rays = 0;
+  double kestrel_mrays = 0, peer_mrays = 0;
+  double agree = 1;  // fraction of rays with the same answer (closest: same prim or same t)
+};
+
+// Same answer: same prim, or (ties at shared edges / duplicates) the same distance.
+bool same_hit(const Hit& a, const Hit& b) {
+  if (a.prim_id == b.prim_id) return true;
+  if (!a.hit() || !b.hit()) return false;
+  return std::fabs(a.t - b.t) <= 1e-4f * std::max(1.0f, std::fabs(a.t));
+}
+
+struct Variant {
+  std::string name;
+  Layout layout;
+  TraceOptions options;
+};
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  CLI::App app{"kestrel trace benchmark: kestrel vs Embree on the same rays, one thread"};
+  std::string builder_arg;
+  float ci = 1.0f;
+  uint32_t max_leaf = 8;
+  std::string scenes_arg, json_path = "trace_bench.json", md_path, amort_path, res = "1280x720";
+  std::string scene_root = KESTREL_SCENE_ROOT;
+  int repeat = 5;
+  bool quick = false, all_kernels = false;
+  app.add_option("--scenes", scenes_arg, "comma-separated scene files (path[:view]); default: the shared scenes");
+  app.add_option("--scene-root", scene_root, "folder of the shared scenes");
+  app.add_option("--res", res, "primary ray resolution WxH");
+  app.add_option("--repeat", repeat, "rounds, alternating kestrel and Embree (median reported)")->check(CLI::Range(1, 100));
+  app.add_option("--builder", builder_arg, "kestrel builder for the trace runs (default: the library's default)");
+  app.add_option("--ci", ci, "intersection cost Ci of the SAH (Ct = 1)");
+  app.add_option("--max-leaf", max_leaf, "max primitives per leaf");
+  app.add_flag("--all-kernels", all_kernels, "also every layout x ISA, not only the default");
+  app.add_option("--json", json_path, "JSON output file");
+  app.add_option("--markdown", md_path, "also write the markdown table here");
+  app.add_option("--amortization", amort_path, "write the build-vs-trace curve as CSV here");
+  app.add_flag("--quick", quick, "one round, small image, the Cornell box (smoke test)");
+  CLI11_PARSE(app, argc, argv);
+
+  int width = 0, height = 0;
+  if (std::sscanf(res.c_str(), "%dx%d", &width, &height) != 2 || width <= 0 || height <= 0) {
+    std::fprintf(stderr, "kestrel_trace_bench: bad --res '%s'\n", res.c_str());
+    return 2;
+  }
+  std::vector<SceneSpec> scenes;
+  if (quick) {
+    scenes = {{"builtin:cornell_box", "front"}};
+    repeat = 1;
+    width = 160, height = 90;
+  } else if (!scenes_arg.empty()) {
+    std::stringstream ss(scenes_arg);
+    for (std::string s; std::getline(ss, s, ',');) {
+      const size_t colon = s.rfind(':');
+      if (colon != std::string::npos && s.rfind("builtin:", 0) != 0 && colon > 1)
+        scenes.push_back({s.substr(0, colon), s.substr(colon + 1)});
+      else
+        scenes.push_back({s, s.rfind("builtin:", 0) == 0 ? "front" : "framing"});
+    }
+  } else {
+    scenes = default_scenes(scene_root);
+  }
+
+  ThreadLimit one_thread(1);
+  std::vector<Variant> variants = {{"default", Layout::automatic, {}}};
+  if (all_kernels) {
+    for (Layout layout : {Layout::bvh4, Layout::bvh8})
+      for (Isa isa : {Isa::sse2, Isa::avx2, Isa::avx512})
+        if (isa_supported(isa)) variants.push_back({fmt::format("{}-{}", layout_name(layout), isa_name(isa)), layout, {isa, false}});
+    variants.push_back({"bvh2-scalar", Layout::bvh2, {}});
+  }
+  std::vector<Result> results;
+  struct MemRow {
+    std::string scene;
+    size_t prims;
+    double kestrel_bpp, embree_bpp;
+  };
+  std::vector<MemRow> memory;
+  std::ofstream amort;
+  if (!amort_path.empty()) {
+    amort.open(amort_path);
+    amort << "scene,method,prims,build_ms,mrays_per_s,rays_per_build,effective_mrays_per_s\n";
+  }
+  try {
+    for (const SceneSpec& spec : scenes) {
+      const Scene scene = load_scene(spec.path);
+      const std::string name = label(spec.path);
+      auto cam = tools::named_view(scene, spec.view);
+      if (!cam) throw Error(ErrorCode::invalid_argument, fmt::format("{}: no view named '{}'", spec.path, spec.view));
+      // Accels: one per layout variant (built once; build time is the build benchmark's).
+      std::vector<Accel> accels;
+      for (const Variant& v : variants) {
+        BuildConfig c;
+        c.layout = v.layout;
+        c.intersection_cost = ci;
+        c.max_leaf_size = max_leaf;
+        if (!builder_arg.empty()) c.builder = builder_from_name(builder_arg);
+        accels.push_back(build_accel(scene, c));
+      }
+      const Accel& accel = accels[0];
+      const std::vector<Ray> primary = tools::primary_rays(*cam, width, height);
+      const Vec3 light = tools::default_light(tools::scene_bounds(scene));
+      const std::vector<Ray> shadow = tools::secondary_rays(accel, scene, primary, tools::RayKind::shadow, light, 7);
+      const std::vector<Ray> diffuse = tools::secondary_rays(accel, scene, primary, tools::RayKind::diffuse, light, 7);
+#ifdef KESTREL_HAVE_EMBREE
+      peer::EmbreeScene embree(scene, peer::EmbreeQuality::medium, 1);
+      memory.push_back({name, accel.prim_count, double(accel.memory_bytes()) / double(std::max<size_t>(1, accel.prim_count)),
+                        double(embree.memory_bytes()) / double(std::max<size_t>(1, accel.prim_count))});
+#else
+      memory.push_back({name, accel.prim_count, double(accel.memory_bytes()) / double(std::max<size_t>(1, accel.prim_count)), 0});
+#endif
+      struct Kind {
+        const char* name;
+        const std::vector<Ray>* rays;
+        bool any_hit, packets;
+      };
+      const Kind kinds[] = {{"primary", &primary, false, false},
+                            {"shadow", &shadow, true, false},
+                            {"diffuse", &diffuse, false, false},
+                            {"primary-packets", &primary, false, true}};
+      for (const Kind& kind : kinds) {
+        const std::vector<Ray>& rays = *kind.rays;
+        if (rays.empty()) continue;
+        std::vector<Hit> ours(rays.size()), theirs(rays.size());
+        std::vector<uint8_t> occ(rays.size());
+        for (size_t vi = 0; vi < variants.size(); ++vi) {
+          if (kind.packets && variants[vi].layout == Layout::bvh2) continue;
+          TraceOptions opt = variants[vi].options;
+          if (kind.packets) opt.packets = true;
+          std::vector<double> a_ms, b_ms;
+          for (int r = 0; r < repeat; ++r) {
+            Timer ta;
+            trace(accels[vi], rays, ours, kind.any_hit, opt);
+            a_ms.push_back(ta.ms());
+#ifdef KESTREL_HAVE_EMBREE
+            if (vi == 0) {
+              Timer tb;
+              if (kind.any_hit)
+                embree.occluded(rays, occ);
+              else if (kind.packets)
+                embree.intersect16(rays, theirs);
+              else
+                embree.intersect(rays, theirs);
+              b_ms.push_back(tb.ms());
+            }
+#endif
+          }
+          Result res;
+          res.scene = name;
+          res.kind = kind.name;
+          res.kestrel_variant = variants[vi].name;
+          res.rays = rays.size();
+          res.kestrel_mrays = double(rays.size()) / (median_of(a_ms) * 1e3);
+          if (!b_ms.empty()) {
+            res.peer = kind.packets ? "rtcIntersect16" : kind.any_hit ? "rtcOccluded1" : "rtcIntersect1";
+            res.peer_mrays = double(rays.size()) / (median_of(b_ms) * 1e3);
+            size_t same = 0;
+            for (size_t i = 0; i < rays.size(); ++i) same += kind.any_hit ? ours[i].hit() == bool(occ[i]) : same_hit(ours[i], theirs[i]);
+            res.agree = double(same) / double(rays.size());
+          }
+          results.push_back(res);
+          fmt::print("{:<12} {:<16} {:<14} {:>8} rays  kestrel {:7.2f} Mrays/s", name, kind.name, res.kestrel_variant, rays.size(),
+                     res.kestrel_mrays);
+          if (res.peer_mrays > 0)
+            fmt::print("  Embree {:7.2f}  ratio {:5.2f}  agree {:.4f}%", res.peer_mrays, res.kestrel_mrays / res.peer_mrays,
+                       100 * res.agree);
+          fmt::print("\n");
+          std::fflush(stdout);
+        }
+      }
+
+      // The amortization curve: per builder, full build time (one thread) and the trace
+      // speed of a mixed workload (primary + diffuse rays, the render loop's mix).
+      if (amort.is_open()) {
+        std::vector<Ray> mix = primary;
+        mix.insert(mix.end(), diffuse.begin(), diffuse.end());
+        std::vector<Hit> hits(mix.size());
+        struct Point {
+          std::string method;
+          double build_ms, mrays;
+        };
+        std::vector<Point> points;
+        for (Builder b : {Builder::median, Builder::lbvh, Builder::binned, Builder::sweep, Builder::treelet}) {
+          BuildConfig c;
+          c.builder = b;
+          std::vector<double> build_ms, trace_ms;
+          for (int r = 0; r < std::max(3, repeat); ++r) {
+            Accel a = build_accel(scene, c);
+            build_ms.push_back(a.build_ms);
+            Timer t;
+            trace(a, mix, hits);
+            trace_ms.push_back(t.ms());
+          }
+          points.push_back({builder_name(b), median_of(build_ms), double(mix.size()) / (median_of(trace_ms) * 1e3)});
+        }
+#ifdef KESTREL_HAVE_EMBREE
+        for (auto q : {peer::EmbreeQuality::low, peer::EmbreeQuality::medium, peer::EmbreeQuality::high}) {
+          peer::EmbreeScene e(scene, q, 1);
+          std::vector<double> build_ms, trace_ms;
+          for (int r = 0; r < std::max(3, repeat); ++r) {
+            build_ms.push_back(e.rebuild());
+            Timer t;
+            e.intersect(mix, hits);
+            trace_ms.push_back(t.ms());
+          }
+          points.push_back({std::string("embree-") + peer::embree_quality_name(q), median_of(build_ms),
+                            double(mix.size()) / (median_of(trace_ms) * 1e3)});
+        }
+#endif
+        for (const Point& p : points) {
+          fmt::print("{:<12} amortization {:<14} build {:9.2f} ms  trace {:7.2f} Mrays/s\n", name, p.method, p.build_ms, p.mrays);
+          for (double lg = 4; lg <= 10.0001; lg += 0.25) {
+            const double R = std::pow(10.0, lg);
+            const double seconds = p.build_ms * 1e-3 + R / (p.mrays * 1e6);
+            amort << fmt::format("{},{},{},{:.4f},{:.4f},{:.6g},{:.6f}\n", name, p.method, accel.prim_count, p.build_ms, p.mrays, R,
+                                 R / seconds * 1e-6);
+          }
+        }
+      }
+    }
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "kestrel_trace_bench: %s\n", e.what());
+    return 1;
+  }
+
+  // Markdown table and JSON.
+  std::string md = fmt::format("Single thread, same rays, runs alternating kestrel / Embree, median of {} (Mrays/s).\n\n", repeat);
+  md += "| scene | rays | kestrel | rays | kestrel Mrays/s | Embree call | Embree Mrays/s | ratio | same hits |\n";
+  md += "|---|---|---|---:|---:|---|---:|---:|---:|\n";
+  for (const Result& r : results)
+    md += fmt::format("| {} | {} | {} | {} | {:.2f} | {} | {} | {} | {} |\n", r.scene, r.kind, r.kestrel_variant, r.rays,
+                      r.kestrel_mrays, r.peer.empty() ? "-" : r.peer, r.peer_mrays > 0 ? fmt::format("{:.2f}", r.peer_mrays) : "-",
+                      r.peer_mrays > 0 ? fmt::format("{:.2f}", r.kestrel_mrays / r.peer_mrays) : "-",
+                      r.peer_mrays > 0 ? fmt::format("{:.3f}%", 100 * r.agree) : "-");
+  md += "\n| scene | triangles | kestrel bytes/prim | Embree bytes/prim |\n|---|---:|---:|---:|\n";
+  for (const MemRow& m : memory) md += fmt::format("| {} | {} | {:.1f} | {:.1f} |\n", m.scene, m.prims, m.kestrel_bpp, m.embree_bpp);
+  fmt::print("\n{}", md);
+  if (!md_path.empty()) std::ofstream(md_path) << md;
+  std::ofstream json(json_path);
+  json << "{\n  \"isa\": \"" << isa_name(default_isa()) << "\",\n  \"repeat\": " << repeat << ",\n  \"results\": [\n";
+  for (size_t i = 0; i < results.size(); ++i) {
+    const Result& r = results[i];
+    json << fmt::format("    {{\"scene\": \"{}\", \"kind\": \"{}\", \"kestrel\": \"{}\", \"rays\": {}, \"kestrel_mrays\": {:.4f}, "
+                        "\"peer\": \"{}\", \"peer_mrays\": {:.4f}, \"agree\": {:.6f}}}{}\n",
+                        r.scene, r.kind, r.kestrel_variant, r.rays, r.kestrel_mrays, r.peer, r.peer_mrays, r.agree,
+                        i + 1 < results.size() ? "," : "");
+  }
+  json << "  ],\n  \"memory\": [\n";
+  for (size_t i = 0; i < memory.size(); ++i)
+    json << fmt::format("    {{\"scene\": \"{}\", \"prims\": {}, \"kestrel_bytes_per_prim\": {:.3f}, \"embree_bytes_per_prim\": {:.3f}}}{}\n",
+                        memory[i].scene, memory[i].prims, memory[i].kestrel_bpp, memory[i].embree_bpp, i + 1 < memory.size() ? "," : "");
+  json << "  ]\n}\n";
+  return 0;
+}

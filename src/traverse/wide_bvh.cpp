@@ -1,0 +1,277 @@
+#include "traverse/wide_bvh.h"
+
+#include <algorithm>
+#include <cmath>
+#include <vector>
+
+#include "kestrel/error.h"
+
+namespace kestrel {
+
+namespace {
+
+float half_area(const Bvh2Node& n) {
+  const float dx = n.hi.x - n.lo.x, dy = n.hi.y - n.lo.y, dz = n.hi.z - n.lo.z;
+  return dx * dy + dy * dz + dz * dx;
+}
+
+void write_lane(TriangleBlock& b, int lane, const Triangle& t, uint32_t id) {
+  const Vec3* v[3] = {&t.v0, &t.v1, &t.v2};
+  for (int k = 0; k < 3; ++k) {
+    b.v[k][0][lane] = v[k]->x;
+    b.v[k][1][lane] = v[k]->y;
+    b.v[k][2][lane] = v[k]->z;
+  }
+  b.prim_id[lane] = id;
+}
+
+template <int W, class Node>
+void set_slot(Node& node, int j, const Bounds3& b, uint32_t ref) {
+  node.bounds[0][j] = b.lo.x;
+  node.bounds[1][j] = b.hi.x;
+  node.bounds[2][j] = b.lo.y;
+  node.bounds[3][j] = b.hi.y;
+  node.bounds[4][j] = b.lo.z;
+  node.bounds[5][j] = b.hi.z;
+  node.child[j] = ref;
+}
+
+// Which binary subtrees become one wide leaf. A SIMD leaf test costs about the same for one
+// triangle as for four, so leaf cost counts blocks of four: C(leaf) = A * ceil(n / 4) and
+// C(inner) = A + C(left) + C(right) (one SIMD box test, then the children). A subtree of at
+// most max_leaf primitives is flattened when that is no more expensive; a subtree of at most
+// four always is. This turns the binary builders' many 2-triangle leaves into full blocks.
+struct LeafPlan {
+  std::vector<uint32_t> count;  // primitives under each Bvh2 node
+  std::vector<uint8_t> flat;    // 1: emit the whole subtree as one leaf
+};
+
+LeafPlan plan_leaves(const Bvh2& bvh, uint32_t max_leaf) {
+  const size_t n = bvh.nodes.size();
+  LeafPlan plan{std::vector<uint32_t>(n, 0), std::vector<uint8_t>(n, 0)};
+  std::vector<float> cost(n, 0);
+  std::vector<uint32_t> order{0};  // parents before children
+  for (size_t i = 0; i < order.size(); ++i) {
+    const Bvh2Node& node = bvh.nodes[order[i]];
+    if (!node.is_leaf()) {
+      order.push_back(node.index);
+      order.push_back(node.index + 1);
+    }
+  }
+  for (size_t i = order.size(); i-- > 0;) {
+    const uint32_t id = order[i];
+    const Bvh2Node& node = bvh.nodes[id];
+    const float area = half_area(node);
+    if (node.is_leaf()) {
+      plan.count[id] = node.count;
+      plan.flat[id] = 1;
+      cost[id] = area * float((node.count + 3) / 4);
+      continue;
+    }
+    const uint32_t c = plan.count[node.index] + plan.count[node.index + 1];
+    plan.count[id] = c;
+    const float split = area + cost[node.index] + cost[node.index + 1];
+    const float leaf = area * float((c + 3) / 4);
+    if (c <= max_leaf && (c <= 4 || leaf <= split)) {
+      plan.flat[id] = 1;
+      cost[id] = leaf;
+    } else {
+      cost[id] = split;
+    }
+  }
+  return plan;
+}
+
+template <int W, class Node, class Wide>
+Wide collapse(const Bvh2& bvh, std::span<const Triangle> tris, uint32_t max_leaf) {
+  Wide out;
+  if (bvh.empty()) return out;
+  if (bvh.prim_ids.size() >= size_t(block_last_bit))
+    throw Error(ErrorCode::invalid_argument, "wide BVH: more than 2^31 primitives");
+  const LeafPlan plan = plan_leaves(bvh, std::max<uint32_t>(max_leaf, 4));
+  // Blocks needed: every flat subtree whose parent is not flat.
+  size_t block_count = 0;
+  {
+    std::vector<uint32_t> stack{0};
+    while (!stack.empty()) {
+      const uint32_t id = stack.back();
+      stack.pop_back();
+      if (plan.flat[id]) {
+        block_count += (plan.count[id] + 3) / 4;
+      } else {
+        stack.push_back(bvh.nodes[id].index);
+        stack.push_back(bvh.nodes[id].index + 1);
+      }
+    }
+  }
+  if (block_count >= size_t(wide_leaf_bit))
+    throw Error(ErrorCode::invalid_argument, "wide BVH: too many triangle blocks");
+  out.blocks.resize(block_count);
+  out.nodes.reserve(bvh.nodes.size() / (W - 1) + 1);
+  size_t next_block = 0;
+
+  std::vector<uint32_t> prims, walk;  // leaf-order indices of a flat subtree
+  auto emit_leaf = [&](uint32_t subtree) -> uint32_t {
+    prims.clear();
+    walk.assign(1, subtree);
+    while (!walk.empty()) {
+      const Bvh2Node& n = bvh.nodes[walk.back()];
+      walk.pop_back();
+      if (n.is_leaf()) {
+        for (uint32_t k = 0; k < n.count; ++k) prims.push_back(n.index + k);
+      } else {
+        walk.push_back(n.index + 1);
+        walk.push_back(n.index);
+      }
+    }
+    const uint32_t first = uint32_t(next_block);
+    const uint32_t count = uint32_t(prims.size());
+    const uint32_t nb = (count + 3) / 4;
+    for (uint32_t b = 0; b < nb; ++b) {
+      TriangleBlock& blk = out.blocks[next_block++];
+      for (uint32_t lane = 0; lane < 4; ++lane) {
+        const uint32_t k = prims[std::min(4 * b + lane, count - 1)];  // pad with the last one
+        write_lane(blk, int(lane), tris[k], bvh.prim_ids[k]);
+      }
+      if (b + 1 == nb) blk.prim_id[0] |= block_last_bit;
+    }
+    return wide_leaf_bit | first;
+  };
+
+  struct Work {
+    uint32_t src, dst;
+  };
+  std::vector<Work> todo{{0, 0}};
+  out.nodes.emplace_back();
+  while (!todo.empty()) {
+    const Work work = todo.back();
+    todo.pop_back();
+    uint32_t kids[W];
+    int n = 0;
+    const Bvh2Node& src = bvh.nodes[work.src];
+    if (plan.flat[work.src]) {
+      kids[n++] = work.src;  // a one-leaf tree: the root holds one leaf slot
+    } else {
+      kids[n++] = src.index;
+      kids[n++] = src.index + 1;
+    }
+    while (n < W) {
+      int open = -1;
+      float open_area = -1;
+      for (int i = 0; i < n; ++i) {
+        const Bvh2Node& k = bvh.nodes[kids[i]];
+        if (!plan.flat[kids[i]] && half_area(k) > open_area) {
+          open = i;
+          open_area = half_area(k);
+        }
+      }
+      if (open < 0) break;
+      const uint32_t first = bvh.nodes[kids[open]].index;
+      kids[open] = first;
+      kids[n++] = first + 1;
+    }
+    Node node;
+    const size_t first_new = todo.size();
+    for (int j = 0; j < W; ++j) {
+      if (j >= n) {
+        const float inf = INFINITY;
+        set_slot<W>(node, j, Bounds3{{inf, inf, inf}, {-inf, -inf, -inf}}, wide_empty);
+        continue;
+      }
+      const Bvh2Node& k = bvh.nodes[kids[j]];
+      const Bounds3 box{k.lo, k.hi};
+      if (plan.flat[kids[j]]) {
+        set_slot<W>(node, j, box, emit_leaf(kids[j]));
+      } else {
+        const uint32_t dst = uint32_t(out.nodes.size());
+        out.nodes.emplace_back();
+        todo.push_back({kids[j], dst});
+        set_slot<W>(node, j, box, dst);
+      }
+    }
+    std::reverse(todo.begin() + first_new, todo.end());  // first child is built next
+    out.nodes[work.dst] = node;
+  }
+  return out;
+}
+
+void grow(Bounds3& b, const Vec3& p) {
+  b.lo = {std::min(b.lo.x, p.x), std::min(b.lo.y, p.y), std::min(b.lo.z, p.z)};
+  b.hi = {std::max(b.hi.x, p.x), std::max(b.hi.y, p.y), std::max(b.hi.z, p.z)};
+}
+
+template <int W, class Wide>
+void refit(Wide& bvh, std::span<const Triangle> tris) {
+  for (TriangleBlock& blk : bvh.blocks) {
+    const uint32_t last = blk.prim_id[0] & block_last_bit;
+    for (int lane = 0; lane < 4; ++lane) write_lane(blk, lane, tris[blk.prim_id[lane] & ~block_last_bit], blk.prim_id[lane] & ~block_last_bit);
+    blk.prim_id[0] |= last;
+  }
+  for (size_t i = bvh.nodes.size(); i-- > 0;) {
+    auto& node = bvh.nodes[i];
+    for (int j = 0; j < W; ++j) {
+      const uint32_t ref = node.child[j];
+      if (ref == wide_empty) continue;
+      Bounds3 box;
+      if (ref & wide_leaf_bit) {
+        for (const TriangleBlock* blk = &bvh.blocks[ref & ~wide_leaf_bit];; ++blk) {
+          for (int k = 0; k < 3; ++k)
+            for (int lane = 0; lane < 4; ++lane) grow(box, {blk->v[k][0][lane], blk->v[k][1][lane], blk->v[k][2][lane]});
+          if (blk->prim_id[0] & block_last_bit) break;
+        }
+      } else {
+        const auto& c = bvh.nodes[ref];
+        for (int l = 0; l < W; ++l) {
+          if (c.child[l] == wide_empty) continue;
+          grow(box, {c.bounds[0][l], c.bounds[2][l], c.bounds[4][l]});
+          grow(box, {c.bounds[1][l], c.bounds[3][l], c.bounds[5][l]});
+        }
+      }
+      set_slot<W>(node, j, box, ref);
+    }
+  }
+}
+
+}  // namespace
+
+Bvh4 collapse_to_bvh4(const Bvh2& bvh, std::span<const Triangle> t, uint32_t max_leaf) {
+  return collapse<4, Bvh4Node, Bvh4>(bvh, t, max_leaf);
+}
+Bvh8 collapse_to_bvh8(const Bvh2& bvh, std::span<const Triangle> t, uint32_t max_leaf) {
+  return collapse<8, Bvh8Node, Bvh8>(bvh, t, max_leaf);
+}
+void refit_wide(Bvh4& bvh, std::span<const Triangle> t) { refit<4>(bvh, t); }
+void refit_wide(Bvh8& bvh, std::span<const Triangle> t) { refit<8>(bvh, t); }
+
+void refit_bvh2(Bvh2& bvh, std::span<const Triangle> tris) {
+  if (bvh.empty()) return;
+  // Parents before children (breadth first), then boxes in reverse.
+  std::vector<uint32_t> order{0};
+  for (size_t i = 0; i < order.size(); ++i) {
+    const Bvh2Node& n = bvh.nodes[order[i]];
+    if (!n.is_leaf()) {
+      order.push_back(n.index);
+      order.push_back(n.index + 1);
+    }
+  }
+  for (size_t i = order.size(); i-- > 0;) {
+    Bvh2Node& n = bvh.nodes[order[i]];
+    Bounds3 box;
+    if (n.is_leaf()) {
+      for (uint32_t k = n.index; k < n.index + n.count; ++k) {
+        grow(box, tris[k].v0);
+        grow(box, tris[k].v1);
+        grow(box, tris[k].v2);
+      }
+    } else {
+      for (uint32_t c = n.index; c < n.index + 2; ++c) {
+        grow(box, bvh.nodes[c].lo);
+        grow(box, bvh.nodes[c].hi);
+      }
+    }
+    n.lo = box.lo;
+    n.hi = box.hi;
+  }
+}
+
+}  // namespace kestrel

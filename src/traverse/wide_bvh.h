@@ -1,0 +1,26 @@
+// Bvh2 -> Bvh4 / Bvh8 collapse and refit of the wide layouts.
+#pragma once
+#include <span>
+
+#include "kestrel/trace.h"
+
+namespace kestrel {
+
+/// Collapses a Bvh2 into a 4- or 8-wide BVH. leaf_triangles[i] is primitive bvh.prim_ids[i].
+/// Each wide node starts from a binary node's two children and repeatedly opens the inner
+/// child of largest surface area (the one a ray is most likely to visit, so the one whose
+/// box test is most worth merging into the parent's SIMD test) until W children or only
+/// leaves remain. Leaves are runs of TriangleBlocks; binary subtrees of at most
+/// max(max_leaf, 4) primitives become one leaf where a block-counting SAH prefers it.
+Bvh4 collapse_to_bvh4(const Bvh2& bvh, std::span<const Triangle> leaf_triangles, uint32_t max_leaf);
+Bvh8 collapse_to_bvh8(const Bvh2& bvh, std::span<const Triangle> leaf_triangles, uint32_t max_leaf);
+
+/// Rewrites the blocks' vertices from triangles[prim_id] (global order) and recomputes every
+/// node box bottom-up (children always follow their parent in the node array).
+void refit_wide(Bvh4& bvh, std::span<const Triangle> triangles);
+void refit_wide(Bvh8& bvh, std::span<const Triangle> triangles);
+
+/// Recomputes a Bvh2's boxes from triangles in leaf order.
+void refit_bvh2(Bvh2& bvh, std::span<const Triangle> leaf_triangles);
+
+}  // namespace kestrel

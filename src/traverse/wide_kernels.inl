@@ -1,0 +1,403 @@
+// Wide-BVH traversal kernels, written once with GCC vector extensions and compiled once per
+// instruction set (kernels_sse2.cpp, kernels_avx2.cpp, kernels_avx512.cpp), each with its
+// own -m flags and its own namespace (KESTREL_ISA_NS). Everything here has internal linkage
+// and no std template is instantiated, so no ISA-specific code can leak into another file.
+//
+// Results are bit-identical to the scalar reference (traverse_bvh2.h + watertight_hit):
+//  - the triangle test performs the same float operations in the same order (the files are
+//    compiled with -ffp-contract=off, so no FMA contraction), including the double-precision
+//    retry when an edge function is exactly zero;
+//  - box tests compute the entry and exit distances with the same operations as SlabRay, so
+//    a node is visited whenever the scalar traversal would reach its leaves;
+//  - closest-hit ties resolve to the smallest prim id (closer_hit), so the visiting order
+//    does not matter.
+#ifndef KESTREL_ISA_NS
+#error "define KESTREL_ISA_NS before including wide_kernels.inl"
+#endif
+
+#include <immintrin.h>
+
+#include <cstdint>
+
+#include "traverse/kernels.h"
+
+#ifdef KESTREL_TRAVERSAL_STATS
+namespace kestrel::kernels { extern thread_local uint64_t stat_nodes, stat_blocks, stat_lanes_ok, stat_rays, stat_hist[9]; }
+#define KSTAT(x) (x)
+#else
+#define KSTAT(x) ((void)0)
+#endif
+namespace kestrel::kernels::KESTREL_ISA_NS {
+namespace {
+
+typedef float vf4 __attribute__((vector_size(16)));
+typedef int32_t vi4 __attribute__((vector_size(16)));
+typedef float vf8 __attribute__((vector_size(32)));
+typedef int32_t vi8 __attribute__((vector_size(32)));
+// Unaligned views for loads (nodes and blocks are aligned, but a plain load costs nothing).
+typedef float vf4u __attribute__((vector_size(16), aligned(4)));
+typedef float vf8u __attribute__((vector_size(32), aligned(4)));
+
+template <int W> struct Simd;
+template <> struct Simd<4> {
+  using F = vf4;
+  using I = vi4;
+  static F load(const float* p) { return *reinterpret_cast<const vf4u*>(p); }
+  static F splat(float x) { return F{x, x, x, x}; }
+  static unsigned mask(I m) { return unsigned(_mm_movemask_ps(reinterpret_cast<__m128>(m))); }
+};
+template <> struct Simd<8> {
+  using F = vf8;
+  using I = vi8;
+  static F load(const float* p) { return *reinterpret_cast<const vf8u*>(p); }
+  static F splat(float x) { return F{x, x, x, x, x, x, x, x}; }
+  static unsigned mask(I m) {
+#ifdef __AVX__
+    return unsigned(_mm256_movemask_ps(reinterpret_cast<__m256>(m)));
+#else
+    const vi4 lo = {m[0], m[1], m[2], m[3]}, hi = {m[4], m[5], m[6], m[7]};
+    return Simd<4>::mask(lo) | Simd<4>::mask(hi) << 4;
+#endif
+  }
+};
+
+// Same semantics as SlabRay::max_keep / min_keep: a NaN candidate keeps the accumulator.
+template <class F> inline F vmax(F candidate, F acc) { return candidate > acc ? candidate : acc; }
+template <class F> inline F vmin(F candidate, F acc) { return candidate < acc ? candidate : acc; }
+
+inline unsigned ctz(unsigned m) { return unsigned(__builtin_ctz(m)); }
+
+// As cull_distance in traverse_bvh2.h.
+inline float cull_distance(float t) { return t + __builtin_fabsf(t) * 0x1p-12f; }
+
+inline bool closer(float t, uint32_t id, float best_t, uint32_t best_id) {
+  return t < best_t || (t == best_t && best_id != invalid_id && id < best_id);
+}
+
+// Per-ray constants of the watertight test (WatertightRay).
+struct TriRay {
+  float org[3], dir[3];
+  int kx, ky, kz;
+  float sx, sy, tmin;
+  TriRay(const Ray& r) {
+    org[0] = r.org.x, org[1] = r.org.y, org[2] = r.org.z;
+    dir[0] = r.dir.x, dir[1] = r.dir.y, dir[2] = r.dir.z;
+    const float ax = __builtin_fabsf(dir[0]), ay = __builtin_fabsf(dir[1]), az = __builtin_fabsf(dir[2]);
+    kz = ax >= ay ? (ax >= az ? 0 : 2) : (ay >= az ? 1 : 2);
+    kx = kz == 2 ? 0 : kz + 1;
+    ky = kx == 2 ? 0 : kx + 1;
+    if (dir[kz] < 0.0f) {
+      const int k = kx;
+      kx = ky;
+      ky = k;
+    }
+    sx = dir[kx] / dir[kz];
+    sy = dir[ky] / dir[kz];
+    tmin = r.tmin;
+  }
+};
+
+// Candidate hits of one block: lanes with a hit at t > tmin, and the values the hit needs.
+struct BlockHits {
+  unsigned mask;
+  vf4 t, v, w, det;
+};
+
+// The watertight test (watertight_hit) on four triangles at once.
+inline BlockHits intersect_block(const TriRay& r, const TriangleBlock& blk) {
+  using S = Simd<4>;
+  BlockHits out;
+  const float* V0 = &blk.v[0][0][0];
+  const float* V1 = &blk.v[1][0][0];
+  const float* V2 = &blk.v[2][0][0];
+  const int kx = r.kx * 4, ky = r.ky * 4, kz = r.kz * 4;
+  const vf4 okx = S::splat(r.org[r.kx]), oky = S::splat(r.org[r.ky]), okz = S::splat(r.org[r.kz]);
+  const vf4 sx = S::splat(r.sx), sy = S::splat(r.sy);
+  // Vertices relative to the origin, in the permuted axes, then sheared.
+  const vf4 akx = S::load(V0 + kx) - okx, aky = S::load(V0 + ky) - oky, akz = S::load(V0 + kz) - okz;
+  const vf4 bkx = S::load(V1 + kx) - okx, bky = S::load(V1 + ky) - oky, bkz = S::load(V1 + kz) - okz;
+  const vf4 ckx = S::load(V2 + kx) - okx, cky = S::load(V2 + ky) - oky, ckz = S::load(V2 + kz) - okz;
+  const vf4 ax = akx - sx * akz, ay = aky - sy * akz;
+  const vf4 bx = bkx - sx * bkz, by = bky - sy * bkz;
+  const vf4 cx = ckx - sx * ckz, cy = cky - sy * ckz;
+  vf4 u = cx * by - cy * bx;
+  vf4 v = ax * cy - ay * cx;
+  vf4 w = bx * ay - by * ax;
+  const vf4 zero = {};
+  vf4 det = u + v + w;
+  // Exact zeros (the double retry) and NaN (from overflowing products) take the slow path.
+  const unsigned slow = S::mask((u == zero) | (v == zero) | (w == zero) | (det != det));
+  vi4 ok;
+  if (__builtin_expect(slow == 0, 1)) {
+    // No edge function is zero: the ray is inside when all three signs agree.
+    const vi4 ui = reinterpret_cast<vi4>(u), vi = reinterpret_cast<vi4>(v), wi = reinterpret_cast<vi4>(w);
+    ok = ((ui ^ vi) | (ui ^ wi)) >= vi4{};
+  } else {
+    unsigned retry = S::mask((u == zero) | (v == zero) | (w == zero));
+    while (retry) {  // rare: an edge function is exactly 0; redo this lane in double
+      const unsigned i = ctz(retry);
+      retry &= retry - 1;
+      u[i] = float(double(cx[i]) * by[i] - double(cy[i]) * bx[i]);
+      v[i] = float(double(ax[i]) * cy[i] - double(ay[i]) * cx[i]);
+      w[i] = float(double(bx[i]) * ay[i] - double(by[i]) * ax[i]);
+    }
+    const vi4 neg = (u < zero) | (v < zero) | (w < zero);
+    const vi4 pos = (u > zero) | (v > zero) | (w > zero);
+    ok = ~(neg & pos);
+    det = u + v + w;
+  }
+  ok &= det != zero;
+  out.mask = S::mask(ok);
+  if (!out.mask) return out;
+  // Distance from the plane equation in the permuted axes (as watertight_hit).
+  const vf4 e10 = bkx - akx, e11 = bky - aky, e12 = bkz - akz;
+  const vf4 e20 = ckx - akx, e21 = cky - aky, e22 = ckz - akz;
+  const vf4 n0 = e11 * e22 - e12 * e21;
+  const vf4 n1 = e12 * e20 - e10 * e22;
+  const vf4 n2 = e10 * e21 - e11 * e20;
+  const vf4 ndd = n0 * S::splat(r.dir[r.kx]) + n1 * S::splat(r.dir[r.ky]) + n2 * S::splat(r.dir[r.kz]);
+  const vf4 t = (n0 * akx + n1 * aky + n2 * akz) / ndd;
+  ok &= (ndd != zero) & (t > S::splat(r.tmin));
+  out.mask = S::mask(ok);
+  out.t = t;
+  out.v = v;
+  out.w = w;
+  out.det = det;
+  return out;
+}
+
+// Per-ray constants of the box test (SlabRay), splatted to W lanes.
+inline float far_scale(float inv) { return inv * 1.00000072f; }
+template <int W> struct BoxRay {
+  using F = typename Simd<W>::F;
+  F org[3], inv[3], inv_far[3];
+  mutable typename Simd<W>::I test_mask;  // lanes hit by the last test (all ones / zeros)
+  int near_row[3], far_row[3];  // rows of Bvh*Node::bounds holding the near / far planes
+  BoxRay(const Ray& r) {
+    const float d[3] = {r.dir.x, r.dir.y, r.dir.z}, o[3] = {r.org.x, r.org.y, r.org.z};
+    for (int a = 0; a < 3; ++a) {
+      org[a] = Simd<W>::splat(o[a]);
+      inv[a] = Simd<W>::splat(1.0f / d[a]);
+      inv_far[a] = Simd<W>::splat(far_scale(1.0f / d[a]));
+      const int hi_first = __builtin_signbit(d[a]) ? 1 : 0;
+      near_row[a] = 2 * a + hi_first;
+      far_row[a] = 2 * a + 1 - hi_first;
+    }
+  }
+  // Lanes whose box overlaps (tmin, tmax); entry distances in tnear.
+  unsigned test(const float (*bounds)[W], F tmin, F tmax, F& tnear) const {
+    using S = Simd<W>;
+    const F nx = (S::load(bounds[near_row[0]]) - org[0]) * inv[0];
+    const F ny = (S::load(bounds[near_row[1]]) - org[1]) * inv[1];
+    const F nz = (S::load(bounds[near_row[2]]) - org[2]) * inv[2];
+    const F fx = (S::load(bounds[far_row[0]]) - org[0]) * inv_far[0];
+    const F fy = (S::load(bounds[far_row[1]]) - org[1]) * inv_far[1];
+    const F fz = (S::load(bounds[far_row[2]]) - org[2]) * inv_far[2];
+    tnear = vmax(nz, vmax(ny, vmax(nx, tmin)));
+    const F tfar = vmin(fz, vmin(fy, vmin(fx, tmax)));
+    test_mask = tnear <= tfar;
+    return S::mask(test_mask);
+  }
+};
+
+struct StackEntry {
+  uint32_t ref;
+  float dist;
+};
+
+#ifdef __AVX2__
+// Sorts the hit children of an 8-wide node by entry distance without branches: keys are
+// the distance's bits made monotonic as signed integers, low 3 bits replaced by the lane,
+// misses set to INT_MAX; a bitonic network of six compare-exchange stages sorts them in
+// one register. The nearest child is returned; the others go on the stack, farthest
+// first, in one 64-byte store (the stack has room for a full node beyond its top).
+inline __m256i cmpx(__m256i v, __m256i partner_idx, int take_max) {
+  const __m256i p = _mm256_permutevar8x32_epi32(v, partner_idx);
+  const __m256i lo = _mm256_min_epi32(v, p), hi = _mm256_max_epi32(v, p);
+  switch (take_max) {  // blend needs an immediate
+    case 0xAA: return _mm256_blend_epi32(lo, hi, 0xAA);
+    case 0xCC: return _mm256_blend_epi32(lo, hi, 0xCC);
+    case 0xF0: return _mm256_blend_epi32(lo, hi, 0xF0);
+    case 0x66: return _mm256_blend_epi32(lo, hi, 0x66);
+    case 0x3C: return _mm256_blend_epi32(lo, hi, 0x3C);
+    default: return _mm256_blend_epi32(lo, hi, 0x5A);
+  }
+}
+
+inline uint32_t push_sorted8(const uint32_t* child, vf8 tnear, vi8 hit, StackEntry*& sp) {
+  const __m256i iota = _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7);
+  __m256i bits = _mm256_castps_si256(reinterpret_cast<__m256>(tnear));
+  // Negative floats: flip the magnitude bits so integer order is float order.
+  bits = _mm256_xor_si256(bits, _mm256_srli_epi32(_mm256_srai_epi32(bits, 31), 1));
+  __m256i key = _mm256_or_si256(_mm256_andnot_si256(_mm256_set1_epi32(7), bits), iota);
+  key = _mm256_blendv_epi8(_mm256_set1_epi32(0x7FFFFFFF), key, reinterpret_cast<__m256i>(hit));
+  // Bitonic sort, ascending: stages (k, j) = (2,1) (4,2) (4,1) (8,4) (8,2) (8,1); lane i
+  // pairs with i ^ j and keeps the max when ((i & j) != 0) == ((i & k) == 0).
+  key = cmpx(key, _mm256_setr_epi32(1, 0, 3, 2, 5, 4, 7, 6), 0x66);
+  key = cmpx(key, _mm256_setr_epi32(2, 3, 0, 1, 6, 7, 4, 5), 0x3C);
+  key = cmpx(key, _mm256_setr_epi32(1, 0, 3, 2, 5, 4, 7, 6), 0x5A);
+  key = cmpx(key, _mm256_setr_epi32(4, 5, 6, 7, 0, 1, 2, 3), 0xF0);
+  key = cmpx(key, _mm256_setr_epi32(2, 3, 0, 1, 6, 7, 4, 5), 0xCC);
+  key = cmpx(key, _mm256_setr_epi32(1, 0, 3, 2, 5, 4, 7, 6), 0xAA);
+  const __m256i lane = _mm256_and_si256(key, _mm256_set1_epi32(7));
+  const int n = __builtin_popcount(unsigned(_mm256_movemask_ps(reinterpret_cast<__m256>(hit))));
+  // Reverse the first n sorted entries: slot i gets sorted entry n-1-i (slot n-1 = nearest).
+  const __m256i rev = _mm256_and_si256(_mm256_sub_epi32(_mm256_set1_epi32(n - 1), iota), _mm256_set1_epi32(7));
+  const __m256i order = _mm256_permutevar8x32_epi32(lane, rev);
+  const __m256i refs = _mm256_permutevar8x32_epi32(_mm256_loadu_si256(reinterpret_cast<const __m256i*>(child)), order);
+  const __m256i dists = _mm256_permutevar8x32_epi32(_mm256_castps_si256(reinterpret_cast<__m256>(tnear)), order);
+  const __m256i lo = _mm256_unpacklo_epi32(refs, dists), hi = _mm256_unpackhi_epi32(refs, dists);
+  _mm256_storeu_si256(reinterpret_cast<__m256i*>(sp), _mm256_permute2x128_si256(lo, hi, 0x20));
+  _mm256_storeu_si256(reinterpret_cast<__m256i*>(sp) + 1, _mm256_permute2x128_si256(lo, hi, 0x31));
+  sp += n - 1;
+  return sp->ref;  // slot n-1: the nearest, not part of the stack
+}
+#endif
+
+// Deepest wide tree: the Bvh2 depth bound (255) with at most W-1 entries pushed per level.
+template <int W> inline constexpr int stack_size = 256 * (W - 1) + 1 + 8;
+
+// One ray through a wide BVH. Node is Bvh4Node or Bvh8Node.
+template <int W, bool AnyHit, class Node>
+inline void trace_ray(const Node* nodes, const TriangleBlock* blocks, const Ray& ray, Hit& hit) {
+  using S = Simd<W>;
+  using F = typename S::F;
+  const BoxRay<W> box(ray);
+  const TriRay tri(ray);
+  KSTAT(++stat_rays);
+  const F tmin = S::splat(ray.tmin);
+  float best_t = ray.tmax;
+  uint32_t best_id = invalid_id;
+  float best_v = 0, best_w = 0, best_det = 1;
+  float cull_t = AnyHit ? best_t : cull_distance(best_t);
+  const F tmax0 = S::splat(cull_t);
+  F tmax = tmax0;
+
+  StackEntry stack[stack_size<W>];
+  StackEntry* sp = stack;
+  uint32_t cur = 0;  // the root is an inner node
+  while (true) {
+    // Descend through inner nodes, nearest child first.
+    while (!(cur & wide_leaf_bit)) {
+      const Node& node = nodes[cur];
+      KSTAT(++stat_nodes);
+      F tnear;
+      unsigned m = box.test(node.bounds, tmin, tmax, tnear);
+      KSTAT(++stat_hist[__builtin_popcount(m)]);
+      if (!m) goto pop;
+      unsigned r = ctz(m);
+      m &= m - 1;
+      const uint32_t c0 = node.child[r];
+      const float d0 = tnear[r];
+      if (!m) {
+        cur = c0;
+        continue;
+      }
+      r = ctz(m);
+      m &= m - 1;
+      const uint32_t c1 = node.child[r];
+      const float d1 = tnear[r];
+      if (!m) {
+        if (d0 <= d1) {
+          *sp++ = {c1, d1};
+          cur = c0;
+        } else {
+          *sp++ = {c0, d0};
+          cur = c1;
+        }
+        continue;
+      }
+      // Three or more: push all, nearest on top, and continue with the nearest.
+#ifdef __AVX2__
+      if constexpr (W == 8) {
+        cur = push_sorted8(node.child, tnear, box.test_mask, sp);
+        continue;
+      }
+#endif
+      {
+        StackEntry* base = sp;
+        *sp++ = {c0, d0};
+        *sp++ = {c1, d1};
+        do {
+          r = ctz(m);
+          m &= m - 1;
+          *sp++ = {node.child[r], tnear[r]};
+        } while (m);
+        for (StackEntry* i = base + 1; i < sp; ++i) {
+          const StackEntry e = *i;
+          StackEntry* j = i;
+          for (; j > base && j[-1].dist < e.dist; --j) *j = j[-1];
+          *j = e;
+        }
+        cur = (--sp)->ref;
+      }
+    }
+    // Leaf: its blocks until the one flagged last.
+    if (cur != wide_empty) {
+      const TriangleBlock* blk = blocks + (cur & ~wide_leaf_bit);
+      while (true) {
+        const BlockHits h = intersect_block(tri, *blk);
+        KSTAT(++stat_blocks);
+        unsigned m = h.mask;
+        while (m) {
+          const unsigned i = ctz(m);
+          m &= m - 1;
+          const float t = h.t[i];
+          const uint32_t id = blk->prim_id[i] & ~block_last_bit;
+          if constexpr (AnyHit) {
+            if (t < best_t) {
+              hit.t = t;
+              hit.prim_id = id;
+              hit.u = hit.v = 0;
+              return;
+            }
+          } else if (closer(t, id, best_t, best_id)) {
+            best_t = t;
+            best_id = id;
+            best_v = h.v[i];
+            best_w = h.w[i];
+            best_det = h.det[i];
+          }
+        }
+        if (blk->prim_id[0] & block_last_bit) break;
+        ++blk;
+      }
+      if (!AnyHit) {
+        cull_t = cull_distance(best_t);
+        tmax = S::splat(cull_t);
+      }
+    }
+  pop:
+    while (true) {
+      if (sp == stack) goto done;
+      --sp;
+      if (AnyHit || sp->dist <= cull_t) break;
+    }
+    cur = sp->ref;
+  }
+done:
+  if (best_id != invalid_id) {
+    const float inv_det = 1.0f / best_det;
+    hit.t = best_t;
+    hit.prim_id = best_id;
+    hit.u = best_v * inv_det;
+    hit.v = best_w * inv_det;
+  } else {
+    hit.t = __builtin_inff();
+    hit.prim_id = invalid_id;
+    hit.u = hit.v = 0;
+  }
+}
+
+template <int W, bool AnyHit, class Node>
+void trace_batch(const Node* nodes, const TriangleBlock* blocks, const Ray* rays, Hit* hits, size_t n) {
+  for (size_t i = 0; i < n; ++i) trace_ray<W, AnyHit>(nodes, blocks, rays[i], hits[i]);
+}
+
+const Table table = {
+    &trace_batch<4, false, Bvh4Node>, &trace_batch<4, true, Bvh4Node>, &trace_batch<4, false, Bvh4Node>,
+    &trace_batch<8, false, Bvh8Node>, &trace_batch<8, true, Bvh8Node>, &trace_batch<8, false, Bvh8Node>,
+};
+
+}  // namespace
+}  // namespace kestrel::kernels::KESTREL_ISA_NS

@@ -1,0 +1,274 @@
+// Every wide layout and every ISA kernel against the scalar Bvh2 reference, ray by ray:
+// closest hits must be identical (t bit for bit, prim id, barycentrics), any-hit queries must
+// agree on hit or miss. Refit against a fresh build and brute force; layout byte sizes.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstring>
+
+#include "common/ray_gen.h"
+#include "common/views.h"
+#include "core/vec.h"
+#include "kestrel/error.h"
+#include "kestrel/kestrel.h"
+#include "support/oracles.h"
+
+namespace kestrel {
+namespace {
+
+std::vector<Isa> supported_isas() {
+  std::vector<Isa> out;
+  for (Isa isa : {Isa::sse2, Isa::avx2, Isa::avx512})
+    if (isa_supported(isa)) out.push_back(isa);
+  return out;
+}
+
+Accel build(const Scene& scene, Builder builder, Layout layout) {
+  BuildConfig c;
+  c.builder = builder;
+  c.layout = layout;
+  return build_accel(scene, c);
+}
+
+uint32_t bits(float f) {
+  uint32_t u;
+  std::memcpy(&u, &f, 4);
+  return u;
+}
+
+// Traces rays through every (layout, ISA) and compares with the Bvh2 reference.
+void expect_same_as_reference(const Scene& scene, std::span<const Ray> rays, Builder builder, const std::string& what) {
+  const Accel ref = build(scene, builder, Layout::bvh2);
+  std::vector<Hit> want(rays.size()), want_any(rays.size());
+  trace(ref, rays, want, false);
+  trace(ref, rays, want_any, true);
+  size_t hits = 0;
+  for (const Hit& h : want) hits += h.hit();
+  for (Layout layout : {Layout::bvh4, Layout::bvh8}) {
+    const Accel wide = build(scene, builder, layout);
+    for (Isa isa : supported_isas()) {
+      SCOPED_TRACE(what + " " + layout_name(layout) + " " + isa_name(isa) + " " + builder_name(builder));
+      for (bool packets : {false, true}) {
+        std::vector<Hit> got(rays.size());
+        TraceOptions opt;
+        opt.isa = isa;
+        opt.packets = packets;
+        trace(wide, rays, got, opt);
+        for (size_t i = 0; i < rays.size(); ++i) {
+          ASSERT_EQ(got[i].prim_id, want[i].prim_id) << "ray " << i << " packets " << packets;
+          ASSERT_EQ(bits(got[i].t), bits(want[i].t)) << "ray " << i << " t " << got[i].t << " vs " << want[i].t;
+          ASSERT_EQ(got[i].u, want[i].u) << "ray " << i;
+          ASSERT_EQ(got[i].v, want[i].v) << "ray " << i;
+        }
+      }
+      std::vector<uint8_t> occ(rays.size());
+      TraceOptions opt;
+      opt.isa = isa;
+      occluded(wide, rays, occ, opt);
+      for (size_t i = 0; i < rays.size(); ++i) ASSERT_EQ(bool(occ[i]), want_any[i].hit()) << "ray " << i;
+    }
+  }
+  EXPECT_GT(hits, rays.size() / 20) << what;  // the comparison is not vacuous
+}
+
+TEST(WideKernels, RandomSoupAllBuilders) {
+  const Scene scene = test::random_soup(3000, 0.15f, 7);
+  const std::vector<Ray> rays = test::random_rays(4000, 8);
+  for (Builder b : test::all_builders()) expect_same_as_reference(scene, rays, b, "soup");
+}
+
+TEST(WideKernels, ClosedBoxAxisParallelAndEdgeRays) {
+  // Rays along box faces and through its edges and corners: ties between the triangles
+  // that share an edge must resolve the same (smallest prim id) in every kernel.
+  const Scene scene = test::closed_box({0, 0, 0}, {1, 1, 1});
+  std::vector<Ray> rays;
+  for (float a : {0.0f, 0.25f, 0.5f, 1.0f})
+    for (float b : {0.0f, 0.5f, 1.0f}) {
+      rays.push_back({{-1, a, b}, {1, 0, 0}});
+      rays.push_back({{a, -1, b}, {0, 1, 0}});
+      rays.push_back({{a, b, 2}, {0, 0, -1}});
+      rays.push_back({{0.5f, 0.5f, 0.5f}, {a - 0.5f, b - 0.5f, 0.5f}});
+      rays.push_back({{-1, -1, -1}, {a + 1, b + 1, 2}});
+    }
+  expect_same_as_reference(scene, rays, Builder::sweep, "box");
+  // A box is one Bvh2 leaf with the default config: test multi-level trees too.
+  const Scene sphere = test::closed_sphere(4, {0, 0, 0}, 1.0f);
+  std::vector<Ray> srays;
+  test::Rng rng{3};
+  for (int i = 0; i < 3000; ++i) {
+    const Vec3 o = rng.on_sphere() * 3.0f;
+    srays.push_back({o, rng.on_sphere() * 0.3f - o});
+  }
+  expect_same_as_reference(sphere, srays, Builder::binned, "sphere");
+}
+
+TEST(WideKernels, UntraceableRaysMissInEveryKernel) {
+  const Scene scene = test::random_soup(200, 0.3f, 1);
+  const float nan = std::nanf(""), inf = INFINITY;
+  const std::vector<Ray> rays = {
+      {{nan, 0.5f, 0.5f}, {1, 0, 0}}, {{0.5f, 0.5f, -1}, {0, 0, nan}}, {{0.5f, 0.5f, -1}, {0, 0, 0}},
+      {{inf, 0.5f, 0.5f}, {-1, 0, 0}}, {{0.5f, 0.5f, -1}, {0, 0, 1}, 2.0f, 1.0f},  // tmin > tmax
+      {{0.5f, 0.5f, -1}, {0, 0, 1}, 0.0f, nan}};
+  for (Layout layout : {Layout::bvh2, Layout::bvh4, Layout::bvh8}) {
+    const Accel a = build(scene, Builder::binned, layout);
+    for (Isa isa : supported_isas()) {
+      std::vector<Hit> hits(rays.size());
+      trace(a, rays, hits, false, TraceOptions{isa, std::nullopt});
+      for (const Hit& h : hits) EXPECT_FALSE(h.hit());
+      trace(a, rays, hits, true, TraceOptions{isa, std::nullopt});
+      for (const Hit& h : hits) EXPECT_FALSE(h.hit());
+    }
+  }
+}
+
+TEST(WideKernels, EmptySceneAndSingleTriangle) {
+  Scene empty;
+  Scene one;
+  TriangleMesh m;
+  m.positions = {{0, 0, 0}, {1, 0, 0}, {0, 1, 0}};
+  m.indices = {0, 1, 2};
+  one.meshes.push_back(m);
+  const Ray r{{0.2f, 0.2f, -1}, {0, 0, 1}};
+  for (Layout layout : {Layout::bvh2, Layout::bvh4, Layout::bvh8}) {
+    EXPECT_FALSE(intersect(build(empty, Builder::binned, layout), r).hit());
+    const Hit h = intersect(build(one, Builder::binned, layout), r);
+    EXPECT_EQ(h.prim_id, 0u);
+    EXPECT_FLOAT_EQ(h.t, 1.0f);
+  }
+}
+
+TEST(WideKernels, SharedScenesPrimaryShadowDiffuse) {
+  for (const char* rel : {"teapot/teapot.obj", "cornell_box/cornell_box.obj", "dabrovic_sponza/sponza.obj"}) {
+    auto path = test::shared_scene(rel);
+    if (!path) GTEST_SKIP() << "shared scenes absent";
+    const Scene scene = load_scene(*path);
+    const std::string view = std::string(rel).find("sponza") != std::string::npos ? "inside" : "framing";
+    auto cam = tools::named_view(scene, view);
+    ASSERT_TRUE(cam.has_value());
+    BuildConfig c;
+    c.layout = Layout::bvh2;
+    const Accel ref = build_accel(scene, c);
+    std::vector<Ray> rays = tools::primary_rays(*cam, 96, 64);
+    const std::vector<Ray> primary = rays;
+    for (auto kind : {tools::RayKind::shadow, tools::RayKind::diffuse}) {
+      auto more = tools::secondary_rays(ref, scene, primary, kind, tools::default_light(tools::scene_bounds(scene)), 11);
+      rays.insert(rays.end(), more.begin(), more.end());
+    }
+    expect_same_as_reference(scene, rays, Builder::binned, rel);
+  }
+}
+
+TEST(WideLayout, NodeSizes) {
+  EXPECT_EQ(sizeof(Bvh4Node), 112u);
+  EXPECT_EQ(sizeof(Bvh8Node), 224u);
+  EXPECT_EQ(sizeof(TriangleBlock), 160u);
+  EXPECT_EQ(alignof(Bvh8Node), 32u);
+}
+
+TEST(WideLayout, EveryPrimitiveInExactlyOneLeafAndBoxesEnclose) {
+  const Scene scene = test::random_soup(5000, 0.1f, 21);
+  const test::Soup soup = test::flatten(scene);
+  for (Layout layout : {Layout::bvh4, Layout::bvh8}) {
+    const Accel a = build(scene, Builder::binned, layout);
+    const int W = layout == Layout::bvh4 ? 4 : 8;
+    std::vector<int> seen(soup.triangles.size(), 0);
+    const size_t node_count = W == 4 ? a.bvh4.nodes.size() : a.bvh8.nodes.size();
+    const auto& blocks = W == 4 ? a.bvh4.blocks : a.bvh8.blocks;
+    size_t children = 0;
+    for (size_t i = 0; i < node_count; ++i) {
+      for (int j = 0; j < W; ++j) {
+        const uint32_t ref = W == 4 ? a.bvh4.nodes[i].child[j] : a.bvh8.nodes[i].child[j];
+        auto bound = [&](int row) { return W == 4 ? a.bvh4.nodes[i].bounds[row][j] : a.bvh8.nodes[i].bounds[row][j]; };
+        if (ref == wide_empty) continue;
+        ++children;
+        if (!(ref & wide_leaf_bit)) {
+          ASSERT_GT(ref, i) << "children follow their parent";
+          continue;
+        }
+        for (size_t b = ref & ~wide_leaf_bit;; ++b) {
+          ASSERT_LT(b, blocks.size());
+          for (int lane = 0; lane < 4; ++lane) {
+            const uint32_t id = blocks[b].prim_id[lane] & ~block_last_bit;
+            if (lane == 0 || id != (blocks[b].prim_id[lane - 1] & ~block_last_bit)) ++seen[id];
+            for (int v = 0; v < 3; ++v)
+              for (int ax = 0; ax < 3; ++ax) {
+                ASSERT_GE(blocks[b].v[v][ax][lane], bound(2 * ax));
+                ASSERT_LE(blocks[b].v[v][ax][lane], bound(2 * ax + 1));
+              }
+          }
+          if (blocks[b].prim_id[0] & block_last_bit) break;
+        }
+      }
+    }
+    for (size_t id = 0; id < seen.size(); ++id) ASSERT_EQ(seen[id], soup.valid[id] ? 1 : 0) << "prim " << id;
+    EXPECT_EQ(children, node_count - 1 + [&] {
+      size_t leaves = 0;
+      for (size_t i = 0; i < node_count; ++i)
+        for (int j = 0; j < W; ++j) {
+          const uint32_t ref = W == 4 ? a.bvh4.nodes[i].child[j] : a.bvh8.nodes[i].child[j];
+          leaves += ref != wide_empty && (ref & wide_leaf_bit);
+        }
+      return leaves;
+    }());
+  }
+}
+
+// Moves every vertex, refits, and compares against a fresh build over the moved scene
+// (same hits) and brute force.
+TEST(Refit, MatchesFreshBuildOnEveryLayout) {
+  Scene scene = test::random_soup(2000, 0.12f, 5);
+  const std::vector<Ray> rays = test::random_rays(2000, 6);
+  for (Layout layout : {Layout::bvh2, Layout::bvh4, Layout::bvh8}) {
+    Scene moving = scene;
+    Accel accel = build(moving, Builder::binned, layout);
+    for (Vec3& p : moving.meshes[0].positions) p = {p.x + 0.3f * p.y * p.y, p.y * 0.8f + 0.1f, p.z - 0.2f * p.x};
+    refit_accel(accel, moving);
+    const Accel fresh = build(moving, Builder::binned, Layout::bvh2);
+    const test::Soup soup = test::flatten(moving);
+    std::vector<Hit> got(rays.size()), want(rays.size());
+    trace(accel, rays, got, false);
+    trace(fresh, rays, want, false);
+    size_t hits = 0;
+    for (size_t i = 0; i < rays.size(); ++i) {
+      ASSERT_EQ(got[i].prim_id, want[i].prim_id) << layout_name(layout) << " ray " << i;
+      ASSERT_EQ(bits(got[i].t), bits(want[i].t));
+      const Hit brute = intersect_brute_force(soup.triangles, soup.valid, rays[i], false);
+      ASSERT_EQ(got[i].prim_id, brute.prim_id);
+      hits += got[i].hit();
+    }
+    EXPECT_GT(hits, rays.size() / 20);
+    const Bounds3 b = accel.bounds;
+    EXPECT_EQ(b.lo.x, fresh.bounds.lo.x);
+    EXPECT_EQ(b.hi.y, fresh.bounds.hi.y);
+  }
+}
+
+TEST(Refit, ChangedTopologyOrInvalidVertexIsAClearError) {
+  Scene scene = test::random_soup(100, 0.2f, 2);
+  Accel accel = build(scene, Builder::binned, Layout::bvh8);
+  Scene more = scene;
+  more.meshes[0].indices.insert(more.meshes[0].indices.end(), {0, 1, 2});
+  EXPECT_THROW(refit_accel(accel, more), Error);
+  Scene nan = scene;
+  nan.meshes[0].positions[nan.meshes[0].indices[0]].x = std::nanf("");
+  try {
+    refit_accel(accel, nan);
+    FAIL() << "expected an error";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("no longer valid"), std::string::npos) << e.what();
+  }
+}
+
+TEST(Dispatch, IsaNamesAndUnsupportedIsaIsAnError) {
+  for (Isa isa : {Isa::sse2, Isa::avx2, Isa::avx512}) EXPECT_EQ(isa_from_name(isa_name(isa)), isa);
+  EXPECT_FALSE(isa_from_name("avx3").has_value());
+  EXPECT_TRUE(isa_supported(Isa::sse2));
+  EXPECT_TRUE(isa_supported(host_isa()));
+  const Accel a = build(test::random_soup(10, 0.3f, 1), Builder::binned, Layout::bvh8);
+  std::vector<Ray> rays(3);
+  std::vector<Hit> hits(2);
+  EXPECT_THROW(trace(a, rays, hits), Error);  // sizes differ
+}
+
+}  // namespace
+}  // namespace kestrel
