@@ -79,7 +79,9 @@ struct TriRay {
   float org[3], dir[3];
   int kx, ky, kz;
   float sx, sy, tmin;
-  TriRay(const Ray& r) {
+  TriRay() = default;
+  explicit TriRay(const Ray& r) { init(r); }
+  void init(const Ray& r) {
     org[0] = r.org.x, org[1] = r.org.y, org[2] = r.org.z;
     dir[0] = r.dir.x, dir[1] = r.dir.y, dir[2] = r.dir.z;
     const float ax = __builtin_fabsf(dir[0]), ay = __builtin_fabsf(dir[1]), az = __builtin_fabsf(dir[2]);
@@ -173,7 +175,9 @@ template <int W> struct BoxRay {
   F org[3], inv[3], inv_far[3];
   mutable typename Simd<W>::I test_mask;  // lanes hit by the last test (all ones / zeros)
   int near_row[3], far_row[3];  // rows of Bvh*Node::bounds holding the near / far planes
-  BoxRay(const Ray& r) {
+  BoxRay() = default;
+  explicit BoxRay(const Ray& r) { init(r); }
+  void init(const Ray& r) {
     const float d[3] = {r.dir.x, r.dir.y, r.dir.z}, o[3] = {r.org.x, r.org.y, r.org.z};
     for (int a = 0; a < 3; ++a) {
       org[a] = Simd<W>::splat(o[a]);
@@ -394,9 +398,147 @@ void trace_batch(const Node* nodes, const TriangleBlock* blocks, const Ray* rays
   for (size_t i = 0; i < n; ++i) trace_ray<W, AnyHit>(nodes, blocks, rays[i], hits[i]);
 }
 
+// Packets of up to 8 rays (closest hit). The packet walks one traversal order and fetches
+// each node once; every stack entry carries the rays whose own box test reached it, and a
+// ray is tested only against boxes and leaves its single-ray traversal could visit, with
+// the same operations, so the hits are identical to single rays. What a packet saves is
+// per-ray control flow (one ordering decision per node for all its rays) and repeated node
+// fetches; the box and triangle arithmetic stays per ray.
+inline uint64_t transpose8x8(uint64_t x) {
+  // Bit (r, j) = bit 8r + j moves to 8j + r (Hacker's Delight 7-3).
+  uint64_t t = (x ^ (x >> 7)) & 0x00AA00AA00AA00AAull;
+  x ^= t ^ (t << 7);
+  t = (x ^ (x >> 14)) & 0x0000CCCC0000CCCCull;
+  x ^= t ^ (t << 14);
+  t = (x ^ (x >> 28)) & 0x00000000F0F0F0F0ull;
+  x ^= t ^ (t << 28);
+  return x;
+}
+
+template <int W, class Node>
+void trace_packet(const Node* nodes, const TriangleBlock* blocks, const Ray* rays, Hit* hits, unsigned n) {
+  using S = Simd<W>;
+  using F = typename S::F;
+  struct Lane {
+    BoxRay<W> box;
+    TriRay tri;
+    F tmin;
+    float best_t, cull_t, best_v, best_w, best_det;
+    uint32_t best_id;
+  } lane[8];
+  for (unsigned r = 0; r < n; ++r) {
+    Lane& L = lane[r];
+    L.box.init(rays[r]);
+    L.tri.init(rays[r]);
+    L.tmin = S::splat(rays[r].tmin);
+    L.best_t = rays[r].tmax;
+    L.cull_t = cull_distance(L.best_t);
+    L.best_id = invalid_id;
+    L.best_v = L.best_w = 0;
+    L.best_det = 1;
+  }
+  struct Entry {
+    uint32_t ref;
+    uint32_t rays;
+    float dist;
+  };
+  Entry stack[stack_size<W>];
+  Entry* sp = stack;
+  uint32_t cur = 0;
+  unsigned cur_rays = (1u << n) - 1;
+  const F inf = S::splat(__builtin_inff());
+  while (true) {
+    if (!(cur & wide_leaf_bit)) {
+      const Node& node = nodes[cur];
+      uint64_t masks = 0;
+      F dmin = inf;
+      for (unsigned rs = cur_rays; rs; rs &= rs - 1) {
+        const unsigned r = ctz(rs);
+        F tn;
+        const uint64_t m = lane[r].box.test(node.bounds, lane[r].tmin, S::splat(lane[r].cull_t), tn);
+        masks |= m << (8 * r);
+        dmin = vmin(lane[r].box.test_mask != 0 ? tn : inf, dmin);
+      }
+      const uint64_t by_child = transpose8x8(masks);  // byte j: rays that hit child j
+      unsigned hit_children = 0;
+      for (int j = 0; j < W; ++j) hit_children |= unsigned((by_child >> (8 * j)) & 0xFF) != 0 ? 1u << j : 0u;
+      if (!hit_children) goto pop;
+      // Push farthest first (by the nearest entry over the packet's rays).
+      Entry* base = sp;
+      for (unsigned m = hit_children; m; m &= m - 1) {
+        const unsigned j = ctz(m);
+        Entry e{node.child[j], unsigned((by_child >> (8 * j)) & 0xFF), dmin[j]};
+        Entry* k = sp++;
+        for (; k > base && k[-1].dist < e.dist; --k) *k = k[-1];
+        *k = e;
+      }
+      --sp;
+      cur = sp->ref;
+      cur_rays = sp->rays;
+      continue;
+    }
+    for (unsigned rs = cur_rays; rs; rs &= rs - 1) {
+      Lane& L = lane[ctz(rs)];
+      for (const TriangleBlock* blk = blocks + (cur & ~wide_leaf_bit);; ++blk) {
+        const BlockHits h = intersect_block(L.tri, *blk);
+        for (unsigned m = h.mask; m; m &= m - 1) {
+          const unsigned i = ctz(m);
+          const uint32_t id = blk->prim_id[i] & ~block_last_bit;
+          if (closer(h.t[i], id, L.best_t, L.best_id)) {
+            L.best_t = h.t[i];
+            L.best_id = id;
+            L.best_v = h.v[i];
+            L.best_w = h.w[i];
+            L.best_det = h.det[i];
+          }
+        }
+        if (blk->prim_id[0] & block_last_bit) break;
+      }
+      L.cull_t = cull_distance(L.best_t);
+    }
+  pop:
+    while (true) {
+      if (sp == stack) goto done;
+      --sp;
+      // Keep the rays whose best hit may still lie beyond the entry's nearest point.
+      unsigned keep = 0;
+      for (unsigned rs = sp->rays; rs; rs &= rs - 1) {
+        const unsigned r = ctz(rs);
+        if (sp->dist <= lane[r].cull_t) keep |= 1u << r;
+      }
+      if (keep) {
+        cur = sp->ref;
+        cur_rays = keep;
+        break;
+      }
+    }
+  }
+done:
+  for (unsigned r = 0; r < n; ++r) {
+    const Lane& L = lane[r];
+    Hit& hit = hits[r];
+    if (L.best_id != invalid_id) {
+      const float inv_det = 1.0f / L.best_det;
+      hit.t = L.best_t;
+      hit.prim_id = L.best_id;
+      hit.u = L.best_v * inv_det;
+      hit.v = L.best_w * inv_det;
+    } else {
+      hit.t = __builtin_inff();
+      hit.prim_id = invalid_id;
+      hit.u = hit.v = 0;
+    }
+  }
+}
+
+template <int W, class Node>
+void trace_packets(const Node* nodes, const TriangleBlock* blocks, const Ray* rays, Hit* hits, size_t n) {
+  for (size_t i = 0; i < n; i += 8) trace_packet<W>(nodes, blocks, rays + i, hits + i, unsigned(n - i < 8 ? n - i : 8));
+}
+
 const Table table = {
-    &trace_batch<4, false, Bvh4Node>, &trace_batch<4, true, Bvh4Node>, &trace_batch<4, false, Bvh4Node>,
-    &trace_batch<8, false, Bvh8Node>, &trace_batch<8, true, Bvh8Node>, &trace_batch<8, false, Bvh8Node>,
+    &trace_batch<4, false, Bvh4Node>, &trace_batch<4, true, Bvh4Node>, &trace_packets<4, Bvh4Node>,
+    &trace_batch<8, false, Bvh8Node>, &trace_batch<8, true, Bvh8Node>, &trace_packets<8, Bvh8Node>,
 };
 
 }  // namespace
