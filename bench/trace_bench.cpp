@@ -141,10 +141,17 @@ int main(int argc, char** argv) {
     double kestrel_bpp, embree_bpp;
   };
   std::vector<MemRow> memory;
+  struct AutoRow {
+    std::string scene;
+    double rays;
+    std::string pick, best;
+    double pick_mrays, best_mrays;
+  };
+  std::vector<AutoRow> auto_rows;
   std::ofstream amort;
   if (!amort_path.empty()) {
     amort.open(amort_path);
-    amort << "scene,method,prims,build_ms,mrays_per_s,rays_per_build,effective_mrays_per_s\n";
+    amort << "scene,method,prims,build_ms,mrays_per_s,rays_per_build,effective_mrays_per_s,note\n";
   }
   try {
     for (const SceneSpec& spec : scenes) {
@@ -272,14 +279,32 @@ int main(int argc, char** argv) {
                             double(mix.size()) / (median_of(trace_ms) * 1e3)});
         }
 #endif
+        auto effective = [](const Point& p, double R) { return R / (p.build_ms * 1e-3 + R / (p.mrays * 1e6)) * 1e-6; };
         for (const Point& p : points) {
           fmt::print("{:<12} amortization {:<14} build {:9.2f} ms  trace {:7.2f} Mrays/s\n", name, p.method, p.build_ms, p.mrays);
           for (double lg = 4; lg <= 10.0001; lg += 0.25) {
             const double R = std::pow(10.0, lg);
-            const double seconds = p.build_ms * 1e-3 + R / (p.mrays * 1e6);
-            amort << fmt::format("{},{},{},{:.4f},{:.4f},{:.6g},{:.6f}\n", name, p.method, accel.prim_count, p.build_ms, p.mrays, R,
-                                 R / seconds * 1e-6);
+            amort << fmt::format("{},{},{},{:.4f},{:.4f},{:.6g},{:.6f},\n", name, p.method, accel.prim_count, p.build_ms, p.mrays, R,
+                                 effective(p, R));
           }
+        }
+        // quality = auto: the builder the cost model picks for R, at its measured throughput,
+        // against the best fixed kestrel builder at that R.
+        for (double lg = 4; lg <= 10.0001; lg += 0.25) {
+          const double R = std::pow(10.0, lg);
+          const std::string pick = builder_name(choose_builder(accel.prim_count, R));
+          double best = 0, chosen = 0;
+          std::string best_name;
+          const Point* picked = nullptr;
+          for (const Point& p : points) {
+            if (p.method.rfind("embree", 0) == 0) continue;
+            const double e = effective(p, R);
+            if (e > best) best = e, best_name = p.method;
+            if (p.method == pick) chosen = e, picked = &p;
+          }
+          amort << fmt::format("{},auto,{},{:.4f},{:.4f},{:.6g},{:.6f},picks {} (best fixed: {})\n", name, accel.prim_count,
+                               picked ? picked->build_ms : 0.0, picked ? picked->mrays : 0.0, R, chosen, pick, best_name);
+          auto_rows.push_back({name, R, pick, best_name, chosen, best});
         }
       }
     }
@@ -299,6 +324,16 @@ int main(int argc, char** argv) {
                       r.peer_mrays > 0 ? fmt::format("{:.3f}%", 100 * r.agree) : "-");
   md += "\n| scene | triangles | kestrel bytes/prim | Embree bytes/prim |\n|---|---:|---:|---:|\n";
   for (const MemRow& m : memory) md += fmt::format("| {} | {} | {:.1f} | {:.1f} |\n", m.scene, m.prims, m.kestrel_bpp, m.embree_bpp);
+  if (!auto_rows.empty()) {
+    md += "\n`quality = auto` against the best fixed kestrel builder (effective Mrays/s at R rays per build):\n\n";
+    md += "| scene | R | auto picks | its effective Mrays/s | best fixed | best Mrays/s | auto / best |\n|---|---:|---|---:|---|---:|---:|\n";
+    for (const AutoRow& a : auto_rows) {
+      const double lg = std::log10(a.rays);
+      if (std::fabs(lg - std::round(lg)) > 1e-6) continue;  // decades only in the table
+      md += fmt::format("| {} | 1e{:.0f} | {} | {:.3f} | {} | {:.3f} | {:.3f} |\n", a.scene, lg, a.pick, a.pick_mrays, a.best,
+                        a.best_mrays, a.best_mrays > 0 ? a.pick_mrays / a.best_mrays : 0.0);
+    }
+  }
   fmt::print("\n{}", md);
   if (!md_path.empty()) std::ofstream(md_path) << md;
   std::ofstream json(json_path);

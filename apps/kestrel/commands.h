@@ -22,6 +22,7 @@ struct BuildOptions {
   float traversal_cost = 1.0f, intersection_cost = 1.0f;
   uint32_t max_leaf_size = 8, bin_count = 32, morton_bits = 30;
   int threads = 0;
+  double expected_rays = 1e6;
   void add_to(CLI::App& cmd);
   BuildConfig config() const;  ///< throws Error on an unknown builder/quality
 };

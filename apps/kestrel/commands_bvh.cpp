@@ -16,7 +16,9 @@ void BuildOptions::add_to(CLI::App& cmd) {
   cmd.add_option("--builder", builder,
                  "median | sweep | binned | lbvh | treelet (overrides --quality). treelet = Karras & Aila 2013 "
                  "treelet restructuring, covered by NVIDIA patents (US 10331632); never a default");
-  cmd.add_option("--quality", quality, "fast (lbvh) | balanced (binned) | high (sweep)");
+  cmd.add_option("--quality", quality,
+                 "fast (lbvh) | balanced (binned) | high (sweep) | auto (best for --expected-rays per build)");
+  cmd.add_option("--expected-rays", expected_rays, "rays traced per build, for --quality auto");
   cmd.add_option("--threads", threads, "worker threads (0 = all)")->check(CLI::Range(0, 1024));
   cmd.add_option("--traversal-cost", traversal_cost, "SAH Ct, cost of an inner node visit");
   cmd.add_option("--intersection-cost", intersection_cost, "SAH Ci, cost of a triangle test");
@@ -34,8 +36,9 @@ BuildConfig BuildOptions::config() const {
                   fmt::format("unknown builder '{}' (median, sweep, binned, lbvh, treelet)", builder));
   }
   auto q = quality_from_name(quality);
-  if (!q) throw Error(ErrorCode::invalid_argument, fmt::format("unknown quality '{}' (fast, balanced, high)", quality));
+  if (!q) throw Error(ErrorCode::invalid_argument, fmt::format("unknown quality '{}' (fast, balanced, high, auto)", quality));
   c.quality = *q;
+  c.expected_rays = expected_rays;
   c.traversal_cost = traversal_cost;
   c.intersection_cost = intersection_cost;
   c.max_leaf_size = max_leaf_size;
@@ -84,7 +87,7 @@ void run_bvh(const BvhArgs& a) {
   const BvhMetrics m = compute_metrics(bvh, config);
   const std::string problem = validate_bvh(bvh, refs, config.max_leaf_size);
   const double med = median(build_ms);
-  const char* name = builder_name(resolve_builder(config));
+  const char* name = builder_name(resolve_builder(config, refs.size()));
   if (a.json) {
     std::string hist;
     for (size_t k = 1; k < m.leaf_size_histogram.size(); ++k)

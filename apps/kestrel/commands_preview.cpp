@@ -73,7 +73,7 @@ void run_preview(const PreviewArgs& a) {
   }
   write_png(a.out, w, h, rgb);
   fmt::print("scene    {} ({})\n", a.scene, accel.validation.report.summary());
-  fmt::print("bvh      {}: {} bytes, built in {:.2f} ms\n", builder_name(resolve_builder(config)),
+  fmt::print("bvh      {}: {} bytes, built in {:.2f} ms\n", builder_name(resolve_builder(config, accel.prim_count)),
              accel.memory_bytes(), accel.build_ms);
   fmt::print("render   {}x{} in {:.2f} ms ({:.2f} Mrays/s)\n", w, h, trace_ms, double(w) * h / (trace_ms * 1e3));
   fmt::print("wrote    {}\n", a.out);

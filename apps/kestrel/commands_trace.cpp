@@ -17,6 +17,7 @@ namespace {
 struct TraceArgs {
   std::string scene, rays_path, hits_path;
   BuildOptions build;
+  std::string layout = "auto", isa = "auto", packets = "auto";
   bool any_hit = false;
   int repeat = 3;
 };
@@ -31,7 +32,21 @@ Accel load_and_build(const std::string& path, const BuildConfig& config) {
 }
 
 void run_trace(const TraceArgs& a) {
-  const BuildConfig config = a.build.config();
+  BuildConfig config = a.build.config();
+  auto layout = layout_from_name(a.layout);
+  if (!layout) throw Error(ErrorCode::invalid_argument, fmt::format("unknown layout '{}' (auto, bvh2, bvh4, bvh8)", a.layout));
+  config.layout = *layout;
+  TraceOptions options;
+  if (a.isa != "auto") {
+    options.isa = isa_from_name(a.isa);
+    if (!options.isa) throw Error(ErrorCode::invalid_argument, fmt::format("unknown ISA '{}' (auto, sse2, avx2, avx512)", a.isa));
+    if (!isa_supported(*options.isa))
+      throw Error(ErrorCode::invalid_argument, fmt::format("ISA '{}' is not supported by this CPU (best: {})", a.isa, isa_name(host_isa())));
+    set_default_isa(*options.isa);  // also picks the layout `auto` resolves to
+  }
+  if (a.packets == "on") options.packets = true;
+  else if (a.packets == "off") options.packets = false;
+  else if (a.packets != "auto") throw Error(ErrorCode::invalid_argument, fmt::format("--packets '{}': expected auto, on or off", a.packets));
   std::unique_ptr<ThreadLimit> limit;
   if (a.build.threads > 0) limit = std::make_unique<ThreadLimit>(a.build.threads);
   const std::vector<Ray> rays = read_rays(a.rays_path);
@@ -40,7 +55,7 @@ void run_trace(const TraceArgs& a) {
   std::vector<double> ms;
   for (int r = 0; r < std::max(1, a.repeat); ++r) {
     Timer t;
-    trace(accel, rays, hits, a.any_hit);
+    trace(accel, rays, hits, a.any_hit, options);
     ms.push_back(t.ms());
   }
   write_hits(a.hits_path, hits);
@@ -48,7 +63,10 @@ void run_trace(const TraceArgs& a) {
   for (const Hit& h : hits) hit_count += h.hit();
   const double med = median(ms);
   fmt::print("scene      {} ({})\n", a.scene, accel.validation.report.summary());
-  fmt::print("builder    {}\n", builder_name(resolve_builder(config)));
+  fmt::print("builder    {}\n", builder_name(resolve_builder(config, accel.prim_count)));
+  fmt::print("layout     {} ({} bytes, {:.1f} bytes/prim), ISA {}, packets {}\n", layout_name(accel.layout), accel.memory_bytes(),
+             accel.prim_count ? double(accel.memory_bytes()) / double(accel.prim_count) : 0.0,
+             isa_name(options.isa.value_or(default_isa())), a.packets);
   fmt::print("build      {:.2f} ms\n", accel.build_ms);
   fmt::print("rays       {} ({}), {} hit\n", rays.size(), a.any_hit ? "any hit" : "closest hit", hit_count);
   fmt::print("trace      {:.2f} ms (median of {}), {:.3f} Mrays/s\n", med, ms.size(),
@@ -84,6 +102,9 @@ Action add_trace_command(CLI::App& cmd) {
   cmd.add_option("--hits", args->hits_path, "output .hits file")->required();
   cmd.add_flag("--any-hit", args->any_hit, "occlusion query: t of any hit found, or +inf");
   cmd.add_option("--repeat", args->repeat, "timed passes (median reported)")->check(CLI::Range(1, 1000));
+  cmd.add_option("--layout", args->layout, "auto | bvh2 (scalar reference) | bvh4 | bvh8");
+  cmd.add_option("--isa", args->isa, "auto | sse2 | avx2 | avx512 (kernel instruction set)");
+  cmd.add_option("--packets", args->packets, "auto | on | off: trace closest-hit rays in packets of 8");
   args->build.add_to(cmd);
   return [args] { run_trace(*args); };
 }

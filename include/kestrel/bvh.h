@@ -32,9 +32,11 @@ enum class Builder {
   treelet,  ///< LBVH + treelet restructuring (Karras & Aila 2013). Patented: US 10331632.
 };
 
-/// For users who don't care which builder: fast = lbvh, balanced = binned, high = sweep.
-/// No quality maps to `treelet` (patented, opt-in only).
-enum class BuildQuality { fast, balanced, high };
+/// For users who don't care which builder: fast = lbvh, balanced = binned, high = sweep;
+/// automatic = the builder with the highest effective throughput for the number of rays the
+/// caller will trace per build (BuildConfig::expected_rays), from a fitted cost model (see
+/// predicted_seconds). No quality maps to `treelet` (patented, opt-in only).
+enum class BuildQuality { fast, balanced, high, automatic };
 
 /// Memory layout an Accel traces: the binary tree (scalar reference traversal) or a wide
 /// tree collapsed from it (SIMD traversal). `automatic` picks the fastest for the machine.
@@ -57,6 +59,7 @@ struct BuildConfig {
   uint32_t treelet_rounds = 3;           ///< treelet: bottom-up restructuring passes
   size_t parallel_threshold = 4096;      ///< subtrees smaller than this build on one task
   Layout layout = Layout::automatic;     ///< build_accel: the layout the Bvh2 becomes
+  double expected_rays = 1e6;            ///< quality automatic: rays traced per build
 };
 
 /// Canonical binary BVH node, 32 bytes = one half cache line. The two 16-byte rows are the
@@ -128,10 +131,19 @@ struct Bvh8 {
 std::optional<Builder> builder_from_name(const std::string& name);
 /// The name of a builder, as builder_from_name accepts it.
 const char* builder_name(Builder builder);
-/// Parses "fast", "balanced", "high".
+/// Parses "fast", "balanced", "high", "auto".
 std::optional<BuildQuality> quality_from_name(const std::string& name);
-/// The builder a config resolves to (its explicit builder, else the quality's).
-Builder resolve_builder(const BuildConfig& config);
+/// The builder a config resolves to (its explicit builder, else the quality's; automatic
+/// needs the primitive count).
+Builder resolve_builder(const BuildConfig& config, size_t prim_count = 0);
+
+/// The cost model of BuildQuality::automatic: predicted seconds, one thread, to build over
+/// prim_count primitives with `builder` (build_accel, wide layout included) and then trace
+/// `rays` rays: n * build_ns[b] + rays * (a + c * log2 n) * ray_factor[b], constants fitted
+/// to the amortization benchmark (scripts/fit_cost_model.py, docs/benchmarks.md).
+double predicted_seconds(Builder builder, size_t prim_count, double rays);
+/// The builder (median, lbvh, binned or sweep) with the least predicted_seconds.
+Builder choose_builder(size_t prim_count, double rays);
 /// Throws Error(invalid_argument) naming the field if a config value is out of range.
 void check_build_config(const BuildConfig& config);
 

@@ -80,7 +80,9 @@ void set_default_isa(Isa isa);
 /// Per-call choices; empty means the default (the fastest for the machine and ray kind).
 struct TraceOptions {
   std::optional<Isa> isa;
-  std::optional<bool> packets;      ///< coherent-ray packets (closest hit, wide layouts)
+  /// Coherent-ray packets (closest hit, wide layouts). Default: used for chunks of rays
+  /// that look like camera rays (groups of 8 with one origin and one direction octant).
+  std::optional<bool> packets;
 };
 
 /// Closest hit along the ray (watertight, Woop et al. 2013), or a miss. When several

@@ -30,15 +30,17 @@ std::optional<BuildQuality> quality_from_name(const std::string& name) {
   if (name == "fast") return BuildQuality::fast;
   if (name == "balanced") return BuildQuality::balanced;
   if (name == "high") return BuildQuality::high;
+  if (name == "auto" || name == "automatic") return BuildQuality::automatic;
   return std::nullopt;
 }
 
-Builder resolve_builder(const BuildConfig& config) {
+Builder resolve_builder(const BuildConfig& config, size_t prim_count) {
   if (config.builder) return *config.builder;
   switch (config.quality) {
     case BuildQuality::fast: return Builder::lbvh;
     case BuildQuality::balanced: return Builder::binned;
     case BuildQuality::high: return Builder::sweep;
+    case BuildQuality::automatic: return choose_builder(prim_count, config.expected_rays);
   }
   return Builder::binned;
 }
@@ -58,6 +60,8 @@ void check_build_config(const BuildConfig& c) {
   if (c.treelet_leaf_count < 3 || c.treelet_leaf_count > 7)
     bad(fmt::format("treelet_leaf_count = {} must be in [3, 7]", c.treelet_leaf_count));
   if (c.treelet_rounds > 16) bad(fmt::format("treelet_rounds = {} must be <= 16", c.treelet_rounds));
+  if (!(c.expected_rays >= 0.0) || !(c.expected_rays < 1e18))
+    bad(fmt::format("expected_rays = {} must be finite and >= 0", c.expected_rays));
 }
 
 Bvh2 build_bvh(std::span<const PrimRef> refs, const BuildConfig& config) {
@@ -65,7 +69,7 @@ Bvh2 build_bvh(std::span<const PrimRef> refs, const BuildConfig& config) {
   if (refs.empty()) return {};
   if (refs.size() >= 0x7FFFFFFFu)
     throw Error(ErrorCode::unsupported, fmt::format("build_bvh: {} primitives exceed 2^31 - 1", refs.size()));
-  switch (resolve_builder(config)) {
+  switch (resolve_builder(config, refs.size())) {
     case Builder::median: return build_median(refs, config);
     case Builder::sweep: return build_sweep_sah(refs, config);
     case Builder::binned: return build_binned_sah(refs, config);

@@ -57,7 +57,7 @@ Accel build_accel(const Scene& scene, const BuildConfig& config) {
   Bvh2 bvh = build_bvh(refs, config);
   // LBVH depth is bounded by its key bits (at most 3 x 21 + 32 levels) and the median split
   // by log2(n); the SAH-driven trees are checked.
-  const Builder builder = resolve_builder(config);
+  const Builder builder = resolve_builder(config, refs.size());
   const bool bounded_depth = builder == Builder::lbvh || builder == Builder::median;
   if (!bounded_depth && max_depth(bvh) > max_traversal_depth) {
     // Pathological primitive distributions can make SAH trees very deep; the median split
