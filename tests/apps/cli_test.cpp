@@ -91,7 +91,32 @@ TEST(Cli, RaysTraceHitsRoundTripMatchesTheLibrary) {
     }
     r = run("trace builtin:cornell_box --any-hit --rays " + rays + " --hits " + hits);
     ASSERT_EQ(r.status, 0) << r.out;
+    // Every layout / ISA / packet choice writes the same hits, bit for bit.
+    const auto reference = [&] {
+      run("trace builtin:cornell_box --layout bvh2 --rays " + rays + " --hits " + hits);
+      return read_hits(hits);
+    }();
+    std::vector<std::string> variants = {"--layout bvh4 --isa sse2", "--layout bvh8 --isa sse2 --packets on",
+                                         "--layout bvh8 --packets off", "--quality auto --expected-rays 1e9"};
+    for (const char* isa : {"avx2", "avx512"})
+      if (isa_supported(*isa_from_name(isa))) variants.push_back(std::string("--layout bvh8 --packets on --isa ") + isa);
+    for (const std::string& v : variants) {
+      r = run("trace builtin:cornell_box " + v + " --rays " + rays + " --hits " + hits);
+      ASSERT_EQ(r.status, 0) << v << ": " << r.out;
+      const auto got = read_hits(hits);
+      ASSERT_EQ(got.size(), reference.size());
+      for (size_t i = 0; i < got.size(); ++i) {
+        ASSERT_EQ(got[i].prim_id, reference[i].prim_id) << v << " ray " << i;
+        ASSERT_EQ(got[i].t, reference[i].t) << v << " ray " << i;
+      }
+    }
   }
+  CliRun bad = run("trace builtin:cornell_box --isa avx1024 --rays " + rays + " --hits " + hits);
+  EXPECT_EQ(bad.status, 1);
+  EXPECT_NE(bad.out.find("unknown ISA 'avx1024'"), std::string::npos) << bad.out;
+  bad = run("trace builtin:cornell_box --layout bvh16 --rays " + rays + " --hits " + hits);
+  EXPECT_EQ(bad.status, 1);
+  EXPECT_NE(bad.out.find("unknown layout 'bvh16'"), std::string::npos) << bad.out;
 }
 
 TEST(Cli, PreviewWritesAPng) {

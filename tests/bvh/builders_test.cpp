@@ -279,5 +279,34 @@ TEST(Metrics, SahOfAKnownTree) {
   EXPECT_EQ(m.max_depth, 1u);
 }
 
+// quality = auto follows its cost model: few rays per build favour the fastest build, many
+// rays the best tree; it never picks the patented treelet builder; the model's predicted
+// time grows with rays and primitives.
+TEST(AutoQuality, PicksFastBuildsForFewRaysAndGoodTreesForMany) {
+  for (size_t n : {size_t(1000), size_t(100000), size_t(2000000)}) {
+    const Builder few = choose_builder(n, 1.0);
+    const Builder many = choose_builder(n, 1e12);
+    EXPECT_EQ(few, Builder::lbvh) << n;
+    EXPECT_TRUE(many == Builder::binned || many == Builder::sweep) << n;
+    for (double r = 1; r < 1e13; r *= 10) {
+      const Builder b = choose_builder(n, r);
+      EXPECT_NE(b, Builder::treelet);
+      for (Builder other : {Builder::median, Builder::lbvh, Builder::binned, Builder::sweep})
+        EXPECT_LE(predicted_seconds(b, n, r), predicted_seconds(other, n, r));
+      EXPECT_LT(predicted_seconds(b, n, r), predicted_seconds(b, n, r * 10));
+    }
+    EXPECT_LT(predicted_seconds(Builder::binned, n, 1e6), predicted_seconds(Builder::binned, n * 2, 1e6));
+  }
+  BuildConfig c;
+  c.quality = BuildQuality::automatic;
+  c.expected_rays = 10;
+  EXPECT_EQ(resolve_builder(c, 50000), Builder::lbvh);
+  c.expected_rays = 1e11;
+  EXPECT_NE(resolve_builder(c, 50000), Builder::lbvh);
+  EXPECT_EQ(quality_from_name("auto"), BuildQuality::automatic);
+  c.expected_rays = -1;
+  EXPECT_THROW(check_build_config(c), Error);
+}
+
 }  // namespace
 }  // namespace kestrel
