@@ -16,6 +16,7 @@
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <memory>
 #include <sstream>
 
 #include "common/ray_gen.h"
@@ -251,34 +252,43 @@ int main(int argc, char** argv) {
           std::string method;
           double build_ms, mrays;
         };
-        std::vector<Point> points;
-        for (Builder b : {Builder::median, Builder::lbvh, Builder::binned, Builder::sweep, Builder::treelet}) {
-          BuildConfig c;
-          c.builder = b;
-          std::vector<double> build_ms, trace_ms;
-          for (int r = 0; r < std::max(3, repeat); ++r) {
-            Accel a = build_accel(scene, c);
-            build_ms.push_back(a.build_ms);
-            Timer t;
-            trace(a, mix, hits);
-            trace_ms.push_back(t.ms());
-          }
-          points.push_back({builder_name(b), median_of(build_ms), double(mix.size()) / (median_of(trace_ms) * 1e3)});
-        }
+        // Rounds are interleaved across all methods (machine speed drifts between runs).
+        const std::vector<Builder> builders = {Builder::median, Builder::lbvh, Builder::binned, Builder::sweep, Builder::treelet};
+        std::vector<std::string> names;
+        for (Builder bld : builders) names.push_back(builder_name(bld));
 #ifdef KESTREL_HAVE_EMBREE
+        std::vector<std::unique_ptr<peer::EmbreeScene>> peers;
         for (auto q : {peer::EmbreeQuality::low, peer::EmbreeQuality::medium, peer::EmbreeQuality::high}) {
-          peer::EmbreeScene e(scene, q, 1);
-          std::vector<double> build_ms, trace_ms;
-          for (int r = 0; r < std::max(3, repeat); ++r) {
-            build_ms.push_back(e.rebuild());
-            Timer t;
-            e.intersect(mix, hits);
-            trace_ms.push_back(t.ms());
-          }
-          points.push_back({std::string("embree-") + peer::embree_quality_name(q), median_of(build_ms),
-                            double(mix.size()) / (median_of(trace_ms) * 1e3)});
+          peers.push_back(std::make_unique<peer::EmbreeScene>(scene, q, 1));
+          names.push_back(std::string("embree-") + peer::embree_quality_name(q));
         }
 #endif
+        std::vector<std::vector<double>> build_ms(names.size()), trace_ms(names.size());
+        for (int r = 0; r < std::max(3, repeat); ++r) {
+          for (size_t m = 0; m < names.size(); ++m) {
+            if (m < builders.size()) {
+              BuildConfig c;
+              c.builder = builders[m];
+              Accel a = build_accel(scene, c);
+              build_ms[m].push_back(a.build_ms);
+              Timer t;
+              trace(a, mix, hits);
+              trace_ms[m].push_back(t.ms());
+            }
+#ifdef KESTREL_HAVE_EMBREE
+            else {
+              peer::EmbreeScene& e = *peers[m - builders.size()];
+              build_ms[m].push_back(e.rebuild());
+              Timer t;
+              e.intersect(mix, hits);
+              trace_ms[m].push_back(t.ms());
+            }
+#endif
+          }
+        }
+        std::vector<Point> points;
+        for (size_t m = 0; m < names.size(); ++m)
+          points.push_back({names[m], median_of(build_ms[m]), double(mix.size()) / (median_of(trace_ms[m]) * 1e3)});
         auto effective = [](const Point& p, double R) { return R / (p.build_ms * 1e-3 + R / (p.mrays * 1e6)) * 1e-6; };
         for (const Point& p : points) {
           fmt::print("{:<12} amortization {:<14} build {:9.2f} ms  trace {:7.2f} Mrays/s\n", name, p.method, p.build_ms, p.mrays);

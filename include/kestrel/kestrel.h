@@ -2,6 +2,7 @@
 #pragma once
 #include "kestrel/bvh.h"
 #include "kestrel/error.h"
+#include "kestrel/instances.h"
 #include "kestrel/io.h"
 #include "kestrel/scene.h"
 #include "kestrel/parallel.h"

@@ -6,6 +6,7 @@
 #pragma once
 #include <cstddef>
 
+#include "kestrel/instances.h"
 #include "kestrel/trace.h"
 
 namespace kestrel::kernels {
@@ -15,9 +16,24 @@ namespace kestrel::kernels {
 using Bvh4Fn = void (*)(const Bvh4Node* nodes, const TriangleBlock* blocks, const Ray* rays, Hit* hits, size_t n);
 using Bvh8Fn = void (*)(const Bvh8Node* nodes, const TriangleBlock* blocks, const Ray* rays, Hit* hits, size_t n);
 
+/// What the two-level kernels know of an instance (plain data, built by commit()).
+struct InstanceData {
+  float world_to_object[12];  ///< Affine3::m of the inverse transform
+  uint32_t mask;
+  uint32_t id;                ///< InstanceId reported in hits
+  const void* nodes;          ///< the mesh's Bvh4Node / Bvh8Node array (same width as the TLAS)
+  const TriangleBlock* blocks;
+};
+
+/// Two-level: TLAS leaves are wide_leaf_bit | index into `instances`. Closest-hit kernels
+/// fill every field of InstanceHit; any-hit kernels fill t, prim_id and instance_id.
+using TlasFn = void (*)(const void* tlas_nodes, const InstanceData* instances, const Ray* rays, InstanceHit* hits,
+                        size_t n, uint32_t ray_mask);
+
 struct Table {
   Bvh4Fn closest4, any4, packet4;
   Bvh8Fn closest8, any8, packet8;  ///< packet*: closest hit, rays in packets of 8 (any n)
+  TlasFn tlas_closest4, tlas_any4, tlas_closest8, tlas_any8;
 };
 
 const Table& table_sse2();

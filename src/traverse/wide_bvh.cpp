@@ -82,6 +82,66 @@ LeafPlan plan_leaves(const Bvh2& bvh, uint32_t max_leaf) {
   return plan;
 }
 
+// Wide nodes from a binary tree: flat[i] marks the binary subtrees that become one leaf
+// slot; emit_leaf(i) returns that slot's child reference.
+template <int W, class Node, class EmitLeaf>
+void build_wide_nodes(const Bvh2& bvh, const std::vector<uint8_t>& flat, Buffer<Node>& nodes, EmitLeaf&& emit_leaf) {  struct Work {
+    uint32_t src, dst;
+  };
+  std::vector<Work> todo{{0, 0}};
+  nodes.emplace_back();
+  while (!todo.empty()) {
+    const Work work = todo.back();
+    todo.pop_back();
+    uint32_t kids[W];
+    int n = 0;
+    const Bvh2Node& src = bvh.nodes[work.src];
+    if (flat[work.src]) {
+      kids[n++] = work.src;  // a one-leaf tree: the root holds one leaf slot
+    } else {
+      kids[n++] = src.index;
+      kids[n++] = src.index + 1;
+    }
+    while (n < W) {
+      int open = -1;
+      float open_area = -1;
+      for (int i = 0; i < n; ++i) {
+        const Bvh2Node& k = bvh.nodes[kids[i]];
+        if (!flat[kids[i]] && half_area(k) > open_area) {
+          open = i;
+          open_area = half_area(k);
+        }
+      }
+      if (open < 0) break;
+      const uint32_t first = bvh.nodes[kids[open]].index;
+      kids[open] = first;
+      kids[n++] = first + 1;
+    }
+    Node node;
+    const size_t first_new = todo.size();
+    for (int j = 0; j < W; ++j) {
+      if (j >= n) {
+        const float inf = INFINITY;
+        set_slot<W>(node, j, Bounds3{{inf, inf, inf}, {-inf, -inf, -inf}}, wide_empty);
+        continue;
+      }
+      const Bvh2Node& k = bvh.nodes[kids[j]];
+      const Bounds3 box{k.lo, k.hi};
+      if (flat[kids[j]]) {
+        set_slot<W>(node, j, box, emit_leaf(kids[j]));
+      } else {
+        const uint32_t dst = uint32_t(nodes.size());
+        nodes.emplace_back();
+        todo.push_back({kids[j], dst});
+        set_slot<W>(node, j, box, dst);
+      }
+    }
+    std::reverse(todo.begin() + first_new, todo.end());  // first child is built next
+    nodes[work.dst] = node;
+  }
+}
+
+
 template <int W, class Node, class Wide>
 Wide collapse(const Bvh2& bvh, std::span<const Triangle> tris, uint32_t max_leaf) {
   Wide out;
@@ -138,60 +198,7 @@ Wide collapse(const Bvh2& bvh, std::span<const Triangle> tris, uint32_t max_leaf
     return wide_leaf_bit | first;
   };
 
-  struct Work {
-    uint32_t src, dst;
-  };
-  std::vector<Work> todo{{0, 0}};
-  out.nodes.emplace_back();
-  while (!todo.empty()) {
-    const Work work = todo.back();
-    todo.pop_back();
-    uint32_t kids[W];
-    int n = 0;
-    const Bvh2Node& src = bvh.nodes[work.src];
-    if (plan.flat[work.src]) {
-      kids[n++] = work.src;  // a one-leaf tree: the root holds one leaf slot
-    } else {
-      kids[n++] = src.index;
-      kids[n++] = src.index + 1;
-    }
-    while (n < W) {
-      int open = -1;
-      float open_area = -1;
-      for (int i = 0; i < n; ++i) {
-        const Bvh2Node& k = bvh.nodes[kids[i]];
-        if (!plan.flat[kids[i]] && half_area(k) > open_area) {
-          open = i;
-          open_area = half_area(k);
-        }
-      }
-      if (open < 0) break;
-      const uint32_t first = bvh.nodes[kids[open]].index;
-      kids[open] = first;
-      kids[n++] = first + 1;
-    }
-    Node node;
-    const size_t first_new = todo.size();
-    for (int j = 0; j < W; ++j) {
-      if (j >= n) {
-        const float inf = INFINITY;
-        set_slot<W>(node, j, Bounds3{{inf, inf, inf}, {-inf, -inf, -inf}}, wide_empty);
-        continue;
-      }
-      const Bvh2Node& k = bvh.nodes[kids[j]];
-      const Bounds3 box{k.lo, k.hi};
-      if (plan.flat[kids[j]]) {
-        set_slot<W>(node, j, box, emit_leaf(kids[j]));
-      } else {
-        const uint32_t dst = uint32_t(out.nodes.size());
-        out.nodes.emplace_back();
-        todo.push_back({kids[j], dst});
-        set_slot<W>(node, j, box, dst);
-      }
-    }
-    std::reverse(todo.begin() + first_new, todo.end());  // first child is built next
-    out.nodes[work.dst] = node;
-  }
+  build_wide_nodes<W>(bvh, plan.flat, out.nodes, emit_leaf);
   return out;
 }
 
@@ -242,6 +249,62 @@ Bvh8 collapse_to_bvh8(const Bvh2& bvh, std::span<const Triangle> t, uint32_t max
 }
 void refit_wide(Bvh4& bvh, std::span<const Triangle> t) { refit<4>(bvh, t); }
 void refit_wide(Bvh8& bvh, std::span<const Triangle> t) { refit<8>(bvh, t); }
+
+namespace {
+
+template <int W, class Node>
+Buffer<Node> collapse_instance_tree(const Bvh2& bvh) {
+  Buffer<Node> nodes;
+  if (bvh.empty()) return nodes;
+  std::vector<uint8_t> flat(bvh.nodes.size());
+  for (size_t i = 0; i < bvh.nodes.size(); ++i) {
+    if (bvh.nodes[i].is_leaf() && bvh.nodes[i].count != 1)
+      throw Error(ErrorCode::invalid_argument, "instance tree: every leaf must hold one instance (max_leaf_size = 1)");
+    flat[i] = bvh.nodes[i].is_leaf();
+  }
+  nodes.reserve(bvh.nodes.size() / (W - 1) + 1);
+  build_wide_nodes<W>(bvh, flat, nodes, [&](uint32_t leaf) { return wide_leaf_bit | bvh.prim_ids[bvh.nodes[leaf].index]; });
+  return nodes;
+}
+
+template <int W, class Wide>
+double sah(const Wide& bvh) {
+  if (bvh.empty()) return 0;
+  const auto area = [](const auto& n, int j) {
+    const float dx = n.bounds[1][j] - n.bounds[0][j], dy = n.bounds[3][j] - n.bounds[2][j], dz = n.bounds[5][j] - n.bounds[4][j];
+    return double(dx) * dy + double(dy) * dz + double(dz) * dx;
+  };
+  double root = 0, cost = 0;
+  Bounds3 box;
+  const auto& r = bvh.nodes[0];
+  for (int j = 0; j < W; ++j)
+    if (r.child[j] != wide_empty) {
+      grow(box, {r.bounds[0][j], r.bounds[2][j], r.bounds[4][j]});
+      grow(box, {r.bounds[1][j], r.bounds[3][j], r.bounds[5][j]});
+    }
+  const Vec3 d{box.hi.x - box.lo.x, box.hi.y - box.lo.y, box.hi.z - box.lo.z};
+  root = double(d.x) * d.y + double(d.y) * d.z + double(d.z) * d.x;
+  for (const auto& n : bvh.nodes)
+    for (int j = 0; j < W; ++j) {
+      const uint32_t ref = n.child[j];
+      if (ref == wide_empty) continue;
+      if (!(ref & wide_leaf_bit)) {
+        cost += area(n, j);
+        continue;
+      }
+      size_t blocks = 1;
+      for (const TriangleBlock* b = &bvh.blocks[ref & ~wide_leaf_bit]; !(b->prim_id[0] & block_last_bit); ++b) ++blocks;
+      cost += area(n, j) * double(blocks);
+    }
+  return root > 0 ? 1.0 + cost / root : 1.0;
+}
+
+}  // namespace
+
+Buffer<Bvh4Node> collapse_instances_bvh4(const Bvh2& bvh) { return collapse_instance_tree<4, Bvh4Node>(bvh); }
+Buffer<Bvh8Node> collapse_instances_bvh8(const Bvh2& bvh) { return collapse_instance_tree<8, Bvh8Node>(bvh); }
+double wide_sah_cost(const Bvh4& bvh) { return sah<4>(bvh); }
+double wide_sah_cost(const Bvh8& bvh) { return sah<8>(bvh); }
 
 void refit_bvh2(Bvh2& bvh, std::span<const Triangle> tris) {
   if (bvh.empty()) return;

@@ -20,6 +20,17 @@ Bvh8 collapse_to_bvh8(const Bvh2& bvh, std::span<const Triangle> leaf_triangles,
 void refit_wide(Bvh4& bvh, std::span<const Triangle> triangles);
 void refit_wide(Bvh8& bvh, std::span<const Triangle> triangles);
 
+/// A wide tree over instances: bvh's leaves hold one primitive each (max_leaf_size = 1), and
+/// become child references wide_leaf_bit | prim_id.
+Buffer<Bvh4Node> collapse_instances_bvh4(const Bvh2& bvh);
+Buffer<Bvh8Node> collapse_instances_bvh8(const Bvh2& bvh);
+
+/// SAH cost of a wide BVH: 1 (the root) + sum over child slots of area x (1 for an inner
+/// child, blocks for a leaf), over the root's area. Compares a refitted tree with itself
+/// after its last full build.
+double wide_sah_cost(const Bvh4& bvh);
+double wide_sah_cost(const Bvh8& bvh);
+
 /// Recomputes a Bvh2's boxes from triangles in leaf order.
 void refit_bvh2(Bvh2& bvh, std::span<const Triangle> leaf_triangles);
 

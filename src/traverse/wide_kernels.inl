@@ -261,22 +261,15 @@ inline uint32_t push_sorted8(const uint32_t* child, vf8 tnear, vi8 hit, StackEnt
 // Deepest wide tree: the Bvh2 depth bound (255) with at most W-1 entries pushed per level.
 template <int W> inline constexpr int stack_size = 256 * (W - 1) + 1 + 8;
 
-// One ray through a wide BVH. Node is Bvh4Node or Bvh8Node.
-template <int W, bool AnyHit, class Node>
-inline void trace_ray(const Node* nodes, const TriangleBlock* blocks, const Ray& ray, Hit& hit) {
+// Walks a wide BVH nearest child first. leaf(ref) handles a leaf reference: it may lower
+// best_t (closest hit) and returns true to stop (any hit). Node is Bvh4Node or Bvh8Node.
+template <int W, bool AnyHit, class Node, class LeafFn>
+inline void traverse(const Node* nodes, const BoxRay<W>& box, float tmin_s, float& best_t, LeafFn&& leaf) {
   using S = Simd<W>;
   using F = typename S::F;
-  const BoxRay<W> box(ray);
-  const TriRay tri(ray);
-  KSTAT(++stat_rays);
-  const F tmin = S::splat(ray.tmin);
-  float best_t = ray.tmax;
-  uint32_t best_id = invalid_id;
-  float best_v = 0, best_w = 0, best_det = 1;
+  const F tmin = S::splat(tmin_s);
   float cull_t = AnyHit ? best_t : cull_distance(best_t);
-  const F tmax0 = S::splat(cull_t);
-  F tmax = tmax0;
-
+  F tmax = S::splat(cull_t);
   StackEntry stack[stack_size<W>];
   StackEntry* sp = stack;
   uint32_t cur = 0;  // the root is an inner node
@@ -291,6 +284,15 @@ inline void trace_ray(const Node* nodes, const TriangleBlock* blocks, const Ray&
       if (!m) goto pop;
       unsigned r = ctz(m);
       m &= m - 1;
+      if constexpr (AnyHit) {  // order does not matter for occlusion: no sorting
+        cur = node.child[r];
+        while (m) {
+          r = ctz(m);
+          m &= m - 1;
+          *sp++ = {node.child[r], 0.0f};
+        }
+        continue;
+      }
       const uint32_t c0 = node.child[r];
       const float d0 = tnear[r];
       if (!m) {
@@ -336,36 +338,8 @@ inline void trace_ray(const Node* nodes, const TriangleBlock* blocks, const Ray&
         cur = (--sp)->ref;
       }
     }
-    // Leaf: its blocks until the one flagged last.
     if (cur != wide_empty) {
-      const TriangleBlock* blk = blocks + (cur & ~wide_leaf_bit);
-      while (true) {
-        const BlockHits h = intersect_block(tri, *blk);
-        KSTAT(++stat_blocks);
-        unsigned m = h.mask;
-        while (m) {
-          const unsigned i = ctz(m);
-          m &= m - 1;
-          const float t = h.t[i];
-          const uint32_t id = blk->prim_id[i] & ~block_last_bit;
-          if constexpr (AnyHit) {
-            if (t < best_t) {
-              hit.t = t;
-              hit.prim_id = id;
-              hit.u = hit.v = 0;
-              return;
-            }
-          } else if (closer(t, id, best_t, best_id)) {
-            best_t = t;
-            best_id = id;
-            best_v = h.v[i];
-            best_w = h.w[i];
-            best_det = h.det[i];
-          }
-        }
-        if (blk->prim_id[0] & block_last_bit) break;
-        ++blk;
-      }
+      if (leaf(cur) && AnyHit) return;
       if (!AnyHit) {
         cull_t = cull_distance(best_t);
         tmax = S::splat(cull_t);
@@ -373,23 +347,118 @@ inline void trace_ray(const Node* nodes, const TriangleBlock* blocks, const Ray&
     }
   pop:
     while (true) {
-      if (sp == stack) goto done;
+      if (sp == stack) return;
       --sp;
       if (AnyHit || sp->dist <= cull_t) break;
     }
     cur = sp->ref;
   }
-done:
+}
+
+// The closest (or any) triangle hit of one ray in one wide BVH.
+template <int W, bool AnyHit, class Node>
+inline void trace_ray(const Node* nodes, const TriangleBlock* blocks, const Ray& ray, Hit& hit) {
+  const BoxRay<W> box(ray);
+  const TriRay tri(ray);
+  KSTAT(++stat_rays);
+  float best_t = ray.tmax;
+  uint32_t best_id = invalid_id;
+  float best_v = 0, best_w = 0, best_det = 1;
+  traverse<W, AnyHit>(nodes, box, ray.tmin, best_t, [&](uint32_t ref) {
+    // A leaf: its blocks until the one flagged last.
+    for (const TriangleBlock* blk = blocks + (ref & ~wide_leaf_bit);; ++blk) {
+      const BlockHits h = intersect_block(tri, *blk);
+      KSTAT(++stat_blocks);
+      unsigned m = h.mask;
+      while (m) {
+        const unsigned i = ctz(m);
+        m &= m - 1;
+        const float t = h.t[i];
+        const uint32_t id = blk->prim_id[i] & ~block_last_bit;
+        if constexpr (AnyHit) {
+          if (t < best_t) {
+            best_t = t;
+            best_id = id;
+            return true;
+          }
+        } else if (closer(t, id, best_t, best_id)) {
+          best_t = t;
+          best_id = id;
+          best_v = h.v[i];
+          best_w = h.w[i];
+          best_det = h.det[i];
+        }
+      }
+      if (blk->prim_id[0] & block_last_bit) return false;
+    }
+  });
   if (best_id != invalid_id) {
-    const float inv_det = 1.0f / best_det;
     hit.t = best_t;
     hit.prim_id = best_id;
-    hit.u = best_v * inv_det;
-    hit.v = best_w * inv_det;
+    if (AnyHit) {
+      hit.u = hit.v = 0;
+    } else {
+      const float inv_det = 1.0f / best_det;
+      hit.u = best_v * inv_det;
+      hit.v = best_w * inv_det;
+    }
   } else {
     hit.t = __builtin_inff();
     hit.prim_id = invalid_id;
     hit.u = hit.v = 0;
+  }
+}
+
+// Storage for a Hit without running Hit's (shared, inline) constructor: this union's
+// constructor has internal linkage. trace_ray writes every field.
+union HitStorage {
+  Hit hit;
+  HitStorage() {}
+};
+
+// Two levels: the TLAS's leaves are instances; the ray enters each instance's BLAS in object
+// space (t is unchanged by an affine map of origin and direction together).
+inline void to_object(const float* m, const Ray& r, Ray& out) {
+  const Vec3 o = r.org, d = r.dir;
+  out.org = {m[0] * o.x + m[1] * o.y + m[2] * o.z + m[3], m[4] * o.x + m[5] * o.y + m[6] * o.z + m[7],
+             m[8] * o.x + m[9] * o.y + m[10] * o.z + m[11]};
+  out.dir = {m[0] * d.x + m[1] * d.y + m[2] * d.z, m[4] * d.x + m[5] * d.y + m[6] * d.z, m[8] * d.x + m[9] * d.y + m[10] * d.z};
+  out.tmin = r.tmin;
+}
+
+template <int W, bool AnyHit, class Node>
+void trace_tlas(const void* tlas_nodes, const InstanceData* instances, const Ray* rays, InstanceHit* hits, size_t n,
+                uint32_t ray_mask) {
+  const Node* tlas = static_cast<const Node*>(tlas_nodes);
+  for (size_t k = 0; k < n; ++k) {
+    const Ray& ray = rays[k];
+    const BoxRay<W> box(ray);
+    // Public types are copied, never default-constructed here: their implicit constructors
+    // are inline functions the linker could share with code for other ISAs.
+    InstanceHit best = hits[k];
+    best.t = ray.tmax;
+    best.prim_id = best.instance_id = invalid_id;
+    best.u = best.v = 0;
+    traverse<W, AnyHit>(tlas, box, ray.tmin, best.t, [&](uint32_t ref) {
+      const InstanceData& inst = instances[ref & ~wide_leaf_bit];
+      if (!(inst.mask & ray_mask)) return false;
+      Ray local = ray;
+      to_object(inst.world_to_object, ray, local);
+      if (local.dir.x == 0.0f && local.dir.y == 0.0f && local.dir.z == 0.0f) return false;
+      local.tmax = best.t;
+      HitStorage storage;
+      Hit& h = storage.hit;
+      trace_ray<W, AnyHit>(static_cast<const Node*>(inst.nodes), inst.blocks, local, h);
+      if (h.prim_id == invalid_id) return false;
+      best.t = h.t;
+      best.prim_id = h.prim_id;
+      best.instance_id = inst.id;
+      best.u = h.u;
+      best.v = h.v;
+      return true;
+    });
+    if (best.instance_id == invalid_id) best.t = __builtin_inff();
+    hits[k] = best;
   }
 }
 
@@ -539,6 +608,8 @@ void trace_packets(const Node* nodes, const TriangleBlock* blocks, const Ray* ra
 const Table table = {
     &trace_batch<4, false, Bvh4Node>, &trace_batch<4, true, Bvh4Node>, &trace_packets<4, Bvh4Node>,
     &trace_batch<8, false, Bvh8Node>, &trace_batch<8, true, Bvh8Node>, &trace_packets<8, Bvh8Node>,
+    &trace_tlas<4, false, Bvh4Node>, &trace_tlas<4, true, Bvh4Node>,
+    &trace_tlas<8, false, Bvh8Node>, &trace_tlas<8, true, Bvh8Node>,
 };
 
 }  // namespace

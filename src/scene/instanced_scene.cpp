@@ -1,0 +1,428 @@
+// Two-level scenes: a BLAS per mesh (refit or rebuilt when its vertices move), a TLAS over
+// the instances rebuilt at every commit(), and traversal through both in the SIMD kernels.
+#include <fmt/format.h>
+
+#include <cmath>
+#include <cstdio>
+#include <fstream>
+#include <sstream>
+
+#include "core/parallel.h"
+#include "core/timer.h"
+#include "geometry/triangle_intersect.h"
+#include "kestrel/error.h"
+#include "kestrel/instances.h"
+#include "traverse/kernels.h"
+#include "traverse/wide_bvh.h"
+
+namespace kestrel {
+
+// ---- Affine3 ------------------------------------------------------------------------------
+
+Affine3 Affine3::translation(Vec3 t) {
+  Affine3 a;
+  a.m[3] = t.x, a.m[7] = t.y, a.m[11] = t.z;
+  return a;
+}
+
+Affine3 Affine3::scaling(Vec3 s) {
+  Affine3 a;
+  a.m[0] = s.x, a.m[5] = s.y, a.m[10] = s.z;
+  return a;
+}
+
+Affine3 Affine3::rotation_y(float degrees) {
+  const double r = double(degrees) * 3.14159265358979323846 / 180.0;
+  const float c = float(std::cos(r)), s = float(std::sin(r));
+  Affine3 a;
+  a.m[0] = c, a.m[2] = s;
+  a.m[8] = -s, a.m[10] = c;
+  return a;
+}
+
+Affine3 Affine3::operator*(const Affine3& b) const {
+  Affine3 r;
+  for (int i = 0; i < 3; ++i) {
+    for (int j = 0; j < 4; ++j) {
+      double v = j == 3 ? m[4 * i + 3] : 0.0;
+      for (int k = 0; k < 3; ++k) v += double(m[4 * i + k]) * b.m[4 * k + j];
+      r.m[4 * i + j] = float(v);
+    }
+  }
+  return r;
+}
+
+Vec3 Affine3::point(Vec3 p) const {
+  return {m[0] * p.x + m[1] * p.y + m[2] * p.z + m[3], m[4] * p.x + m[5] * p.y + m[6] * p.z + m[7],
+          m[8] * p.x + m[9] * p.y + m[10] * p.z + m[11]};
+}
+
+Vec3 Affine3::vector(Vec3 v) const {
+  return {m[0] * v.x + m[1] * v.y + m[2] * v.z, m[4] * v.x + m[5] * v.y + m[6] * v.z, m[8] * v.x + m[9] * v.y + m[10] * v.z};
+}
+
+namespace {
+double determinant(const Affine3& a) {
+  const float* m = a.m;
+  return double(m[0]) * (double(m[5]) * m[10] - double(m[6]) * m[9]) - double(m[1]) * (double(m[4]) * m[10] - double(m[6]) * m[8]) +
+         double(m[2]) * (double(m[4]) * m[9] - double(m[5]) * m[8]);
+}
+}  // namespace
+
+std::string transform_problem(const Affine3& a) {
+  for (int i = 0; i < 12; ++i)
+    if (!std::isfinite(a.m[i])) return fmt::format("transform entry m[{}] is {}", i, a.m[i]);
+  // Singular relative to the size of its columns: |det| tiny against the product of norms.
+  double scale = 1;
+  for (int c = 0; c < 3; ++c)
+    scale *= std::sqrt(double(a.m[c]) * a.m[c] + double(a.m[4 + c]) * a.m[4 + c] + double(a.m[8 + c]) * a.m[8 + c]);
+  const double det = determinant(a);
+  if (!(scale > 0) || !(std::fabs(det) > 1e-12 * scale))
+    return fmt::format("transform is singular (determinant {:g})", det);
+  return {};
+}
+
+Affine3 inverse(const Affine3& a) {
+  if (const std::string p = transform_problem(a); !p.empty()) throw Error(ErrorCode::invalid_argument, p);
+  const float* m = a.m;
+  const double det = determinant(a), inv_det = 1.0 / det;
+  double r[9];
+  r[0] = (double(m[5]) * m[10] - double(m[6]) * m[9]) * inv_det;
+  r[1] = (double(m[2]) * m[9] - double(m[1]) * m[10]) * inv_det;
+  r[2] = (double(m[1]) * m[6] - double(m[2]) * m[5]) * inv_det;
+  r[3] = (double(m[6]) * m[8] - double(m[4]) * m[10]) * inv_det;
+  r[4] = (double(m[0]) * m[10] - double(m[2]) * m[8]) * inv_det;
+  r[5] = (double(m[2]) * m[4] - double(m[0]) * m[6]) * inv_det;
+  r[6] = (double(m[4]) * m[9] - double(m[5]) * m[8]) * inv_det;
+  r[7] = (double(m[1]) * m[8] - double(m[0]) * m[9]) * inv_det;
+  r[8] = (double(m[0]) * m[5] - double(m[1]) * m[4]) * inv_det;
+  Affine3 out;
+  for (int i = 0; i < 3; ++i) {
+    double t = 0;
+    for (int k = 0; k < 3; ++k) {
+      out.m[4 * i + k] = float(r[3 * i + k]);
+      t -= r[3 * i + k] * m[4 * k + 3];
+    }
+    out.m[4 * i + 3] = float(t);
+  }
+  return out;
+}
+
+std::vector<Affine3> load_instance_transforms(const std::string& path) {
+  std::ifstream in(path);
+  if (!in) throw Error(ErrorCode::file_not_found, fmt::format("{}: cannot open", path));
+  std::vector<Affine3> out;
+  std::string line;
+  for (int number = 1; std::getline(in, line); ++number) {
+    const size_t first = line.find_first_not_of(" \t\r");
+    if (first == std::string::npos || line[first] == '#') continue;
+    std::istringstream ss(line);
+    float v[7];
+    for (float& x : v)
+      if (!(ss >> x))
+        throw Error(ErrorCode::parse_error, fmt::format("{}:{}: expected 7 numbers 'sx sy sz tx ty tz rot_y_deg'", path, number));
+    std::string extra;
+    if (ss >> extra) throw Error(ErrorCode::parse_error, fmt::format("{}:{}: unexpected '{}' after 7 numbers", path, number, extra));
+    const Affine3 a = Affine3::translation({v[3], v[4], v[5]}) * Affine3::rotation_y(v[6]) * Affine3::scaling({v[0], v[1], v[2]});
+    if (const std::string p = transform_problem(a); !p.empty())
+      throw Error(ErrorCode::invalid_geometry, fmt::format("{}:{}: {}", path, number, p));
+    out.push_back(a);
+  }
+  return out;
+}
+
+// ---- the scene ------------------------------------------------------------------------------
+
+Layout resolve_layout(Layout layout);  // accel.cpp
+
+struct InstancedScene::Impl {
+  struct MeshSlot {
+    bool live = false, built = false, dirty = false;
+    Scene scene;           // one mesh: what build_accel / refit_accel take
+    Accel blas;
+    double sah_built = 0;  // SAH cost right after the last full build
+  };
+  struct InstanceSlot {
+    bool live = false;
+    MeshId mesh = 0;
+    Affine3 transform, inverse;
+    uint32_t mask = 0xFFFFFFFFu;
+  };
+  SceneConfig config;
+  Layout layout = Layout::bvh8;
+  std::vector<MeshSlot> meshes;
+  std::vector<InstanceSlot> instances;
+  // As of the last commit().
+  Buffer<Bvh4Node> tlas4;
+  Buffer<Bvh8Node> tlas8;
+  std::vector<kernels::InstanceData> data;
+
+  MeshSlot& mesh(MeshId id, const char* what) {
+    if (id >= meshes.size() || !meshes[id].live) throw Error(ErrorCode::invalid_argument, fmt::format("{}: no mesh {}", what, id));
+    return meshes[id];
+  }
+  InstanceSlot& instance(InstanceId id, const char* what) {
+    if (id >= instances.size() || !instances[id].live)
+      throw Error(ErrorCode::invalid_argument, fmt::format("{}: no instance {}", what, id));
+    return instances[id];
+  }
+  static void check_transform(InstanceId id, const Affine3& t) {
+    if (const std::string p = transform_problem(t); !p.empty())
+      throw Error(ErrorCode::invalid_argument, fmt::format("instance {}: {}", id, p));
+  }
+  void build_blas(MeshSlot& m) {
+    BuildConfig c = config.blas;
+    c.layout = layout;
+    m.blas = build_accel(m.scene, c);
+    m.sah_built = layout == Layout::bvh4 ? wide_sah_cost(m.blas.bvh4) : wide_sah_cost(m.blas.bvh8);
+    m.built = true;
+    m.dirty = false;
+  }
+  bool empty_tlas() const { return layout == Layout::bvh4 ? tlas4.empty() : tlas8.empty(); }
+};
+
+InstancedScene::InstancedScene(SceneConfig config) : impl_(new Impl) {
+  check_build_config(config.blas);
+  check_build_config(config.tlas);
+  if (!(config.refit_sah_factor >= 1.0f))
+    throw Error(ErrorCode::invalid_argument, fmt::format("SceneConfig: refit_sah_factor = {} must be >= 1", config.refit_sah_factor));
+  config.tlas.max_leaf_size = 1;
+  impl_->config = config;
+  // The TLAS and every BLAS share one width, the kernels' (bvh2 is a reference layout for
+  // single-level accels only).
+  const Layout l = resolve_layout(config.blas.layout);
+  impl_->layout = l == Layout::bvh4 ? Layout::bvh4 : Layout::bvh8;
+}
+
+InstancedScene::~InstancedScene() = default;
+InstancedScene::InstancedScene(InstancedScene&&) noexcept = default;
+InstancedScene& InstancedScene::operator=(InstancedScene&&) noexcept = default;
+
+MeshId InstancedScene::add_mesh(TriangleMesh mesh) {
+  Impl::MeshSlot slot;
+  slot.live = true;
+  slot.dirty = true;
+  slot.scene.meshes.push_back(std::move(mesh));
+  impl_->meshes.push_back(std::move(slot));
+  return MeshId(impl_->meshes.size() - 1);
+}
+
+InstanceId InstancedScene::add_instance(MeshId mesh, const Affine3& transform, uint32_t mask) {
+  impl_->mesh(mesh, "add_instance");
+  const InstanceId id = InstanceId(impl_->instances.size());
+  Impl::check_transform(id, transform);
+  Impl::InstanceSlot slot;
+  slot.live = true;
+  slot.mesh = mesh;
+  slot.transform = transform;
+  slot.inverse = inverse(transform);
+  slot.mask = mask;
+  impl_->instances.push_back(slot);
+  return id;
+}
+
+void InstancedScene::set_transform(InstanceId id, const Affine3& transform) {
+  Impl::InstanceSlot& slot = impl_->instance(id, "set_transform");
+  Impl::check_transform(id, transform);
+  slot.transform = transform;
+  slot.inverse = inverse(transform);
+}
+
+void InstancedScene::set_mask(InstanceId id, uint32_t mask) { impl_->instance(id, "set_mask").mask = mask; }
+
+void InstancedScene::update_vertices(MeshId id, std::span<const Vec3> positions) {
+  Impl::MeshSlot& m = impl_->mesh(id, "update_vertices");
+  std::vector<Vec3>& p = m.scene.meshes[0].positions;
+  if (positions.size() != p.size())
+    throw Error(ErrorCode::invalid_argument,
+                fmt::format("update_vertices: mesh {} has {} vertices, got {}", id, p.size(), positions.size()));
+  std::copy(positions.begin(), positions.end(), p.begin());
+  m.dirty = true;
+}
+
+void InstancedScene::remove_instance(InstanceId id) { impl_->instance(id, "remove_instance").live = false; }
+
+void InstancedScene::remove_mesh(MeshId id) {
+  Impl::MeshSlot& m = impl_->mesh(id, "remove_mesh");
+  for (size_t i = 0; i < impl_->instances.size(); ++i)
+    if (impl_->instances[i].live && impl_->instances[i].mesh == id)
+      throw Error(ErrorCode::invalid_argument, fmt::format("remove_mesh: mesh {} is used by instance {}", id, i));
+  m = Impl::MeshSlot{};
+}
+
+CommitStats InstancedScene::commit() {
+  Impl& s = *impl_;
+  CommitStats stats;
+  Timer total;
+  for (Impl::MeshSlot& m : s.meshes) {
+    if (!m.live || (m.built && !m.dirty)) continue;
+    Timer t;
+    if (!m.built) {
+      s.build_blas(m);
+      stats.blas_build_ms += t.ms();
+      ++stats.blas_builds;
+      continue;
+    }
+    bool rebuild = false;
+    try {
+      refit_accel(m.blas, m.scene);
+      const double sah = s.layout == Layout::bvh4 ? wide_sah_cost(m.blas.bvh4) : wide_sah_cost(m.blas.bvh8);
+      rebuild = sah > double(s.config.refit_sah_factor) * m.sah_built;
+    } catch (const Error&) {
+      rebuild = true;  // a triangle became invalid (or valid): the tree must be rebuilt
+    }
+    if (rebuild) {
+      s.build_blas(m);
+      stats.blas_build_ms += t.ms();
+      ++stats.blas_builds;
+    } else {
+      m.dirty = false;
+      stats.blas_refit_ms += t.ms();
+      ++stats.blas_refits;
+    }
+  }
+  // TLAS over the instances whose mesh has triangles.
+  Timer tt;
+  s.data.clear();
+  Buffer<PrimRef> refs;
+  refs.reserve(s.instances.size());
+  for (size_t i = 0; i < s.instances.size(); ++i) {
+    const Impl::InstanceSlot& inst = s.instances[i];
+    if (!inst.live) continue;
+    const Impl::MeshSlot& m = s.meshes[inst.mesh];
+    if (m.blas.prim_count == 0) continue;
+    const Bounds3& b = m.blas.bounds;
+    Bounds3 w;
+    for (int c = 0; c < 8; ++c) {
+      const Vec3 p = inst.transform.point({c & 1 ? b.hi.x : b.lo.x, c & 2 ? b.hi.y : b.lo.y, c & 4 ? b.hi.z : b.lo.z});
+      w.lo = {std::min(w.lo.x, p.x), std::min(w.lo.y, p.y), std::min(w.lo.z, p.z)};
+      w.hi = {std::max(w.hi.x, p.x), std::max(w.hi.y, p.y), std::max(w.hi.z, p.z)};
+    }
+    PrimRef r;
+    r.lo = w.lo;
+    r.hi = w.hi;
+    r.prim_id = uint32_t(s.data.size());
+    refs.push_back(r);
+    kernels::InstanceData d;
+    std::copy(inst.inverse.m, inst.inverse.m + 12, d.world_to_object);
+    d.mask = inst.mask;
+    d.id = uint32_t(i);
+    if (s.layout == Layout::bvh4) {
+      d.nodes = m.blas.bvh4.nodes.data();
+      d.blocks = m.blas.bvh4.blocks.data();
+    } else {
+      d.nodes = m.blas.bvh8.nodes.data();
+      d.blocks = m.blas.bvh8.blocks.data();
+    }
+    s.data.push_back(d);
+  }
+  const Bvh2 tlas = build_bvh(refs, s.config.tlas);
+  if (s.layout == Layout::bvh4) {
+    s.tlas4 = collapse_instances_bvh4(tlas);
+  } else {
+    s.tlas8 = collapse_instances_bvh8(tlas);
+  }
+  stats.tlas_ms = tt.ms();
+  stats.instances = s.data.size();
+  stats.total_ms = total.ms();
+  return stats;
+}
+
+namespace {
+const kernels::Table& table_of(Isa isa) {
+  switch (isa) {
+    case Isa::avx512: return kernels::table_avx512();
+    case Isa::avx2: return kernels::table_avx2();
+    default: return kernels::table_sse2();
+  }
+}
+
+template <class Out, class Fn>
+void run_traceable(std::span<const Ray> rays, Out* out, Fn&& fn) {
+  size_t i = 0;
+  while (i < rays.size()) {
+    size_t j = i;
+    while (j < rays.size() && is_traceable(rays[j])) ++j;
+    if (j > i) fn(rays.data() + i, out + i, j - i);
+    if (j < rays.size()) out[j] = InstanceHit{};
+    i = j + 1;
+  }
+}
+}  // namespace
+
+void InstancedScene::trace(std::span<const Ray> rays, std::span<InstanceHit> hits, uint32_t ray_mask,
+                           const TraceOptions& options) const {
+  if (rays.size() != hits.size())
+    throw Error(ErrorCode::invalid_argument, fmt::format("trace: {} rays but room for {} hits", rays.size(), hits.size()));
+  const Impl& s = *impl_;
+  const Isa isa = options.isa.value_or(default_isa());
+  if (!isa_supported(isa)) throw Error(ErrorCode::invalid_argument, fmt::format("ISA '{}' is not supported by this CPU", isa_name(isa)));
+  if (s.data.empty() || s.empty_tlas()) {
+    for (InstanceHit& h : hits) h = InstanceHit{};
+    return;
+  }
+  const kernels::Table& k = table_of(isa);
+  const void* tlas = s.layout == Layout::bvh4 ? static_cast<const void*>(s.tlas4.data()) : static_cast<const void*>(s.tlas8.data());
+  const kernels::TlasFn fn = s.layout == Layout::bvh4 ? k.tlas_closest4 : k.tlas_closest8;
+  parallel_for(0, rays.size(), 1024, [&](size_t b, size_t e) {
+    run_traceable(rays.subspan(b, e - b), hits.data() + b,
+                  [&](const Ray* r, InstanceHit* h, size_t n) { fn(tlas, s.data.data(), r, h, n, ray_mask); });
+  });
+}
+
+void InstancedScene::occluded(std::span<const Ray> rays, std::span<uint8_t> out, uint32_t ray_mask,
+                              const TraceOptions& options) const {
+  if (rays.size() != out.size())
+    throw Error(ErrorCode::invalid_argument, fmt::format("occluded: {} rays but room for {} results", rays.size(), out.size()));
+  const Impl& s = *impl_;
+  const Isa isa = options.isa.value_or(default_isa());
+  if (!isa_supported(isa)) throw Error(ErrorCode::invalid_argument, fmt::format("ISA '{}' is not supported by this CPU", isa_name(isa)));
+  if (s.data.empty() || s.empty_tlas()) {
+    std::fill(out.begin(), out.end(), uint8_t(0));
+    return;
+  }
+  const kernels::Table& k = table_of(isa);
+  const void* tlas = s.layout == Layout::bvh4 ? static_cast<const void*>(s.tlas4.data()) : static_cast<const void*>(s.tlas8.data());
+  const kernels::TlasFn fn = s.layout == Layout::bvh4 ? k.tlas_any4 : k.tlas_any8;
+  parallel_for(0, rays.size(), 1024, [&](size_t b, size_t e) {
+    InstanceHit local[256];
+    for (size_t i = b; i < e; i += 256) {
+      const size_t n = std::min<size_t>(256, e - i);
+      run_traceable(rays.subspan(i, n), local, [&](const Ray* r, InstanceHit* h, size_t m) { fn(tlas, s.data.data(), r, h, m, ray_mask); });
+      for (size_t j = 0; j < n; ++j) out[i + j] = local[j].hit();
+    }
+  });
+}
+
+size_t InstancedScene::instance_count() const {
+  size_t n = 0;
+  for (const auto& i : impl_->instances) n += i.live;
+  return n;
+}
+
+size_t InstancedScene::mesh_count() const {
+  size_t n = 0;
+  for (const auto& m : impl_->meshes) n += m.live;
+  return n;
+}
+
+size_t InstancedScene::memory_bytes() const {
+  size_t bytes = impl_->tlas4.size() * sizeof(Bvh4Node) + impl_->tlas8.size() * sizeof(Bvh8Node) +
+                 impl_->data.size() * sizeof(kernels::InstanceData);
+  for (const auto& m : impl_->meshes)
+    if (m.live && m.built) bytes += m.blas.memory_bytes();
+  return bytes;
+}
+
+Scene InstancedScene::flatten() const {
+  Scene out;
+  for (const auto& inst : impl_->instances) {
+    if (!inst.live) continue;
+    TriangleMesh m = impl_->meshes[inst.mesh].scene.meshes[0];
+    for (Vec3& p : m.positions) p = inst.transform.point(p);
+    out.meshes.push_back(std::move(m));
+  }
+  return out;
+}
+
+}  // namespace kestrel

@@ -1,0 +1,332 @@
+// Two-level scenes against their flattened copies (one BVH over world-space triangles), ray
+// by ray; refit against rebuild; transform updates; masks; every bad input.
+#include <gtest/gtest.h>
+
+#include <cmath>
+
+#include "core/vec.h"
+#include "kestrel/error.h"
+#include "kestrel/kestrel.h"
+#include "support/oracles.h"
+
+namespace kestrel {
+namespace {
+
+std::vector<Isa> supported_isas() {
+  std::vector<Isa> out;
+  for (Isa isa : {Isa::sse2, Isa::avx2, Isa::avx512})
+    if (isa_supported(isa)) out.push_back(isa);
+  return out;
+}
+
+// Rays from around the scene towards random points of random triangles (and some towards
+// random points of the box, which may miss).
+std::vector<Ray> rays_through(const Scene& scene, size_t n, uint64_t seed) {
+  test::Rng rng{seed};
+  Bounds3 b;
+  for (const TriangleMesh& m : scene.meshes)
+    for (const Vec3& p : m.positions) {
+      b.lo = {std::min(b.lo.x, p.x), std::min(b.lo.y, p.y), std::min(b.lo.z, p.z)};
+      b.hi = {std::max(b.hi.x, p.x), std::max(b.hi.y, p.y), std::max(b.hi.z, p.z)};
+    }
+  const test::Soup soup = test::flatten(scene);
+  const Vec3 c = (b.lo + b.hi) * 0.5f, e = b.hi - b.lo;
+  const float r = length(e);
+  std::vector<Ray> rays;
+  for (size_t i = 0; i < n; ++i) {
+    const Vec3 o = c + rng.on_sphere() * r;
+    Vec3 target = rng.in_box(b.lo, b.hi);
+    if (i % 4 != 0 && !soup.triangles.empty()) {
+      const Triangle& t = soup.triangles[size_t(rng.uniform() * float(soup.triangles.size())) % soup.triangles.size()];
+      float u = rng.uniform(), v = rng.uniform();
+      if (u + v > 1) u = 1 - u, v = 1 - v;
+      target = t.v0 + (t.v1 - t.v0) * u + (t.v2 - t.v0) * v;
+    }
+    rays.push_back({o, target - o});
+  }
+  return rays;
+}
+
+Bounds3 bounds_of(const Scene& s) {
+  Bounds3 b;
+  for (const TriangleMesh& m : s.meshes)
+    for (const Vec3& p : m.positions) {
+      b.lo = {std::min(b.lo.x, p.x), std::min(b.lo.y, p.y), std::min(b.lo.z, p.z)};
+      b.hi = {std::max(b.hi.x, p.x), std::max(b.hi.y, p.y), std::max(b.hi.z, p.z)};
+    }
+  return b;
+}
+
+struct Fixture {
+  InstancedScene scene;
+  std::vector<TriangleMesh> meshes;
+  std::vector<InstanceId> ids;
+};
+
+// Two meshes (a soup and a closed sphere), six instances with rotations, scales and moves.
+Fixture make_fixture() {
+  Fixture f;
+  f.meshes.push_back(test::random_soup(800, 0.2f, 3).meshes[0]);
+  f.meshes.push_back(test::closed_sphere(2, {0, 0, 0}, 0.5f).meshes[0]);
+  const MeshId a = f.scene.add_mesh(f.meshes[0]);
+  const MeshId b = f.scene.add_mesh(f.meshes[1]);
+  for (int i = 0; i < 6; ++i) {
+    const Affine3 t = Affine3::translation({1.7f * float(i % 3), 0.3f * float(i), 1.5f * float(i / 3)}) *
+                      Affine3::rotation_y(37.0f * float(i)) * Affine3::scaling({1.0f + 0.2f * float(i), 1.0f, 0.8f + 0.1f * float(i)});
+    f.ids.push_back(f.scene.add_instance(i % 2 ? b : a, t));
+  }
+  return f;
+}
+
+// A world-space hit of the flattened scene, as (instance, local prim): flatten() emits one
+// mesh per instance in id order, so global prim ids map back by mesh offsets.
+struct Located {
+  uint32_t instance, prim;
+};
+Located locate(const Scene& flat, uint32_t gid) {
+  uint32_t inst = 0;
+  for (const TriangleMesh& m : flat.meshes) {
+    if (gid < m.triangle_count()) return {inst, gid};
+    gid -= uint32_t(m.triangle_count());
+    ++inst;
+  }
+  return {invalid_id, invalid_id};
+}
+
+void expect_matches_flattened(const InstancedScene& scene, const std::vector<InstanceId>& ids, const std::string& what) {
+  const Scene flat = scene.flatten();
+  BuildConfig c;
+  c.layout = Layout::bvh2;
+  const Accel ref = build_accel(flat, c);
+  const test::Soup soup = test::flatten(flat);
+  const std::vector<Ray> rays = rays_through(flat, 3000, 17);
+  std::vector<Hit> want(rays.size());
+  trace(ref, rays, want);
+  std::vector<uint8_t> want_occ(rays.size());
+  occluded(ref, rays, want_occ);
+  size_t hits = 0, tie_or_edge = 0;
+  for (Isa isa : supported_isas()) {
+    std::vector<InstanceHit> got(rays.size());
+    TraceOptions opt;
+    opt.isa = isa;
+    scene.trace(rays, got, 0xFFFFFFFFu, opt);
+    std::vector<uint8_t> occ(rays.size());
+    scene.occluded(rays, occ, 0xFFFFFFFFu, opt);
+    for (size_t i = 0; i < rays.size(); ++i) {
+      const float scale = std::max(1.0f, std::fabs(want[i].t));
+      if (want[i].hit() != got[i].hit() || occ[i] != want_occ[i]) {
+        // Object-space rays round differently from world-space triangles: only a ray that
+        // grazes an edge may differ. Count them; they must be rare.
+        ++tie_or_edge;
+        continue;
+      }
+      if (!want[i].hit()) continue;
+      ++hits;
+      const Located l = locate(flat, want[i].prim_id);
+      if (ids[l.instance] != got[i].instance_id || l.prim != got[i].prim_id) {
+        // A different triangle: either equally near (two triangles meeting where the ray
+        // passes) or the reference's triangle is hit within rounding of one of its edges,
+        // which the object-space ray may miss (rare; counted below).
+        const float w = 1 - want[i].u - want[i].v;
+        const bool near_edge = std::min({want[i].u, want[i].v, w}) < 1e-3f;
+        if (!near_edge) ASSERT_NEAR(got[i].t, want[i].t, 2e-4f * scale) << what << " ray " << i;
+        ++tie_or_edge;
+        continue;
+      }
+      // Object-space rays and world-space vertices round differently: t agrees to ~1e-5.
+      ASSERT_NEAR(got[i].t, want[i].t, 2e-4f * scale) << what << " ray " << i;
+      // Barycentrics are ill-conditioned for grazing rays; compare them where the ray meets
+      // the triangle at more than ~6 degrees.
+      const Triangle& tri = soup.triangles[want[i].prim_id];
+      const Vec3 n = normalize(cross(tri.v1 - tri.v0, tri.v2 - tri.v0));
+      if (std::fabs(dot(n, normalize(rays[i].dir))) > 0.1f) ASSERT_NEAR(got[i].u, want[i].u, 2e-3f) << what << " ray " << i;
+    }
+  }
+  EXPECT_GT(hits, rays.size() / 10) << what;
+  EXPECT_LE(tie_or_edge, rays.size() / 200 + 2) << what;
+}
+
+TEST(Instances, SameHitsAsTheFlattenedScene) {
+  Fixture f = make_fixture();
+  const CommitStats s = f.scene.commit();
+  EXPECT_EQ(s.blas_builds, 2u);
+  EXPECT_EQ(s.instances, 6u);
+  expect_matches_flattened(f.scene, f.ids, "initial");
+}
+
+TEST(Instances, UpdatingATransformMovesTheHits) {
+  Fixture f = make_fixture();
+  f.scene.commit();
+  // A ray straight at instance 1 (a sphere) hits it; move the instance away: it misses
+  // there and hits at the new place, and the flattened comparison still holds.
+  Scene one;
+  one.meshes.push_back(f.scene.flatten().meshes[1]);
+  const Bounds3 b1 = bounds_of(one);
+  const Vec3 c = (b1.lo + b1.hi) * 0.5f;
+  const Ray ray{{c.x, c.y, c.z - 50}, {0, 0, 1}};
+  std::vector<InstanceHit> h(1);
+  f.scene.trace(std::span(&ray, 1), h);
+  ASSERT_TRUE(h[0].hit());
+  EXPECT_EQ(h[0].instance_id, f.ids[1]);
+  f.scene.set_transform(f.ids[1], Affine3::translation({100, 0, 0}));
+  const CommitStats s = f.scene.commit();
+  EXPECT_EQ(s.blas_builds + s.blas_refits, 0u);  // only the TLAS changed
+  f.scene.trace(std::span(&ray, 1), h);
+  EXPECT_TRUE(!h[0].hit() || h[0].instance_id != f.ids[1]);
+  const Ray there{{100, 0, -50}, {0, 0, 1}};
+  f.scene.trace(std::span(&there, 1), h);
+  ASSERT_TRUE(h[0].hit());
+  EXPECT_EQ(h[0].instance_id, f.ids[1]);
+  EXPECT_NEAR(h[0].t, 50.0f - 0.5f, 0.02f);  // the tessellated sphere of radius 0.5, moved
+  expect_matches_flattened(f.scene, f.ids, "moved");
+}
+
+TEST(Instances, RefitGivesTheSameHitsAsRebuild) {
+  Fixture f = make_fixture();
+  f.scene.commit();
+  std::vector<Vec3> moved = f.meshes[0].positions;
+  for (Vec3& p : moved) p = {p.x + 0.05f * std::sin(6 * p.y), p.y, p.z + 0.05f * std::cos(5 * p.x)};
+  f.scene.update_vertices(0, moved);
+  const CommitStats s = f.scene.commit();
+  EXPECT_EQ(s.blas_refits + s.blas_builds, 1u);
+  EXPECT_EQ(s.blas_refits, 1u) << "a small deformation should refit";
+  // The reference is a fresh BVH over the moved, flattened triangles.
+  expect_matches_flattened(f.scene, f.ids, "refit");
+  // A large deformation crosses the SAH threshold and rebuilds.
+  test::Rng rng{5};
+  for (Vec3& p : moved) p = rng.in_box({-3, -3, -3}, {3, 3, 3});
+  f.scene.update_vertices(0, moved);
+  const CommitStats s2 = f.scene.commit();
+  EXPECT_EQ(s2.blas_builds, 1u);
+  expect_matches_flattened(f.scene, f.ids, "rebuilt");
+}
+
+TEST(Instances, MasksHideInstances) {
+  Fixture f = make_fixture();
+  for (InstanceId id : f.ids) f.scene.set_mask(id, 0x2);
+  f.scene.commit();
+  const std::vector<Ray> rays = rays_through(f.scene.flatten(), 500, 3);
+  std::vector<InstanceHit> h(rays.size());
+  f.scene.trace(rays, h, 0x1);
+  for (const InstanceHit& x : h) EXPECT_FALSE(x.hit());
+  f.scene.trace(rays, h, 0x3);
+  size_t n = 0;
+  for (const InstanceHit& x : h) n += x.hit();
+  EXPECT_GT(n, 50u);
+}
+
+TEST(Instances, RemovedInstancesAndMeshes) {
+  Fixture f = make_fixture();
+  f.scene.remove_instance(f.ids[0]);
+  f.scene.remove_instance(f.ids[2]);
+  f.scene.remove_instance(f.ids[4]);
+  f.scene.commit();
+  EXPECT_EQ(f.scene.instance_count(), 3u);
+  f.scene.remove_mesh(0);  // no instance uses the soup any more
+  EXPECT_EQ(f.scene.mesh_count(), 1u);
+  f.scene.commit();
+  const std::vector<Ray> rays = rays_through(f.scene.flatten(), 500, 4);
+  std::vector<InstanceHit> h(rays.size());
+  f.scene.trace(rays, h);
+  for (const InstanceHit& x : h)
+    if (x.hit()) EXPECT_TRUE(x.instance_id == f.ids[1] || x.instance_id == f.ids[3] || x.instance_id == f.ids[5]);
+}
+
+TEST(Instances, BadInputIsAClearError) {
+  InstancedScene s;
+  const MeshId m = s.add_mesh(test::closed_sphere(1, {0, 0, 0}, 1).meshes[0]);
+  Affine3 nan;
+  nan.m[5] = std::nanf("");
+  auto message = [](auto&& fn) {
+    try {
+      fn();
+    } catch (const Error& e) {
+      return std::string(e.what());
+    }
+    return std::string("no error");
+  };
+  EXPECT_NE(message([&] { s.add_instance(m, nan); }).find("m[5] is nan"), std::string::npos);
+  EXPECT_NE(message([&] { s.add_instance(m, Affine3::scaling({1, 0, 1})); }).find("singular"), std::string::npos);
+  EXPECT_NE(message([&] { s.add_instance(7, Affine3{}); }).find("no mesh 7"), std::string::npos);
+  const InstanceId i = s.add_instance(m, Affine3{});
+  EXPECT_NE(message([&] { s.set_transform(i, Affine3::scaling({0, 0, 0})); }).find("instance 0: transform is singular"),
+            std::string::npos);
+  EXPECT_NE(message([&] { s.set_transform(9, Affine3{}); }).find("no instance 9"), std::string::npos);
+  EXPECT_NE(message([&] { s.update_vertices(m, std::vector<Vec3>(3)); }).find("has 42 vertices, got 3"), std::string::npos);
+  EXPECT_NE(message([&] { s.remove_mesh(m); }).find("used by instance 0"), std::string::npos);
+  std::vector<Ray> rays(2);
+  std::vector<InstanceHit> hits(1);
+  s.commit();
+  EXPECT_THROW(s.trace(rays, hits), Error);
+  // Empty scene and NaN rays: misses.
+  InstancedScene empty;
+  empty.commit();
+  std::vector<InstanceHit> h(2);
+  empty.trace(rays, h);
+  EXPECT_FALSE(h[0].hit());
+  const Ray bad{{std::nanf(""), 0, 0}, {1, 0, 0}};
+  std::vector<InstanceHit> h1(1);
+  s.trace(std::span(&bad, 1), h1);
+  EXPECT_FALSE(h1[0].hit());
+}
+
+TEST(Instances, AffineInverseRoundTrips) {
+  const Affine3 a = Affine3::translation({1, -2, 3}) * Affine3::rotation_y(33) * Affine3::scaling({2, 0.5f, 3});
+  const Affine3 i = inverse(a);
+  test::Rng rng{1};
+  for (int k = 0; k < 100; ++k) {
+    const Vec3 p = rng.in_box({-5, -5, -5}, {5, 5, 5});
+    const Vec3 q = i.point(a.point(p));
+    EXPECT_NEAR(q.x, p.x, 1e-4f);
+    EXPECT_NEAR(q.y, p.y, 1e-4f);
+    EXPECT_NEAR(q.z, p.z, 1e-4f);
+  }
+}
+
+TEST(Instances, BunnyGridInstancesFileLoadsAsSixteenInstancesOfOneMesh) {
+  auto path = test::shared_scene("bunny_grid/bunny_grid.instances.txt");
+  auto bunny = test::shared_scene("stanford_bunny/stanford_bunny.obj");
+  if (!path || !bunny) GTEST_SKIP() << "shared scenes absent";
+  const std::vector<Affine3> t = load_instance_transforms(*path);
+  ASSERT_EQ(t.size(), 16u);
+  InstancedScene s;
+  const MeshId m = s.add_mesh(load_scene(*bunny).meshes[0]);
+  for (const Affine3& a : t) s.add_instance(m, a);
+  const CommitStats stats = s.commit();
+  EXPECT_EQ(stats.blas_builds, 1u);
+  EXPECT_EQ(stats.instances, 16u);
+  // The flattened instances are the bunny grid's OBJ (without its ground quad), vertex for
+  // vertex up to float rounding.
+  const Scene grid = load_scene(*test::shared_scene("bunny_grid/bunny_grid.obj"));
+  const Scene flat = s.flatten();
+  size_t grid_tris = 0;
+  for (const auto& mm : grid.meshes) grid_tris += mm.triangle_count();
+  size_t flat_tris = 0;
+  for (const auto& mm : flat.meshes) flat_tris += mm.triangle_count();
+  ASSERT_EQ(flat_tris + 2, grid_tris);
+  // Copy k of the grid is triangles [69451 k, 69451 (k + 1)): compare every vertex.
+  const test::Soup g = test::flatten(grid), fl = test::flatten(flat);
+  float worst = 0;
+  for (size_t i = 0; i < fl.triangles.size(); ++i) {
+    const Triangle& x = fl.triangles[i];
+    const Triangle& y = g.triangles[i];
+    for (const auto& [p, q] : {std::pair{x.v0, y.v0}, std::pair{x.v1, y.v1}, std::pair{x.v2, y.v2}})
+      worst = std::max({worst, std::fabs(p.x - q.x), std::fabs(p.y - q.y), std::fabs(p.z - q.z)});
+  }
+  EXPECT_LT(worst, 1e-5f);
+}
+
+TEST(Instances, InstanceFileErrorsNameFileAndLine) {
+  const std::string p = test::write_temp_file("bad.instances.txt", "# header\n1 1 1 0 0 0 0\n1 1 1 0 0\n");
+  try {
+    load_instance_transforms(p);
+    FAIL();
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("bad.instances.txt:3"), std::string::npos) << e.what();
+  }
+  const std::string q = test::write_temp_file("sing.instances.txt", "0 1 1 0 0 0 0\n");
+  EXPECT_THROW(load_instance_transforms(q), Error);
+}
+
+}  // namespace
+}  // namespace kestrel
