@@ -156,6 +156,7 @@ struct InstancedScene::Impl {
   Buffer<Bvh4Node> tlas4;
   Buffer<Bvh8Node> tlas8;
   std::vector<kernels::InstanceData> data;
+  Buffer<PrimRef> refs;  // kept between commits: no fresh pages every frame
 
   MeshSlot& mesh(MeshId id, const char* what) {
     if (id >= meshes.size() || !meshes[id].live) throw Error(ErrorCode::invalid_argument, fmt::format("{}: no mesh {}", what, id));
@@ -284,23 +285,33 @@ CommitStats InstancedScene::commit() {
   // TLAS over the instances whose mesh has triangles.
   Timer tt;
   s.data.clear();
-  Buffer<PrimRef> refs;
+  Buffer<PrimRef>& refs = s.refs;
+  refs.clear();
   refs.reserve(s.instances.size());
+  s.data.reserve(s.instances.size());
   for (size_t i = 0; i < s.instances.size(); ++i) {
     const Impl::InstanceSlot& inst = s.instances[i];
     if (!inst.live) continue;
     const Impl::MeshSlot& m = s.meshes[inst.mesh];
     if (m.blas.prim_count == 0) continue;
+    // World box of the transformed object box (Arvo 1990): centre through the transform,
+    // half extent through |M|; widened by a few ulps so rounding never makes it too small.
     const Bounds3& b = m.blas.bounds;
-    Bounds3 w;
-    for (int c = 0; c < 8; ++c) {
-      const Vec3 p = inst.transform.point({c & 1 ? b.hi.x : b.lo.x, c & 2 ? b.hi.y : b.lo.y, c & 4 ? b.hi.z : b.lo.z});
-      w.lo = {std::min(w.lo.x, p.x), std::min(w.lo.y, p.y), std::min(w.lo.z, p.z)};
-      w.hi = {std::max(w.hi.x, p.x), std::max(w.hi.y, p.y), std::max(w.hi.z, p.z)};
+    const float* M = inst.transform.m;
+    const float c[3] = {0.5f * (b.lo.x + b.hi.x), 0.5f * (b.lo.y + b.hi.y), 0.5f * (b.lo.z + b.hi.z)};
+    const float e[3] = {0.5f * (b.hi.x - b.lo.x), 0.5f * (b.hi.y - b.lo.y), 0.5f * (b.hi.z - b.lo.z)};
+    float lo[3], hi[3];
+    for (int r = 0; r < 3; ++r) {
+      const float* row = M + 4 * r;
+      const float wc = row[0] * c[0] + row[1] * c[1] + row[2] * c[2] + row[3];
+      const float we = std::fabs(row[0]) * e[0] + std::fabs(row[1]) * e[1] + std::fabs(row[2]) * e[2];
+      const float pad = 1e-6f * (std::fabs(wc) + we);
+      lo[r] = wc - we - pad;
+      hi[r] = wc + we + pad;
     }
     PrimRef r;
-    r.lo = w.lo;
-    r.hi = w.hi;
+    r.lo = {lo[0], lo[1], lo[2]};
+    r.hi = {hi[0], hi[1], hi[2]};
     r.prim_id = uint32_t(s.data.size());
     refs.push_back(r);
     kernels::InstanceData d;

@@ -2,11 +2,13 @@
 // order (bvh2) or the collapse to a wide layout; refit of an existing Accel.
 #include <fmt/format.h>
 
+#include <algorithm>
 #include <cstring>
 
 #include "core/parallel.h"
 #include "core/timer.h"
 #include "geometry/prim_ref.h"
+#include "core/vec.h"
 #include "kestrel/error.h"
 #include "traverse/traverse_bvh2.h"
 #include "traverse/wide_bvh.h"
@@ -81,24 +83,89 @@ Accel build_accel(const Scene& scene, const BuildConfig& config) {
   return accel;
 }
 
+namespace {
+// Wide layouts: every block lane is re-read from its mesh by prim id and must still be a
+// valid triangle; then the boxes are recomputed bottom-up.
+void refit_blocks(Buffer<TriangleBlock>& blocks, const Scene& scene) {
+  std::vector<size_t> first;
+  size_t offset = 0;
+  for (const TriangleMesh& mesh : scene.meshes) {
+    first.push_back(offset);
+    offset += mesh.triangle_count();
+  }
+  const bool one_mesh = scene.meshes.size() == 1;
+  auto locate = [&](uint32_t id) -> std::pair<const TriangleMesh*, size_t> {
+    const size_t m = one_mesh ? 0 : size_t(std::upper_bound(first.begin(), first.end(), size_t(id)) - first.begin()) - 1;
+    return {&scene.meshes[m], id - first[m]};
+  };
+  // Blocks are in tree order, so the triangles' indices and vertices are read at random:
+  // prefetch the index triples 16 blocks ahead and the vertices 8 blocks ahead.
+  constexpr size_t far = 16, near = 8;
+  for (size_t b = 0; b < blocks.size(); ++b) {
+    if (b + far < blocks.size())
+      for (int lane = 0; lane < 4; ++lane) {
+        auto [mesh, t] = locate(blocks[b + far].prim_id[lane] & ~block_last_bit);
+        if (3 * t + 2 < mesh->indices.size()) __builtin_prefetch(&mesh->indices[3 * t]);
+      }
+    if (b + near < blocks.size())
+      for (int lane = 0; lane < 4; ++lane) {
+        auto [mesh, t] = locate(blocks[b + near].prim_id[lane] & ~block_last_bit);
+        if (3 * t + 2 >= mesh->indices.size()) continue;
+        for (int k = 0; k < 3; ++k) {
+          const uint32_t v = mesh->indices[3 * t + k];
+          if (v < mesh->positions.size()) __builtin_prefetch(&mesh->positions[v]);
+        }
+      }
+    TriangleBlock& blk = blocks[b];
+    for (int lane = 0; lane < 4; ++lane) {
+      const uint32_t id = blk.prim_id[lane] & ~block_last_bit;
+      if (lane > 0 && id == (blk.prim_id[lane - 1] & ~block_last_bit)) {  // padding: repeat the lane
+        for (int k = 0; k < 3; ++k)
+          for (int a = 0; a < 3; ++a) blk.v[k][a][lane] = blk.v[k][a][lane - 1];
+        continue;
+      }
+      const auto [mesh_ptr, t] = locate(id);
+      const TriangleMesh& mesh = *mesh_ptr;
+      // A triangle that became NaN/Inf or lost a vertex cannot stay; one that became
+      // degenerate can (no ray hits it), so only finiteness and indices are checked.
+      const uint32_t* idx = &mesh.indices[3 * t];
+      const size_t nv = mesh.positions.size();
+      if (idx[0] >= nv || idx[1] >= nv || idx[2] >= nv || !is_finite(mesh.positions[idx[0]]) ||
+          !is_finite(mesh.positions[idx[1]]) || !is_finite(mesh.positions[idx[2]]))
+        throw Error(ErrorCode::invalid_argument,
+                    fmt::format("refit: triangle {} is no longer valid (NaN/Inf vertex or bad index); rebuild", id));
+      write_block_lane(blk, lane, {mesh.positions[idx[0]], mesh.positions[idx[1]], mesh.positions[idx[2]]});
+    }
+  }
+}
+}  // namespace
+
 void refit_accel(Accel& accel, const Scene& scene) {
-  SceneValidation now = validate_scene(scene);
-  if (now.valid.size() != accel.validation.valid.size())
+  const size_t count = scene.triangle_count();
+  if (count != accel.validation.valid.size())
     throw Error(ErrorCode::invalid_argument,
-                fmt::format("refit: the scene has {} triangles, the accel was built over {}; rebuild",
-                            now.valid.size(), accel.validation.valid.size()));
-  for (size_t i = 0; i < now.valid.size(); ++i)
-    if (accel.validation.valid[i] && !now.valid[i])
-      throw Error(ErrorCode::invalid_argument,
-                  fmt::format("refit: triangle {} is no longer valid (NaN/Inf, bad index or degenerate); rebuild", i));
-  const Buffer<Triangle> global = gather_triangles(scene, now);
+                fmt::format("refit: the scene has {} triangles, the accel was built over {}; rebuild", count,
+                            accel.validation.valid.size()));
   Bounds3 box;
   switch (accel.layout) {
-    case Layout::bvh4: refit_wide(accel.bvh4, global); break;
-    case Layout::bvh8: refit_wide(accel.bvh8, global); break;
-    default:
+    case Layout::bvh4:
+      refit_blocks(accel.bvh4.blocks, scene);
+      refit_wide_nodes(accel.bvh4);
+      break;
+    case Layout::bvh8:
+      refit_blocks(accel.bvh8.blocks, scene);
+      refit_wide_nodes(accel.bvh8);
+      break;
+    default: {
+      SceneValidation now = validate_scene(scene);
+      for (size_t i = 0; i < now.valid.size(); ++i)
+        if (accel.validation.valid[i] && !now.valid[i])
+          throw Error(ErrorCode::invalid_argument,
+                      fmt::format("refit: triangle {} is no longer valid (NaN/Inf, bad index or degenerate); rebuild", i));
+      const Buffer<Triangle> global = gather_triangles(scene, now);
       for (size_t i = 0; i < accel.triangles.size(); ++i) accel.triangles[i] = global[accel.bvh.prim_ids[i]];
       refit_bvh2(accel.bvh, accel.triangles);
+    }
   }
   // Scene bounds from the refitted root.
   auto grow = [&](float lx, float ly, float lz, float hx, float hy, float hz) {

@@ -4,6 +4,7 @@
 #include <cmath>
 #include <vector>
 
+#include "core/simd/vec4f.h"
 #include "kestrel/error.h"
 
 namespace kestrel {
@@ -207,39 +208,56 @@ void grow(Bounds3& b, const Vec3& p) {
   b.hi = {std::max(b.hi.x, p.x), std::max(b.hi.y, p.y), std::max(b.hi.z, p.z)};
 }
 
+// Min / max over the four lanes of a 128-bit row.
+float hmin(simd::Vec4f v) {
+  v = min(v, simd::Vec4f(_mm_shuffle_ps(v.v, v.v, _MM_SHUFFLE(1, 0, 3, 2))));
+  v = min(v, simd::Vec4f(_mm_shuffle_ps(v.v, v.v, _MM_SHUFFLE(2, 3, 0, 1))));
+  return _mm_cvtss_f32(v.v);
+}
+float hmax(simd::Vec4f v) {
+  v = max(v, simd::Vec4f(_mm_shuffle_ps(v.v, v.v, _MM_SHUFFLE(1, 0, 3, 2))));
+  v = max(v, simd::Vec4f(_mm_shuffle_ps(v.v, v.v, _MM_SHUFFLE(2, 3, 0, 1))));
+  return _mm_cvtss_f32(v.v);
+}
+
 template <int W, class Wide>
-void refit(Wide& bvh, std::span<const Triangle> tris) {
-  for (TriangleBlock& blk : bvh.blocks) {
-    const uint32_t last = blk.prim_id[0] & block_last_bit;
-    for (int lane = 0; lane < 4; ++lane) write_lane(blk, lane, tris[blk.prim_id[lane] & ~block_last_bit], blk.prim_id[lane] & ~block_last_bit);
-    blk.prim_id[0] |= last;
-  }
+void refit_nodes(Wide& bvh) {
+  using simd::Vec4f;
+  const float inf = INFINITY;
   for (size_t i = bvh.nodes.size(); i-- > 0;) {
     auto& node = bvh.nodes[i];
     for (int j = 0; j < W; ++j) {
       const uint32_t ref = node.child[j];
       if (ref == wide_empty) continue;
-      Bounds3 box;
+      float lo[3] = {inf, inf, inf}, hi[3] = {-inf, -inf, -inf};
       if (ref & wide_leaf_bit) {
         for (const TriangleBlock* blk = &bvh.blocks[ref & ~wide_leaf_bit];; ++blk) {
-          for (int k = 0; k < 3; ++k)
-            for (int lane = 0; lane < 4; ++lane) grow(box, {blk->v[k][0][lane], blk->v[k][1][lane], blk->v[k][2][lane]});
+          for (int a = 0; a < 3; ++a) {  // one row per vertex and axis: 4 lanes at once
+            const Vec4f v0 = Vec4f::load(blk->v[0][a]), v1 = Vec4f::load(blk->v[1][a]), v2 = Vec4f::load(blk->v[2][a]);
+            lo[a] = std::min(lo[a], hmin(min(min(v0, v1), v2)));
+            hi[a] = std::max(hi[a], hmax(max(max(v0, v1), v2)));
+          }
           if (blk->prim_id[0] & block_last_bit) break;
         }
       } else {
         const auto& c = bvh.nodes[ref];
-        for (int l = 0; l < W; ++l) {
-          if (c.child[l] == wide_empty) continue;
-          grow(box, {c.bounds[0][l], c.bounds[2][l], c.bounds[4][l]});
-          grow(box, {c.bounds[1][l], c.bounds[3][l], c.bounds[5][l]});
-        }
+        for (int a = 0; a < 3; ++a)
+          for (int l = 0; l < W; l += 4) {  // empty slots hold +inf / -inf: they never win
+            lo[a] = std::min(lo[a], hmin(Vec4f::loadu(&c.bounds[2 * a][l])));
+            hi[a] = std::max(hi[a], hmax(Vec4f::loadu(&c.bounds[2 * a + 1][l])));
+          }
       }
-      set_slot<W>(node, j, box, ref);
+      set_slot<W>(node, j, Bounds3{{lo[0], lo[1], lo[2]}, {hi[0], hi[1], hi[2]}}, ref);
     }
   }
 }
 
 }  // namespace
+
+void write_block_lane(TriangleBlock& b, int lane, const Triangle& t) {
+  const uint32_t id = b.prim_id[lane];
+  write_lane(b, lane, t, id);
+}
 
 Bvh4 collapse_to_bvh4(const Bvh2& bvh, std::span<const Triangle> t, uint32_t max_leaf) {
   return collapse<4, Bvh4Node, Bvh4>(bvh, t, max_leaf);
@@ -247,8 +265,8 @@ Bvh4 collapse_to_bvh4(const Bvh2& bvh, std::span<const Triangle> t, uint32_t max
 Bvh8 collapse_to_bvh8(const Bvh2& bvh, std::span<const Triangle> t, uint32_t max_leaf) {
   return collapse<8, Bvh8Node, Bvh8>(bvh, t, max_leaf);
 }
-void refit_wide(Bvh4& bvh, std::span<const Triangle> t) { refit<4>(bvh, t); }
-void refit_wide(Bvh8& bvh, std::span<const Triangle> t) { refit<8>(bvh, t); }
+void refit_wide_nodes(Bvh4& bvh) { refit_nodes<4>(bvh); }
+void refit_wide_nodes(Bvh8& bvh) { refit_nodes<8>(bvh); }
 
 namespace {
 

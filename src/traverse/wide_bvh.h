@@ -15,10 +15,12 @@ namespace kestrel {
 Bvh4 collapse_to_bvh4(const Bvh2& bvh, std::span<const Triangle> leaf_triangles, uint32_t max_leaf);
 Bvh8 collapse_to_bvh8(const Bvh2& bvh, std::span<const Triangle> leaf_triangles, uint32_t max_leaf);
 
-/// Rewrites the blocks' vertices from triangles[prim_id] (global order) and recomputes every
-/// node box bottom-up (children always follow their parent in the node array).
-void refit_wide(Bvh4& bvh, std::span<const Triangle> triangles);
-void refit_wide(Bvh8& bvh, std::span<const Triangle> triangles);
+/// Writes a triangle's vertices into one lane of a block (its prim id and flags are kept).
+void write_block_lane(TriangleBlock& block, int lane, const Triangle& triangle);
+/// Recomputes every node box bottom-up from the blocks' vertices (children always follow
+/// their parent in the node array).
+void refit_wide_nodes(Bvh4& bvh);
+void refit_wide_nodes(Bvh8& bvh);
 
 /// A wide tree over instances: bvh's leaves hold one primitive each (max_leaf_size = 1), and
 /// become child references wide_leaf_bit | prim_id.
