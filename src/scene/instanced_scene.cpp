@@ -13,6 +13,7 @@
 #include "kestrel/error.h"
 #include "kestrel/instances.h"
 #include "traverse/kernels.h"
+#include "scene/instance_tree.h"
 #include "traverse/wide_bvh.h"
 
 namespace kestrel {
@@ -327,11 +328,19 @@ CommitStats InstancedScene::commit() {
     }
     s.data.push_back(d);
   }
-  const Bvh2 tlas = build_bvh(refs, s.config.tlas);
-  if (s.layout == Layout::bvh4) {
-    s.tlas4 = collapse_instances_bvh4(tlas);
+  if (resolve_builder(s.config.tlas, refs.size()) == Builder::lbvh) {
+    // The default: Morton order straight into wide nodes (instance_tree.h).
+    if (s.layout == Layout::bvh4)
+      build_instance_tree(refs, s.tlas4);
+    else
+      build_instance_tree(refs, s.tlas8);
   } else {
-    s.tlas8 = collapse_instances_bvh8(tlas);
+    // Any other builder: its binary tree, collapsed.
+    const Bvh2 tlas = build_bvh(refs, s.config.tlas);
+    if (s.layout == Layout::bvh4)
+      s.tlas4 = collapse_instances_bvh4(tlas);
+    else
+      s.tlas8 = collapse_instances_bvh8(tlas);
   }
   stats.tlas_ms = tt.ms();
   stats.instances = s.data.size();

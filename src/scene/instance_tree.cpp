@@ -1,0 +1,143 @@
+#include "scene/instance_tree.h"
+
+#include <algorithm>
+#include <cmath>
+
+#include "bvh/radix_sort.h"
+#include "core/raw_array.h"
+
+namespace kestrel {
+
+namespace {
+
+inline uint32_t spread_bits_10(uint32_t x) {
+  x &= 0x3FF;
+  x = (x | (x << 16)) & 0x030000FF;
+  x = (x | (x << 8)) & 0x0300F00F;
+  x = (x | (x << 4)) & 0x030C30C3;
+  x = (x | (x << 2)) & 0x09249249;
+  return x;
+}
+
+template <int W, class Node>
+struct TreeBuilder {
+  std::span<const PrimRef> refs;
+  const uint32_t* keys;
+  const uint32_t* order;
+  Buffer<Node>& nodes;
+
+  // First index in [b, e) whose key differs from keys[b] in the highest bit where keys[b]
+  // and keys[e - 1] differ; the middle when all keys are equal.
+  uint32_t split(uint32_t b, uint32_t e) const {
+    const uint32_t x = keys[b] ^ keys[e - 1];
+    if (x == 0) return b + (e - b) / 2;
+    const uint32_t bit = 31u - uint32_t(__builtin_clz(x));
+    const uint32_t* it = std::partition_point(keys + b, keys + e, [&](uint32_t k) { return !((k >> bit) & 1u); });
+    return uint32_t(it - keys);
+  }
+
+  // Fills node `index` over sorted positions [b, e) (e - b >= 2) and returns its bounds.
+  Bounds3 build(uint32_t index, uint32_t b, uint32_t e) {
+    uint32_t lo[W], hi[W];
+    int parts = 1;
+    lo[0] = b, hi[0] = e;
+    while (parts < W) {
+      int big = -1;
+      uint32_t big_size = 1;
+      for (int i = 0; i < parts; ++i)
+        if (hi[i] - lo[i] > big_size) big = i, big_size = hi[i] - lo[i];
+      if (big < 0) break;
+      const uint32_t m = split(lo[big], hi[big]);
+      lo[parts] = m, hi[parts] = hi[big];
+      hi[big] = m;
+      ++parts;
+    }
+    Node node;
+    Bounds3 total;
+    for (int j = 0; j < W; ++j) {
+      Bounds3 box;
+      uint32_t ref = wide_empty;
+      if (j < parts) {
+        if (hi[j] - lo[j] == 1) {
+          const PrimRef& r = refs[order[lo[j]]];
+          box = {r.lo, r.hi};
+          ref = wide_leaf_bit | r.prim_id;
+        } else {
+          ref = uint32_t(nodes.size());
+          nodes.emplace_back();
+          box = build(ref, lo[j], hi[j]);
+        }
+        total.lo = {std::min(total.lo.x, box.lo.x), std::min(total.lo.y, box.lo.y), std::min(total.lo.z, box.lo.z)};
+        total.hi = {std::max(total.hi.x, box.hi.x), std::max(total.hi.y, box.hi.y), std::max(total.hi.z, box.hi.z)};
+      } else {
+        const float inf = INFINITY;
+        box = {{inf, inf, inf}, {-inf, -inf, -inf}};
+      }
+      node.bounds[0][j] = box.lo.x, node.bounds[1][j] = box.hi.x;
+      node.bounds[2][j] = box.lo.y, node.bounds[3][j] = box.hi.y;
+      node.bounds[4][j] = box.lo.z, node.bounds[5][j] = box.hi.z;
+      node.child[j] = ref;
+    }
+    nodes[index] = node;
+    return total;
+  }
+};
+
+template <int W, class Node>
+void build(std::span<const PrimRef> refs, Buffer<Node>& nodes) {
+  nodes.clear();
+  const size_t n = refs.size();
+  if (n == 0) return;
+  Bounds3 cb;
+  for (const PrimRef& r : refs) {
+    const Vec3 c{r.lo.x + r.hi.x, r.lo.y + r.hi.y, r.lo.z + r.hi.z};
+    cb.lo = {std::min(cb.lo.x, c.x), std::min(cb.lo.y, c.y), std::min(cb.lo.z, c.z)};
+    cb.hi = {std::max(cb.hi.x, c.x), std::max(cb.hi.y, c.y), std::max(cb.hi.z, c.z)};
+  }
+  const float cells = 1024.0f, top = 1023.0f;
+  const Vec3 ext{cb.hi.x - cb.lo.x, cb.hi.y - cb.lo.y, cb.hi.z - cb.lo.z};
+  const Vec3 scale{ext.x > 0 ? cells / ext.x : 0.0f, ext.y > 0 ? cells / ext.y : 0.0f, ext.z > 0 ? cells / ext.z : 0.0f};
+  RawArray<uint32_t> keys(n), order(n);
+  for (size_t i = 0; i < n; ++i) {
+    const PrimRef& r = refs[i];
+    const float qx = std::clamp((r.lo.x + r.hi.x - cb.lo.x) * scale.x, 0.0f, top);
+    const float qy = std::clamp((r.lo.y + r.hi.y - cb.lo.y) * scale.y, 0.0f, top);
+    const float qz = std::clamp((r.lo.z + r.hi.z - cb.lo.z) * scale.z, 0.0f, top);
+    keys[i] = (spread_bits_10(uint32_t(qx)) << 2) | (spread_bits_10(uint32_t(qy)) << 1) | spread_bits_10(uint32_t(qz));
+    order[i] = uint32_t(i);
+  }
+  radix_sort(keys, order, 30);
+  // The refs in Morton order, gathered once in a prefetched loop (the tree build then reads
+  // them sequentially instead of at random).
+  Buffer<PrimRef> sorted(n);
+  for (size_t i = 0; i < n; ++i) {
+    if (i + 16 < n) __builtin_prefetch(&refs[order[i + 16]]);
+    sorted[i] = refs[order[i]];
+    order[i] = uint32_t(i);
+  }
+  nodes.reserve(n / (W - 1) + 2);
+  nodes.emplace_back();
+  TreeBuilder<W, Node> tb{sorted, &keys[0], &order[0], nodes};
+  if (n == 1) {
+    // One instance: the root holds one leaf slot.
+    Node node;
+    const float inf = INFINITY;
+    for (int j = 0; j < W; ++j) {
+      const bool used = j == 0;
+      node.bounds[0][j] = used ? refs[0].lo.x : inf, node.bounds[1][j] = used ? refs[0].hi.x : -inf;
+      node.bounds[2][j] = used ? refs[0].lo.y : inf, node.bounds[3][j] = used ? refs[0].hi.y : -inf;
+      node.bounds[4][j] = used ? refs[0].lo.z : inf, node.bounds[5][j] = used ? refs[0].hi.z : -inf;
+      node.child[j] = used ? (wide_leaf_bit | refs[0].prim_id) : wide_empty;
+    }
+    nodes[0] = node;
+    return;
+  }
+  tb.build(0, 0, uint32_t(n));
+}
+
+}  // namespace
+
+void build_instance_tree(std::span<const PrimRef> refs, Buffer<Bvh4Node>& nodes) { build<4, Bvh4Node>(refs, nodes); }
+void build_instance_tree(std::span<const PrimRef> refs, Buffer<Bvh8Node>& nodes) { build<8, Bvh8Node>(refs, nodes); }
+
+}  // namespace kestrel

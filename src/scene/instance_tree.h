@@ -1,0 +1,18 @@
+// The top-level tree over instances, built directly in the wide layout from Morton order:
+// rebuilt every frame, so its build time is what counts.
+#pragma once
+#include <span>
+
+#include "kestrel/trace.h"
+
+namespace kestrel {
+
+/// A wide tree whose leaves are single instances: child reference wide_leaf_bit | prim_id
+/// of the PrimRef. Instances are sorted by the 30-bit Morton code of their box centre
+/// (radix sort); each node splits its sorted range at the highest differing code bit,
+/// repeatedly splitting its largest part, until it has W parts (as LBVH, Karras 2012, but
+/// emitting wide nodes directly). O(n) after the sort; one thread.
+void build_instance_tree(std::span<const PrimRef> refs, Buffer<Bvh4Node>& nodes);
+void build_instance_tree(std::span<const PrimRef> refs, Buffer<Bvh8Node>& nodes);
+
+}  // namespace kestrel
