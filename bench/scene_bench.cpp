@@ -6,7 +6,9 @@
 //  2. Moving instances: N instances (--instances 10000,100000,1000000) of a few meshes on a
 //     grid, every instance moving every frame: per frame the TLAS rebuild ms and the trace
 //     Mrays/s of primary rays.
-//  3. A deforming mesh (the Lamborghini, all parts as one mesh, a travelling wave): per frame
+//  3. The animated glTF scenes (node animations, morph targets): per frame the pose, TLAS,
+//     BLAS refit / rebuild ms and trace Mrays/s.
+//  4. A deforming mesh (the Lamborghini, all parts as one mesh, a travelling wave): per frame
 //     BLAS refit (or rebuild, when the SAH cost degrades past the threshold) ms.
 // Medians over frames; one thread.
 //
@@ -190,7 +192,49 @@ int main(int argc, char** argv) {
                            n, median_of(update_ms), median_of(tlas_ms), mr));
     }
 
-    // 3. Deforming mesh: refit per frame.
+    // 3. Animated glTF scenes: node animations and morph targets, per frame.
+    for (const char* rel : {"gltf_truck_fleet/truck_fleet.gltf", "gltf_cesium_milk_truck/CesiumMilkTruck.gltf",
+                            "gltf_box_animated/BoxAnimated.gltf", "gltf_animated_morph_cube/AnimatedMorphCube.gltf",
+                            "gltf_morph_stress_test/MorphStressTest.gltf"}) {
+      const std::string path = scene_root + "/" + rel;
+      if (!std::filesystem::exists(path)) continue;
+      GltfInstances anim = GltfInstances::load(path);
+      InstancedScene scene;
+      anim.add_to(scene);
+      scene.commit();
+      const Scene flat = scene.flatten();
+      const auto cam = tools::named_view(flat, "framing");
+      const std::vector<Ray> rays = tools::primary_rays(*cam, width, height);
+      std::vector<InstanceHit> hits(rays.size());
+      std::vector<double> tlas_ms, refit_ms, build_ms, trace_ms, pose_ms;
+      size_t refits = 0, builds = 0;
+      const double dt = anim.duration() > 0 ? anim.duration() / double(frames) : 0.1;
+      for (int f = 1; f <= frames; ++f) {
+        Timer tp;
+        anim.set_time(scene, dt * f);
+        pose_ms.push_back(tp.ms());
+        const CommitStats st = scene.commit();
+        tlas_ms.push_back(st.tlas_ms);
+        if (st.blas_refits) refit_ms.push_back(st.blas_refit_ms);
+        if (st.blas_builds) build_ms.push_back(st.blas_build_ms);
+        refits += st.blas_refits;
+        builds += st.blas_builds;
+        Timer tt;
+        scene.trace(rays, hits);
+        trace_ms.push_back(tt.ms());
+      }
+      const double mr = rays.size() / (median_of(trace_ms) * 1e3);
+      const std::string name = std::filesystem::path(path).stem().string();
+      fmt::print("animated {:<18} {:3} meshes {:4} instances: pose {:6.3f} ms, TLAS {:6.3f} ms, BLAS refits {:3} ({:6.3f} ms), "
+                 "rebuilds {:3} ({:6.2f} ms), trace {:6.2f} Mrays/s\n",
+                 name, anim.mesh_count(), anim.instance_count(), median_of(pose_ms), median_of(tlas_ms), refits, median_of(refit_ms),
+                 builds, median_of(build_ms), mr);
+      json.add(fmt::format("{{\"scene\": \"{}\", \"instances\": {}, \"tlas_ms\": {:.4f}, \"refit_ms\": {:.4f}, \"refits\": {}, "
+                           "\"rebuilds\": {}, \"trace_mrays\": {:.3f}}}",
+                           name, anim.instance_count(), median_of(tlas_ms), median_of(refit_ms), refits, builds, mr));
+    }
+
+    // 4. Deforming mesh: refit per frame.
     const std::string lambo = scene_root + "/lamborghini/lamborghini.obj";
     if (!quick && std::filesystem::exists(lambo)) {
       const TriangleMesh mesh = merge(load_scene(lambo));

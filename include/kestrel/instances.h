@@ -106,6 +106,38 @@ class InstancedScene {
   std::unique_ptr<Impl> impl_;
 };
 
+/// A glTF 2.0 file as a two-level scene: every glTF mesh (its triangle primitives, in object
+/// space) becomes one mesh, every node that references a mesh one instance, placed by the
+/// node hierarchy, so a mesh used by several nodes is built once. One animation clip's node
+/// channels (translation / rotation / scale; LINEAR, STEP and CUBICSPLINE samplers) and
+/// morph-target weights drive set_time(). Skins are not applied (skinned meshes stay in
+/// their bind pose); a morphing mesh follows the weights of the first node using it.
+class GltfInstances {
+ public:
+  /// Throws Error naming the file for an unreadable or inconsistent glTF. `clip`: which
+  /// animation plays (clips may drive the same targets).
+  static GltfInstances load(const std::string& path, size_t clip = 0);
+  ~GltfInstances();
+  GltfInstances(GltfInstances&&) noexcept;
+  GltfInstances& operator=(GltfInstances&&) noexcept;
+
+  size_t mesh_count() const;
+  size_t instance_count() const;
+  /// End of the longest animation channel, seconds (0 when nothing is animated).
+  double duration() const;
+  /// Adds the meshes and instances to a scene, posed at t = 0.
+  void add_to(InstancedScene& scene);
+  /// Poses the scene (added with add_to) at time t, wrapped into [0, duration): transforms
+  /// of animated nodes and their descendants, vertices of meshes whose morph weights move.
+  /// A node scaled to zero hides its instances (mask 0) until it is visible again.
+  void set_time(InstancedScene& scene, double t);
+
+ private:
+  struct Impl;
+  GltfInstances();
+  std::unique_ptr<Impl> impl_;
+};
+
 /// Reads an instances file: '#' comments, then one instance per line,
 /// "sx sy sz tx ty tz rot_y_deg" meaning p_world = R_y(rot_y_deg) * (s * p) + t
 /// (../shared/scenes/bunny_grid/bunny_grid.instances.txt). Errors name the file and line.

@@ -445,11 +445,15 @@ void trace_tlas(const void* tlas_nodes, const InstanceData* instances, const Ray
       Ray local = ray;
       to_object(inst.world_to_object, ray, local);
       if (local.dir.x == 0.0f && local.dir.y == 0.0f && local.dir.z == 0.0f) return false;
-      local.tmax = best.t;
+      // Closest hit: a hit at exactly best.t in another instance is a tie, resolved to the
+      // smaller (instance, prim) like the flattened scene's smallest id, whatever the order.
+      local.tmax = AnyHit ? best.t : __builtin_nextafterf(best.t, __builtin_inff());
       HitStorage storage;
       Hit& h = storage.hit;
       trace_ray<W, AnyHit>(static_cast<const Node*>(inst.nodes), inst.blocks, local, h);
       if (h.prim_id == invalid_id) return false;
+      if (!AnyHit && !(h.t < best.t || (h.t == best.t && best.instance_id != invalid_id && inst.id < best.instance_id)))
+        return false;
       best.t = h.t;
       best.prim_id = h.prim_id;
       best.instance_id = inst.id;
