@@ -59,7 +59,8 @@ Accel build_accel(const Scene& scene, const BuildConfig& config);
 /// Refits an Accel to the scene's current vertex positions (same meshes, same triangles,
 /// moved vertices): boxes are recomputed bottom-up, the tree topology is kept. Throws
 /// Error(invalid_argument) if the triangle count changed or a triangle in the tree got a
-/// NaN/Inf vertex or a bad index (bvh2 layout: also a degenerate one): rebuild instead.
+/// NaN/Inf vertex or a bad index (bvh2 layout: also a degenerate one); the Accel is then
+/// partly refitted and must be rebuilt.
 void refit_accel(Accel& accel, const Scene& scene);
 
 /// Instruction sets with a traversal kernel. sse2 is the x86-64 baseline (always there);

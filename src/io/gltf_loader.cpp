@@ -100,17 +100,9 @@ Scene load_gltf(const std::string& path) {
       mesh.name = gm.name.empty() ? fmt::format("mesh{}", node.mesh) : gm.name;
       bool all_normals = true, all_uvs = true;
       for (const tinygltf::Primitive& prim : gm.primitives) {
-        if (prim.mode != TINYGLTF_MODE_TRIANGLES && prim.mode != -1) continue;  // points/lines/strips skipped
-        auto pos_it = prim.attributes.find("POSITION");
-        if (pos_it == prim.attributes.end()) continue;
-        std::vector<Vec3> positions = reader.read_vec3(pos_it->second);
+        std::vector<Vec3> positions;
         std::vector<uint32_t> indices;
-        if (prim.indices >= 0) {
-          indices = reader.read_indices(prim.indices);
-        } else {
-          indices.resize(positions.size());
-          for (size_t i = 0; i < indices.size(); ++i) indices[i] = uint32_t(i);
-        }
+        if (!reader.read_triangles(prim, positions, indices)) continue;  // points/lines/strips skipped
         std::vector<Vec3> normals;
         std::vector<Vec2> uvs;
         if (auto it = prim.attributes.find("NORMAL"); it != prim.attributes.end()) normals = reader.read_vec3(it->second);

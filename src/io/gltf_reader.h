@@ -131,6 +131,22 @@ struct GltfReader {
     return out;
   }
 
+  // A triangle-list primitive's positions and indices (0, 1, 2, ... when it has none);
+  // false for points / lines / strips and primitives without positions (skipped).
+  bool read_triangles(const tinygltf::Primitive& prim, std::vector<Vec3>& positions, std::vector<uint32_t>& indices) const {
+    if (prim.mode != TINYGLTF_MODE_TRIANGLES && prim.mode != -1) return false;
+    auto pos = prim.attributes.find("POSITION");
+    if (pos == prim.attributes.end()) return false;
+    positions = read_vec3(pos->second);
+    if (prim.indices >= 0) {
+      indices = read_indices(prim.indices);
+    } else {
+      indices.resize(positions.size());
+      for (size_t i = 0; i < indices.size(); ++i) indices[i] = uint32_t(i);
+    }
+    return true;
+  }
+
   std::vector<Vec3> read_vec3(int accessor_index) const {
     size_t count, stride;
     int type;

@@ -150,17 +150,9 @@ GltfInstances GltfInstances::load(const std::string& path, size_t clip) {
     for (const tinygltf::Primitive& p : gm.primitives) target_count = std::max(target_count, p.targets.size());
     mm.targets.resize(target_count);
     for (const tinygltf::Primitive& prim : gm.primitives) {
-      if (prim.mode != TINYGLTF_MODE_TRIANGLES && prim.mode != -1) continue;
-      auto pos = prim.attributes.find("POSITION");
-      if (pos == prim.attributes.end()) continue;
-      const std::vector<Vec3> positions = reader.read_vec3(pos->second);
+      std::vector<Vec3> positions;
       std::vector<uint32_t> indices;
-      if (prim.indices >= 0) {
-        indices = reader.read_indices(prim.indices);
-      } else {
-        indices.resize(positions.size());
-        for (size_t i = 0; i < indices.size(); ++i) indices[i] = uint32_t(i);
-      }
+      if (!reader.read_triangles(prim, positions, indices)) continue;
       const uint32_t base = uint32_t(mm.base.positions.size());
       mm.base.positions.insert(mm.base.positions.end(), positions.begin(), positions.end());
       for (size_t i = 0; i + 2 < indices.size(); i += 3)

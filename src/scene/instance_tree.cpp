@@ -3,21 +3,13 @@
 #include <algorithm>
 #include <cmath>
 
+#include "bvh/morton.h"
 #include "bvh/radix_sort.h"
 #include "core/raw_array.h"
 
 namespace kestrel {
 
 namespace {
-
-inline uint32_t spread_bits_10(uint32_t x) {
-  x &= 0x3FF;
-  x = (x | (x << 16)) & 0x030000FF;
-  x = (x | (x << 8)) & 0x0300F00F;
-  x = (x | (x << 4)) & 0x030C30C3;
-  x = (x | (x << 2)) & 0x09249249;
-  return x;
-}
 
 template <int W, class Node>
 struct TreeBuilder {
@@ -103,7 +95,7 @@ void build(std::span<const PrimRef> refs, Buffer<Node>& nodes) {
     const float qx = std::clamp((r.lo.x + r.hi.x - cb.lo.x) * scale.x, 0.0f, top);
     const float qy = std::clamp((r.lo.y + r.hi.y - cb.lo.y) * scale.y, 0.0f, top);
     const float qz = std::clamp((r.lo.z + r.hi.z - cb.lo.z) * scale.z, 0.0f, top);
-    keys[i] = (spread_bits_10(uint32_t(qx)) << 2) | (spread_bits_10(uint32_t(qy)) << 1) | spread_bits_10(uint32_t(qz));
+    keys[i] = morton30(uint32_t(qx), uint32_t(qy), uint32_t(qz));
     order[i] = uint32_t(i);
   }
   radix_sort(keys, order, 30);

@@ -84,39 +84,18 @@ Accel build_accel(const Scene& scene, const BuildConfig& config) {
 }
 
 namespace {
-// Wide layouts: every block lane is re-read from its mesh by prim id and must still be a
-// valid triangle; then the boxes are recomputed bottom-up.
-void refit_blocks(Buffer<TriangleBlock>& blocks, const Scene& scene) {
-  std::vector<size_t> first;
-  size_t offset = 0;
-  for (const TriangleMesh& mesh : scene.meshes) {
-    first.push_back(offset);
-    offset += mesh.triangle_count();
+// Wide layouts: every block lane is re-read from its mesh by prim id (it must still have
+// finite vertices and valid indices); the boxes are recomputed in the same pass.
+class BlockRewriter {
+ public:
+  explicit BlockRewriter(const Scene& scene) : scene_(scene), one_mesh_(scene.meshes.size() == 1) {
+    size_t offset = 0;
+    for (const TriangleMesh& mesh : scene.meshes) {
+      first_.push_back(offset);
+      offset += mesh.triangle_count();
+    }
   }
-  const bool one_mesh = scene.meshes.size() == 1;
-  auto locate = [&](uint32_t id) -> std::pair<const TriangleMesh*, size_t> {
-    const size_t m = one_mesh ? 0 : size_t(std::upper_bound(first.begin(), first.end(), size_t(id)) - first.begin()) - 1;
-    return {&scene.meshes[m], id - first[m]};
-  };
-  // Blocks are in tree order, so the triangles' indices and vertices are read at random:
-  // prefetch the index triples 16 blocks ahead and the vertices 8 blocks ahead.
-  constexpr size_t far = 16, near = 8;
-  for (size_t b = 0; b < blocks.size(); ++b) {
-    if (b + far < blocks.size())
-      for (int lane = 0; lane < 4; ++lane) {
-        auto [mesh, t] = locate(blocks[b + far].prim_id[lane] & ~block_last_bit);
-        if (3 * t + 2 < mesh->indices.size()) __builtin_prefetch(&mesh->indices[3 * t]);
-      }
-    if (b + near < blocks.size())
-      for (int lane = 0; lane < 4; ++lane) {
-        auto [mesh, t] = locate(blocks[b + near].prim_id[lane] & ~block_last_bit);
-        if (3 * t + 2 >= mesh->indices.size()) continue;
-        for (int k = 0; k < 3; ++k) {
-          const uint32_t v = mesh->indices[3 * t + k];
-          if (v < mesh->positions.size()) __builtin_prefetch(&mesh->positions[v]);
-        }
-      }
-    TriangleBlock& blk = blocks[b];
+  void operator()(TriangleBlock& blk) const {
     for (int lane = 0; lane < 4; ++lane) {
       const uint32_t id = blk.prim_id[lane] & ~block_last_bit;
       if (lane > 0 && id == (blk.prim_id[lane - 1] & ~block_last_bit)) {  // padding: repeat the lane
@@ -124,8 +103,9 @@ void refit_blocks(Buffer<TriangleBlock>& blocks, const Scene& scene) {
           for (int a = 0; a < 3; ++a) blk.v[k][a][lane] = blk.v[k][a][lane - 1];
         continue;
       }
-      const auto [mesh_ptr, t] = locate(id);
-      const TriangleMesh& mesh = *mesh_ptr;
+      const size_t m = one_mesh_ ? 0 : size_t(std::upper_bound(first_.begin(), first_.end(), size_t(id)) - first_.begin()) - 1;
+      const TriangleMesh& mesh = scene_.meshes[m];
+      const size_t t = id - first_[m];
       // A triangle that became NaN/Inf or lost a vertex cannot stay; one that became
       // degenerate can (no ray hits it), so only finiteness and indices are checked.
       const uint32_t* idx = &mesh.indices[3 * t];
@@ -137,7 +117,12 @@ void refit_blocks(Buffer<TriangleBlock>& blocks, const Scene& scene) {
       write_block_lane(blk, lane, {mesh.positions[idx[0]], mesh.positions[idx[1]], mesh.positions[idx[2]]});
     }
   }
-}
+
+ private:
+  const Scene& scene_;
+  bool one_mesh_;
+  std::vector<size_t> first_;
+};
 }  // namespace
 
 void refit_accel(Accel& accel, const Scene& scene) {
@@ -148,14 +133,8 @@ void refit_accel(Accel& accel, const Scene& scene) {
                             accel.validation.valid.size()));
   Bounds3 box;
   switch (accel.layout) {
-    case Layout::bvh4:
-      refit_blocks(accel.bvh4.blocks, scene);
-      refit_wide_nodes(accel.bvh4);
-      break;
-    case Layout::bvh8:
-      refit_blocks(accel.bvh8.blocks, scene);
-      refit_wide_nodes(accel.bvh8);
-      break;
+    case Layout::bvh4: refit_wide(accel.bvh4, BlockRewriter(scene)); break;
+    case Layout::bvh8: refit_wide(accel.bvh8, BlockRewriter(scene)); break;
     default: {
       SceneValidation now = validate_scene(scene);
       for (size_t i = 0; i < now.valid.size(); ++i)

@@ -1,5 +1,6 @@
 // Bvh2 -> Bvh4 / Bvh8 collapse and refit of the wide layouts.
 #pragma once
+#include <functional>
 #include <span>
 
 #include "kestrel/trace.h"
@@ -21,6 +22,9 @@ void write_block_lane(TriangleBlock& block, int lane, const Triangle& triangle);
 /// their parent in the node array).
 void refit_wide_nodes(Bvh4& bvh);
 void refit_wide_nodes(Bvh8& bvh);
+/// The same, calling rewrite(block) on every leaf block first (one pass over the blocks).
+void refit_wide(Bvh4& bvh, const std::function<void(TriangleBlock&)>& rewrite);
+void refit_wide(Bvh8& bvh, const std::function<void(TriangleBlock&)>& rewrite);
 
 /// A wide tree over instances: bvh's leaves hold one primitive each (max_leaf_size = 1), and
 /// become child references wide_leaf_bit | prim_id.

@@ -12,13 +12,6 @@
 namespace kestrel {
 namespace {
 
-std::vector<Isa> supported_isas() {
-  std::vector<Isa> out;
-  for (Isa isa : {Isa::sse2, Isa::avx2, Isa::avx512})
-    if (isa_supported(isa)) out.push_back(isa);
-  return out;
-}
-
 // Rays from around the scene towards random points of random triangles (and some towards
 // random points of the box, which may miss).
 std::vector<Ray> rays_through(const Scene& scene, size_t n, uint64_t seed) {
@@ -105,7 +98,7 @@ void expect_matches_flattened(const InstancedScene& scene, const std::vector<Ins
   std::vector<uint8_t> want_occ(rays.size());
   occluded(ref, rays, want_occ);
   size_t hits = 0, tie_or_edge = 0;
-  for (Isa isa : supported_isas()) {
+  for (Isa isa : test::supported_isas()) {
     std::vector<InstanceHit> got(rays.size());
     TraceOptions opt;
     opt.isa = isa;

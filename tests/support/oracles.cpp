@@ -136,4 +136,11 @@ std::string write_temp_file(const std::string& name, const std::string& contents
   return path;
 }
 
+std::vector<Isa> supported_isas() {
+  std::vector<Isa> out;
+  for (Isa isa : {Isa::sse2, Isa::avx2, Isa::avx512})
+    if (isa_supported(isa)) out.push_back(isa);
+  return out;
+}
+
 }  // namespace kestrel::test

@@ -43,6 +43,9 @@ struct Soup {
 };
 Soup flatten(const Scene& scene);
 
+/// The kernel instruction sets this CPU runs (sse2 always).
+std::vector<Isa> supported_isas();
+
 /// Every builder, for parameterised tests.
 std::vector<Builder> all_builders();
 

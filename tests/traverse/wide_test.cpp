@@ -16,13 +16,6 @@
 namespace kestrel {
 namespace {
 
-std::vector<Isa> supported_isas() {
-  std::vector<Isa> out;
-  for (Isa isa : {Isa::sse2, Isa::avx2, Isa::avx512})
-    if (isa_supported(isa)) out.push_back(isa);
-  return out;
-}
-
 Accel build(const Scene& scene, Builder builder, Layout layout) {
   BuildConfig c;
   c.builder = builder;
@@ -46,7 +39,7 @@ void expect_same_as_reference(const Scene& scene, std::span<const Ray> rays, Bui
   for (const Hit& h : want) hits += h.hit();
   for (Layout layout : {Layout::bvh4, Layout::bvh8}) {
     const Accel wide = build(scene, builder, layout);
-    for (Isa isa : supported_isas()) {
+    for (Isa isa : test::supported_isas()) {
       SCOPED_TRACE(what + " " + layout_name(layout) + " " + isa_name(isa) + " " + builder_name(builder));
       for (bool packets : {false, true}) {
         std::vector<Hit> got(rays.size());
@@ -111,7 +104,7 @@ TEST(WideKernels, UntraceableRaysMissInEveryKernel) {
       {{0.5f, 0.5f, -1}, {0, 0, 1}, 0.0f, nan}};
   for (Layout layout : {Layout::bvh2, Layout::bvh4, Layout::bvh8}) {
     const Accel a = build(scene, Builder::binned, layout);
-    for (Isa isa : supported_isas()) {
+    for (Isa isa : test::supported_isas()) {
       std::vector<Hit> hits(rays.size());
       trace(a, rays, hits, false, TraceOptions{isa, std::nullopt});
       for (const Hit& h : hits) EXPECT_FALSE(h.hit());
