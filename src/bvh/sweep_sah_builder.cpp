@@ -87,7 +87,7 @@ struct SweepBuilder {
 Bvh2 build_sweep_sah(std::span<const PrimRef> refs, const BuildConfig& config) {
   const size_t n = refs.size();
   NodeSlots slots(n);
-  SweepBuilder b{refs, config, slots};
+  SweepBuilder b{refs, config, slots, {}, {}, {}, {}};
   b.goes_left.resize(n);
   b.scratch.resize(n);
   b.right_area.resize(n + 1);

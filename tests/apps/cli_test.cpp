@@ -86,7 +86,9 @@ TEST(Cli, RaysTraceHitsRoundTripMatchesTheLibrary) {
       for (size_t i = 0; i < in.size(); ++i) {
         const Hit h = intersect(accel, in[i]);
         ASSERT_EQ(out[i].hit(), h.hit()) << i;
-        if (h.hit()) ASSERT_EQ(out[i].t, h.t) << i;
+        if (h.hit()) {
+          ASSERT_EQ(out[i].t, h.t) << i;
+        }
       }
     }
     r = run("trace builtin:cornell_box --any-hit --rays " + rays + " --hits " + hits);

@@ -112,7 +112,9 @@ TEST_P(EveryBuilder, RespectsLeafSizeAndCosts) {
   size_t prims = 0;
   for (size_t k = 0; k < m.leaf_size_histogram.size(); ++k) {
     prims += k * m.leaf_size_histogram[k];
-    if (k > 3) EXPECT_EQ(m.leaf_size_histogram[k], 0u);
+    if (k > 3) {
+      EXPECT_EQ(m.leaf_size_histogram[k], 0u);
+    }
   }
   EXPECT_EQ(prims, refs.size());
 }
