@@ -12,6 +12,7 @@
 #include "geometry/triangle_intersect.h"
 #include "kestrel/error.h"
 #include "kestrel/instances.h"
+#include "traverse/batches.h"
 #include "traverse/kernels.h"
 #include "scene/instance_tree.h"
 #include "traverse/wide_bvh.h"
@@ -348,28 +349,6 @@ CommitStats InstancedScene::commit() {
   return stats;
 }
 
-namespace {
-const kernels::Table& table_of(Isa isa) {
-  switch (isa) {
-    case Isa::avx512: return kernels::table_avx512();
-    case Isa::avx2: return kernels::table_avx2();
-    default: return kernels::table_sse2();
-  }
-}
-
-template <class Out, class Fn>
-void run_traceable(std::span<const Ray> rays, Out* out, Fn&& fn) {
-  size_t i = 0;
-  while (i < rays.size()) {
-    size_t j = i;
-    while (j < rays.size() && is_traceable(rays[j])) ++j;
-    if (j > i) fn(rays.data() + i, out + i, j - i);
-    if (j < rays.size()) out[j] = InstanceHit{};
-    i = j + 1;
-  }
-}
-}  // namespace
-
 void InstancedScene::trace(std::span<const Ray> rays, std::span<InstanceHit> hits, uint32_t ray_mask,
                            const TraceOptions& options) const {
   if (rays.size() != hits.size())
@@ -381,11 +360,11 @@ void InstancedScene::trace(std::span<const Ray> rays, std::span<InstanceHit> hit
     for (InstanceHit& h : hits) h = InstanceHit{};
     return;
   }
-  const kernels::Table& k = table_of(isa);
+  const kernels::Table& k = kernels::table_for(isa);
   const void* tlas = s.layout == Layout::bvh4 ? static_cast<const void*>(s.tlas4.data()) : static_cast<const void*>(s.tlas8.data());
   const kernels::TlasFn fn = s.layout == Layout::bvh4 ? k.tlas_closest4 : k.tlas_closest8;
   parallel_for(0, rays.size(), 1024, [&](size_t b, size_t e) {
-    run_traceable(rays.subspan(b, e - b), hits.data() + b,
+    kernels::for_each_traceable_run(rays.subspan(b, e - b), hits.data() + b,
                   [&](const Ray* r, InstanceHit* h, size_t n) { fn(tlas, s.data.data(), r, h, n, ray_mask); });
   });
 }
@@ -401,14 +380,14 @@ void InstancedScene::occluded(std::span<const Ray> rays, std::span<uint8_t> out,
     std::fill(out.begin(), out.end(), uint8_t(0));
     return;
   }
-  const kernels::Table& k = table_of(isa);
+  const kernels::Table& k = kernels::table_for(isa);
   const void* tlas = s.layout == Layout::bvh4 ? static_cast<const void*>(s.tlas4.data()) : static_cast<const void*>(s.tlas8.data());
   const kernels::TlasFn fn = s.layout == Layout::bvh4 ? k.tlas_any4 : k.tlas_any8;
   parallel_for(0, rays.size(), 1024, [&](size_t b, size_t e) {
     InstanceHit local[256];
     for (size_t i = b; i < e; i += 256) {
       const size_t n = std::min<size_t>(256, e - i);
-      run_traceable(rays.subspan(i, n), local, [&](const Ray* r, InstanceHit* h, size_t m) { fn(tlas, s.data.data(), r, h, m, ray_mask); });
+      kernels::for_each_traceable_run(rays.subspan(i, n), local, [&](const Ray* r, InstanceHit* h, size_t m) { fn(tlas, s.data.data(), r, h, m, ray_mask); });
       for (size_t j = 0; j < n; ++j) out[i + j] = local[j].hit();
     }
   });

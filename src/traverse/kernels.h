@@ -39,5 +39,7 @@ struct Table {
 const Table& table_sse2();
 const Table& table_avx2();
 const Table& table_avx512();
+/// The table of an ISA (the caller checks isa_supported).
+const Table& table_for(Isa isa);
 
 }  // namespace kestrel::kernels

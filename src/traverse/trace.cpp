@@ -9,6 +9,7 @@
 #include "core/parallel.h"
 #include "geometry/triangle_intersect.h"
 #include "kestrel/error.h"
+#include "traverse/batches.h"
 #include "traverse/kernels.h"
 #include "traverse/traverse_bvh2.h"
 
@@ -61,14 +62,15 @@ void require_supported(Isa isa) {
                                                          isa_name(isa), isa_name(host_isa())));
 }
 
-const kernels::Table& table_for(Isa isa) {
+}  // namespace
+
+const kernels::Table& kernels::table_for(Isa isa) {
   switch (isa) {
-    case Isa::avx512: return kernels::table_avx512();
-    case Isa::avx2: return kernels::table_avx2();
-    default: return kernels::table_sse2();
+    case Isa::avx512: return table_avx512();
+    case Isa::avx2: return table_avx2();
+    default: return table_sse2();
   }
 }
-}  // namespace
 
 Isa default_isa() {
   int v = g_default_isa.load(std::memory_order_relaxed);
@@ -126,32 +128,18 @@ Hit intersect_bvh2(const Accel& accel, const Ray& ray) {
   return hit;
 }
 
-// Rays that cannot hit (NaN/Inf, zero direction, tmin > tmax) never reach a kernel.
-template <class Fn>
-void run_kernel(std::span<const Ray> rays, std::span<Hit> hits, Fn&& fn) {
-  size_t i = 0;
-  const size_t n = rays.size();
-  while (i < n) {
-    size_t j = i;
-    while (j < n && is_traceable(rays[j])) ++j;
-    if (j > i) fn(rays.data() + i, hits.data() + i, j - i);
-    if (j < n) hits[j] = Hit{};
-    i = j + 1;
-  }
-}
-
 void trace_range(const Accel& accel, std::span<const Ray> rays, std::span<Hit> hits, bool any_hit,
                  const kernels::Table& k, bool packets) {
   switch (accel.layout) {
     case Layout::bvh4:
       if (accel.bvh4.empty()) break;
-      run_kernel(rays, hits, [&](const Ray* r, Hit* h, size_t n) {
+      kernels::for_each_traceable_run(rays, hits.data(), [&](const Ray* r, Hit* h, size_t n) {
         (any_hit ? k.any4 : packets ? k.packet4 : k.closest4)(accel.bvh4.nodes.data(), accel.bvh4.blocks.data(), r, h, n);
       });
       return;
     case Layout::bvh8:
       if (accel.bvh8.empty()) break;
-      run_kernel(rays, hits, [&](const Ray* r, Hit* h, size_t n) {
+      kernels::for_each_traceable_run(rays, hits.data(), [&](const Ray* r, Hit* h, size_t n) {
         (any_hit ? k.any8 : packets ? k.packet8 : k.closest8)(accel.bvh8.nodes.data(), accel.bvh8.blocks.data(), r, h, n);
       });
       return;
@@ -198,13 +186,13 @@ void check_sizes(size_t rays, size_t out) {
 
 Hit intersect(const Accel& accel, const Ray& ray) {
   Hit hit;
-  trace_range(accel, std::span(&ray, 1), std::span(&hit, 1), false, table_for(default_isa()), false);
+  trace_range(accel, std::span(&ray, 1), std::span(&hit, 1), false, kernels::table_for(default_isa()), false);
   return hit;
 }
 
 Hit intersect_any(const Accel& accel, const Ray& ray) {
   Hit hit;
-  trace_range(accel, std::span(&ray, 1), std::span(&hit, 1), true, table_for(default_isa()), false);
+  trace_range(accel, std::span(&ray, 1), std::span(&hit, 1), true, kernels::table_for(default_isa()), false);
   return hit;
 }
 
@@ -213,7 +201,7 @@ void trace(const Accel& accel, std::span<const Ray> rays, std::span<Hit> hits, b
   check_sizes(rays.size(), hits.size());
   const Isa isa = options.isa.value_or(default_isa());
   require_supported(isa);
-  const kernels::Table& k = table_for(isa);
+  const kernels::Table& k = kernels::table_for(isa);
   parallel_for(0, rays.size(), 1024, [&](size_t b, size_t e) {
     const auto chunk = rays.subspan(b, e - b);
     const bool packets = !any_hit && options.packets.value_or(worth_packets(accel) && looks_coherent(chunk));
@@ -229,7 +217,7 @@ void occluded(const Accel& accel, std::span<const Ray> rays, std::span<uint8_t> 
   check_sizes(rays.size(), out.size());
   const Isa isa = options.isa.value_or(default_isa());
   require_supported(isa);
-  const kernels::Table& k = table_for(isa);
+  const kernels::Table& k = kernels::table_for(isa);
   parallel_for(0, rays.size(), 1024, [&](size_t b, size_t e) {
     Hit local[256];
     for (size_t i = b; i < e; i += 256) {
