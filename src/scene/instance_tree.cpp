@@ -76,7 +76,7 @@ struct TreeBuilder {
 };
 
 template <int W, class Node>
-void build(std::span<const PrimRef> refs, Buffer<Node>& nodes) {
+void build(std::span<const PrimRef> refs, Buffer<Node>& nodes, InstanceTreeScratch& scratch) {
   nodes.clear();
   const size_t n = refs.size();
   if (n == 0) return;
@@ -89,7 +89,10 @@ void build(std::span<const PrimRef> refs, Buffer<Node>& nodes) {
   const float cells = 1024.0f, top = 1023.0f;
   const Vec3 ext{cb.hi.x - cb.lo.x, cb.hi.y - cb.lo.y, cb.hi.z - cb.lo.z};
   const Vec3 scale{ext.x > 0 ? cells / ext.x : 0.0f, ext.y > 0 ? cells / ext.y : 0.0f, ext.z > 0 ? cells / ext.z : 0.0f};
-  RawArray<uint32_t> keys(n), order(n);
+  RawArray<uint32_t>& keys = scratch.keys;
+  RawArray<uint32_t>& order = scratch.order;
+  if (keys.size() != n) keys.resize(n);  // the sort takes the whole array
+  if (order.size() != n) order.resize(n);
   for (size_t i = 0; i < n; ++i) {
     const PrimRef& r = refs[i];
     const float qx = std::clamp((r.lo.x + r.hi.x - cb.lo.x) * scale.x, 0.0f, top);
@@ -101,7 +104,8 @@ void build(std::span<const PrimRef> refs, Buffer<Node>& nodes) {
   radix_sort(keys, order, 30);
   // The refs in Morton order, gathered once in a prefetched loop (the tree build then reads
   // them sequentially instead of at random).
-  Buffer<PrimRef> sorted(n);
+  Buffer<PrimRef>& sorted = scratch.sorted;
+  sorted.resize(n);
   for (size_t i = 0; i < n; ++i) {
     if (i + 16 < n) __builtin_prefetch(&refs[order[i + 16]]);
     sorted[i] = refs[order[i]];
@@ -129,7 +133,11 @@ void build(std::span<const PrimRef> refs, Buffer<Node>& nodes) {
 
 }  // namespace
 
-void build_instance_tree(std::span<const PrimRef> refs, Buffer<Bvh4Node>& nodes) { build<4, Bvh4Node>(refs, nodes); }
-void build_instance_tree(std::span<const PrimRef> refs, Buffer<Bvh8Node>& nodes) { build<8, Bvh8Node>(refs, nodes); }
+void build_instance_tree(std::span<const PrimRef> refs, Buffer<Bvh4Node>& nodes, InstanceTreeScratch& scratch) {
+  build<4, Bvh4Node>(refs, nodes, scratch);
+}
+void build_instance_tree(std::span<const PrimRef> refs, Buffer<Bvh8Node>& nodes, InstanceTreeScratch& scratch) {
+  build<8, Bvh8Node>(refs, nodes, scratch);
+}
 
 }  // namespace kestrel

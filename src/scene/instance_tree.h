@@ -3,6 +3,7 @@
 #pragma once
 #include <span>
 
+#include "core/raw_array.h"
 #include "kestrel/trace.h"
 
 namespace kestrel {
@@ -12,7 +13,14 @@ namespace kestrel {
 /// (radix sort); each node splits its sorted range at the highest differing code bit,
 /// repeatedly splitting its largest part, until it has W parts (as LBVH, Karras 2012, but
 /// emitting wide nodes directly). O(n) after the sort; one thread.
-void build_instance_tree(std::span<const PrimRef> refs, Buffer<Bvh4Node>& nodes);
-void build_instance_tree(std::span<const PrimRef> refs, Buffer<Bvh8Node>& nodes);
+/// Working memory kept between builds (a TLAS is rebuilt every frame: fresh pages cost more
+/// than the build).
+struct InstanceTreeScratch {
+  RawArray<uint32_t> keys, order;
+  Buffer<PrimRef> sorted;
+};
+
+void build_instance_tree(std::span<const PrimRef> refs, Buffer<Bvh4Node>& nodes, InstanceTreeScratch& scratch);
+void build_instance_tree(std::span<const PrimRef> refs, Buffer<Bvh8Node>& nodes, InstanceTreeScratch& scratch);
 
 }  // namespace kestrel

@@ -159,6 +159,7 @@ struct InstancedScene::Impl {
   Buffer<Bvh8Node> tlas8;
   std::vector<kernels::InstanceData> data;
   Buffer<PrimRef> refs;  // kept between commits: no fresh pages every frame
+  InstanceTreeScratch tree_scratch;
 
   MeshSlot& mesh(MeshId id, const char* what) {
     if (id >= meshes.size() || !meshes[id].live) throw Error(ErrorCode::invalid_argument, fmt::format("{}: no mesh {}", what, id));
@@ -332,9 +333,9 @@ CommitStats InstancedScene::commit() {
   if (resolve_builder(s.config.tlas, refs.size()) == Builder::lbvh) {
     // The default: Morton order straight into wide nodes (instance_tree.h).
     if (s.layout == Layout::bvh4)
-      build_instance_tree(refs, s.tlas4);
+      build_instance_tree(refs, s.tlas4, s.tree_scratch);
     else
-      build_instance_tree(refs, s.tlas8);
+      build_instance_tree(refs, s.tlas8, s.tree_scratch);
   } else {
     // Any other builder: its binary tree, collapsed.
     const Bvh2 tlas = build_bvh(refs, s.config.tlas);
