@@ -222,7 +222,7 @@ float hmax(simd::Vec4f v) {
 }
 
 template <int W, class Wide>
-void refit_nodes(Wide& bvh, const std::function<void(TriangleBlock&)>* rewrite) {
+void refit_nodes(Wide& bvh, const std::function<void(TriangleBlock&)>& rewrite) {
   using simd::Vec4f;
   const float inf = INFINITY;
   for (size_t i = bvh.nodes.size(); i-- > 0;) {
@@ -233,7 +233,7 @@ void refit_nodes(Wide& bvh, const std::function<void(TriangleBlock&)>* rewrite) 
       float lo[3] = {inf, inf, inf}, hi[3] = {-inf, -inf, -inf};
       if (ref & wide_leaf_bit) {
         for (TriangleBlock* blk = &bvh.blocks[ref & ~wide_leaf_bit];; ++blk) {
-          if (rewrite) (*rewrite)(*blk);  // new vertices, then their box, while the block is hot
+          rewrite(*blk);  // new vertices, then their box, while the block is hot
           for (int a = 0; a < 3; ++a) {  // one row per vertex and axis: 4 lanes at once
             const Vec4f v0 = Vec4f::load(blk->v[0][a]), v1 = Vec4f::load(blk->v[1][a]), v2 = Vec4f::load(blk->v[2][a]);
             lo[a] = std::min(lo[a], hmin(min(min(v0, v1), v2)));
@@ -267,10 +267,8 @@ Bvh4 collapse_to_bvh4(const Bvh2& bvh, std::span<const Triangle> t, uint32_t max
 Bvh8 collapse_to_bvh8(const Bvh2& bvh, std::span<const Triangle> t, uint32_t max_leaf) {
   return collapse<8, Bvh8Node, Bvh8>(bvh, t, max_leaf);
 }
-void refit_wide_nodes(Bvh4& bvh) { refit_nodes<4>(bvh, nullptr); }
-void refit_wide_nodes(Bvh8& bvh) { refit_nodes<8>(bvh, nullptr); }
-void refit_wide(Bvh4& bvh, const std::function<void(TriangleBlock&)>& rewrite) { refit_nodes<4>(bvh, &rewrite); }
-void refit_wide(Bvh8& bvh, const std::function<void(TriangleBlock&)>& rewrite) { refit_nodes<8>(bvh, &rewrite); }
+void refit_wide(Bvh4& bvh, const std::function<void(TriangleBlock&)>& rewrite) { refit_nodes<4>(bvh, rewrite); }
+void refit_wide(Bvh8& bvh, const std::function<void(TriangleBlock&)>& rewrite) { refit_nodes<8>(bvh, rewrite); }
 
 namespace {
 

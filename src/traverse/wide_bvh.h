@@ -18,11 +18,9 @@ Bvh8 collapse_to_bvh8(const Bvh2& bvh, std::span<const Triangle> leaf_triangles,
 
 /// Writes a triangle's vertices into one lane of a block (its prim id and flags are kept).
 void write_block_lane(TriangleBlock& block, int lane, const Triangle& triangle);
-/// Recomputes every node box bottom-up from the blocks' vertices (children always follow
-/// their parent in the node array).
-void refit_wide_nodes(Bvh4& bvh);
-void refit_wide_nodes(Bvh8& bvh);
-/// The same, calling rewrite(block) on every leaf block first (one pass over the blocks).
+/// Recomputes every node box bottom-up (children always follow their parent in the node
+/// array), calling rewrite(block) on every leaf block just before reading its vertices, so
+/// new vertices and new boxes take one pass over the blocks.
 void refit_wide(Bvh4& bvh, const std::function<void(TriangleBlock&)>& rewrite);
 void refit_wide(Bvh8& bvh, const std::function<void(TriangleBlock&)>& rewrite);
 

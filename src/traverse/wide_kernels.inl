@@ -21,8 +21,12 @@
 
 #include "traverse/kernels.h"
 
+// Traversal statistics for experiments: a program that defines KESTREL_TRAVERSAL_STATS, the
+// counters below, and includes this file with its own KESTREL_ISA_NS gets per-thread counts
+// of rays, nodes visited, blocks tested and hit children per node (stat_hist[k] = nodes
+// with k children hit). Off in the library.
 #ifdef KESTREL_TRAVERSAL_STATS
-namespace kestrel::kernels { extern thread_local uint64_t stat_nodes, stat_blocks, stat_lanes_ok, stat_rays, stat_hist[9]; }
+namespace kestrel::kernels { extern thread_local uint64_t stat_nodes, stat_blocks, stat_rays, stat_hist[9]; }
 #define KSTAT(x) (x)
 #else
 #define KSTAT(x) ((void)0)
