@@ -608,9 +608,196 @@ done:
   }
 }
 
+#ifdef __AVX2__
+// Coherent packets, 8 rays in the 8 lanes of every vector: each child box of a node is tested
+// against all rays at once and each triangle of a leaf against all rays at once, so the
+// control flow (which children, in which order, which leaves) is decided once per packet.
+// Needs rays that agree on their direction signs (near planes) and on the watertight test's
+// axis permutation (kx, ky, kz); the caller falls back otherwise. Every per-ray operation is
+// the single-ray kernel's, lane by lane, so the hits are identical.
+inline vf8 splat8(float x) { return Simd<8>::splat(x); }
+inline vi8 select8(vi8 m, vi8 a, vi8 b) { return m != vi8{} ? a : b; }
+inline vf8 select8(vi8 m, vf8 a, vf8 b) { return m != vi8{} ? a : b; }
+
+bool trace_packet8_lanes(const Bvh8Node* nodes, const TriangleBlock* blocks, const Ray* rays, Hit* hits, unsigned n) {
+  TriRay tr[8];
+  for (unsigned r = 0; r < n; ++r) {
+    tr[r].init(rays[r]);
+    if (tr[r].kx != tr[0].kx || tr[r].ky != tr[0].ky || tr[r].kz != tr[0].kz) return false;
+    if (__builtin_signbit(rays[r].dir.x) != __builtin_signbit(rays[0].dir.x) ||
+        __builtin_signbit(rays[r].dir.y) != __builtin_signbit(rays[0].dir.y) ||
+        __builtin_signbit(rays[r].dir.z) != __builtin_signbit(rays[0].dir.z))
+      return false;
+  }
+  alignas(32) float o[3][8], inv[3][8], inv_far[3][8], tmin_a[8], tmax_a[8], sx_a[8], sy_a[8], okx_a[8], oky_a[8], okz_a[8],
+      dkx_a[8], dky_a[8], dkz_a[8];
+  const int kx = tr[0].kx, ky = tr[0].ky, kz = tr[0].kz;
+  for (unsigned l = 0; l < 8; ++l) {
+    const unsigned r = l < n ? l : n - 1;  // idle lanes repeat the last ray, masked out
+    const float d[3] = {rays[r].dir.x, rays[r].dir.y, rays[r].dir.z};
+    const float org[3] = {rays[r].org.x, rays[r].org.y, rays[r].org.z};
+    for (int a = 0; a < 3; ++a) {
+      o[a][l] = org[a];
+      inv[a][l] = 1.0f / d[a];
+      inv_far[a][l] = far_scale(1.0f / d[a]);
+    }
+    tmin_a[l] = rays[r].tmin;
+    tmax_a[l] = rays[r].tmax;
+    sx_a[l] = tr[r].sx, sy_a[l] = tr[r].sy;
+    okx_a[l] = org[kx], oky_a[l] = org[ky], okz_a[l] = org[kz];
+    dkx_a[l] = d[kx], dky_a[l] = d[ky], dkz_a[l] = d[kz];
+  }
+  using S = Simd<8>;
+  const vf8 ox = S::load(o[0]), oy = S::load(o[1]), oz = S::load(o[2]);
+  const vf8 ix = S::load(inv[0]), iy = S::load(inv[1]), iz = S::load(inv[2]);
+  const vf8 fx = S::load(inv_far[0]), fy = S::load(inv_far[1]), fz = S::load(inv_far[2]);
+  const vf8 tmin = S::load(tmin_a), sx = S::load(sx_a), sy = S::load(sy_a);
+  const vf8 okx = S::load(okx_a), oky = S::load(oky_a), okz = S::load(okz_a);
+  const vf8 dkx = S::load(dkx_a), dky = S::load(dky_a), dkz = S::load(dkz_a);
+  const vf8 inf = splat8(__builtin_inff()), zero = {};
+  const vi8 lane_index = {0, 1, 2, 3, 4, 5, 6, 7};
+  vf8 best_t = S::load(tmax_a), best_v = zero, best_w = zero, best_det = splat8(1.0f);
+  vi8 best_id = vi8{} - 1;  // invalid_id in every lane
+  const vf8 scale = splat8(0x1p-12f);
+  auto cull_of = [&](vf8 t) { return t + (t < zero ? -t : t) * scale; };
+  vf8 cull = cull_of(best_t);
+  const int nrx = __builtin_signbit(rays[0].dir.x) ? 1 : 0, nry = 2 + (__builtin_signbit(rays[0].dir.y) ? 1 : 0),
+            nrz = 4 + (__builtin_signbit(rays[0].dir.z) ? 1 : 0);
+  struct Entry {
+    uint32_t ref, rays;
+    float dist;
+  };
+  Entry stack[stack_size<8>];
+  Entry* sp = stack;
+  uint32_t cur = 0;
+  unsigned cur_rays = (1u << n) - 1;
+  while (true) {
+    if (!(cur & wide_leaf_bit)) {
+      const Bvh8Node& node = nodes[cur];
+      const vi8 active = ((vi8{} + int(cur_rays)) >> lane_index & 1) != 0;
+      Entry* base = sp;
+      for (int j = 0; j < 8; ++j) {
+        if (node.child[j] == wide_empty) continue;
+        const vf8 nx = (splat8(node.bounds[nrx][j]) - ox) * ix, ny = (splat8(node.bounds[nry][j]) - oy) * iy,
+                  nz = (splat8(node.bounds[nrz][j]) - oz) * iz;
+        const vf8 gx = (splat8(node.bounds[nrx ^ 1][j]) - ox) * fx, gy = (splat8(node.bounds[nry ^ 1][j]) - oy) * fy,
+                  gz = (splat8(node.bounds[nrz ^ 1][j]) - oz) * fz;
+        const vf8 tn = vmax(nz, vmax(ny, vmax(nx, tmin)));
+        const vf8 tf = vmin(gz, vmin(gy, vmin(gx, cull)));
+        const vi8 hit = (tn <= tf) & active;
+        const unsigned m = S::mask(hit);
+        if (!m) continue;
+        vf8 d = select8(hit, tn, inf);
+        d = vmin(d, __builtin_shufflevector(d, d, 4, 5, 6, 7, 0, 1, 2, 3));
+        d = vmin(d, __builtin_shufflevector(d, d, 2, 3, 0, 1, 6, 7, 4, 5));
+        d = vmin(d, __builtin_shufflevector(d, d, 1, 0, 3, 2, 5, 4, 7, 6));
+        const Entry e{node.child[j], m, d[0]};
+        Entry* k = sp++;  // farthest first: the nearest ends on top
+        for (; k > base && k[-1].dist < e.dist; --k) *k = k[-1];
+        *k = e;
+      }
+      if (sp == base) goto pop;
+      --sp;
+      cur = sp->ref;
+      cur_rays = sp->rays;
+      continue;
+    }
+    {
+      const vi8 active = ((vi8{} + int(cur_rays)) >> lane_index & 1) != 0;
+      for (const TriangleBlock* blk = blocks + (cur & ~wide_leaf_bit);; ++blk) {
+        for (int i = 0; i < 4; ++i) {
+          const vf8 akz = splat8(blk->v[0][kz][i]) - okz, bkz = splat8(blk->v[1][kz][i]) - okz, ckz = splat8(blk->v[2][kz][i]) - okz;
+          const vf8 akx = splat8(blk->v[0][kx][i]) - okx, aky = splat8(blk->v[0][ky][i]) - oky;
+          const vf8 bkx = splat8(blk->v[1][kx][i]) - okx, bky = splat8(blk->v[1][ky][i]) - oky;
+          const vf8 ckx = splat8(blk->v[2][kx][i]) - okx, cky = splat8(blk->v[2][ky][i]) - oky;
+          const vf8 ax = akx - sx * akz, ay = aky - sy * akz;
+          const vf8 bx = bkx - sx * bkz, by = bky - sy * bkz;
+          const vf8 cx = ckx - sx * ckz, cy = cky - sy * ckz;
+          vf8 u = cx * by - cy * bx, v = ax * cy - ay * cx, w = bx * ay - by * ax;
+          vf8 det = u + v + w;
+          vi8 ok;
+          const unsigned slow = S::mask((u == zero) | (v == zero) | (w == zero) | (det != det));
+          if (__builtin_expect(slow == 0, 1)) {
+            const vi8 ui = reinterpret_cast<vi8>(u), vi = reinterpret_cast<vi8>(v), wi = reinterpret_cast<vi8>(w);
+            ok = ((ui ^ vi) | (ui ^ wi)) >= vi8{};
+          } else {
+            unsigned retry = S::mask((u == zero) | (v == zero) | (w == zero));
+            while (retry) {
+              const unsigned l = ctz(retry);
+              retry &= retry - 1;
+              u[l] = float(double(cx[l]) * by[l] - double(cy[l]) * bx[l]);
+              v[l] = float(double(ax[l]) * cy[l] - double(ay[l]) * cx[l]);
+              w[l] = float(double(bx[l]) * ay[l] - double(by[l]) * ax[l]);
+            }
+            const vi8 neg = (u < zero) | (v < zero) | (w < zero);
+            const vi8 pos = (u > zero) | (v > zero) | (w > zero);
+            ok = ~(neg & pos);
+            det = u + v + w;
+          }
+          ok &= (det != zero) & active;
+          if (!S::mask(ok)) continue;
+          const vf8 e10 = bkx - akx, e11 = bky - aky, e12 = bkz - akz;
+          const vf8 e20 = ckx - akx, e21 = cky - aky, e22 = ckz - akz;
+          const vf8 n0 = e11 * e22 - e12 * e21, n1 = e12 * e20 - e10 * e22, n2 = e10 * e21 - e11 * e20;
+          const vf8 ndd = n0 * dkx + n1 * dky + n2 * dkz;
+          const vf8 t = (n0 * akx + n1 * aky + n2 * akz) / ndd;
+          const vi8 id = vi8{} + int(blk->prim_id[i] & ~block_last_bit);
+          // closer(): nearer, or equally near with a smaller id once a hit exists.
+          const vi8 better = ok & (ndd != zero) & (t > tmin) &
+                             ((t < best_t) | ((t == best_t) & (best_id != vi8{} - 1) & (id < best_id)));
+          if (!S::mask(better)) continue;
+          best_t = select8(better, t, best_t);
+          best_id = select8(better, id, best_id);
+          best_v = select8(better, v, best_v);
+          best_w = select8(better, w, best_w);
+          best_det = select8(better, det, best_det);
+        }
+        if (blk->prim_id[0] & block_last_bit) break;
+      }
+      cull = cull_of(best_t);
+    }
+  pop:
+    while (true) {
+      if (sp == stack) goto done;
+      --sp;
+      // Rays whose best hit may lie beyond the entry's nearest point.
+      const unsigned keep = sp->rays & S::mask(splat8(sp->dist) <= cull);
+      if (keep) {
+        cur = sp->ref;
+        cur_rays = keep;
+        break;
+      }
+    }
+  }
+done:
+  for (unsigned r = 0; r < n; ++r) {
+    Hit& hit = hits[r];
+    if (uint32_t(best_id[r]) != invalid_id) {
+      const float inv_det = 1.0f / best_det[r];
+      hit.t = best_t[r];
+      hit.prim_id = uint32_t(best_id[r]);
+      hit.u = best_v[r] * inv_det;
+      hit.v = best_w[r] * inv_det;
+    } else {
+      hit.t = __builtin_inff();
+      hit.prim_id = invalid_id;
+      hit.u = hit.v = 0;
+    }
+  }
+  return true;
+}
+#endif
+
 template <int W, class Node>
 void trace_packets(const Node* nodes, const TriangleBlock* blocks, const Ray* rays, Hit* hits, size_t n) {
-  for (size_t i = 0; i < n; i += 8) trace_packet<W>(nodes, blocks, rays + i, hits + i, unsigned(n - i < 8 ? n - i : 8));
+  for (size_t i = 0; i < n; i += 8) {
+    const unsigned m = unsigned(n - i < 8 ? n - i : 8);
+#ifdef __AVX2__
+    if constexpr (W == 8)
+      if (trace_packet8_lanes(nodes, blocks, rays + i, hits + i, m)) continue;
+#endif
+    trace_packet<W>(nodes, blocks, rays + i, hits + i, m);
+  }
 }
 
 const Table table = {
