@@ -173,11 +173,6 @@ bool looks_coherent(std::span<const Ray> rays) {
   return groups > 0 && coherent * 4 >= groups * 3;
 }
 
-// Packets share traversal; with only a handful of nodes there is none to share.
-bool worth_packets(const Accel& accel) {
-  return accel.layout == Layout::bvh4 ? accel.bvh4.nodes.size() >= 16 : accel.bvh8.nodes.size() >= 16;
-}
-
 void check_sizes(size_t rays, size_t out) {
   if (rays != out)
     throw Error(ErrorCode::invalid_argument, fmt::format("trace: {} rays but room for {} results", rays, out));
@@ -204,7 +199,7 @@ void trace(const Accel& accel, std::span<const Ray> rays, std::span<Hit> hits, b
   const kernels::Table& k = kernels::table_for(isa);
   parallel_for(0, rays.size(), 1024, [&](size_t b, size_t e) {
     const auto chunk = rays.subspan(b, e - b);
-    const bool packets = !any_hit && options.packets.value_or(worth_packets(accel) && looks_coherent(chunk));
+    const bool packets = !any_hit && options.packets.value_or(looks_coherent(chunk));
     trace_range(accel, chunk, hits.subspan(b, e - b), any_hit, k, packets);
   });
 }

@@ -65,6 +65,24 @@ template <> struct Simd<8> {
   }
 };
 
+typedef float vf16 __attribute__((vector_size(64)));
+typedef int32_t vi16 __attribute__((vector_size(64)));
+typedef float vf16u __attribute__((vector_size(64), aligned(4)));
+template <> struct Simd<16> {
+  using F = vf16;
+  using I = vi16;
+  static F load(const float* p) { return *reinterpret_cast<const vf16u*>(p); }
+  static F splat(float x) { return F{} + x; }
+  static unsigned mask(I m) {
+#ifdef __AVX512F__
+    return unsigned(_mm512_cmplt_epi32_mask(reinterpret_cast<__m512i>(m), _mm512_setzero_si512()));
+#else
+    const vi8 lo = __builtin_shufflevector(m, m, 0, 1, 2, 3, 4, 5, 6, 7), hi = __builtin_shufflevector(m, m, 8, 9, 10, 11, 12, 13, 14, 15);
+    return Simd<8>::mask(lo) | Simd<8>::mask(hi) << 8;
+#endif
+  }
+};
+
 // Same semantics as SlabRay::max_keep / min_keep: a NaN candidate keeps the accumulator.
 template <class F> inline F vmax(F candidate, F acc) { return candidate > acc ? candidate : acc; }
 template <class F> inline F vmin(F candidate, F acc) { return candidate < acc ? candidate : acc; }
@@ -609,18 +627,34 @@ done:
 }
 
 #ifdef __AVX2__
-// Coherent packets, 8 rays in the 8 lanes of every vector: each child box of a node is tested
+// Coherent packets, L rays (8, or 16 with AVX-512) in the lanes of every vector: each child box of a node is tested
 // against all rays at once and each triangle of a leaf against all rays at once, so the
 // control flow (which children, in which order, which leaves) is decided once per packet.
 // Needs rays that agree on their direction signs (near planes) and on the watertight test's
 // axis permutation (kx, ky, kz); the caller falls back otherwise. Every per-ray operation is
 // the single-ray kernel's, lane by lane, so the hits are identical.
-inline vf8 splat8(float x) { return Simd<8>::splat(x); }
-inline vi8 select8(vi8 m, vi8 a, vi8 b) { return m != vi8{} ? a : b; }
-inline vf8 select8(vi8 m, vf8 a, vf8 b) { return m != vi8{} ? a : b; }
+template <class V, class M> inline V select_lanes(M m, V a, V b) { return m != M{} ? a : b; }
 
-bool trace_packet8_lanes(const Bvh8Node* nodes, const TriangleBlock* blocks, const Ray* rays, Hit* hits, unsigned n) {
-  TriRay tr[8];
+// Horizontal minimum, broadcast to every lane.
+inline vf8 hmin_lanes(vf8 d) {
+  d = vmin(d, __builtin_shufflevector(d, d, 4, 5, 6, 7, 0, 1, 2, 3));
+  d = vmin(d, __builtin_shufflevector(d, d, 2, 3, 0, 1, 6, 7, 4, 5));
+  return vmin(d, __builtin_shufflevector(d, d, 1, 0, 3, 2, 5, 4, 7, 6));
+}
+inline vf16 hmin_lanes(vf16 d) {
+  d = vmin(d, __builtin_shufflevector(d, d, 8, 9, 10, 11, 12, 13, 14, 15, 0, 1, 2, 3, 4, 5, 6, 7));
+  d = vmin(d, __builtin_shufflevector(d, d, 4, 5, 6, 7, 0, 1, 2, 3, 12, 13, 14, 15, 8, 9, 10, 11));
+  d = vmin(d, __builtin_shufflevector(d, d, 2, 3, 0, 1, 6, 7, 4, 5, 10, 11, 8, 9, 14, 15, 12, 13));
+  return vmin(d, __builtin_shufflevector(d, d, 1, 0, 3, 2, 5, 4, 7, 6, 9, 8, 11, 10, 13, 12, 15, 14));
+}
+
+template <int L>
+bool trace_packet_lanes(const Bvh8Node* nodes, const TriangleBlock* blocks, const Ray* rays, Hit* hits, unsigned n) {
+  using S = Simd<L>;
+  using VF = typename S::F;
+  using VI = typename S::I;
+  const auto bcast = [](float x) { return S::splat(x); };
+  TriRay tr[L];
   for (unsigned r = 0; r < n; ++r) {
     tr[r].init(rays[r]);
     if (tr[r].kx != tr[0].kx || tr[r].ky != tr[0].ky || tr[r].kz != tr[0].kz) return false;
@@ -629,10 +663,10 @@ bool trace_packet8_lanes(const Bvh8Node* nodes, const TriangleBlock* blocks, con
         __builtin_signbit(rays[r].dir.z) != __builtin_signbit(rays[0].dir.z))
       return false;
   }
-  alignas(32) float o[3][8], inv[3][8], inv_far[3][8], tmin_a[8], tmax_a[8], sx_a[8], sy_a[8], okx_a[8], oky_a[8], okz_a[8],
-      dkx_a[8], dky_a[8], dkz_a[8];
+  alignas(64) float o[3][L], inv[3][L], inv_far[3][L], tmin_a[L], tmax_a[L], sx_a[L], sy_a[L], okx_a[L], oky_a[L], okz_a[L],
+      dkx_a[L], dky_a[L], dkz_a[L];
   const int kx = tr[0].kx, ky = tr[0].ky, kz = tr[0].kz;
-  for (unsigned l = 0; l < 8; ++l) {
+  for (unsigned l = 0; l < unsigned(L); ++l) {
     const unsigned r = l < n ? l : n - 1;  // idle lanes repeat the last ray, masked out
     const float d[3] = {rays[r].dir.x, rays[r].dir.y, rays[r].dir.z};
     const float org[3] = {rays[r].org.x, rays[r].org.y, rays[r].org.z};
@@ -647,20 +681,20 @@ bool trace_packet8_lanes(const Bvh8Node* nodes, const TriangleBlock* blocks, con
     okx_a[l] = org[kx], oky_a[l] = org[ky], okz_a[l] = org[kz];
     dkx_a[l] = d[kx], dky_a[l] = d[ky], dkz_a[l] = d[kz];
   }
-  using S = Simd<8>;
-  const vf8 ox = S::load(o[0]), oy = S::load(o[1]), oz = S::load(o[2]);
-  const vf8 ix = S::load(inv[0]), iy = S::load(inv[1]), iz = S::load(inv[2]);
-  const vf8 fx = S::load(inv_far[0]), fy = S::load(inv_far[1]), fz = S::load(inv_far[2]);
-  const vf8 tmin = S::load(tmin_a), sx = S::load(sx_a), sy = S::load(sy_a);
-  const vf8 okx = S::load(okx_a), oky = S::load(oky_a), okz = S::load(okz_a);
-  const vf8 dkx = S::load(dkx_a), dky = S::load(dky_a), dkz = S::load(dkz_a);
-  const vf8 inf = splat8(__builtin_inff()), zero = {};
-  const vi8 lane_index = {0, 1, 2, 3, 4, 5, 6, 7};
-  vf8 best_t = S::load(tmax_a), best_v = zero, best_w = zero, best_det = splat8(1.0f);
-  vi8 best_id = vi8{} - 1;  // invalid_id in every lane
-  const vf8 scale = splat8(0x1p-12f);
-  auto cull_of = [&](vf8 t) { return t + (t < zero ? -t : t) * scale; };
-  vf8 cull = cull_of(best_t);
+  const VF ox = S::load(o[0]), oy = S::load(o[1]), oz = S::load(o[2]);
+  const VF ix = S::load(inv[0]), iy = S::load(inv[1]), iz = S::load(inv[2]);
+  const VF fx = S::load(inv_far[0]), fy = S::load(inv_far[1]), fz = S::load(inv_far[2]);
+  const VF tmin = S::load(tmin_a), sx = S::load(sx_a), sy = S::load(sy_a);
+  const VF okx = S::load(okx_a), oky = S::load(oky_a), okz = S::load(okz_a);
+  const VF dkx = S::load(dkx_a), dky = S::load(dky_a), dkz = S::load(dkz_a);
+  const VF inf = bcast(__builtin_inff()), zero = {};
+  VI lane_index;
+  for (int l = 0; l < L; ++l) lane_index[l] = l;
+  VF best_t = S::load(tmax_a), best_v = zero, best_w = zero, best_det = bcast(1.0f);
+  VI best_id = VI{} - 1;  // invalid_id in every lane
+  const VF scale = bcast(0x1p-12f);
+  auto cull_of = [&](VF t) { return t + (t < zero ? -t : t) * scale; };
+  VF cull = cull_of(best_t);
   const int nrx = __builtin_signbit(rays[0].dir.x) ? 1 : 0, nry = 2 + (__builtin_signbit(rays[0].dir.y) ? 1 : 0),
             nrz = 4 + (__builtin_signbit(rays[0].dir.z) ? 1 : 0);
   struct Entry {
@@ -674,23 +708,20 @@ bool trace_packet8_lanes(const Bvh8Node* nodes, const TriangleBlock* blocks, con
   while (true) {
     if (!(cur & wide_leaf_bit)) {
       const Bvh8Node& node = nodes[cur];
-      const vi8 active = ((vi8{} + int(cur_rays)) >> lane_index & 1) != 0;
+      const VI active = ((VI{} + int(cur_rays)) >> lane_index & 1) != 0;
       Entry* base = sp;
       for (int j = 0; j < 8; ++j) {
         if (node.child[j] == wide_empty) continue;
-        const vf8 nx = (splat8(node.bounds[nrx][j]) - ox) * ix, ny = (splat8(node.bounds[nry][j]) - oy) * iy,
-                  nz = (splat8(node.bounds[nrz][j]) - oz) * iz;
-        const vf8 gx = (splat8(node.bounds[nrx ^ 1][j]) - ox) * fx, gy = (splat8(node.bounds[nry ^ 1][j]) - oy) * fy,
-                  gz = (splat8(node.bounds[nrz ^ 1][j]) - oz) * fz;
-        const vf8 tn = vmax(nz, vmax(ny, vmax(nx, tmin)));
-        const vf8 tf = vmin(gz, vmin(gy, vmin(gx, cull)));
-        const vi8 hit = (tn <= tf) & active;
+        const VF nx = (bcast(node.bounds[nrx][j]) - ox) * ix, ny = (bcast(node.bounds[nry][j]) - oy) * iy,
+                  nz = (bcast(node.bounds[nrz][j]) - oz) * iz;
+        const VF gx = (bcast(node.bounds[nrx ^ 1][j]) - ox) * fx, gy = (bcast(node.bounds[nry ^ 1][j]) - oy) * fy,
+                  gz = (bcast(node.bounds[nrz ^ 1][j]) - oz) * fz;
+        const VF tn = vmax(nz, vmax(ny, vmax(nx, tmin)));
+        const VF tf = vmin(gz, vmin(gy, vmin(gx, cull)));
+        const VI hit = (tn <= tf) & active;
         const unsigned m = S::mask(hit);
         if (!m) continue;
-        vf8 d = select8(hit, tn, inf);
-        d = vmin(d, __builtin_shufflevector(d, d, 4, 5, 6, 7, 0, 1, 2, 3));
-        d = vmin(d, __builtin_shufflevector(d, d, 2, 3, 0, 1, 6, 7, 4, 5));
-        d = vmin(d, __builtin_shufflevector(d, d, 1, 0, 3, 2, 5, 4, 7, 6));
+        const VF d = hmin_lanes(select_lanes(hit, tn, inf));
         const Entry e{node.child[j], m, d[0]};
         Entry* k = sp++;  // farthest first: the nearest ends on top
         for (; k > base && k[-1].dist < e.dist; --k) *k = k[-1];
@@ -703,23 +734,23 @@ bool trace_packet8_lanes(const Bvh8Node* nodes, const TriangleBlock* blocks, con
       continue;
     }
     {
-      const vi8 active = ((vi8{} + int(cur_rays)) >> lane_index & 1) != 0;
+      const VI active = ((VI{} + int(cur_rays)) >> lane_index & 1) != 0;
       for (const TriangleBlock* blk = blocks + (cur & ~wide_leaf_bit);; ++blk) {
         for (int i = 0; i < 4; ++i) {
-          const vf8 akz = splat8(blk->v[0][kz][i]) - okz, bkz = splat8(blk->v[1][kz][i]) - okz, ckz = splat8(blk->v[2][kz][i]) - okz;
-          const vf8 akx = splat8(blk->v[0][kx][i]) - okx, aky = splat8(blk->v[0][ky][i]) - oky;
-          const vf8 bkx = splat8(blk->v[1][kx][i]) - okx, bky = splat8(blk->v[1][ky][i]) - oky;
-          const vf8 ckx = splat8(blk->v[2][kx][i]) - okx, cky = splat8(blk->v[2][ky][i]) - oky;
-          const vf8 ax = akx - sx * akz, ay = aky - sy * akz;
-          const vf8 bx = bkx - sx * bkz, by = bky - sy * bkz;
-          const vf8 cx = ckx - sx * ckz, cy = cky - sy * ckz;
-          vf8 u = cx * by - cy * bx, v = ax * cy - ay * cx, w = bx * ay - by * ax;
-          vf8 det = u + v + w;
-          vi8 ok;
+          const VF akz = bcast(blk->v[0][kz][i]) - okz, bkz = bcast(blk->v[1][kz][i]) - okz, ckz = bcast(blk->v[2][kz][i]) - okz;
+          const VF akx = bcast(blk->v[0][kx][i]) - okx, aky = bcast(blk->v[0][ky][i]) - oky;
+          const VF bkx = bcast(blk->v[1][kx][i]) - okx, bky = bcast(blk->v[1][ky][i]) - oky;
+          const VF ckx = bcast(blk->v[2][kx][i]) - okx, cky = bcast(blk->v[2][ky][i]) - oky;
+          const VF ax = akx - sx * akz, ay = aky - sy * akz;
+          const VF bx = bkx - sx * bkz, by = bky - sy * bkz;
+          const VF cx = ckx - sx * ckz, cy = cky - sy * ckz;
+          VF u = cx * by - cy * bx, v = ax * cy - ay * cx, w = bx * ay - by * ax;
+          VF det = u + v + w;
+          VI ok;
           const unsigned slow = S::mask((u == zero) | (v == zero) | (w == zero) | (det != det));
           if (__builtin_expect(slow == 0, 1)) {
-            const vi8 ui = reinterpret_cast<vi8>(u), vi = reinterpret_cast<vi8>(v), wi = reinterpret_cast<vi8>(w);
-            ok = ((ui ^ vi) | (ui ^ wi)) >= vi8{};
+            const VI ui = reinterpret_cast<VI>(u), vi = reinterpret_cast<VI>(v), wi = reinterpret_cast<VI>(w);
+            ok = ((ui ^ vi) | (ui ^ wi)) >= VI{};
           } else {
             unsigned retry = S::mask((u == zero) | (v == zero) | (w == zero));
             while (retry) {
@@ -729,28 +760,28 @@ bool trace_packet8_lanes(const Bvh8Node* nodes, const TriangleBlock* blocks, con
               v[l] = float(double(ax[l]) * cy[l] - double(ay[l]) * cx[l]);
               w[l] = float(double(bx[l]) * ay[l] - double(by[l]) * ax[l]);
             }
-            const vi8 neg = (u < zero) | (v < zero) | (w < zero);
-            const vi8 pos = (u > zero) | (v > zero) | (w > zero);
+            const VI neg = (u < zero) | (v < zero) | (w < zero);
+            const VI pos = (u > zero) | (v > zero) | (w > zero);
             ok = ~(neg & pos);
             det = u + v + w;
           }
           ok &= (det != zero) & active;
           if (!S::mask(ok)) continue;
-          const vf8 e10 = bkx - akx, e11 = bky - aky, e12 = bkz - akz;
-          const vf8 e20 = ckx - akx, e21 = cky - aky, e22 = ckz - akz;
-          const vf8 n0 = e11 * e22 - e12 * e21, n1 = e12 * e20 - e10 * e22, n2 = e10 * e21 - e11 * e20;
-          const vf8 ndd = n0 * dkx + n1 * dky + n2 * dkz;
-          const vf8 t = (n0 * akx + n1 * aky + n2 * akz) / ndd;
-          const vi8 id = vi8{} + int(blk->prim_id[i] & ~block_last_bit);
+          const VF e10 = bkx - akx, e11 = bky - aky, e12 = bkz - akz;
+          const VF e20 = ckx - akx, e21 = cky - aky, e22 = ckz - akz;
+          const VF n0 = e11 * e22 - e12 * e21, n1 = e12 * e20 - e10 * e22, n2 = e10 * e21 - e11 * e20;
+          const VF ndd = n0 * dkx + n1 * dky + n2 * dkz;
+          const VF t = (n0 * akx + n1 * aky + n2 * akz) / ndd;
+          const VI id = VI{} + int(blk->prim_id[i] & ~block_last_bit);
           // closer(): nearer, or equally near with a smaller id once a hit exists.
-          const vi8 better = ok & (ndd != zero) & (t > tmin) &
-                             ((t < best_t) | ((t == best_t) & (best_id != vi8{} - 1) & (id < best_id)));
+          const VI better = ok & (ndd != zero) & (t > tmin) &
+                             ((t < best_t) | ((t == best_t) & (best_id != VI{} - 1) & (id < best_id)));
           if (!S::mask(better)) continue;
-          best_t = select8(better, t, best_t);
-          best_id = select8(better, id, best_id);
-          best_v = select8(better, v, best_v);
-          best_w = select8(better, w, best_w);
-          best_det = select8(better, det, best_det);
+          best_t = select_lanes(better, t, best_t);
+          best_id = select_lanes(better, id, best_id);
+          best_v = select_lanes(better, v, best_v);
+          best_w = select_lanes(better, w, best_w);
+          best_det = select_lanes(better, det, best_det);
         }
         if (blk->prim_id[0] & block_last_bit) break;
       }
@@ -761,7 +792,7 @@ bool trace_packet8_lanes(const Bvh8Node* nodes, const TriangleBlock* blocks, con
       if (sp == stack) goto done;
       --sp;
       // Rays whose best hit may lie beyond the entry's nearest point.
-      const unsigned keep = sp->rays & S::mask(splat8(sp->dist) <= cull);
+      const unsigned keep = sp->rays & S::mask(bcast(sp->dist) <= cull);
       if (keep) {
         cur = sp->ref;
         cur_rays = keep;
@@ -788,16 +819,25 @@ done:
 }
 #endif
 
+#ifdef __AVX512F__
+constexpr int packet_lanes = 16;  // one zmm per ray quantity
+#else
+constexpr int packet_lanes = 8;
+#endif
+
 template <int W, class Node>
 void trace_packets(const Node* nodes, const TriangleBlock* blocks, const Ray* rays, Hit* hits, size_t n) {
-  for (size_t i = 0; i < n; i += 8) {
-    const unsigned m = unsigned(n - i < 8 ? n - i : 8);
 #ifdef __AVX2__
-    if constexpr (W == 8)
-      if (trace_packet8_lanes(nodes, blocks, rays + i, hits + i, m)) continue;
-#endif
-    trace_packet<W>(nodes, blocks, rays + i, hits + i, m);
+  if constexpr (W == 8) {
+    for (size_t i = 0; i < n; i += packet_lanes) {
+      const unsigned m = unsigned(n - i < size_t(packet_lanes) ? n - i : size_t(packet_lanes));
+      if (trace_packet_lanes<packet_lanes>(nodes, blocks, rays + i, hits + i, m)) continue;
+      for (unsigned k = 0; k < m; k += 8) trace_packet<W>(nodes, blocks, rays + i + k, hits + i + k, m - k < 8 ? m - k : 8);
+    }
+    return;
   }
+#endif
+  for (size_t i = 0; i < n; i += 8) trace_packet<W>(nodes, blocks, rays + i, hits + i, unsigned(n - i < 8 ? n - i : 8));
 }
 
 const Table table = {
