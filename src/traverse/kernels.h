@@ -32,7 +32,7 @@ using TlasFn = void (*)(const void* tlas_nodes, const InstanceData* instances, c
 
 struct Table {
   Bvh4Fn closest4, any4, packet4;
-  Bvh8Fn closest8, any8, packet8;  ///< packet*: closest hit, rays in packets of 8 (any n)
+  Bvh8Fn closest8, any8, packet8;  ///< packet*: closest hit, coherent rays in packets (any n)
   TlasFn tlas_closest4, tlas_any4, tlas_closest8, tlas_any8;
 };
 
