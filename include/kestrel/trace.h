@@ -81,8 +81,9 @@ void set_default_isa(Isa isa);
 /// Per-call choices; empty means the default (the fastest for the machine and ray kind).
 struct TraceOptions {
   std::optional<Isa> isa;
-  /// Coherent-ray packets (closest hit, wide layouts). Default: used for chunks of rays
-  /// that look like camera rays (groups of 8 with one origin and one direction octant).
+  /// Coherent-ray packets (wide layouts; closest and any hit). Default: used for chunks of
+  /// rays that look coherent (groups of 8 whose directions share signs and dominant axis:
+  /// camera rays, shadow rays towards one light).
   std::optional<bool> packets;
 };
 

@@ -34,6 +34,8 @@ struct Table {
   Bvh4Fn closest4, any4, packet4;
   Bvh8Fn closest8, any8, packet8;  ///< packet*: closest hit, coherent rays in packets (any n)
   TlasFn tlas_closest4, tlas_any4, tlas_closest8, tlas_any8;
+  Bvh4Fn any_packet4;
+  Bvh8Fn any_packet8;  ///< any hit, coherent rays in packets (any n)
 };
 
 const Table& table_sse2();

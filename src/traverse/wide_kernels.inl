@@ -648,7 +648,9 @@ inline vf16 hmin_lanes(vf16 d) {
   return vmin(d, __builtin_shufflevector(d, d, 1, 0, 3, 2, 5, 4, 7, 6, 9, 8, 11, 10, 13, 12, 15, 14));
 }
 
-template <int L>
+// AnyHit: occlusion; a lane leaves the packet at its first hit (t < tmax), children are not
+// sorted, and the packet ends when every lane is done.
+template <int L, bool AnyHit>
 bool trace_packet_lanes(const Bvh8Node* nodes, const TriangleBlock* blocks, const Ray* rays, Hit* hits, unsigned n) {
   using S = Simd<L>;
   using VF = typename S::F;
@@ -694,7 +696,8 @@ bool trace_packet_lanes(const Bvh8Node* nodes, const TriangleBlock* blocks, cons
   VI best_id = VI{} - 1;  // invalid_id in every lane
   const VF scale = bcast(0x1p-12f);
   auto cull_of = [&](VF t) { return t + (t < zero ? -t : t) * scale; };
-  VF cull = cull_of(best_t);
+  VF cull = AnyHit ? best_t : cull_of(best_t);  // any hit: the ray's own tmax, as the single-ray kernel
+  unsigned done = 0;                             // any hit: lanes that found their hit
   const int nrx = __builtin_signbit(rays[0].dir.x) ? 1 : 0, nry = 2 + (__builtin_signbit(rays[0].dir.y) ? 1 : 0),
             nrz = 4 + (__builtin_signbit(rays[0].dir.z) ? 1 : 0);
   struct Entry {
@@ -708,6 +711,7 @@ bool trace_packet_lanes(const Bvh8Node* nodes, const TriangleBlock* blocks, cons
   while (true) {
     if (!(cur & wide_leaf_bit)) {
       const Bvh8Node& node = nodes[cur];
+      cur_rays &= ~done;
       const VI active = ((VI{} + int(cur_rays)) >> lane_index & 1) != 0;
       Entry* base = sp;
       for (int j = 0; j < 8; ++j) {
@@ -721,6 +725,10 @@ bool trace_packet_lanes(const Bvh8Node* nodes, const TriangleBlock* blocks, cons
         const VI hit = (tn <= tf) & active;
         const unsigned m = S::mask(hit);
         if (!m) continue;
+        if constexpr (AnyHit) {
+          *sp++ = {node.child[j], m, 0.0f};
+          continue;
+        }
         const VF d = hmin_lanes(select_lanes(hit, tn, inf));
         const Entry e{node.child[j], m, d[0]};
         Entry* k = sp++;  // farthest first: the nearest ends on top
@@ -734,6 +742,7 @@ bool trace_packet_lanes(const Bvh8Node* nodes, const TriangleBlock* blocks, cons
       continue;
     }
     {
+      cur_rays &= ~done;
       const VI active = ((VI{} + int(cur_rays)) >> lane_index & 1) != 0;
       for (const TriangleBlock* blk = blocks + (cur & ~wide_leaf_bit);; ++blk) {
         for (int i = 0; i < 4; ++i) {
@@ -773,6 +782,15 @@ bool trace_packet_lanes(const Bvh8Node* nodes, const TriangleBlock* blocks, cons
           const VF ndd = n0 * dkx + n1 * dky + n2 * dkz;
           const VF t = (n0 * akx + n1 * aky + n2 * akz) / ndd;
           const VI id = VI{} + int(blk->prim_id[i] & ~block_last_bit);
+          if constexpr (AnyHit) {
+            const VI found = ok & (ndd != zero) & (t > tmin) & (t < best_t) & (best_id == VI{} - 1);
+            const unsigned f = S::mask(found);
+            if (!f) continue;
+            best_t = select_lanes(found, t, best_t);
+            best_id = select_lanes(found, id, best_id);
+            done |= f;
+            continue;
+          }
           // closer(): nearer, or equally near with a smaller id once a hit exists.
           const VI better = ok & (ndd != zero) & (t > tmin) &
                              ((t < best_t) | ((t == best_t) & (best_id != VI{} - 1) & (id < best_id)));
@@ -785,14 +803,14 @@ bool trace_packet_lanes(const Bvh8Node* nodes, const TriangleBlock* blocks, cons
         }
         if (blk->prim_id[0] & block_last_bit) break;
       }
-      cull = cull_of(best_t);
+      if (!AnyHit) cull = cull_of(best_t);
     }
   pop:
     while (true) {
-      if (sp == stack) goto done;
+      if (sp == stack || (AnyHit && done == (1u << n) - 1)) goto finish;
       --sp;
-      // Rays whose best hit may lie beyond the entry's nearest point.
-      const unsigned keep = sp->rays & S::mask(bcast(sp->dist) <= cull);
+      // Rays whose best hit may lie beyond the entry's nearest point (any hit: not done).
+      const unsigned keep = AnyHit ? sp->rays & ~done : sp->rays & S::mask(bcast(sp->dist) <= cull);
       if (keep) {
         cur = sp->ref;
         cur_rays = keep;
@@ -800,15 +818,15 @@ bool trace_packet_lanes(const Bvh8Node* nodes, const TriangleBlock* blocks, cons
       }
     }
   }
-done:
+finish:
   for (unsigned r = 0; r < n; ++r) {
     Hit& hit = hits[r];
     if (uint32_t(best_id[r]) != invalid_id) {
       const float inv_det = 1.0f / best_det[r];
       hit.t = best_t[r];
       hit.prim_id = uint32_t(best_id[r]);
-      hit.u = best_v[r] * inv_det;
-      hit.v = best_w[r] * inv_det;
+      hit.u = AnyHit ? 0.0f : best_v[r] * inv_det;
+      hit.v = AnyHit ? 0.0f : best_w[r] * inv_det;
     } else {
       hit.t = __builtin_inff();
       hit.prim_id = invalid_id;
@@ -831,7 +849,7 @@ void trace_packets(const Node* nodes, const TriangleBlock* blocks, const Ray* ra
   if constexpr (W == 8) {
     for (size_t i = 0; i < n; i += packet_lanes) {
       const unsigned m = unsigned(n - i < size_t(packet_lanes) ? n - i : size_t(packet_lanes));
-      if (trace_packet_lanes<packet_lanes>(nodes, blocks, rays + i, hits + i, m)) continue;
+      if (trace_packet_lanes<packet_lanes, false>(nodes, blocks, rays + i, hits + i, m)) continue;
       for (unsigned k = 0; k < m; k += 8) trace_packet<W>(nodes, blocks, rays + i + k, hits + i + k, m - k < 8 ? m - k : 8);
     }
     return;
@@ -840,11 +858,28 @@ void trace_packets(const Node* nodes, const TriangleBlock* blocks, const Ray* ra
   for (size_t i = 0; i < n; i += 8) trace_packet<W>(nodes, blocks, rays + i, hits + i, unsigned(n - i < 8 ? n - i : 8));
 }
 
+// Occlusion packets: lane packets where the rays agree, single rays otherwise.
+template <int W, class Node>
+void occlusion_packets(const Node* nodes, const TriangleBlock* blocks, const Ray* rays, Hit* hits, size_t n) {
+#ifdef __AVX2__
+  if constexpr (W == 8) {
+    for (size_t i = 0; i < n; i += packet_lanes) {
+      const unsigned m = unsigned(n - i < size_t(packet_lanes) ? n - i : size_t(packet_lanes));
+      if (trace_packet_lanes<packet_lanes, true>(nodes, blocks, rays + i, hits + i, m)) continue;
+      trace_batch<W, true>(nodes, blocks, rays + i, hits + i, m);
+    }
+    return;
+  }
+#endif
+  trace_batch<W, true>(nodes, blocks, rays, hits, n);
+}
+
 const Table table = {
     &trace_batch<4, false, Bvh4Node>, &trace_batch<4, true, Bvh4Node>, &trace_packets<4, Bvh4Node>,
     &trace_batch<8, false, Bvh8Node>, &trace_batch<8, true, Bvh8Node>, &trace_packets<8, Bvh8Node>,
     &trace_tlas<4, false, Bvh4Node>, &trace_tlas<4, true, Bvh4Node>,
     &trace_tlas<8, false, Bvh8Node>, &trace_tlas<8, true, Bvh8Node>,
+    &occlusion_packets<4, Bvh4Node>, &occlusion_packets<8, Bvh8Node>,
 };
 
 }  // namespace
