@@ -31,12 +31,6 @@ namespace {
 
 using namespace kestrel;
 
-double median_of(std::vector<double> v) {
-  if (v.empty()) return 0;
-  std::sort(v.begin(), v.end());
-  return v.size() % 2 ? v[v.size() / 2] : 0.5 * (v[v.size() / 2 - 1] + v[v.size() / 2]);
-}
-
 TriangleMesh merge(const Scene& s) {
   TriangleMesh out;
   for (const TriangleMesh& m : s.meshes) {
@@ -141,7 +135,7 @@ int main(int argc, char** argv) {
         }
         size_t same = 0;
         for (size_t i = 0; i < rays->size(); ++i) same += ih[i].hit() == fh[i].hit();
-        const double two_mr = rays->size() / (median_of(a_ms) * 1e3), flat_mr = rays->size() / (median_of(b_ms) * 1e3);
+        const double two_mr = rays->size() / (median(a_ms) * 1e3), flat_mr = rays->size() / (median(b_ms) * 1e3);
         fmt::print("  {:<8} {:8} rays: two-level {:6.2f} Mrays/s, flattened {:6.2f} Mrays/s, two-level cost {:.2f}x flat; "
                    "hit/miss agree {:.3f}%\n",
                    kind, rays->size(), two_mr, flat_mr, flat_mr / two_mr, 100.0 * double(same) / double(rays->size()));
@@ -183,13 +177,13 @@ int main(int argc, char** argv) {
       }
       size_t hit = 0;
       for (const InstanceHit& h : hits) hit += h.hit();
-      const double mr = rays.size() / (median_of(trace_ms) * 1e3);
+      const double mr = rays.size() / (median(trace_ms) * 1e3);
       fmt::print("moving instances: {:8} instances of 3 meshes: set_transform {:8.2f} ms, TLAS rebuild {:8.2f} ms "
                  "({:.2f} M instances/s), trace {:6.2f} Mrays/s ({:.0f}% hit)\n",
-                 n, median_of(update_ms), median_of(tlas_ms), n / (median_of(tlas_ms) * 1e3), mr, 100.0 * hit / rays.size());
+                 n, median(update_ms), median(tlas_ms), n / (median(tlas_ms) * 1e3), mr, 100.0 * hit / rays.size());
       json.add(fmt::format("{{\"scene\": \"moving_instances\", \"instances\": {}, \"set_transform_ms\": {:.3f}, \"tlas_ms\": {:.3f}, "
                            "\"trace_mrays\": {:.3f}}}",
-                           n, median_of(update_ms), median_of(tlas_ms), mr));
+                           n, median(update_ms), median(tlas_ms), mr));
     }
 
     // 3. Animated glTF scenes: node animations and morph targets, per frame.
@@ -223,15 +217,15 @@ int main(int argc, char** argv) {
         scene.trace(rays, hits);
         trace_ms.push_back(tt.ms());
       }
-      const double mr = rays.size() / (median_of(trace_ms) * 1e3);
+      const double mr = rays.size() / (median(trace_ms) * 1e3);
       const std::string name = std::filesystem::path(path).stem().string();
       fmt::print("animated {:<18} {:3} meshes {:4} instances: pose {:6.3f} ms, TLAS {:6.3f} ms, BLAS refits {:3} ({:6.3f} ms), "
                  "rebuilds {:3} ({:6.2f} ms), trace {:6.2f} Mrays/s\n",
-                 name, anim.mesh_count(), anim.instance_count(), median_of(pose_ms), median_of(tlas_ms), refits, median_of(refit_ms),
-                 builds, median_of(build_ms), mr);
+                 name, anim.mesh_count(), anim.instance_count(), median(pose_ms), median(tlas_ms), refits, median(refit_ms),
+                 builds, median(build_ms), mr);
       json.add(fmt::format("{{\"scene\": \"{}\", \"instances\": {}, \"tlas_ms\": {:.4f}, \"refit_ms\": {:.4f}, \"refits\": {}, "
                            "\"rebuilds\": {}, \"trace_mrays\": {:.3f}}}",
-                           name, anim.instance_count(), median_of(tlas_ms), median_of(refit_ms), refits, builds, mr));
+                           name, anim.instance_count(), median(tlas_ms), median(refit_ms), refits, builds, mr));
     }
 
     // 4. Deforming mesh: refit per frame.
@@ -265,10 +259,10 @@ int main(int argc, char** argv) {
       }
       fmt::print("deforming Lamborghini ({} triangles): first build {:.1f} ms; per frame: {} refits (median {:.2f} ms), "
                  "{} rebuilds (median {:.1f} ms)\n",
-                 mesh.triangle_count(), first.blas_build_ms, refits, median_of(refit_ms), builds, median_of(build_ms));
+                 mesh.triangle_count(), first.blas_build_ms, refits, median(refit_ms), builds, median(build_ms));
       json.add(fmt::format("{{\"scene\": \"deforming_lamborghini\", \"triangles\": {}, \"refit_ms\": {:.3f}, \"refits\": {}, "
                            "\"rebuilds\": {}}}",
-                           mesh.triangle_count(), median_of(refit_ms), refits, builds));
+                           mesh.triangle_count(), median(refit_ms), refits, builds));
     }
   } catch (const std::exception& e) {
     std::fprintf(stderr, "kestrel_scene_bench: %s\n", e.what());

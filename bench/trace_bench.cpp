@@ -31,13 +31,6 @@ namespace {
 
 using namespace kestrel;
 
-double median_of(std::vector<double> v) {
-  if (v.empty()) return 0;
-  std::sort(v.begin(), v.end());
-  const size_t n = v.size();
-  return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
-}
-
 struct SceneSpec {
   std::string path, view;
 };
@@ -223,10 +216,10 @@ int main(int argc, char** argv) {
           res.kind = kind.name;
           res.kestrel_variant = variants[vi].name;
           res.rays = rays.size();
-          res.kestrel_mrays = double(rays.size()) / (median_of(a_ms) * 1e3);
+          res.kestrel_mrays = double(rays.size()) / (median(a_ms) * 1e3);
           if (!b_ms.empty()) {
             res.peer = kind.packets ? "rtcIntersect16" : kind.any_hit ? "rtcOccluded1" : "rtcIntersect1";
-            res.peer_mrays = double(rays.size()) / (median_of(b_ms) * 1e3);
+            res.peer_mrays = double(rays.size()) / (median(b_ms) * 1e3);
             size_t same = 0;
             for (size_t i = 0; i < rays.size(); ++i) same += kind.any_hit ? ours[i].hit() == bool(occ[i]) : same_hit(ours[i], theirs[i]);
             res.agree = double(same) / double(rays.size());
@@ -288,7 +281,7 @@ int main(int argc, char** argv) {
         }
         std::vector<Point> points;
         for (size_t m = 0; m < names.size(); ++m)
-          points.push_back({names[m], median_of(build_ms[m]), double(mix.size()) / (median_of(trace_ms[m]) * 1e3)});
+          points.push_back({names[m], median(build_ms[m]), double(mix.size()) / (median(trace_ms[m]) * 1e3)});
         auto effective = [](const Point& p, double R) { return R / (p.build_ms * 1e-3 + R / (p.mrays * 1e6)) * 1e-6; };
         for (const Point& p : points) {
           fmt::print("{:<12} amortization {:<14} build {:9.2f} ms  trace {:7.2f} Mrays/s\n", name, p.method, p.build_ms, p.mrays);

@@ -84,8 +84,9 @@ std::string transform_problem(const Affine3& a) {
   return {};
 }
 
-Affine3 inverse(const Affine3& a) {
-  if (const std::string p = transform_problem(a); !p.empty()) throw Error(ErrorCode::invalid_argument, p);
+namespace {
+// The inverse of a transform already known to be invertible (transform_problem() == "").
+Affine3 inverse_of_valid(const Affine3& a) {
   const float* m = a.m;
   const double det = determinant(a), inv_det = 1.0 / det;
   double r[9];
@@ -108,6 +109,12 @@ Affine3 inverse(const Affine3& a) {
     out.m[4 * i + 3] = float(t);
   }
   return out;
+}
+}  // namespace
+
+Affine3 inverse(const Affine3& a) {
+  if (const std::string p = transform_problem(a); !p.empty()) throw Error(ErrorCode::invalid_argument, p);
+  return inverse_of_valid(a);
 }
 
 std::vector<Affine3> load_instance_transforms(const std::string& path) {
@@ -183,6 +190,9 @@ struct InstancedScene::Impl {
     m.dirty = false;
   }
   bool empty_tlas() const { return layout == Layout::bvh4 ? tlas4.empty() : tlas8.empty(); }
+  const void* tlas_data() const {
+    return layout == Layout::bvh4 ? static_cast<const void*>(tlas4.data()) : static_cast<const void*>(tlas8.data());
+  }
 };
 
 InstancedScene::InstancedScene(SceneConfig config) : impl_(new Impl) {
@@ -219,7 +229,7 @@ InstanceId InstancedScene::add_instance(MeshId mesh, const Affine3& transform, u
   slot.live = true;
   slot.mesh = mesh;
   slot.transform = transform;
-  slot.inverse = inverse(transform);
+  slot.inverse = inverse_of_valid(transform);  // checked just above
   slot.mask = mask;
   impl_->instances.push_back(slot);
   return id;
@@ -229,7 +239,7 @@ void InstancedScene::set_transform(InstanceId id, const Affine3& transform) {
   Impl::InstanceSlot& slot = impl_->instance(id, "set_transform");
   Impl::check_transform(id, transform);
   slot.transform = transform;
-  slot.inverse = inverse(transform);
+  slot.inverse = inverse_of_valid(transform);
 }
 
 void InstancedScene::set_mask(InstanceId id, uint32_t mask) { impl_->instance(id, "set_mask").mask = mask; }
@@ -350,45 +360,57 @@ CommitStats InstancedScene::commit() {
   return stats;
 }
 
-void InstancedScene::trace(std::span<const Ray> rays, std::span<InstanceHit> hits, uint32_t ray_mask,
-                           const TraceOptions& options) const {
-  if (rays.size() != hits.size())
-    throw Error(ErrorCode::invalid_argument, fmt::format("trace: {} rays but room for {} hits", rays.size(), hits.size()));
-  const Impl& s = *impl_;
+namespace {
+// The kernel and tree a query runs on, or fn == nullptr when nothing can be hit.
+struct TlasQuery {
+  kernels::TlasFn fn = nullptr;
+  const void* tlas = nullptr;
+};
+
+// Checks a query's sizes and ISA and picks its two-level kernel.
+TlasQuery prepare_query(const char* what, size_t rays, size_t results, const TraceOptions& options, bool any_hit,
+                               Layout layout, const void* tlas, bool empty) {
+  if (rays != results)
+    throw Error(ErrorCode::invalid_argument, fmt::format("{}: {} rays but room for {} results", what, rays, results));
   const Isa isa = options.isa.value_or(default_isa());
   if (!isa_supported(isa)) throw Error(ErrorCode::invalid_argument, fmt::format("ISA '{}' is not supported by this CPU", isa_name(isa)));
-  if (s.data.empty() || s.empty_tlas()) {
+  if (empty) return {};
+  const kernels::Table& k = kernels::table_for(isa);
+  const bool four = layout == Layout::bvh4;
+  return {any_hit ? (four ? k.tlas_any4 : k.tlas_any8) : (four ? k.tlas_closest4 : k.tlas_closest8), tlas};
+}
+}  // namespace
+
+void InstancedScene::trace(std::span<const Ray> rays, std::span<InstanceHit> hits, uint32_t ray_mask,
+                           const TraceOptions& options) const {
+  const Impl& s = *impl_;
+  const TlasQuery q = prepare_query("trace", rays.size(), hits.size(), options, false, s.layout, s.tlas_data(),
+                                    s.data.empty() || s.empty_tlas());
+  if (!q.fn) {
     for (InstanceHit& h : hits) h = InstanceHit{};
     return;
   }
-  const kernels::Table& k = kernels::table_for(isa);
-  const void* tlas = s.layout == Layout::bvh4 ? static_cast<const void*>(s.tlas4.data()) : static_cast<const void*>(s.tlas8.data());
-  const kernels::TlasFn fn = s.layout == Layout::bvh4 ? k.tlas_closest4 : k.tlas_closest8;
   parallel_for(0, rays.size(), 1024, [&](size_t b, size_t e) {
     kernels::for_each_traceable_run(rays.subspan(b, e - b), hits.data() + b,
-                  [&](const Ray* r, InstanceHit* h, size_t n) { fn(tlas, s.data.data(), r, h, n, ray_mask); });
+                                    [&](const Ray* r, InstanceHit* h, size_t n) { q.fn(q.tlas, s.data.data(), r, h, n, ray_mask); });
   });
 }
 
 void InstancedScene::occluded(std::span<const Ray> rays, std::span<uint8_t> out, uint32_t ray_mask,
                               const TraceOptions& options) const {
-  if (rays.size() != out.size())
-    throw Error(ErrorCode::invalid_argument, fmt::format("occluded: {} rays but room for {} results", rays.size(), out.size()));
   const Impl& s = *impl_;
-  const Isa isa = options.isa.value_or(default_isa());
-  if (!isa_supported(isa)) throw Error(ErrorCode::invalid_argument, fmt::format("ISA '{}' is not supported by this CPU", isa_name(isa)));
-  if (s.data.empty() || s.empty_tlas()) {
+  const TlasQuery q = prepare_query("occluded", rays.size(), out.size(), options, true, s.layout, s.tlas_data(),
+                                    s.data.empty() || s.empty_tlas());
+  if (!q.fn) {
     std::fill(out.begin(), out.end(), uint8_t(0));
     return;
   }
-  const kernels::Table& k = kernels::table_for(isa);
-  const void* tlas = s.layout == Layout::bvh4 ? static_cast<const void*>(s.tlas4.data()) : static_cast<const void*>(s.tlas8.data());
-  const kernels::TlasFn fn = s.layout == Layout::bvh4 ? k.tlas_any4 : k.tlas_any8;
   parallel_for(0, rays.size(), 1024, [&](size_t b, size_t e) {
     InstanceHit local[256];
     for (size_t i = b; i < e; i += 256) {
       const size_t n = std::min<size_t>(256, e - i);
-      kernels::for_each_traceable_run(rays.subspan(i, n), local, [&](const Ray* r, InstanceHit* h, size_t m) { fn(tlas, s.data.data(), r, h, m, ray_mask); });
+      kernels::for_each_traceable_run(rays.subspan(i, n), local,
+                                      [&](const Ray* r, InstanceHit* h, size_t m) { q.fn(q.tlas, s.data.data(), r, h, m, ray_mask); });
       for (size_t j = 0; j < n; ++j) out[i + j] = local[j].hit();
     }
   });

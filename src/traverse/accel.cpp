@@ -147,18 +147,10 @@ void refit_accel(Accel& accel, const Scene& scene) {
     }
   }
   // Scene bounds from the refitted root.
-  auto grow = [&](float lx, float ly, float lz, float hx, float hy, float hz) {
-    box.lo = {std::min(box.lo.x, lx), std::min(box.lo.y, ly), std::min(box.lo.z, lz)};
-    box.hi = {std::max(box.hi.x, hx), std::max(box.hi.y, hy), std::max(box.hi.z, hz)};
-  };
-  if (accel.layout == Layout::bvh4 && !accel.bvh4.empty()) {
-    const Bvh4Node& r = accel.bvh4.nodes[0];
-    for (int j = 0; j < 4; ++j)
-      if (r.child[j] != wide_empty) grow(r.bounds[0][j], r.bounds[2][j], r.bounds[4][j], r.bounds[1][j], r.bounds[3][j], r.bounds[5][j]);
-  } else if (accel.layout == Layout::bvh8 && !accel.bvh8.empty()) {
-    const Bvh8Node& r = accel.bvh8.nodes[0];
-    for (int j = 0; j < 8; ++j)
-      if (r.child[j] != wide_empty) grow(r.bounds[0][j], r.bounds[2][j], r.bounds[4][j], r.bounds[1][j], r.bounds[3][j], r.bounds[5][j]);
+  if (accel.layout == Layout::bvh4) {
+    box = wide_bounds(accel.bvh4);
+  } else if (accel.layout == Layout::bvh8) {
+    box = wide_bounds(accel.bvh8);
   } else if (!accel.bvh.empty()) {
     box = {accel.bvh.nodes[0].lo, accel.bvh.nodes[0].hi};
   }

@@ -288,22 +288,29 @@ Buffer<Node> collapse_instance_tree(const Bvh2& bvh) {
 }
 
 template <int W, class Wide>
-double sah(const Wide& bvh) {
-  if (bvh.empty()) return 0;
-  const auto area = [](const auto& n, int j) {
-    const float dx = n.bounds[1][j] - n.bounds[0][j], dy = n.bounds[3][j] - n.bounds[2][j], dz = n.bounds[5][j] - n.bounds[4][j];
-    return double(dx) * dy + double(dy) * dz + double(dz) * dx;
-  };
-  double root = 0, cost = 0;
+Bounds3 root_bounds(const Wide& bvh) {
   Bounds3 box;
+  if (bvh.empty()) return box;
   const auto& r = bvh.nodes[0];
   for (int j = 0; j < W; ++j)
     if (r.child[j] != wide_empty) {
       grow(box, {r.bounds[0][j], r.bounds[2][j], r.bounds[4][j]});
       grow(box, {r.bounds[1][j], r.bounds[3][j], r.bounds[5][j]});
     }
+  return box;
+}
+
+template <int W, class Wide>
+double sah(const Wide& bvh) {
+  if (bvh.empty()) return 0;
+  const auto area = [](const auto& n, int j) {
+    const float dx = n.bounds[1][j] - n.bounds[0][j], dy = n.bounds[3][j] - n.bounds[2][j], dz = n.bounds[5][j] - n.bounds[4][j];
+    return double(dx) * dy + double(dy) * dz + double(dz) * dx;
+  };
+  double cost = 0;
+  const Bounds3 box = root_bounds<W>(bvh);
   const Vec3 d{box.hi.x - box.lo.x, box.hi.y - box.lo.y, box.hi.z - box.lo.z};
-  root = double(d.x) * d.y + double(d.y) * d.z + double(d.z) * d.x;
+  const double root = double(d.x) * d.y + double(d.y) * d.z + double(d.z) * d.x;
   for (const auto& n : bvh.nodes)
     for (int j = 0; j < W; ++j) {
       const uint32_t ref = n.child[j];
@@ -323,6 +330,8 @@ double sah(const Wide& bvh) {
 
 Buffer<Bvh4Node> collapse_instances_bvh4(const Bvh2& bvh) { return collapse_instance_tree<4, Bvh4Node>(bvh); }
 Buffer<Bvh8Node> collapse_instances_bvh8(const Bvh2& bvh) { return collapse_instance_tree<8, Bvh8Node>(bvh); }
+Bounds3 wide_bounds(const Bvh4& bvh) { return root_bounds<4>(bvh); }
+Bounds3 wide_bounds(const Bvh8& bvh) { return root_bounds<8>(bvh); }
 double wide_sah_cost(const Bvh4& bvh) { return sah<4>(bvh); }
 double wide_sah_cost(const Bvh8& bvh) { return sah<8>(bvh); }
 

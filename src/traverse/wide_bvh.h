@@ -29,6 +29,10 @@ void refit_wide(Bvh8& bvh, const std::function<void(TriangleBlock&)>& rewrite);
 Buffer<Bvh4Node> collapse_instances_bvh4(const Bvh2& bvh);
 Buffer<Bvh8Node> collapse_instances_bvh8(const Bvh2& bvh);
 
+/// Bounds of everything in a wide BVH (the union of the root's child boxes).
+Bounds3 wide_bounds(const Bvh4& bvh);
+Bounds3 wide_bounds(const Bvh8& bvh);
+
 /// SAH cost of a wide BVH: 1 (the root) + sum over child slots of area x (1 for an inner
 /// child, blocks for a leaf), over the root's area. Compares a refitted tree with itself
 /// after its last full build.

@@ -12,16 +12,21 @@
 namespace kestrel {
 namespace {
 
-// Rays from around the scene towards random points of random triangles (and some towards
-// random points of the box, which may miss).
-std::vector<Ray> rays_through(const Scene& scene, size_t n, uint64_t seed) {
-  test::Rng rng{seed};
+Bounds3 bounds_of(const Scene& s) {
   Bounds3 b;
-  for (const TriangleMesh& m : scene.meshes)
+  for (const TriangleMesh& m : s.meshes)
     for (const Vec3& p : m.positions) {
       b.lo = {std::min(b.lo.x, p.x), std::min(b.lo.y, p.y), std::min(b.lo.z, p.z)};
       b.hi = {std::max(b.hi.x, p.x), std::max(b.hi.y, p.y), std::max(b.hi.z, p.z)};
     }
+  return b;
+}
+
+// Rays from around the scene towards random points of random triangles (and some towards
+// random points of the box, which may miss).
+std::vector<Ray> rays_through(const Scene& scene, size_t n, uint64_t seed) {
+  test::Rng rng{seed};
+  const Bounds3 b = bounds_of(scene);
   const test::Soup soup = test::flatten(scene);
   const Vec3 c = (b.lo + b.hi) * 0.5f, e = b.hi - b.lo;
   const float r = length(e);
@@ -38,16 +43,6 @@ std::vector<Ray> rays_through(const Scene& scene, size_t n, uint64_t seed) {
     rays.push_back({o, target - o});
   }
   return rays;
-}
-
-Bounds3 bounds_of(const Scene& s) {
-  Bounds3 b;
-  for (const TriangleMesh& m : s.meshes)
-    for (const Vec3& p : m.positions) {
-      b.lo = {std::min(b.lo.x, p.x), std::min(b.lo.y, p.y), std::min(b.lo.z, p.z)};
-      b.hi = {std::max(b.hi.x, p.x), std::max(b.hi.y, p.y), std::max(b.hi.z, p.z)};
-    }
-  return b;
 }
 
 struct Fixture {
@@ -125,7 +120,9 @@ void expect_matches_flattened(const InstancedScene& scene, const std::vector<Ins
         if (std::fabs(got[i].t - want[i].t) <= 1e-6f * scale) continue;
         const float w = 1 - want[i].u - want[i].v;
         const bool near_edge = std::min({want[i].u, want[i].v, w}) < 1e-3f;
-        if (!near_edge) ASSERT_NEAR(got[i].t, want[i].t, 2e-4f * scale) << what << " ray " << i;
+        if (!near_edge) {
+          ASSERT_NEAR(got[i].t, want[i].t, 2e-4f * scale) << what << " ray " << i;
+        }
         ++tie_or_edge;
         continue;
       }
@@ -135,7 +132,9 @@ void expect_matches_flattened(const InstancedScene& scene, const std::vector<Ins
       // the triangle at more than ~6 degrees.
       const Triangle& tri = soup.triangles[want[i].prim_id];
       const Vec3 n = normalize(cross(tri.v1 - tri.v0, tri.v2 - tri.v0));
-      if (std::fabs(dot(n, normalize(rays[i].dir))) > 0.1f) ASSERT_NEAR(got[i].u, want[i].u, 2e-3f) << what << " ray " << i;
+      if (std::fabs(dot(n, normalize(rays[i].dir))) > 0.1f) {
+        ASSERT_NEAR(got[i].u, want[i].u, 2e-3f) << what << " ray " << i;
+      }
     }
   }
   EXPECT_GT(hits, rays.size() / 10) << what;
@@ -225,7 +224,9 @@ TEST(Instances, RemovedInstancesAndMeshes) {
   std::vector<InstanceHit> h(rays.size());
   f.scene.trace(rays, h);
   for (const InstanceHit& x : h)
-    if (x.hit()) EXPECT_TRUE(x.instance_id == f.ids[1] || x.instance_id == f.ids[3] || x.instance_id == f.ids[5]);
+    if (x.hit()) {
+      EXPECT_TRUE(x.instance_id == f.ids[1] || x.instance_id == f.ids[3] || x.instance_id == f.ids[5]);
+    }
 }
 
 TEST(Instances, BadInputIsAClearError) {
