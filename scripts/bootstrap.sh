@@ -11,7 +11,7 @@ build_dir=${KESTREL_BUILD_DIR:-$here/build/release}
 packages=(build-essential cmake ninja-build ccache pkg-config
   libtbb-dev libtinyobjloader-dev libtinygltf-dev nlohmann-json3-dev libstb-dev
   libpng-dev libcli11-dev libfmt-dev libgtest-dev libgmock-dev libbenchmark-dev
-  libembree-dev python3 python3-matplotlib)
+  libembree-dev libopenexr-dev python3 python3-matplotlib)
 missing=()
 for p in "${packages[@]}"; do
   dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")

@@ -14,6 +14,8 @@ Action add_bvh_command(CLI::App& app);
 Action add_trace_command(CLI::App& app);
 Action add_rays_command(CLI::App& app);
 Action add_preview_command(CLI::App& app);
+Action add_render_command(CLI::App& app);
+Action add_render_sequence_command(CLI::App& app);
 
 /// Options shared by the commands that build a BVH.
 struct BuildOptions {

@@ -16,6 +16,8 @@ int main(int argc, char** argv) {
   add(kestrel::cli::add_trace_command, "trace", "Trace a .rays file and write a .hits file");
   add(kestrel::cli::add_rays_command, "rays", "Generate a .rays file (primary, shadow or diffuse rays)");
   add(kestrel::cli::add_preview_command, "preview", "Render a shaded depth/normal PNG of a scene");
+  add(kestrel::cli::add_render_command, "render", "Path-trace one frame with every AOV (EXR, PFM, PNG)");
+  add(kestrel::cli::add_render_sequence_command, "render-sequence", "Path-trace a camera path, one file set per frame");
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {

@@ -95,6 +95,16 @@ class InstancedScene {
 
   size_t instance_count() const;
   size_t mesh_count() const;
+  /// One past the largest instance id handed out (ids of removed instances stay unused).
+  size_t instance_capacity() const;
+  /// Whether an instance exists (not removed).
+  bool has_instance(InstanceId instance) const;
+  /// The mesh an instance places, its transform and mask (Error for an unknown instance).
+  MeshId instance_mesh(InstanceId instance) const;
+  Affine3 transform(InstanceId instance) const;
+  uint32_t mask(InstanceId instance) const;
+  /// A mesh as last given (positions as of the last update_vertices); Error if unknown.
+  const TriangleMesh& mesh(MeshId mesh) const;
   /// Bytes of every BLAS and the TLAS as committed.
   size_t memory_bytes() const;
   /// The committed scene flattened into one Scene: one mesh per instance, vertices in world
@@ -123,6 +133,10 @@ class GltfInstances {
 
   size_t mesh_count() const;
   size_t instance_count() const;
+  /// The file's materials (plus a trailing "default" one) and textures: the meshes'
+  /// material_ids index these.
+  const std::vector<Material>& materials() const;
+  const std::vector<Texture>& textures() const;
   /// End of the longest animation channel, seconds (0 when nothing is animated).
   double duration() const;
   /// Adds the meshes and instances to a scene, posed at t = 0.

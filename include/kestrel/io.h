@@ -22,3 +22,42 @@ void write_hits(const std::string& path, std::span<const Hit> hits);
 void write_png(const std::string& path, int width, int height, std::span<const uint8_t> rgb);
 
 }  // namespace kestrel
+
+namespace kestrel {
+
+/// A float image: rows top to bottom, `channels` interleaved floats per pixel.
+struct FloatImage {
+  int width = 0, height = 0, channels = 0;
+  std::vector<float> pixels;
+  FloatImage() = default;
+  FloatImage(int w, int h, int c) : width(w), height(h), channels(c), pixels(size_t(w) * size_t(h) * size_t(c), 0.0f) {}
+  float* at(int x, int y) { return &pixels[(size_t(y) * size_t(width) + size_t(x)) * size_t(channels)]; }
+  const float* at(int x, int y) const { return &pixels[(size_t(y) * size_t(width) + size_t(x)) * size_t(channels)]; }
+};
+
+/// One named layer of a multi-layer EXR: `channel_names` (one per channel) are appended to
+/// the layer name with a dot ("albedo.R"); the layer named "" (or "color") writes bare
+/// R, G, B so viewers show it as the image.
+struct ImageLayer {
+  std::string name;
+  std::vector<std::string> channel_names;
+  FloatImage image;
+};
+
+/// Writes every layer (same size) into one EXR file, 32-bit float, ZIP compressed.
+void write_exr(const std::string& path, std::span<const ImageLayer> layers);
+/// Reads an EXR file's channels grouped into layers by the part before the last dot
+/// (bare R/G/B/A → the layer "color"); channels kept in file order within a layer.
+std::vector<ImageLayer> read_exr(const std::string& path);
+
+/// Writes a PFM (1 channel: "Pf", 3 channels: "PF"; 2 channels are padded with a zero
+/// third channel), little-endian, rows bottom to top as the format says.
+void write_pfm(const std::string& path, const FloatImage& image);
+/// Reads a PFM ("PF" or "Pf", either byte order); rows returned top to bottom.
+FloatImage read_pfm(const std::string& path);
+
+/// Reads a float image for use as an environment or input: .pfm, .exr (its first layer
+/// with 3 channels, else the first), .hdr (Radiance RGBE) or an 8-bit image (sRGB decoded).
+FloatImage read_float_image(const std::string& path);
+
+}  // namespace kestrel

@@ -20,7 +20,10 @@ struct Material {
   std::string name;
   Vec3 base_color{0.8f, 0.8f, 0.8f};  ///< linear RGB
   float metallic = 0.0f;               ///< [0, 1]
-  float roughness = 1.0f;              ///< perceptual roughness, [0, 1]
+  float roughness = 1.0f;              ///< perceptual roughness, [0, 1] (GGX alpha = roughness^2)
+  /// Weight of the dielectric (IOR 1.5) GGX coat over the diffuse base, [0, 1]: 0 = pure
+  /// Lambertian, 1 = glTF's dielectric. MTL: max(Ks); glTF: 1. Unused where metallic = 1.
+  float specular = 0.0f;
   Vec3 emission{0, 0, 0};              ///< linear RGB radiance scale (W/sr/m^2 units of the scene)
   int base_color_texture = -1;         ///< index into Scene::textures, or -1
   int metallic_roughness_texture = -1; ///< glTF: G = roughness, B = metallic
@@ -34,7 +37,7 @@ struct TriangleMesh {
   std::string name;
   std::vector<Vec3> positions;
   std::vector<Vec3> normals;
-  std::vector<Vec2> uvs;
+  std::vector<Vec2> uvs;  ///< glTF convention: (0, 0) is the top-left of a texture (OBJ v is flipped on load)
   std::vector<uint32_t> indices;
   std::vector<uint32_t> material_ids;  ///< one per triangle (index into Scene::materials)
   size_t triangle_count() const { return indices.size() / 3; }

@@ -21,52 +21,6 @@ namespace {
 
 using namespace gltf;
 
-Material convert_material(const tinygltf::Material& m, const tinygltf::Model& model) {
-  Material out;
-  out.name = m.name;
-  const auto& pbr = m.pbrMetallicRoughness;
-  if (pbr.baseColorFactor.size() >= 3)
-    out.base_color = {float(pbr.baseColorFactor[0]), float(pbr.baseColorFactor[1]), float(pbr.baseColorFactor[2])};
-  out.metallic = float(pbr.metallicFactor);
-  out.roughness = float(pbr.roughnessFactor);
-  float strength = 1.0f;
-  auto ext = m.extensions.find("KHR_materials_emissive_strength");
-  if (ext != m.extensions.end() && ext->second.Has("emissiveStrength"))
-    strength = float(ext->second.Get("emissiveStrength").GetNumberAsDouble());
-  if (m.emissiveFactor.size() == 3)
-    out.emission = {float(m.emissiveFactor[0]) * strength, float(m.emissiveFactor[1]) * strength,
-                    float(m.emissiveFactor[2]) * strength};
-  auto texture = [&](int index) { return index >= 0 && size_t(index) < model.textures.size() ? index : -1; };
-  out.base_color_texture = texture(pbr.baseColorTexture.index);
-  out.metallic_roughness_texture = texture(pbr.metallicRoughnessTexture.index);
-  out.emission_texture = texture(m.emissiveTexture.index);
-  out.normal_texture = texture(m.normalTexture.index);
-  return out;
-}
-
-Texture convert_texture(const tinygltf::Texture& t, const tinygltf::Model& model) {
-  Texture out;
-  out.name = t.name;
-  if (t.source < 0 || size_t(t.source) >= model.images.size()) return out;
-  const tinygltf::Image& img = model.images[t.source];
-  if (out.name.empty()) out.name = img.name.empty() ? img.uri : img.name;
-  if (img.bits != 8 || img.component < 1 || img.component > 4 || img.width <= 0 || img.height <= 0 ||
-      img.image.size() < size_t(img.width) * img.height * img.component)
-    return out;
-  out.width = img.width;
-  out.height = img.height;
-  out.rgba.resize(size_t(img.width) * img.height * 4);
-  for (size_t i = 0; i < size_t(img.width) * img.height; ++i) {
-    const unsigned char* s = &img.image[i * img.component];
-    unsigned char* d = &out.rgba[i * 4];
-    d[0] = s[0];
-    d[1] = img.component >= 3 ? s[1] : s[0];
-    d[2] = img.component >= 3 ? s[2] : s[0];
-    d[3] = img.component == 4 ? s[3] : (img.component == 2 ? s[1] : 255);
-  }
-  return out;
-}
-
 }  // namespace
 
 Scene load_gltf(const std::string& path) {
@@ -134,6 +88,53 @@ Scene load_gltf(const std::string& path) {
 }
 
 namespace gltf {
+Material convert_material(const tinygltf::Material& m, const tinygltf::Model& model) {
+  Material out;
+  out.name = m.name;
+  const auto& pbr = m.pbrMetallicRoughness;
+  if (pbr.baseColorFactor.size() >= 3)
+    out.base_color = {float(pbr.baseColorFactor[0]), float(pbr.baseColorFactor[1]), float(pbr.baseColorFactor[2])};
+  out.metallic = float(pbr.metallicFactor);
+  out.roughness = float(pbr.roughnessFactor);
+  out.specular = 1.0f;  // glTF dielectrics: Fresnel with F0 = 0.04 (IOR 1.5)
+  float strength = 1.0f;
+  auto ext = m.extensions.find("KHR_materials_emissive_strength");
+  if (ext != m.extensions.end() && ext->second.Has("emissiveStrength"))
+    strength = float(ext->second.Get("emissiveStrength").GetNumberAsDouble());
+  if (m.emissiveFactor.size() == 3)
+    out.emission = {float(m.emissiveFactor[0]) * strength, float(m.emissiveFactor[1]) * strength,
+                    float(m.emissiveFactor[2]) * strength};
+  auto texture = [&](int index) { return index >= 0 && size_t(index) < model.textures.size() ? index : -1; };
+  out.base_color_texture = texture(pbr.baseColorTexture.index);
+  out.metallic_roughness_texture = texture(pbr.metallicRoughnessTexture.index);
+  out.emission_texture = texture(m.emissiveTexture.index);
+  out.normal_texture = texture(m.normalTexture.index);
+  return out;
+}
+
+Texture convert_texture(const tinygltf::Texture& t, const tinygltf::Model& model) {
+  Texture out;
+  out.name = t.name;
+  if (t.source < 0 || size_t(t.source) >= model.images.size()) return out;
+  const tinygltf::Image& img = model.images[t.source];
+  if (out.name.empty()) out.name = img.name.empty() ? img.uri : img.name;
+  if (img.bits != 8 || img.component < 1 || img.component > 4 || img.width <= 0 || img.height <= 0 ||
+      img.image.size() < size_t(img.width) * img.height * img.component)
+    return out;
+  out.width = img.width;
+  out.height = img.height;
+  out.rgba.resize(size_t(img.width) * img.height * 4);
+  for (size_t i = 0; i < size_t(img.width) * img.height; ++i) {
+    const unsigned char* s = &img.image[i * img.component];
+    unsigned char* d = &out.rgba[i * 4];
+    d[0] = s[0];
+    d[1] = img.component >= 3 ? s[1] : s[0];
+    d[2] = img.component >= 3 ? s[2] : s[0];
+    d[3] = img.component == 4 ? s[3] : (img.component == 2 ? s[1] : 255);
+  }
+  return out;
+}
+
 tinygltf::Model load_model(const std::string& path) {
   require_readable_file(path);
   tinygltf::TinyGLTF loader;

@@ -12,12 +12,16 @@
 #include <vector>
 
 #include "kestrel/error.h"
+#include "kestrel/scene.h"
 #include "kestrel/types.h"
 
 namespace kestrel::gltf {
 
 /// Loads a .gltf or .glb file; Error naming the file when it is not valid glTF.
 tinygltf::Model load_model(const std::string& path);
+/// A glTF material / texture as kestrel's (gltf_loader.cpp).
+Material convert_material(const tinygltf::Material& m, const tinygltf::Model& model);
+Texture convert_texture(const tinygltf::Texture& t, const tinygltf::Model& model);
 
 
 using Mat4 = std::array<double, 16>;  // column-major, as glTF stores it

@@ -2,6 +2,7 @@
 #pragma once
 #include <string>
 
+#include "kestrel/io.h"
 #include "kestrel/scene.h"
 
 namespace kestrel {
@@ -16,6 +17,9 @@ Scene make_builtin_scene(const std::string& name);
 
 /// Decodes a PNG/JPEG/... image to RGBA8; Error naming the file when it cannot.
 Texture load_texture(const std::string& path);
+
+/// Decodes a Radiance .hdr (linear) or an 8-bit image (sRGB decoded) to float RGB.
+FloatImage load_float_image_stb(const std::string& path);
 
 /// Throws Error(file_not_found) unless `path` names a readable regular file.
 void require_readable_file(const std::string& path);

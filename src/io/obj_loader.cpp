@@ -111,6 +111,7 @@ Material convert_material(const tinyobj::material_t& m) {
   out.name = m.name;
   out.base_color = {m.diffuse[0], m.diffuse[1], m.diffuse[2]};
   out.emission = {m.emission[0], m.emission[1], m.emission[2]};
+  out.specular = std::clamp(std::max({m.specular[0], m.specular[1], m.specular[2]}), 0.0f, 1.0f);
   // The PBR extension (Pr/Pm) when given; otherwise roughness from the Phong exponent.
   if (m.roughness > 0.0f || m.metallic > 0.0f) {
     out.roughness = m.roughness;
@@ -219,7 +220,7 @@ Scene load_obj(const std::string& path) {
       if (!attrib.texcoords.empty()) {
         const int t = c.texcoord_index;
         mesh.uvs.push_back(t >= 0 && size_t(2 * t + 1) < attrib.texcoords.size()
-                               ? Vec2{attrib.texcoords[2 * t], attrib.texcoords[2 * t + 1]}
+                               ? Vec2{attrib.texcoords[2 * t], 1.0f - attrib.texcoords[2 * t + 1]}
                                : Vec2{0, 0});
       }
     }

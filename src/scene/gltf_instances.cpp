@@ -112,6 +112,8 @@ struct GltfInstances::Impl {
   std::vector<Node> nodes;
   std::vector<int> roots;
   std::vector<Channel> channels;
+  std::vector<Material> materials;
+  std::vector<Texture> textures;
   double duration = 0;
   // Filled by add_to().
   std::vector<MeshId> mesh_ids;
@@ -143,20 +145,38 @@ GltfInstances GltfInstances::load(const std::string& path, size_t clip) {
   GltfInstances out;
   Impl& g = *out.impl_;
   g.path = path;
+  for (const auto& m : model.materials) g.materials.push_back(gltf::convert_material(m, model));
+  for (const auto& t : model.textures) g.textures.push_back(gltf::convert_texture(t, model));
+  const uint32_t default_material = uint32_t(g.materials.size());
+  g.materials.push_back(Material{.name = "default"});
   for (const tinygltf::Mesh& gm : model.meshes) {
     MorphMesh mm;
     mm.base.name = gm.name;
     size_t target_count = 0;
     for (const tinygltf::Primitive& p : gm.primitives) target_count = std::max(target_count, p.targets.size());
     mm.targets.resize(target_count);
+    bool all_normals = true, all_uvs = true;
     for (const tinygltf::Primitive& prim : gm.primitives) {
       std::vector<Vec3> positions;
       std::vector<uint32_t> indices;
       if (!reader.read_triangles(prim, positions, indices)) continue;
+      std::vector<Vec3> normals;
+      std::vector<Vec2> uvs;
+      if (auto it = prim.attributes.find("NORMAL"); it != prim.attributes.end()) normals = reader.read_vec3(it->second);
+      if (auto it = prim.attributes.find("TEXCOORD_0"); it != prim.attributes.end()) uvs = reader.read_vec2(it->second);
+      all_normals &= normals.size() == positions.size();
+      all_uvs &= uvs.size() == positions.size();
+      if (all_normals) mm.base.normals.insert(mm.base.normals.end(), normals.begin(), normals.end());
+      if (all_uvs) mm.base.uvs.insert(mm.base.uvs.end(), uvs.begin(), uvs.end());
+      const uint32_t material = prim.material >= 0 && size_t(prim.material) < model.materials.size()
+                                    ? uint32_t(prim.material)
+                                    : default_material;
       const uint32_t base = uint32_t(mm.base.positions.size());
       mm.base.positions.insert(mm.base.positions.end(), positions.begin(), positions.end());
-      for (size_t i = 0; i + 2 < indices.size(); i += 3)
+      for (size_t i = 0; i + 2 < indices.size(); i += 3) {
         for (int k = 0; k < 3; ++k) mm.base.indices.push_back(indices[i + k] < positions.size() ? base + indices[i + k] : 0xFFFFFFFFu);
+        mm.base.material_ids.push_back(material);
+      }
       for (size_t k = 0; k < target_count; ++k) {
         std::vector<Vec3> delta(positions.size(), Vec3{0, 0, 0});
         if (k < prim.targets.size()) {
@@ -170,6 +190,8 @@ GltfInstances GltfInstances::load(const std::string& path, size_t clip) {
         mm.targets[k].insert(mm.targets[k].end(), delta.begin(), delta.end());
       }
     }
+    if (!all_normals) mm.base.normals.clear();
+    if (!all_uvs) mm.base.uvs.clear();
     mm.weights.assign(target_count, 0.0f);
     for (size_t k = 0; k < std::min(target_count, gm.weights.size()); ++k) mm.weights[k] = float(gm.weights[k]);
     g.meshes.push_back(std::move(mm));
@@ -261,6 +283,8 @@ GltfInstances GltfInstances::load(const std::string& path, size_t clip) {
 }
 
 size_t GltfInstances::mesh_count() const { return impl_->meshes.size(); }
+const std::vector<Material>& GltfInstances::materials() const { return impl_->materials; }
+const std::vector<Texture>& GltfInstances::textures() const { return impl_->textures; }
 size_t GltfInstances::instance_count() const { return impl_->node_instances.size(); }
 double GltfInstances::duration() const { return impl_->duration; }
 

@@ -428,6 +428,13 @@ size_t InstancedScene::mesh_count() const {
   return n;
 }
 
+size_t InstancedScene::instance_capacity() const { return impl_->instances.size(); }
+bool InstancedScene::has_instance(InstanceId id) const { return id < impl_->instances.size() && impl_->instances[id].live; }
+MeshId InstancedScene::instance_mesh(InstanceId id) const { return impl_->instance(id, "instance_mesh").mesh; }
+Affine3 InstancedScene::transform(InstanceId id) const { return impl_->instance(id, "transform").transform; }
+uint32_t InstancedScene::mask(InstanceId id) const { return impl_->instance(id, "mask").mask; }
+const TriangleMesh& InstancedScene::mesh(MeshId id) const { return impl_->mesh(id, "mesh").scene.meshes[0]; }
+
 size_t InstancedScene::memory_bytes() const {
   size_t bytes = impl_->tlas4.size() * sizeof(Bvh4Node) + impl_->tlas8.size() * sizeof(Bvh8Node) +
                  impl_->data.size() * sizeof(kernels::InstanceData);

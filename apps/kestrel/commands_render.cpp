@@ -1,0 +1,209 @@
+// `kestrel render` (one frame, every AOV) and `kestrel render-sequence` (a camera path,
+// animated glTF scenes moving, one file set per frame).
+#include <fmt/format.h>
+
+#include <cmath>
+#include <cstdio>
+#include <unistd.h>
+#include <filesystem>
+#include <memory>
+
+#include "commands.h"
+#include "kestrel/error.h"
+#include "kestrel/io.h"
+#include "kestrel/render.h"
+
+namespace kestrel::cli {
+
+namespace {
+
+struct RenderArgs {
+  std::string scene = "builtin:cornell_box", view, camera, res = "640x360", out, pfm, png, env, path;
+  int spp = 1, max_depth = 8, threads = 0, frames = 0, frame = 0;
+  uint64_t seed = 0;
+  double time_limit = 0, time = 0;
+  float exposure = 0, clamp = 0, fps = 30;
+  bool no_jitter = false, quiet = false;
+};
+
+void add_common(CLI::App& cmd, RenderArgs& a) {
+  cmd.add_option("scene", a.scene, "Scene file (OBJ, glTF, GLB) or builtin:NAME")->required();
+  cmd.add_option("--res", a.res, "Resolution WxH")->capture_default_str();
+  cmd.add_option("--spp", a.spp, "Samples per pixel")->capture_default_str();
+  cmd.add_option("--seed", a.seed, "Random seed (same seed: same image for any thread count)")->capture_default_str();
+  cmd.add_option("--max-depth", a.max_depth, "Path vertices after the camera (1 = direct light)")->capture_default_str();
+  cmd.add_option("--threads", a.threads, "Worker threads (0 = all)")->capture_default_str();
+  cmd.add_option("--env", a.env, "Environment: none | sky | constant:R,G,B | image file (.hdr .exr .pfm .png)");
+  cmd.add_option("--pfm", a.pfm, "Also write one PFM per AOV into this directory");
+  cmd.add_option("--png", a.png, "Also write the tone-mapped colour as PNG");
+  cmd.add_option("--exposure", a.exposure, "Exposure of the PNG, stops")->capture_default_str();
+  cmd.add_option("--clamp", a.clamp, "Clamp sample radiance to this (biased; 0 = off)")->capture_default_str();
+  cmd.add_flag("--no-jitter", a.no_jitter, "Sample pixel centres (no Halton jitter)");
+  cmd.add_flag("--quiet", a.quiet, "No progress bar");
+}
+
+RenderSettings settings_of(const RenderArgs& a) {
+  RenderSettings s;
+  parse_resolution(a.res, s.width, s.height);
+  s.spp = a.spp;
+  s.seed = a.seed;
+  s.max_depth = a.max_depth;
+  s.threads = a.threads;
+  s.time_limit_s = a.time_limit;
+  s.jitter = !a.no_jitter;
+  s.clamp = a.clamp;
+  s.progress = !a.quiet && isatty(2);
+  return s;
+}
+
+std::optional<Environment> environment_of(const RenderArgs& a) {
+  if (a.env.empty()) return std::nullopt;
+  return Environment::parse(a.env);
+}
+
+Camera parse_camera(const std::string& text) {
+  std::vector<float> v;
+  size_t at = 0;
+  while (at <= text.size()) {
+    const size_t comma = text.find(',', at);
+    const std::string part = text.substr(at, comma == std::string::npos ? std::string::npos : comma - at);
+    char* end = nullptr;
+    const float x = std::strtof(part.c_str(), &end);
+    if (part.empty() || end != part.c_str() + part.size())
+      throw Error(ErrorCode::invalid_argument, fmt::format("--camera '{}': '{}' is not a number", text, part));
+    v.push_back(x);
+    if (comma == std::string::npos) break;
+    at = comma + 1;
+  }
+  if (v.size() != 6 && v.size() != 7 && v.size() != 9)
+    throw Error(ErrorCode::invalid_argument,
+                fmt::format("--camera '{}': expected ex,ey,ez,tx,ty,tz[,vfov[,aperture,focus]]", text));
+  Camera c;
+  c.eye = {v[0], v[1], v[2]};
+  c.target = {v[3], v[4], v[5]};
+  if (v.size() >= 7) c.vfov_degrees = v[6];
+  if (v.size() == 9) c.aperture_radius = v[7], c.focus_distance = v[8];
+  check_camera(c);
+  return c;
+}
+
+void write_outputs(const Frame& f, const std::string& exr, const std::string& pfm, const std::string& png, float exposure) {
+  if (!exr.empty()) {
+    const std::filesystem::path parent = std::filesystem::path(exr).parent_path();
+    if (!parent.empty()) std::filesystem::create_directories(parent);
+    write_frame_exr(exr, f);
+  }
+  if (!pfm.empty()) write_frame_pfms(pfm, f);
+  if (!png.empty()) write_png(png, f.width, f.height, tonemap_srgb8(f[Aov::color], exposure));
+}
+
+void print_stats(const RenderStats& st) {
+  const double mrays = double(st.rays()) / (st.ms * 1e3);
+  fmt::print("render   {} spp in {:.1f} ms: {} camera + {} bounce + {} shadow rays, {:.2f} Mrays/s; "
+             "{:.0f}% of thread time in trace/occluded\n",
+             st.passes, st.ms, st.camera_rays, st.bounce_rays, st.shadow_rays, mrays,
+             st.total_thread_ms > 0 ? 100.0 * st.trace_ms / st.total_thread_ms : 0.0);
+}
+
+void run_render(const RenderArgs& a) {
+  if (a.out.empty() && a.pfm.empty() && a.png.empty())
+    throw Error(ErrorCode::invalid_argument, "render: nothing to write (give -o out.exr, --pfm DIR or --png out.png)");
+  if (!a.view.empty() && !a.camera.empty()) throw Error(ErrorCode::invalid_argument, "render: give --view or --camera, not both");
+  const RenderSettings s = settings_of(a);
+  Scene scene = load_scene(a.scene);
+  Camera camera;
+  if (!a.camera.empty()) {
+    camera = parse_camera(a.camera);
+  } else {
+    std::string view = a.view;
+    if (view.empty()) view = find_view(scene, "front") ? "front" : "framing";
+    auto c = find_view(scene, view);
+    if (!c) throw Error(ErrorCode::invalid_argument, fmt::format("{}: no view named '{}' (looked in {})", a.scene, view,
+                                                                 fmt::join(view_files_for(scene.source), ", ")));
+    camera = *c;
+  }
+  const std::string source = scene.source;
+  const size_t triangles = scene.triangle_count();
+  Renderer renderer(std::move(scene), environment_of(a));
+  RenderSettings rs = s;
+  rs.frame = uint32_t(a.frame);
+  const Frame f = renderer.render(camera, rs);
+  fmt::print("scene    {} ({} triangles, {} light triangles)\n", source, triangles, renderer.light_count());
+  print_stats(f.stats);
+  write_outputs(f, a.out, a.pfm, a.png, a.exposure);
+  for (const std::string& o : {a.out, a.pfm, a.png})
+    if (!o.empty()) fmt::print("wrote    {}\n", o);
+}
+
+bool is_gltf(const std::string& path) {
+  std::string ext = std::filesystem::path(path).extension().string();
+  for (char& c : ext) c = char(std::tolower(static_cast<unsigned char>(c)));
+  return ext == ".gltf" || ext == ".glb";
+}
+
+void run_sequence(const RenderArgs& a) {
+  if (a.frames <= 0) throw Error(ErrorCode::invalid_argument, fmt::format("render-sequence: --frames must be positive, got {}", a.frames));
+  if (a.out.empty()) throw Error(ErrorCode::invalid_argument, "render-sequence: -o DIR is required");
+  const CameraPath path = CameraPath::load(a.path);
+  RenderSettings s = settings_of(a);
+  s.progress = false;
+  std::filesystem::create_directories(a.out);
+  // glTF files render as two-level scenes so their animations move; others are static.
+  std::unique_ptr<InstancedScene> instanced;
+  std::unique_ptr<GltfInstances> gltf;
+  std::unique_ptr<Renderer> renderer;
+  if (is_gltf(a.scene)) {
+    instanced = std::make_unique<InstancedScene>();
+    gltf = std::make_unique<GltfInstances>(GltfInstances::load(a.scene));
+    gltf->add_to(*instanced);
+    instanced->commit();
+    renderer = std::make_unique<Renderer>(*instanced, gltf->materials(), gltf->textures(), environment_of(a));
+  } else {
+    renderer = std::make_unique<Renderer>(load_scene(a.scene), environment_of(a));
+  }
+  const double t0 = path.start(), t1 = path.end();
+  std::optional<Camera> prev;
+  for (int i = 0; i < a.frames; ++i) {
+    const double t = a.frames > 1 ? t0 + (t1 - t0) * double(i) / double(a.frames - 1) : t0;
+    if (gltf) {
+      gltf->set_time(*instanced, t);
+      instanced->commit();
+      renderer->sync();
+    }
+    const Camera cam = path.at(t);
+    s.frame = uint32_t(i);
+    const Frame f = renderer->render(cam, s, prev);
+    prev = cam;
+    const std::string stem = (std::filesystem::path(a.out) / fmt::format("frame_{:04d}", i)).string();
+    write_outputs(f, stem + ".exr", a.pfm.empty() ? "" : (std::filesystem::path(a.pfm) / fmt::format("frame_{:04d}", i)).string(),
+                  a.png.empty() ? "" : stem + ".png", a.exposure);
+    if (!a.quiet)
+      fmt::print("frame {:4d}/{}  t = {:.3f} s  {:.1f} ms  {:.2f} Mrays/s\n", i + 1, a.frames, t, f.stats.ms,
+                 double(f.stats.rays()) / (f.stats.ms * 1e3));
+  }
+  fmt::print("wrote    {} frames to {}\n", a.frames, a.out);
+}
+
+}  // namespace
+
+Action add_render_command(CLI::App& cmd) {
+  auto a = std::make_shared<RenderArgs>();
+  add_common(cmd, *a);
+  cmd.add_option("--view", a->view, "Named view (scene's .views.json or data/views; 'framing' always exists)");
+  cmd.add_option("--camera", a->camera, "Camera ex,ey,ez,tx,ty,tz[,vfov[,aperture,focus]]");
+  cmd.add_option("-o,--out", a->out, "Multi-layer EXR with every AOV");
+  cmd.add_option("--time-limit", a->time_limit, "Stop accumulating after this many seconds (progressive)");
+  cmd.add_option("--frame", a->frame, "Frame index (Halton jitter, noise decorrelation)")->capture_default_str();
+  return [a] { run_render(*a); };
+}
+
+Action add_render_sequence_command(CLI::App& cmd) {
+  auto a = std::make_shared<RenderArgs>();
+  add_common(cmd, *a);
+  cmd.add_option("--path", a->path, "Camera path JSON (keyframes)")->required();
+  cmd.add_option("--frames", a->frames, "Frames, evenly spread over the path's time span")->required();
+  cmd.add_option("-o,--out", a->out, "Output directory: frame_NNNN.exr (+ .png with --png x, PFMs under --pfm DIR)")->required();
+  return [a] { run_sequence(*a); };
+}
+
+}  // namespace kestrel::cli

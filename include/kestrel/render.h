@@ -1,0 +1,186 @@
+// kestrel public API: the path tracer. Cameras (pinhole, thin lens, named views, keyframed
+// paths), environments, render settings, the frame with every auxiliary buffer (AOV)
+// reconstruction needs, and the Renderer over a static Scene or an animated InstancedScene.
+// Conventions (docs/renderer.md): images rows top to bottom; +Y up; world-space normals;
+// depth along the camera's forward axis; motion vectors in pixels pointing from a pixel of
+// this frame to where the same surface point was in the previous frame.
+#pragma once
+#include <array>
+#include <cstdint>
+#include <map>
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "kestrel/instances.h"
+#include "kestrel/io.h"
+#include "kestrel/scene.h"
+
+namespace kestrel {
+
+/// A camera looking from eye at target (+Y up). aperture_radius > 0 makes it a thin lens
+/// focused at focus_distance (0 = the eye-target distance).
+struct Camera {
+  Vec3 eye{0, 0, 0}, target{0, 0, -1};
+  float vfov_degrees = 45.0f;
+  float aperture_radius = 0.0f;
+  float focus_distance = 0.0f;
+};
+
+/// Throws Error unless the camera can make rays: finite values, eye != target, vfov in
+/// (0, 180), aperture and focus distance >= 0.
+void check_camera(const Camera& camera);
+
+/// The framing view of a scene: target the centre of its bounds, eye = target +
+/// normalize(0.3, 0.35, -1) * r / sin(vfov / 2), r = half the diagonal, vfov 45.
+Camera framing_camera(const Scene& scene);
+
+/// Named views: a JSON object {"views": {"NAME": {"eye": [x,y,z], "target": [x,y,z],
+/// "vfov": deg, "aperture": r, "focus_distance": d}}}. Errors name the file and the view.
+std::map<std::string, Camera> load_views(const std::string& path);
+/// Where the views of a scene file are looked for, in order: "<scene without extension>
+/// .views.json" beside it, then kestrel's data/views/<stem>.views.json.
+std::vector<std::string> view_files_for(const std::string& scene_path);
+/// A named view of the scene ("framing" always exists, computed from the scene); nullopt
+/// when no views file names it.
+std::optional<Camera> find_view(const Scene& scene, const std::string& name);
+
+/// A keyframed camera path: {"keyframes": [{"time": s, "eye": [...], "target": [...],
+/// "vfov": deg}, ...]} with increasing times; eye and target follow a centripetal
+/// Catmull-Rom spline through the keys, vfov / aperture / focus are interpolated linearly.
+struct CameraPath {
+  struct Key {
+    double time = 0;
+    Camera camera;
+  };
+  std::vector<Key> keys;
+  static CameraPath load(const std::string& path);
+  double start() const { return keys.empty() ? 0.0 : keys.front().time; }
+  double end() const { return keys.empty() ? 0.0 : keys.back().time; }
+  Camera at(double time) const;
+};
+
+/// Light from infinitely far away: a constant radiance or an equirectangular image
+/// (u = 0.5 + atan2(d.x, -d.z) / 2pi, v = acos(d.y) / pi, row 0 = straight up), scaled.
+struct Environment {
+  Vec3 color{0, 0, 0};
+  FloatImage image;  ///< 3 channels, linear; empty = constant colour
+  float scale = 1.0f;
+  /// "none", "constant:R,G,B" (or "R,G,B"), "sky" (a soft white sky, the default for
+  /// scenes without emitters), or an image file (.hdr, .exr, .pfm, .png): see read_float_image.
+  static Environment parse(const std::string& spec);
+};
+
+/// What a render does. The same settings and seed give the same bits for any thread count.
+struct RenderSettings {
+  int width = 640, height = 360;
+  int spp = 1;                ///< samples per pixel (a time limit may stop earlier)
+  double time_limit_s = 0;    ///< > 0: stop after the pass during which this much time passed
+  uint64_t seed = 0;
+  uint32_t frame = 0;         ///< frame index: picks the Halton jitter and decorrelates noise
+  bool jitter = true;         ///< sub-pixel jitter (Halton 2,3 by frame); false = pixel centres
+  int max_depth = 8;          ///< path vertices after the camera (1 = direct light only)
+  int rr_depth = 3;           ///< Russian roulette from this bounce on
+  float clamp = 0;            ///< > 0: clamp each sample's radiance (biased); 0 = off
+  int threads = 0;            ///< 0 = all the library may use
+  bool progress = false;      ///< a progress bar on stderr
+};
+
+/// The auxiliary buffers, in file order. Every frame has all of them.
+enum class Aov { color, albedo, normal, depth, roughness, motion, spp, variance };
+inline constexpr int aov_count = 8;
+/// "color", "albedo", "normal", "depth", "roughness", "motion", "spp", "variance".
+const char* aov_name(Aov aov);
+/// Channels of an AOV's image (3, 3, 3, 1, 1, 2, 1, 1).
+int aov_channels(Aov aov);
+
+struct RenderStats {
+  double ms = 0;        ///< wall time of the render
+  double trace_ms = 0;  ///< time inside trace/occluded calls (summed over threads)
+  double total_thread_ms = 0;  ///< time inside the render's tiles (summed over threads)
+  uint64_t camera_rays = 0, bounce_rays = 0, shadow_rays = 0;
+  int passes = 0;       ///< samples per pixel done
+  uint64_t rays() const { return camera_rays + bounce_rays + shadow_rays; }
+};
+
+/// One rendered frame: every AOV as a float image (docs/renderer.md):
+/// - color: linear HDR radiance, mean of the samples;
+/// - albedo: reflectance of the first non-specular surface (its base colour; the
+///   environment's radiance for camera rays that escape, as Open Image Denoise expects);
+/// - normal: world-space shading normal at that surface, facing the camera (0 on a miss);
+/// - depth: distance along the camera's forward axis to the first hit (0 on a miss);
+/// - roughness: perceptual roughness of the first non-specular surface (0 on a miss);
+/// - motion: (dx, dy) in pixels such that the surface seen at pixel p was at p + motion in
+///   the previous frame (previous camera and instance transforms; 0 on a miss... and for
+///   samples whose point was behind the previous camera);
+/// - spp: samples per pixel; variance: the variance of the colour's luminance mean
+///   (sample variance / spp; 0 at 1 spp).
+/// Each AOV is the mean over the pixel's samples.
+struct Frame {
+  int width = 0, height = 0;
+  FloatImage aov[aov_count];
+  float jitter_x = 0.5f, jitter_y = 0.5f;  ///< sub-pixel position of pass 0's samples
+  RenderStats stats;
+  FloatImage& operator[](Aov a) { return aov[int(a)]; }
+  const FloatImage& operator[](Aov a) const { return aov[int(a)]; }
+  /// Every AOV as EXR layers (color as bare R, G, B; "albedo.R", "normal.X", "depth.Z", ...).
+  std::vector<ImageLayer> layers() const;
+};
+
+/// Writes the frame: a multi-layer EXR with every AOV.
+void write_frame_exr(const std::string& path, const Frame& frame);
+/// Writes one PFM per AOV into dir (color.pfm, albedo.pfm, normal.pfm, depth.pfm,
+/// roughness.pfm, motion.pfm (3 channels, the third 0), spp.pfm, variance.pfm).
+void write_frame_pfms(const std::string& dir, const Frame& frame);
+/// The documented tone map: exposure 2^stops, ACES filmic (Narkowicz 2015), sRGB OETF.
+std::vector<uint8_t> tonemap_srgb8(const FloatImage& color, float exposure_stops = 0.0f);
+/// One channel's tone map as above (for evaluation code).
+float tonemap_aces_srgb(float linear);
+
+/// Every ray batch a render traced, in order (for benchmarks: retrace them alone).
+struct RayCapture {
+  std::vector<Ray> camera, bounce, shadow;
+  std::vector<size_t> camera_batches, bounce_batches, shadow_batches;  ///< batch sizes
+};
+
+/// The path tracer: unidirectional, next-event estimation with multiple importance sampling
+/// (power heuristic), Russian roulette, on the metallic-roughness material model (Lambertian
+/// diffuse base, dielectric GGX coat, GGX conductor; Heitz 2018 visible-normal sampling).
+/// Emissive triangles are area lights (two-sided) sampled by power.
+class Renderer {
+ public:
+  /// A static scene: builds its BVH now. `environment`: nullopt = "sky" when the scene has
+  /// no emissive triangle, else none.
+  explicit Renderer(Scene scene, std::optional<Environment> environment = std::nullopt);
+  /// An animated scene, referenced (it must outlive the renderer): call sync() after each
+  /// InstancedScene::commit(); the transforms seen at the previous sync() drive the motion
+  /// vectors. materials / textures: what the meshes' material_ids index.
+  Renderer(const InstancedScene& scene, std::vector<Material> materials, std::vector<Texture> textures,
+           std::optional<Environment> environment = std::nullopt);
+  ~Renderer();
+  Renderer(Renderer&&) noexcept;
+  Renderer& operator=(Renderer&&) noexcept;
+
+  /// Takes the scene's transforms and vertices as of its last commit (instanced scenes).
+  void sync();
+  /// Renders one frame. prev_camera: the previous frame's camera (for motion vectors;
+  /// nullopt = this camera). Throws Error for bad settings or a bad camera.
+  Frame render(const Camera& camera, const RenderSettings& settings, std::optional<Camera> prev_camera = std::nullopt);
+  /// Bounds of the scene as rendered.
+  Bounds3 bounds() const;
+  size_t light_count() const;
+  const Environment& environment() const;
+  /// For benchmarks: the next renders record every ray batch into `capture` (and run on
+  /// one thread); nullptr stops recording.
+  void set_capture(RayCapture* capture);
+  /// Traces captured batches again, alone, with the same batch sizes: ms for camera,
+  /// bounce and shadow rays.
+  std::array<double, 3> retrace(const RayCapture& capture) const;
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace kestrel

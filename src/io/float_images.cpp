@@ -1,0 +1,184 @@
+// Float image files: PFM (the layout Open Image Denoise's tools read), multi-layer OpenEXR,
+// and Radiance HDR / 8-bit images (stb_image) for environments.
+#include <fmt/format.h>
+
+#include <ImfChannelList.h>
+#include <ImfFrameBuffer.h>
+#include <ImfHeader.h>
+#include <ImfInputFile.h>
+#include <ImfOutputFile.h>
+#include <Iex.h>
+
+#include <bit>
+#include <cmath>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <map>
+#include <memory>
+
+#include "io/loaders.h"
+#include "kestrel/error.h"
+#include "kestrel/io.h"
+
+namespace kestrel {
+
+namespace {
+
+void check_image(const std::string& path, const FloatImage& image) {
+  if (image.width <= 0 || image.height <= 0 || image.channels <= 0 ||
+      image.pixels.size() != size_t(image.width) * size_t(image.height) * size_t(image.channels))
+    throw Error(ErrorCode::invalid_argument, fmt::format("{}: {} floats is not a {}x{}x{} image", path, image.pixels.size(),
+                                                         image.width, image.height, image.channels));
+}
+
+std::string lower_extension(const std::string& path) {
+  std::string ext = std::filesystem::path(path).extension().string();
+  for (char& c : ext) c = char(std::tolower(static_cast<unsigned char>(c)));
+  return ext;
+}
+
+}  // namespace
+
+void write_pfm(const std::string& path, const FloatImage& image) {
+  check_image(path, image);
+  if (image.channels > 3)
+    throw Error(ErrorCode::invalid_argument, fmt::format("{}: PFM holds 1 or 3 channels, not {}", path, image.channels));
+  const int out_channels = image.channels == 1 ? 1 : 3;
+  std::ofstream f(path, std::ios::binary);
+  if (!f) throw Error(ErrorCode::io_error, fmt::format("{}: cannot open for writing", path));
+  f << (out_channels == 1 ? "Pf" : "PF") << "\n" << image.width << " " << image.height << "\n-1.0\n";
+  std::vector<float> row(size_t(image.width) * size_t(out_channels), 0.0f);
+  for (int y = image.height - 1; y >= 0; --y) {
+    for (int x = 0; x < image.width; ++x)
+      for (int c = 0; c < image.channels; ++c) row[size_t(x) * size_t(out_channels) + size_t(c)] = image.at(x, y)[c];
+    f.write(reinterpret_cast<const char*>(row.data()), std::streamsize(row.size() * sizeof(float)));
+  }
+  if (!f) throw Error(ErrorCode::io_error, fmt::format("{}: write failed", path));
+}
+
+FloatImage read_pfm(const std::string& path) {
+  require_readable_file(path);
+  std::ifstream f(path, std::ios::binary);
+  std::string magic;
+  long long w = 0, h = 0;
+  double scale = 0;
+  f >> magic >> w >> h >> scale;
+  if (!f || (magic != "PF" && magic != "Pf"))
+    throw Error(ErrorCode::parse_error, fmt::format("{}: not a PFM file (header '{}')", path, magic));
+  if (w <= 0 || h <= 0 || w > (1 << 16) || h > (1 << 16) || scale == 0 || !std::isfinite(scale))
+    throw Error(ErrorCode::parse_error, fmt::format("{}: bad PFM header ({} x {}, scale {})", path, w, h, scale));
+  f.get();  // the single whitespace after the scale
+  FloatImage image(int(w), int(h), magic == "PF" ? 3 : 1);
+  const size_t row_floats = size_t(w) * size_t(image.channels);
+  std::vector<float> row(row_floats);
+  const bool swap = (scale > 0) != (std::endian::native == std::endian::big);
+  for (int y = int(h) - 1; y >= 0; --y) {
+    f.read(reinterpret_cast<char*>(row.data()), std::streamsize(row_floats * sizeof(float)));
+    if (f.gcount() != std::streamsize(row_floats * sizeof(float)))
+      throw Error(ErrorCode::parse_error, fmt::format("{}: truncated PFM ({} x {} x {} floats expected)", path, w, h, image.channels));
+    if (swap)
+      for (float& v : row) v = std::bit_cast<float>(__builtin_bswap32(std::bit_cast<uint32_t>(v)));
+    std::memcpy(image.at(0, y), row.data(), row_floats * sizeof(float));
+  }
+  return image;
+}
+
+void write_exr(const std::string& path, std::span<const ImageLayer> layers) {
+  if (layers.empty()) throw Error(ErrorCode::invalid_argument, fmt::format("{}: no layer to write", path));
+  const int w = layers[0].image.width, h = layers[0].image.height;
+  for (const ImageLayer& l : layers) {
+    check_image(path, l.image);
+    if (l.image.width != w || l.image.height != h)
+      throw Error(ErrorCode::invalid_argument, fmt::format("{}: layer '{}' is {}x{}, the first layer {}x{}", path, l.name,
+                                                           l.image.width, l.image.height, w, h));
+    if (l.channel_names.size() != size_t(l.image.channels))
+      throw Error(ErrorCode::invalid_argument, fmt::format("{}: layer '{}' names {} channels for {}", path, l.name,
+                                                           l.channel_names.size(), l.image.channels));
+  }
+  try {
+    Imf::Header header(w, h);
+    header.compression() = Imf::ZIP_COMPRESSION;
+    Imf::FrameBuffer fb;
+    for (const ImageLayer& l : layers) {
+      for (int c = 0; c < l.image.channels; ++c) {
+        const bool bare = l.name.empty() || l.name == "color";
+        const std::string name = bare ? l.channel_names[size_t(c)] : l.name + "." + l.channel_names[size_t(c)];
+        header.channels().insert(name, Imf::Channel(Imf::FLOAT));
+        const size_t xs = sizeof(float) * size_t(l.image.channels);
+        fb.insert(name, Imf::Slice(Imf::FLOAT, (char*)(l.image.pixels.data() + c), xs, xs * size_t(w)));
+      }
+    }
+    Imf::OutputFile file(path.c_str(), header);
+    file.setFrameBuffer(fb);
+    file.writePixels(h);
+  } catch (const std::exception& e) {
+    throw Error(ErrorCode::io_error, fmt::format("{}: cannot write EXR: {}", path, e.what()));
+  }
+}
+
+std::vector<ImageLayer> read_exr(const std::string& path) {
+  require_readable_file(path);
+  std::vector<ImageLayer> layers;
+  try {
+    Imf::InputFile file(path.c_str());
+    const Imath::Box2i dw = file.header().dataWindow();
+    const int w = dw.max.x - dw.min.x + 1, h = dw.max.y - dw.min.y + 1;
+    if (w <= 0 || h <= 0 || w > (1 << 16) || h > (1 << 16))
+      throw Error(ErrorCode::parse_error, fmt::format("{}: bad EXR data window {}x{}", path, w, h));
+    std::map<std::string, size_t> layer_of;
+    std::vector<std::vector<std::string>> full_names;
+    for (auto it = file.header().channels().begin(); it != file.header().channels().end(); ++it) {
+      const std::string full = it.name();
+      const size_t dot = full.rfind('.');
+      const std::string layer = dot == std::string::npos ? "color" : full.substr(0, dot);
+      const std::string channel = dot == std::string::npos ? full : full.substr(dot + 1);
+      auto [slot, fresh] = layer_of.try_emplace(layer, layers.size());
+      if (fresh) {
+        layers.push_back(ImageLayer{layer, {}, {}});
+        full_names.emplace_back();
+      }
+      layers[slot->second].channel_names.push_back(channel);
+      full_names[slot->second].push_back(full);
+    }
+    Imf::FrameBuffer fb;
+    for (size_t i = 0; i < layers.size(); ++i) {
+      ImageLayer& l = layers[i];
+      l.image = FloatImage(w, h, int(l.channel_names.size()));
+      const size_t xs = sizeof(float) * size_t(l.image.channels);
+      for (size_t c = 0; c < l.channel_names.size(); ++c) {
+        char* base = (char*)(l.image.pixels.data() + c) - (ptrdiff_t(dw.min.x) * ptrdiff_t(xs)) -
+                     ptrdiff_t(dw.min.y) * ptrdiff_t(xs) * w;
+        fb.insert(full_names[i][c], Imf::Slice(Imf::FLOAT, base, xs, xs * size_t(w)));
+      }
+    }
+    file.setFrameBuffer(fb);
+    file.readPixels(dw.min.y, dw.max.y);
+  } catch (const Error&) {
+    throw;
+  } catch (const std::exception& e) {
+    throw Error(ErrorCode::parse_error, fmt::format("{}: cannot read EXR: {}", path, e.what()));
+  }
+  if (layers.empty()) throw Error(ErrorCode::parse_error, fmt::format("{}: EXR has no channel", path));
+  return layers;
+}
+
+FloatImage read_float_image(const std::string& path) {
+  const std::string ext = lower_extension(path);
+  if (ext == ".pfm") return read_pfm(path);
+  if (ext == ".exr") {
+    std::vector<ImageLayer> layers = read_exr(path);
+    for (ImageLayer& l : layers)
+      if (l.image.channels >= 3) {
+        FloatImage rgb(l.image.width, l.image.height, 3);
+        for (int y = 0; y < rgb.height; ++y)
+          for (int x = 0; x < rgb.width; ++x)
+            for (int c = 0; c < 3; ++c) rgb.at(x, y)[c] = l.image.at(x, y)[c];
+        return rgb;
+      }
+    return std::move(layers[0].image);
+  }
+  return load_float_image_stb(path);
+}
+
+}  // namespace kestrel

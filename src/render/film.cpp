@@ -1,0 +1,73 @@
+// Frame outputs: AOV names and channels, the multi-layer EXR, one PFM per AOV, and the
+// documented tone map (exposure, ACES filmic fit, sRGB).
+#include <fmt/format.h>
+
+#include <algorithm>
+#include <cmath>
+#include <filesystem>
+
+#include "kestrel/error.h"
+#include "kestrel/render.h"
+
+namespace kestrel {
+
+const char* aov_name(Aov aov) {
+  static const char* names[aov_count] = {"color", "albedo", "normal", "depth", "roughness", "motion", "spp", "variance"};
+  return names[int(aov)];
+}
+
+int aov_channels(Aov aov) {
+  static const int channels[aov_count] = {3, 3, 3, 1, 1, 2, 1, 1};
+  return channels[int(aov)];
+}
+
+std::vector<ImageLayer> Frame::layers() const {
+  std::vector<ImageLayer> out;
+  for (int a = 0; a < aov_count; ++a) {
+    const Aov aov = Aov(a);
+    std::vector<std::string> names;
+    switch (aov) {
+      case Aov::color:
+      case Aov::albedo: names = {"R", "G", "B"}; break;
+      case Aov::normal: names = {"X", "Y", "Z"}; break;
+      case Aov::depth: names = {"Z"}; break;
+      case Aov::motion: names = {"X", "Y"}; break;
+      default: names = {"Y"}; break;
+    }
+    out.push_back(ImageLayer{aov_name(aov), names, this->aov[a]});
+  }
+  return out;
+}
+
+void write_frame_exr(const std::string& path, const Frame& frame) {
+  const std::vector<ImageLayer> layers = frame.layers();
+  write_exr(path, layers);
+}
+
+void write_frame_pfms(const std::string& dir, const Frame& frame) {
+  std::error_code ec;
+  std::filesystem::create_directories(dir, ec);
+  if (ec) throw Error(ErrorCode::io_error, fmt::format("{}: cannot create directory: {}", dir, ec.message()));
+  for (int a = 0; a < aov_count; ++a)
+    write_pfm((std::filesystem::path(dir) / (std::string(aov_name(Aov(a))) + ".pfm")).string(), frame.aov[a]);
+}
+
+float tonemap_aces_srgb(float x) {
+  if (!(x > 0)) return 0.0f;  // NaN and negatives to black
+  x = std::min(x, 1e6f);
+  const float a = 2.51f, b = 0.03f, c = 2.43f, d = 0.59f, e = 0.14f;
+  const float y = std::clamp((x * (a * x + b)) / (x * (c * x + d) + e), 0.0f, 1.0f);
+  return y <= 0.0031308f ? 12.92f * y : 1.055f * std::pow(y, 1.0f / 2.4f) - 0.055f;
+}
+
+std::vector<uint8_t> tonemap_srgb8(const FloatImage& color, float exposure_stops) {
+  if (color.channels < 3) throw Error(ErrorCode::invalid_argument, "tone map: the image needs 3 channels");
+  const float scale = std::exp2(exposure_stops);
+  std::vector<uint8_t> out(size_t(color.width) * size_t(color.height) * 3);
+  for (size_t p = 0; p < size_t(color.width) * size_t(color.height); ++p)
+    for (int c = 0; c < 3; ++c)
+      out[3 * p + size_t(c)] = uint8_t(std::lround(255.0f * tonemap_aces_srgb(color.pixels[p * size_t(color.channels) + size_t(c)] * scale)));
+  return out;
+}
+
+}  // namespace kestrel
