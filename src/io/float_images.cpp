@@ -9,6 +9,7 @@
 #include <ImfOutputFile.h>
 #include <Iex.h>
 
+#include <algorithm>
 #include <bit>
 #include <cmath>
 #include <cstring>
@@ -140,6 +141,24 @@ std::vector<ImageLayer> read_exr(const std::string& path) {
       }
       layers[slot->second].channel_names.push_back(channel);
       full_names[slot->second].push_back(full);
+    }
+    // EXR lists channels alphabetically; put R, G, B, A and X, Y, Z back in their order.
+    auto rank = [](const std::string& c) {
+      static const char* order[] = {"R", "G", "B", "A", "X", "Y", "Z"};
+      for (int k = 0; k < 7; ++k)
+        if (c == order[k]) return k < 4 ? k : k - 4;
+      return 8;
+    };
+    for (size_t i = 0; i < layers.size(); ++i) {
+      std::vector<size_t> idx(layers[i].channel_names.size());
+      for (size_t k = 0; k < idx.size(); ++k) idx[k] = k;
+      std::stable_sort(idx.begin(), idx.end(), [&](size_t a, size_t b) {
+        return rank(layers[i].channel_names[a]) < rank(layers[i].channel_names[b]);
+      });
+      std::vector<std::string> names, fulls;
+      for (size_t k : idx) names.push_back(layers[i].channel_names[k]), fulls.push_back(full_names[i][k]);
+      layers[i].channel_names = names;
+      full_names[i] = fulls;
     }
     Imf::FrameBuffer fb;
     for (size_t i = 0; i < layers.size(); ++i) {

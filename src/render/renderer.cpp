@@ -41,21 +41,32 @@ const SrgbTable srgb_table;
 
 // Bilinear, repeat-wrapped texture fetch; sRGB-decoded per texel when `srgb`.
 void sample_texture(const Texture& tex, Vec2 uv, bool srgb, float out[4]) {
-  const float x = (uv.x - std::floor(uv.x)) * float(tex.width) - 0.5f;
-  const float y = (uv.y - std::floor(uv.y)) * float(tex.height) - 0.5f;
+  float x = (uv.x - std::floor(uv.x)) * float(tex.width) - 0.5f;
+  float y = (uv.y - std::floor(uv.y)) * float(tex.height) - 0.5f;
+  if (!(x >= -1.0f && x < float(tex.width)) || !(y >= -1.0f && y < float(tex.height))) x = 0, y = 0;  // NaN uv
   const float fx = std::floor(x), fy = std::floor(y);
   const float wx = x - fx, wy = y - fy;
-  auto wrap = [](int i, int n) { i %= n; return i < 0 ? i + n : i; };
-  const int x0 = wrap(int(fx), tex.width), x1 = wrap(int(fx) + 1, tex.width);
-  const int y0 = wrap(int(fy), tex.height), y1 = wrap(int(fy) + 1, tex.height);
-  const uint8_t* t00 = &tex.rgba[(size_t(y0) * size_t(tex.width) + size_t(x0)) * 4];
-  const uint8_t* t10 = &tex.rgba[(size_t(y0) * size_t(tex.width) + size_t(x1)) * 4];
-  const uint8_t* t01 = &tex.rgba[(size_t(y1) * size_t(tex.width) + size_t(x0)) * 4];
-  const uint8_t* t11 = &tex.rgba[(size_t(y1) * size_t(tex.width) + size_t(x1)) * 4];
-  for (int c = 0; c < 4; ++c) {
-    auto dec = [&](const uint8_t* t) { return srgb && c < 3 ? srgb_table.v[t[c]] : float(t[c]) * (1.0f / 255.0f); };
-    out[c] = (dec(t00) * (1 - wx) + dec(t10) * wx) * (1 - wy) + (dec(t01) * (1 - wx) + dec(t11) * wx) * wy;
+  // x in [-0.5, w - 0.5): the left texel is -1 (wraps to w - 1) .. w - 1, the right one 0 .. w.
+  int x0 = int(fx), y0 = int(fy);
+  int x1 = x0 + 1, y1 = y0 + 1;
+  if (x0 < 0) x0 = tex.width - 1;
+  if (x1 >= tex.width) x1 = 0;
+  if (y0 < 0) y0 = tex.height - 1;
+  if (y1 >= tex.height) y1 = 0;
+  const uint8_t* row0 = &tex.rgba[size_t(y0) * size_t(tex.width) * 4];
+  const uint8_t* row1 = &tex.rgba[size_t(y1) * size_t(tex.width) * 4];
+  const uint8_t* t00 = row0 + size_t(x0) * 4;
+  const uint8_t* t10 = row0 + size_t(x1) * 4;
+  const uint8_t* t01 = row1 + size_t(x0) * 4;
+  const uint8_t* t11 = row1 + size_t(x1) * 4;
+  const float w00 = (1 - wx) * (1 - wy), w10 = wx * (1 - wy), w01 = (1 - wx) * wy, w11 = wx * wy;
+  if (srgb) {
+    const float* lut = srgb_table.v;
+    for (int c = 0; c < 3; ++c) out[c] = lut[t00[c]] * w00 + lut[t10[c]] * w10 + lut[t01[c]] * w01 + lut[t11[c]] * w11;
+  } else {
+    for (int c = 0; c < 3; ++c) out[c] = (float(t00[c]) * w00 + float(t10[c]) * w10 + float(t01[c]) * w01 + float(t11[c]) * w11) * (1.0f / 255.0f);
   }
+  out[3] = (float(t00[3]) * w00 + float(t10[3]) * w10 + float(t01[3]) * w01 + float(t11[3]) * w11) * (1.0f / 255.0f);
 }
 
 Vec3 normal_transform(const float n[9], Vec3 v) {
@@ -442,7 +453,51 @@ void Renderer::Impl::render_tile(const CameraModel& cam, const CameraModel& prev
     next_active.clear();
     shadow_rays.clear();
     shadows.clear();
+    // Shading reads scattered vertex data: fetch it ahead, indices first, then the vertices
+    // they name (misses overlap instead of stalling one hit at a time).
+    auto prefetch_indices = [&](size_t k) {
+      const SurfaceHit& h = hits[k];
+      if (!h.hit()) return;
+      const TriangleMesh& m = *instances[h.instance].mesh;
+      __builtin_prefetch(&m.indices[3 * size_t(h.prim)]);
+      if (!m.material_ids.empty()) __builtin_prefetch(&m.material_ids[h.prim]);
+    };
+    auto prefetch_vertices = [&](size_t k) {
+      const SurfaceHit& h = hits[k];
+      if (!h.hit()) return;
+      const TriangleMesh& m = *instances[h.instance].mesh;
+      for (int c = 0; c < 3; ++c) {
+        const uint32_t i = m.indices[3 * size_t(h.prim) + size_t(c)];
+        __builtin_prefetch(&m.positions[i]);
+        if (!m.normals.empty()) __builtin_prefetch(&m.normals[i]);
+        if (!m.uvs.empty()) __builtin_prefetch(&m.uvs[i]);
+      }
+    };
+    auto prefetch_texels = [&](size_t k) {  // the base colour texels, once the uvs are near
+      const SurfaceHit& h = hits[k];
+      if (!h.hit()) return;
+      const TriangleMesh& m = *instances[h.instance].mesh;
+      if (m.uvs.empty()) return;
+      const Texture* t = texture(material_of(m, h.prim).base_color_texture);
+      if (!t) return;
+      const size_t tri = 3 * size_t(h.prim);
+      const Vec2 a = m.uvs[m.indices[tri]], b = m.uvs[m.indices[tri + 1]], c = m.uvs[m.indices[tri + 2]];
+      const float b0 = 1 - h.u - h.v;
+      const float u = a.x * b0 + b.x * h.u + c.x * h.v, v = a.y * b0 + b.y * h.u + c.y * h.v;
+      const float x = (u - std::floor(u)) * float(t->width), y = (v - std::floor(v)) * float(t->height);
+      if (!(x >= 0 && x < float(t->width) && y >= 0 && y < float(t->height))) return;
+      const size_t row = size_t(y) * size_t(t->width);
+      __builtin_prefetch(&t->rgba[(row + size_t(x)) * 4]);
+      if (size_t(y) + 1 < size_t(t->height)) __builtin_prefetch(&t->rgba[(row + size_t(t->width) + size_t(x)) * 4]);
+    };
+    constexpr size_t index_distance = 48, vertex_distance = 24, texel_distance = 12;
+    for (size_t k = 0; k < std::min(n, index_distance); ++k) prefetch_indices(k);
+    for (size_t k = 0; k < std::min(n, vertex_distance); ++k) prefetch_vertices(k);
+    for (size_t k = 0; k < std::min(n, texel_distance); ++k) prefetch_texels(k);
     for (size_t k = 0; k < n; ++k) {
+      if (k + index_distance < n) prefetch_indices(k + index_distance);
+      if (k + vertex_distance < n) prefetch_vertices(k + vertex_distance);
+      if (k + texel_distance < n) prefetch_texels(k + texel_distance);
       PathState& ps = paths[active[k]];
       Rng& rng = rngs[active[k]];
       PixelSample& out = px[ps.pixel];

@@ -1,0 +1,171 @@
+// The BSDF against its own pdf and against analytic facts: chi-square tests of sampling
+// (sample histogram vs the pdf integrated per bin), eval / pdf / sample agreement,
+// reciprocity, the GGX "weak white furnace" (D and G1 normalised) and energy bounds.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <random>
+#include <vector>
+
+#include "render/bsdf.h"
+
+namespace kestrel::render {
+namespace {
+
+Vec3 dir(float theta, float phi) { return {std::sin(theta) * std::cos(phi), std::sin(theta) * std::sin(phi), std::cos(theta)}; }
+
+// Upper-tail p-value of chi-square with k degrees of freedom (Wilson-Hilferty).
+double chi2_p_value(double chi2, int k) {
+  const double z = (std::cbrt(chi2 / k) - (1.0 - 2.0 / (9.0 * k))) / std::sqrt(2.0 / (9.0 * k));
+  return 0.5 * std::erfc(z / std::sqrt(2.0));
+}
+
+struct Case {
+  const char* name;
+  BsdfParams p;
+};
+
+std::vector<Case> cases() {
+  auto make = [](Vec3 base, float metallic, float roughness, float specular) {
+    BsdfParams p;
+    p.base = base, p.metallic = metallic, p.alpha = std::max(roughness * roughness, min_alpha), p.specular = specular;
+    return p;
+  };
+  return {{"lambertian", make({0.7f, 0.5f, 0.3f}, 0, 1, 0)},
+          {"coated_rough", make({0.6f, 0.6f, 0.6f}, 0, 0.7f, 1)},
+          {"coated_glossy", make({0.2f, 0.4f, 0.8f}, 0, 0.35f, 1)},
+          {"conductor_rough", make({0.95f, 0.64f, 0.54f}, 1, 0.6f, 0)},
+          {"conductor_glossy", make({0.9f, 0.9f, 0.9f}, 1, 0.3f, 0)},
+          {"mixed", make({0.5f, 0.8f, 0.3f}, 0.5f, 0.45f, 0.5f)}};
+}
+
+class BsdfCase : public ::testing::TestWithParam<std::tuple<int, float>> {};
+
+TEST_P(BsdfCase, SamplingMatchesPdfChiSquare) {
+  const auto [index, cos_o] = GetParam();
+  const Case c = cases()[size_t(index)];
+  const Vec3 wo{std::sqrt(1 - cos_o * cos_o), 0, cos_o};
+  constexpr int nt = 24, np = 48, sub = 10;
+  constexpr int samples = 1'000'000;
+  std::vector<double> expected(nt * np, 0.0), observed(nt * np + 1, 0.0);
+  const double dt = (pi / 2) / nt, dp = 2 * pi / np;
+  double total = 0;
+  for (int i = 0; i < nt; ++i)
+    for (int j = 0; j < np; ++j) {
+      double e = 0;
+      for (int a = 0; a < sub; ++a)
+        for (int b = 0; b < sub; ++b) {
+          const double t = (i + (a + 0.5) / sub) * dt, ph = (j + (b + 0.5) / sub) * dp;
+          e += bsdf_pdf(c.p, wo, dir(float(t), float(ph))) * std::sin(t) * (dt / sub) * (dp / sub);
+        }
+      expected[size_t(i * np + j)] = e * samples;
+      total += e;
+    }
+  EXPECT_LE(total, 1.001) << c.name << ": the pdf integrates to more than 1";
+  std::mt19937 gen(1234 + index);
+  std::uniform_real_distribution<float> u(0.0f, 0x1.fffffep-1f);
+  for (int s = 0; s < samples; ++s) {
+    BsdfSample bs;
+    if (!bsdf_sample(c.p, wo, u(gen), u(gen), u(gen), bs)) {
+      observed[nt * np] += 1;
+      continue;
+    }
+    const float t = std::acos(std::clamp(bs.wi.z, 0.0f, 1.0f));
+    float ph = std::atan2(bs.wi.y, bs.wi.x);
+    if (ph < 0) ph += 2 * pi;
+    const int i = std::min(nt - 1, int(t / dt)), j = std::min(np - 1, int(ph / dp));
+    observed[size_t(i * np + j)] += 1;
+  }
+  expected.push_back(std::max(0.0, (1.0 - total) * samples));
+  // Pool cells expected below 5 into one.
+  double chi2 = 0, pool_o = 0, pool_e = 0;
+  int cells = 0;
+  for (size_t k = 0; k < expected.size(); ++k) {
+    if (expected[k] < 5) {
+      pool_o += observed[k], pool_e += expected[k];
+      continue;
+    }
+    chi2 += (observed[k] - expected[k]) * (observed[k] - expected[k]) / expected[k];
+    ++cells;
+  }
+  if (pool_e >= 5) chi2 += (pool_o - pool_e) * (pool_o - pool_e) / pool_e, ++cells;
+  else EXPECT_LT(pool_o, 30) << c.name << ": samples where the pdf is ~0";
+  const double p = chi2_p_value(chi2, cells - 1);
+  EXPECT_GT(p, 1e-4) << c.name << " cos_o " << cos_o << ": chi2 " << chi2 << " over " << cells << " cells";
+}
+
+TEST_P(BsdfCase, EvalPdfAndSampleAgree) {
+  const auto [index, cos_o] = GetParam();
+  const Case c = cases()[size_t(index)];
+  const Vec3 wo{std::sqrt(1 - cos_o * cos_o), 0, cos_o};
+  std::mt19937 gen(99);
+  std::uniform_real_distribution<float> u(0.0f, 0x1.fffffep-1f);
+  for (int s = 0; s < 2000; ++s) {
+    BsdfSample bs;
+    if (!bsdf_sample(c.p, wo, u(gen), u(gen), u(gen), bs)) continue;
+    const float pdf = bsdf_pdf(c.p, wo, bs.wi);
+    const Vec3 f = bsdf_eval(c.p, wo, bs.wi);
+    ASSERT_NEAR(bs.pdf, pdf, 1e-5f * pdf);
+    for (int k = 0; k < 3; ++k) ASSERT_NEAR(bs.weight[k], f[k] / pdf, 1e-4f * (1 + f[k] / pdf));
+    // Reciprocity: f(wo, wi) = f(wi, wo) (eval carries cos(wi)).
+    const Vec3 fr = bsdf_eval(c.p, bs.wi, wo);
+    for (int k = 0; k < 3; ++k) ASSERT_NEAR(f[k] / bs.wi.z, fr[k] / wo.z, 2e-4f * (1 + f[k] / bs.wi.z));
+  }
+  // Below the surface: nothing.
+  EXPECT_EQ(bsdf_pdf(c.p, wo, Vec3{0, 0.6f, -0.8f}), 0.0f);
+  EXPECT_EQ(luminance(bsdf_eval(c.p, wo, Vec3{0, 0.6f, -0.8f})), 0.0f);
+}
+
+TEST_P(BsdfCase, ReflectsNoMoreThanItReceives) {
+  const auto [index, cos_o] = GetParam();
+  const Case c = cases()[size_t(index)];
+  const Vec3 wo{std::sqrt(1 - cos_o * cos_o), 0, cos_o};
+  // Directional albedo by quadrature: at most 1 (+ quadrature error) in every channel.
+  constexpr int nt = 256, np = 256;
+  Vec3 albedo{0, 0, 0};
+  for (int i = 0; i < nt; ++i)
+    for (int j = 0; j < np; ++j) {
+      const float t = (i + 0.5f) * (pi / 2) / nt, ph = (j + 0.5f) * 2 * pi / np;
+      albedo = albedo + bsdf_eval(c.p, wo, dir(t, ph)) * (std::sin(t) * (pi / 2 / nt) * (2 * pi / np));
+    }
+  for (int k = 0; k < 3; ++k) EXPECT_LE(albedo[k], 1.01f) << c.name;
+}
+
+INSTANTIATE_TEST_SUITE_P(All, BsdfCase,
+                         ::testing::Combine(::testing::Range(0, 6), ::testing::Values(0.9f, 0.5f, 0.15f)));
+
+TEST(Bsdf, LambertianIsBaseOverPi) {
+  BsdfParams p;
+  p.base = {0.5f, 0.25f, 1.0f}, p.metallic = 0, p.specular = 0, p.alpha = 1;
+  const Vec3 wo = normalize(Vec3{0.3f, 0.1f, 0.9f}), wi = normalize(Vec3{-0.5f, 0.2f, 0.4f});
+  const Vec3 f = bsdf_eval(p, wo, wi);
+  for (int k = 0; k < 3; ++k) EXPECT_NEAR(f[k], p.base[k] / pi * wi.z, 1e-6f);
+  EXPECT_NEAR(bsdf_pdf(p, wo, wi), wi.z / pi, 1e-6f);
+}
+
+TEST(Bsdf, GgxWeakWhiteFurnace) {
+  // Heitz 2014: the integral of D(h) G1(wo) / (4 |wo.z|) over all wi (reflected through h)
+  // is 1 for any wo and alpha: checks D and G1 are normalised together. In h-space this is
+  // the visible-normal distribution's integral: G1(wo) max(0, wo.h) D(h) / wo.z over h.
+  for (float alpha : {0.05f, 0.2f, 0.5f, 1.0f})
+    for (float cos_o : {0.95f, 0.6f, 0.2f}) {
+      const Vec3 wo{std::sqrt(1 - cos_o * cos_o), 0, cos_o};
+      constexpr int nt = 2048, np = 512;
+      double sum = 0;
+      for (int i = 0; i < nt; ++i) {
+        // Dense near the pole for small alpha: theta = (pi/2) * s^2.
+        const double s0 = double(i) / nt, s1 = double(i + 1) / nt;
+        const double t0 = (pi / 2) * s0 * s0, t1 = (pi / 2) * s1 * s1, t = 0.5 * (t0 + t1);
+        for (int j = 0; j < np; ++j) {
+          const double ph = (j + 0.5) * 2 * pi / np;
+          const Vec3 h = dir(float(t), float(ph));
+          const double dh = std::max(0.0f, dot(wo, h));
+          sum += ggx_g1(alpha, wo) * dh * ggx_d(alpha, h) / wo.z * std::sin(t) * (t1 - t0) * (2 * pi / np);
+        }
+      }
+      EXPECT_NEAR(sum, 1.0, 0.005) << "alpha " << alpha << " cos_o " << cos_o;
+    }
+}
+
+}  // namespace
+}  // namespace kestrel::render

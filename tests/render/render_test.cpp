@@ -1,0 +1,395 @@
+// The renderer against analytic answers: furnaces (closed emitting box, white sphere in a
+// constant environment, constant environment image), AOVs on a plane and a sphere computed
+// from the camera model in docs/renderer.md, motion vectors for a moving camera and a moving
+// instance, identical bits for 1 and 2 threads, EXR/PFM round trips and bad input.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+
+#include "kestrel/render.h"
+#include "support/oracles.h"
+
+namespace kestrel {
+namespace {
+
+constexpr float kPi = 3.14159265358979f;
+
+Vec3 sub(Vec3 a, Vec3 b) { return {a.x - b.x, a.y - b.y, a.z - b.z}; }
+Vec3 add(Vec3 a, Vec3 b) { return {a.x + b.x, a.y + b.y, a.z + b.z}; }
+Vec3 mul(Vec3 a, float s) { return {a.x * s, a.y * s, a.z * s}; }
+float dot3(Vec3 a, Vec3 b) { return a.x * b.x + a.y * b.y + a.z * b.z; }
+Vec3 cross3(Vec3 a, Vec3 b) { return {a.y * b.z - a.z * b.y, a.z * b.x - a.x * b.z, a.x * b.y - a.y * b.x}; }
+Vec3 unit(Vec3 a) { return mul(a, 1.0f / std::sqrt(dot3(a, a))); }
+
+// The pinhole model of docs/renderer.md, written again here as the oracle.
+struct Pinhole {
+  Vec3 eye, f, r, u;
+  float th, aspect;
+  int w, h;
+  Pinhole(const Camera& c, int w_, int h_) : w(w_), h(h_) {
+    eye = c.eye;
+    f = unit(sub(c.target, c.eye));
+    r = unit(cross3(f, {0, 1, 0}));
+    u = cross3(r, f);
+    th = std::tan(c.vfov_degrees * kPi / 360.0f);
+    aspect = float(w_) / float(h_);
+  }
+  Vec3 dir(float fx, float fy) const {
+    const float sx = (2 * fx / w - 1) * th * aspect, sy = (1 - 2 * fy / h) * th;
+    return unit(add(f, add(mul(r, sx), mul(u, sy))));
+  }
+  void project(Vec3 p, float& fx, float& fy) const {
+    const Vec3 d = sub(p, eye);
+    const float z = dot3(d, f);
+    fx = (dot3(d, r) / (z * th * aspect) + 1) * 0.5f * w;
+    fy = (1 - dot3(d, u) / (z * th)) * 0.5f * h;
+  }
+};
+
+void add_quad(TriangleMesh& m, Vec3 a, Vec3 b, Vec3 c, Vec3 d, uint32_t material) {
+  const uint32_t base = uint32_t(m.positions.size());
+  for (Vec3 p : {a, b, c, d}) m.positions.push_back(p);
+  for (uint32_t i : {0u, 1u, 2u, 0u, 2u, 3u}) m.indices.push_back(base + i);
+  m.material_ids.push_back(material), m.material_ids.push_back(material);
+}
+
+Scene plane_scene(float z, Material mat) {
+  Scene s;
+  s.source = "test:plane";
+  s.materials = {mat};
+  TriangleMesh m;
+  add_quad(m, {-20, -20, z}, {20, -20, z}, {20, 20, z}, {-20, 20, z}, 0);
+  s.meshes.push_back(m);
+  return s;
+}
+
+// A UV sphere with exact normals (for AOVs) or without (flat, for furnaces).
+TriangleMesh uv_sphere(Vec3 c, float radius, int rings, int segments, bool normals) {
+  TriangleMesh m;
+  for (int i = 0; i <= rings; ++i)
+    for (int j = 0; j <= segments; ++j) {
+      const float t = kPi * float(i) / float(rings), p = 2 * kPi * float(j) / float(segments);
+      const Vec3 n{std::sin(t) * std::cos(p), std::cos(t), std::sin(t) * std::sin(p)};
+      m.positions.push_back(add(c, mul(n, radius)));
+      if (normals) m.normals.push_back(n);
+    }
+  for (int i = 0; i < rings; ++i)
+    for (int j = 0; j < segments; ++j) {
+      const uint32_t a = uint32_t(i * (segments + 1) + j), b = a + 1, d = a + uint32_t(segments + 1), e = d + 1;
+      for (uint32_t k : {a, d, b, b, d, e}) m.indices.push_back(k);
+      m.material_ids.push_back(0), m.material_ids.push_back(0);
+    }
+  return m;
+}
+
+double mean_of(const FloatImage& img, int channel) {
+  double s = 0;
+  for (int y = 0; y < img.height; ++y)
+    for (int x = 0; x < img.width; ++x) s += img.at(x, y)[channel];
+  return s / (double(img.width) * img.height);
+}
+
+// Mean and its standard error over pixels (pixels are independent estimates).
+void mean_and_error(const FloatImage& img, int channel, double& mean, double& se) {
+  mean = mean_of(img, channel);
+  double v = 0;
+  const double n = double(img.width) * img.height;
+  for (int y = 0; y < img.height; ++y)
+    for (int x = 0; x < img.width; ++x) v += (img.at(x, y)[channel] - mean) * (img.at(x, y)[channel] - mean);
+  se = std::sqrt(v / (n - 1) / n);
+}
+
+TEST(Furnace, ClosedEmittingBoxConvergesToLeOverOneMinusAlbedo) {
+  // Every wall emits Le = 1 and reflects rho = 0.5 (Lambertian): radiance is 1 / (1 - 0.5) = 2
+  // everywhere inside. Exercises area-light NEE, MIS with BSDF hits, Russian roulette.
+  Scene s;
+  s.source = "test:furnace_box";
+  s.materials = {Material{.name = "wall", .base_color = {0.5f, 0.5f, 0.5f}, .emission = {1, 1, 1}}};
+  s.meshes.push_back(test::closed_box({-1, -1, -1}, {1, 1, 1}).meshes[0]);
+  s.meshes[0].material_ids.assign(s.meshes[0].triangle_count(), 0);
+  Renderer r(std::move(s), Environment::parse("none"));
+  RenderSettings rs;
+  rs.width = 48, rs.height = 48, rs.spp = 32, rs.max_depth = 64;
+  const Frame f = r.render(Camera{{0.2f, 0.1f, -0.3f}, {0.5f, 0.3f, 0.8f}, 80}, rs);
+  for (int c = 0; c < 3; ++c) {
+    double mean, se;
+    mean_and_error(f[Aov::color], c, mean, se);
+    EXPECT_NEAR(mean, 2.0, 0.005 * 2.0) << "channel " << c << " (standard error " << se << ")";
+    EXPECT_LT(se, 0.002 * 2.0) << "too few samples for a 0.5 % test";
+  }
+}
+
+TEST(Furnace, WhiteSphereInConstantEnvironmentIsInvisible) {
+  // rho = 1 Lambertian convex object under a uniform environment of 1: every pixel is 1.
+  for (const char* env : {"constant:1,1,1", "image"}) {
+    Scene s;
+    s.source = "test:white_sphere";
+    s.materials = {Material{.name = "white", .base_color = {1, 1, 1}}};
+    s.meshes.push_back(uv_sphere({0, 0, 0}, 1, 48, 96, false));
+    Environment e;
+    if (std::string(env) == "image") {
+      FloatImage img(32, 16, 3);
+      for (float& v : img.pixels) v = 1;
+      const std::string path = test::write_temp_file("env_ones.pfm", "");
+      write_pfm(path, img);
+      e = Environment::parse(path);
+    } else {
+      e = Environment::parse(env);
+    }
+    Renderer r(std::move(s), e);
+    RenderSettings rs;
+    rs.width = 48, rs.height = 48, rs.spp = 32;
+    const Frame f = r.render(Camera{{0, 0, -3}, {0, 0, 0}, 50}, rs);
+    double mean, se;
+    mean_and_error(f[Aov::color], 1, mean, se);
+    EXPECT_NEAR(mean, 1.0, 0.005) << env << " (standard error " << se << ")";
+    // The sphere's own pixels, alone.
+    double sum = 0;
+    int n = 0;
+    for (int y = 16; y < 32; ++y)
+      for (int x = 16; x < 32; ++x) sum += f[Aov::color].at(x, y)[1], ++n;
+    EXPECT_NEAR(sum / n, 1.0, 0.01) << env;
+  }
+}
+
+TEST(Aovs, ExactOnAPlane) {
+  const Material mat{.name = "m", .base_color = {0.3f, 0.6f, 0.9f}, .roughness = 0.4f};
+  Renderer r(plane_scene(-5, mat), Environment::parse("sky"));
+  RenderSettings rs;
+  rs.width = 40, rs.height = 30, rs.frame = 3;
+  const Camera cam{{0, 0, 0}, {0, 0, -1}, 60};
+  const Frame f = r.render(cam, rs);
+  for (int y = 0; y < rs.height; ++y)
+    for (int x = 0; x < rs.width; ++x) {
+      ASSERT_NEAR(f[Aov::depth].at(x, y)[0], 5.0f, 1e-4f);
+      ASSERT_NEAR(f[Aov::normal].at(x, y)[2], 1.0f, 1e-6f);
+      for (int c = 0; c < 3; ++c) ASSERT_NEAR(f[Aov::albedo].at(x, y)[c], mat.base_color[c], 1e-6f);
+      ASSERT_NEAR(f[Aov::roughness].at(x, y)[0], 0.4f, 1e-6f);
+      ASSERT_EQ(f[Aov::motion].at(x, y)[0], 0.0f);
+      ASSERT_EQ(f[Aov::spp].at(x, y)[0], 1.0f);
+      ASSERT_EQ(f[Aov::variance].at(x, y)[0], 0.0f);
+    }
+  // Frame 3's jitter is the Halton (2, 3) point of index 4.
+  EXPECT_FLOAT_EQ(f.jitter_x, 0.125f);
+  EXPECT_NEAR(f.jitter_y, 4.0f / 9.0f, 1e-6f);
+}
+
+TEST(Aovs, DepthAndNormalOnASphere) {
+  const Vec3 c{0.3f, -0.2f, -5};
+  const float radius = 1.5f;
+  Scene s;
+  s.source = "test:sphere";
+  s.materials = {Material{.name = "m", .base_color = {0.5f, 0.5f, 0.5f}}};
+  s.meshes.push_back(uv_sphere(c, radius, 256, 512, true));
+  Renderer r(std::move(s), Environment::parse("sky"));
+  RenderSettings rs;
+  rs.width = 64, rs.height = 64, rs.frame = 7;
+  const Camera cam{{0, 0, 0}, {0, 0, -1}, 40};
+  const Frame f = r.render(cam, rs);
+  const Pinhole ph(cam, rs.width, rs.height);
+  int checked = 0;
+  for (int y = 0; y < rs.height; ++y)
+    for (int x = 0; x < rs.width; ++x) {
+      const Vec3 d = ph.dir(x + f.jitter_x, y + f.jitter_y);
+      const Vec3 oc = sub(ph.eye, c);
+      const float b = dot3(oc, d), disc = b * b - (dot3(oc, oc) - radius * radius);
+      const float depth = f[Aov::depth].at(x, y)[0];
+      if (disc < 0.05f) {  // misses and silhouette pixels (tessellation) are left out
+        if (disc < -0.05f) EXPECT_EQ(depth, 0.0f);
+        continue;
+      }
+      const float t = -b - std::sqrt(disc);
+      const Vec3 p = add(ph.eye, mul(d, t));
+      const Vec3 n = unit(sub(p, c));
+      EXPECT_NEAR(depth, t * dot3(d, ph.f), 2e-3f * t) << x << "," << y;
+      const float* nn = f[Aov::normal].at(x, y);
+      EXPECT_GT(nn[0] * n.x + nn[1] * n.y + nn[2] * n.z, 0.9999f) << x << "," << y;
+      ++checked;
+    }
+  EXPECT_GT(checked, 400);
+}
+
+TEST(MotionVectors, MovingCameraReprojectsExactly) {
+  Renderer r(plane_scene(-5, Material{.name = "m"}), Environment::parse("sky"));
+  RenderSettings rs;
+  rs.width = 48, rs.height = 32, rs.jitter = false;
+  const Camera prev{{0, 0, 0}, {0.05f, 0.02f, -1}, 60};
+  const Camera cur{{0.3f, 0.1f, 0.2f}, {0.2f, 0.15f, -1}, 55};
+  const Frame f = r.render(cur, rs, prev);
+  const Pinhole pc(cur, rs.width, rs.height), pp(prev, rs.width, rs.height);
+  for (int y = 0; y < rs.height; ++y)
+    for (int x = 0; x < rs.width; ++x) {
+      const Vec3 d = pc.dir(x + 0.5f, y + 0.5f);
+      const float t = (-5 - pc.eye.z) / d.z;
+      const Vec3 p = add(pc.eye, mul(d, t));
+      float gx, gy;
+      pp.project(p, gx, gy);
+      EXPECT_NEAR(f[Aov::motion].at(x, y)[0], gx - (x + 0.5f), 2e-3f) << x << "," << y;
+      EXPECT_NEAR(f[Aov::motion].at(x, y)[1], gy - (y + 0.5f), 2e-3f) << x << "," << y;
+    }
+}
+
+TEST(MotionVectors, MovingInstanceReprojectsExactly) {
+  InstancedScene scene;
+  TriangleMesh quad;
+  add_quad(quad, {-1, -1, 0}, {1, -1, 0}, {1, 1, 0}, {-1, 1, 0}, 0);
+  const MeshId mesh = scene.add_mesh(quad);
+  const InstanceId inst = scene.add_instance(mesh, Affine3::translation({0, 0, -4}));
+  scene.commit();
+  Renderer r(scene, {Material{.name = "m"}}, {}, Environment::parse("sky"));
+  const Vec3 move{0.4f, -0.25f, 0.3f};
+  scene.set_transform(inst, Affine3::translation({move.x, move.y, -4 + move.z}) * Affine3::rotation_y(0));
+  scene.commit();
+  r.sync();
+  RenderSettings rs;
+  rs.width = 40, rs.height = 40, rs.jitter = false;
+  const Camera cam{{0, 0, 0}, {0, 0, -1}, 50};
+  const Frame f = r.render(cam, rs);
+  const Pinhole ph(cam, rs.width, rs.height);
+  int on_quad = 0;
+  for (int y = 0; y < rs.height; ++y)
+    for (int x = 0; x < rs.width; ++x) {
+      if (f[Aov::depth].at(x, y)[0] == 0) {
+        EXPECT_EQ(f[Aov::motion].at(x, y)[0], 0.0f);
+        continue;
+      }
+      const Vec3 d = ph.dir(x + 0.5f, y + 0.5f);
+      const float z = -4 + move.z;
+      const Vec3 p = mul(d, z / d.z);
+      float gx, gy;
+      ph.project(sub(p, move), gx, gy);  // where this point of the quad was
+      EXPECT_NEAR(f[Aov::motion].at(x, y)[0], gx - (x + 0.5f), 2e-3f);
+      EXPECT_NEAR(f[Aov::motion].at(x, y)[1], gy - (y + 0.5f), 2e-3f);
+      ++on_quad;
+    }
+  EXPECT_GT(on_quad, 200);
+}
+
+TEST(Determinism, SameBitsForOneAndTwoThreads) {
+  Renderer r(load_scene("builtin:cornell_box"));
+  RenderSettings rs;
+  rs.width = 72, rs.height = 56, rs.spp = 3, rs.seed = 42;
+  const Camera cam = *find_view(load_scene("builtin:cornell_box"), "front");
+  rs.threads = 1;
+  const Frame a = r.render(cam, rs);
+  rs.threads = 2;
+  const Frame b = r.render(cam, rs);
+  for (int k = 0; k < aov_count; ++k) EXPECT_EQ(a.aov[k].pixels, b.aov[k].pixels) << aov_name(Aov(k));
+  rs.seed = 43;
+  const Frame c = r.render(cam, rs);
+  EXPECT_NE(a[Aov::color].pixels, c[Aov::color].pixels);
+}
+
+TEST(Outputs, ExrAndPfmHoldEveryAov) {
+  Renderer r(load_scene("builtin:cornell_box"));
+  RenderSettings rs;
+  rs.width = 24, rs.height = 20, rs.spp = 4;
+  const Frame f = r.render(*find_view(load_scene("builtin:cornell_box"), "front"), rs);
+  const std::string dir = std::filesystem::path(test::write_temp_file("render_out_marker", "")).parent_path().string() + "/render_out";
+  std::filesystem::create_directories(dir);
+  write_frame_exr(dir + "/frame.exr", f);
+  const std::vector<ImageLayer> layers = read_exr(dir + "/frame.exr");
+  ASSERT_EQ(layers.size(), size_t(aov_count));
+  for (int k = 0; k < aov_count; ++k) {
+    const ImageLayer* found = nullptr;
+    for (const ImageLayer& l : layers)
+      if (l.name == aov_name(Aov(k))) found = &l;
+    ASSERT_NE(found, nullptr) << aov_name(Aov(k));
+    ASSERT_EQ(found->image.channels, aov_channels(Aov(k)));
+    EXPECT_EQ(found->image.pixels, f.aov[k].pixels) << aov_name(Aov(k));
+  }
+  write_frame_pfms(dir + "/pfm", f);
+  for (int k = 0; k < aov_count; ++k) {
+    const FloatImage img = read_pfm(dir + "/pfm/" + aov_name(Aov(k)) + ".pfm");
+    ASSERT_EQ(img.width, f.width);
+    ASSERT_EQ(img.height, f.height);
+    for (int y = 0; y < img.height; ++y)
+      for (int x = 0; x < img.width; ++x)
+        for (int c = 0; c < aov_channels(Aov(k)); ++c) ASSERT_EQ(img.at(x, y)[c], f.aov[k].at(x, y)[c]) << aov_name(Aov(k));
+  }
+}
+
+TEST(Cameras, PathPassesThroughItsKeysAndViewsLoad) {
+  const std::string path = test::write_temp_file("cam.json", R"({"keyframes": [
+    {"time": 0, "eye": [0, 1, 5], "target": [0, 1, 0], "vfov": 40},
+    {"time": 1, "eye": [2, 1, 4], "target": [0, 1, 0], "vfov": 50},
+    {"time": 3, "eye": [4, 2, 0], "target": [0, 0, 0], "vfov": 60}]})");
+  const CameraPath p = CameraPath::load(path);
+  for (const auto& k : p.keys) {
+    const Camera c = p.at(k.time);
+    EXPECT_NEAR(c.eye.x, k.camera.eye.x, 1e-5f);
+    EXPECT_NEAR(c.eye.z, k.camera.eye.z, 1e-5f);
+    EXPECT_NEAR(c.vfov_degrees, k.camera.vfov_degrees, 1e-5f);
+  }
+  EXPECT_NEAR(p.at(0.5).vfov_degrees, 45.0f, 1e-4f);
+  const auto sponza = test::shared_scene("dabrovic_sponza/sponza.obj");
+  Scene s;
+  s.source = sponza ? *sponza : "sponza.obj";
+  const auto inside = find_view(s, "inside");
+  ASSERT_TRUE(inside.has_value());
+  EXPECT_NEAR(inside->eye.x, 14.4499f, 1e-4f);
+  EXPECT_EQ(inside->vfov_degrees, 90.0f);
+  EXPECT_FALSE(find_view(s, "no_such_view").has_value());
+}
+
+template <class F>
+void expect_error(F&& f, const std::string& needle) {
+  try {
+    f();
+    ADD_FAILURE() << "no error; expected one naming '" << needle << "'";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find(needle), std::string::npos) << e.what();
+  }
+}
+
+TEST(BadInput, ClearErrors) {
+  expect_error([] { Environment::parse("constant:1,x,2"); }, "constant:R,G,B");
+  expect_error([] { Environment::parse("constant:1,-1,2"); }, ">= 0");
+  expect_error([] { Environment::parse("/no/such/env.hdr"); }, "/no/such/env.hdr");
+  const std::string truncated = test::write_temp_file("trunc.pfm", "PF\n4 4\n-1.0\n0123");
+  expect_error([&] { read_pfm(truncated); }, "trunc.pfm");
+  const std::string not_pfm = test::write_temp_file("bad.pfm", "P6\n4 4\n255\n");
+  expect_error([&] { read_pfm(not_pfm); }, "not a PFM");
+  const std::string garbage = test::write_temp_file("garbage.exr", "this is not an EXR file at all");
+  expect_error([&] { read_exr(garbage); }, "garbage.exr");
+  FloatImage nan_env(4, 2, 3);
+  nan_env.pixels[5] = NAN;
+  const std::string nan_path = test::write_temp_file("nan_env.pfm", "");
+  write_pfm(nan_path, nan_env);
+  expect_error([&] { Environment::parse(nan_path); }, "NaN");
+  const std::string bad_json = test::write_temp_file("bad.views.json", "{\"views\": {\"a\": {\"eye\": [1, 2]}}}");
+  expect_error([&] { load_views(bad_json); }, "bad.views.json");
+  const std::string bad_path = test::write_temp_file("bad_path.json",
+      R"({"keyframes": [{"time": 1, "eye": [0,0,1], "target": [0,0,0]}, {"time": 0, "eye": [0,0,2], "target": [0,0,0]}]})");
+  expect_error([&] { CameraPath::load(bad_path); }, "increasing");
+  Renderer r(load_scene("builtin:cornell_box"));
+  RenderSettings rs;
+  rs.spp = 0;
+  expect_error([&] { r.render(Camera{{0, 0, 0}, {0, 0, 1}, 45}, rs); }, "spp");
+  rs = RenderSettings{};
+  rs.width = 0;
+  expect_error([&] { r.render(Camera{{0, 0, 0}, {0, 0, 1}, 45}, rs); }, "resolution");
+  expect_error([&] { r.render(Camera{{1, 1, 1}, {1, 1, 1}, 45}, RenderSettings{}); }, "coincide");
+  Scene s = plane_scene(-1, Material{.name = "m"});
+  s.meshes[0].material_ids[1] = 7;
+  expect_error([&] { Renderer bad(std::move(s)); }, "material 7");
+  Scene nan_mat = plane_scene(-1, Material{.name = "glow", .emission = {NAN, 0, 0}});
+  expect_error([&] { Renderer bad(std::move(nan_mat)); }, "glow");
+}
+
+TEST(Render, NanGeometryIsSkippedNotFatal) {
+  Scene s = plane_scene(-5, Material{.name = "m"});
+  TriangleMesh bad;
+  add_quad(bad, {NAN, 0, 0}, {1, 0, 0}, {1, 1, 0}, {0, 1, 0}, 0);
+  s.meshes.push_back(bad);
+  Renderer r(std::move(s), Environment::parse("sky"));
+  RenderSettings rs;
+  rs.width = 16, rs.height = 16;
+  const Frame f = r.render(Camera{{0, 0, 0}, {0, 0, -1}, 60}, rs);
+  for (float v : f[Aov::color].pixels) ASSERT_TRUE(std::isfinite(v));
+}
+
+}  // namespace
+}  // namespace kestrel
