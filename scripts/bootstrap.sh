@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # kestrel set-up on a fresh Debian 12 machine: installs what is missing, builds (Release),
 # then runs the main job (`demo`) or the whole test suite (`test`).
-#   bash scripts/bootstrap.sh demo   # install + build + render the built-in Cornell box
+#   bash scripts/bootstrap.sh demo   # install + build + path-trace the built-in Cornell box
 #   bash scripts/bootstrap.sh test   # install + build + run every test (ctest)
 set -euo pipefail
 mode=${1:-demo}
@@ -33,7 +33,8 @@ cmake --build "$build_dir" -j "$(nproc)"
 case "$mode" in
   demo)
     mkdir -p "$here/out"
-    "$build_dir/apps/kestrel/kestrel" preview builtin:cornell_box -o "$here/out/cornell_box.png"
+    "$build_dir/apps/kestrel/kestrel" render builtin:cornell_box --res 512x512 --spp 64 --quiet \
+      -o "$here/out/cornell_box.exr" --png "$here/out/cornell_box.png"
     ;;
   test)
     cd "$build_dir" && ctest --output-on-failure -j "$(nproc)"

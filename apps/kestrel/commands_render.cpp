@@ -111,6 +111,7 @@ void run_render(const RenderArgs& a) {
   if (!a.view.empty() && !a.camera.empty()) throw Error(ErrorCode::invalid_argument, "render: give --view or --camera, not both");
   const RenderSettings s = settings_of(a);
   Scene scene = load_scene(a.scene);
+  for (const std::string& w : scene.warnings) fmt::print(stderr, "kestrel: warning: {}\n", w);
   Camera camera;
   if (!a.camera.empty()) {
     camera = parse_camera(a.camera);

@@ -62,6 +62,8 @@ struct Scene {
   std::vector<TriangleMesh> meshes;
   std::vector<Material> materials;
   std::vector<Texture> textures;
+  /// Problems that did not stop the load (e.g. a texture that could not be decoded).
+  std::vector<std::string> warnings;
   size_t triangle_count() const;
 };
 

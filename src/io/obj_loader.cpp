@@ -168,7 +168,8 @@ Scene load_obj(const std::string& path) {
   Scene scene;
   scene.source = path;
   // Texture maps named by the MTL (map_Kd, map_Ke), each file decoded once. A missing or
-  // undecodable image leaves the material untextured; it does not fail the scene.
+  // undecodable image leaves the material untextured and a warning naming the file and the
+  // problem in Scene::warnings; it does not fail the scene.
   std::map<std::string, int> texture_of;
   auto texture = [&](const std::string& name) -> int {
     if (name.empty()) return -1;
@@ -177,7 +178,8 @@ Scene load_obj(const std::string& path) {
       try {
         scene.textures.push_back(load_texture((dir / name).string()));
         it->second = int(scene.textures.size() - 1);
-      } catch (const Error&) {
+      } catch (const Error& e) {
+        scene.warnings.push_back(fmt::format("{}: texture '{}' not used: {}", path, name, e.what()));
       }
     }
     return it->second;

@@ -4,12 +4,14 @@
 
 #include <algorithm>
 #include <array>
+#include <cmath>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
 #include <sys/wait.h>
 
 #include "kestrel/kestrel.h"
+#include "kestrel/render.h"
 #include "support/oracles.h"
 
 namespace kestrel {
@@ -32,7 +34,7 @@ CliRun run(const std::string& args) {
 }
 
 TEST(Cli, HelpForEveryCommand) {
-  for (const char* c : {"", "bvh", "trace", "rays", "preview"}) {
+  for (const char* c : {"", "bvh", "trace", "rays", "preview", "render", "render-sequence"}) {
     const CliRun r = run(std::string(c) + " --help");
     EXPECT_EQ(r.status, 0) << c << ": " << r.out;
     EXPECT_NE(r.out.find("Usage"), std::string::npos) << c;
@@ -131,6 +133,59 @@ TEST(Cli, PreviewWritesAPng) {
   char sig[8] = {};
   f.read(sig, 8);
   EXPECT_EQ(std::string(sig + 1, 3), "PNG");
+}
+
+TEST(Cli, RenderWritesEveryAovAndIsThreadIndependent) {
+  const auto dir = std::filesystem::temp_directory_path() / "kestrel_tests" / "cli_render";
+  std::filesystem::remove_all(dir);
+  std::filesystem::create_directories(dir);
+  const std::string d = dir.string();
+  CliRun r = run("render builtin:cornell_box --res 48x32 --spp 2 --seed 7 --threads 1 --quiet -o " + d + "/a.exr --pfm " + d +
+                 "/pfm --png " + d + "/a.png");
+  ASSERT_EQ(r.status, 0) << r.out;
+  EXPECT_NE(r.out.find("Mrays/s"), std::string::npos) << r.out;
+  r = run("render builtin:cornell_box --res 48x32 --spp 2 --seed 7 --threads 2 --quiet -o " + d + "/b.exr");
+  ASSERT_EQ(r.status, 0) << r.out;
+  const auto a = read_exr(d + "/a.exr"), b = read_exr(d + "/b.exr");
+  ASSERT_EQ(a.size(), 8u);
+  for (size_t i = 0; i < a.size(); ++i) EXPECT_EQ(a[i].image.pixels, b[i].image.pixels) << a[i].name;
+  for (const char* aov : {"color", "albedo", "normal", "depth", "roughness", "motion", "spp", "variance"})
+    EXPECT_TRUE(std::filesystem::exists(d + "/pfm/" + aov + ".pfm")) << aov;
+  EXPECT_TRUE(std::filesystem::exists(d + "/a.png"));
+  // Bad input: one line naming the problem.
+  r = run("render builtin:cornell_box --view nowhere -o " + d + "/c.exr");
+  EXPECT_EQ(r.status, 1);
+  EXPECT_NE(r.out.find("nowhere"), std::string::npos) << r.out;
+  r = run("render builtin:cornell_box --camera 1,2,3 -o " + d + "/c.exr");
+  EXPECT_EQ(r.status, 1);
+  r = run("render builtin:cornell_box --env /no/sky.hdr -o " + d + "/c.exr");
+  EXPECT_EQ(r.status, 1);
+  EXPECT_NE(r.out.find("/no/sky.hdr"), std::string::npos) << r.out;
+}
+
+TEST(Cli, RenderSequenceWritesOneFileSetPerFrame) {
+  const auto dir = std::filesystem::temp_directory_path() / "kestrel_tests" / "cli_sequence";
+  std::filesystem::remove_all(dir);
+  const std::string path = test::write_temp_file("cli_path.json", R"({"keyframes": [
+    {"time": 0, "eye": [0.278, 0.273, -0.8], "target": [0.278, 0.273, 0], "vfov": 39.3},
+    {"time": 1, "eye": [0.35, 0.3, -0.7], "target": [0.25, 0.27, 0], "vfov": 39.3}]})");
+  const CliRun r = run("render-sequence builtin:cornell_box --path " + path + " --frames 3 --spp 1 --res 32x24 --quiet -o " +
+                       dir.string());
+  ASSERT_EQ(r.status, 0) << r.out;
+  for (int i = 0; i < 3; ++i) EXPECT_TRUE(std::filesystem::exists(dir / ("frame_000" + std::to_string(i) + ".exr"))) << i;
+  // The camera moved: the second frame has non-zero motion vectors.
+  const auto layers = read_exr((dir / "frame_0001.exr").string());
+  float max_motion = 0;
+  for (const auto& l : layers)
+    if (l.name == "motion")
+      for (float v : l.image.pixels) max_motion = std::max(max_motion, std::fabs(v));
+  EXPECT_GT(max_motion, 0.1f);
+  const auto scene = test::shared_scene("gltf_box_animated/BoxAnimated.gltf");
+  if (scene) {
+    const CliRun g = run("render-sequence " + *scene + " --path " + std::string(KESTREL_DATA_DIR) +
+                         "/paths/box_animated_orbit.json --frames 2 --spp 1 --res 32x24 --quiet -o " + (dir / "gltf").string());
+    EXPECT_EQ(g.status, 0) << g.out;
+  }
 }
 
 }  // namespace

@@ -379,6 +379,20 @@ TEST(BadInput, ClearErrors) {
   expect_error([&] { Renderer bad(std::move(nan_mat)); }, "glow");
 }
 
+TEST(BadInput, CorruptTextureIsAWarningNamingTheFile) {
+  test::write_temp_file("corrupt_tex.png", "\x89PNG\r\n\x1a\n not really a png");
+  test::write_temp_file("corrupt_tex.mtl", "newmtl m\nKd 1 1 1\nmap_Kd corrupt_tex.png\n");
+  const std::string obj = test::write_temp_file(
+      "corrupt_tex.obj", "mtllib corrupt_tex.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nvt 1 0\nvt 0 1\nusemtl m\nf 1/1 2/2 3/3\n");
+  const Scene s = load_scene(obj);
+  ASSERT_EQ(s.warnings.size(), 1u);
+  EXPECT_NE(s.warnings[0].find("corrupt_tex.png"), std::string::npos) << s.warnings[0];
+  Renderer r(s, Environment::parse("sky"));
+  RenderSettings rs;
+  rs.width = 8, rs.height = 8;
+  EXPECT_NO_THROW(r.render(Camera{{0.2f, 0.2f, 2}, {0.2f, 0.2f, 0}, 30}, rs));
+}
+
 TEST(Render, NanGeometryIsSkippedNotFatal) {
   Scene s = plane_scene(-5, Material{.name = "m"});
   TriangleMesh bad;
