@@ -2,8 +2,9 @@
 // Per resolution: ms per frame (median over frames, each frame its own jitter and noise) on
 // one thread and on every thread; in-render Mrays/s = rays traced / frame time; then the same
 // frame's ray batches (captured, identical rays, same batch sizes) traced again alone by the
-// same kernels: the raw Mrays/s of that mix. The ratio in-render / raw says how much of the
-// render is tracing.
+// same kernels: the raw Mrays/s of that mix. The ratio in-render / raw (per frame, the render
+// and the retrace back to back, then the median: the machine's speed drifts) says how much of
+// the render is tracing.
 //
 //   kestrel_render_bench [--scene F --view V] [--frames 7] [--quick] [--json F]
 #include <fmt/format.h>
@@ -56,7 +57,7 @@ int main(int argc, char** argv) {
       for (int threads : thread_counts) {
         RenderSettings rs;
         rs.width = w, rs.height = h, rs.spp = 1, rs.threads = threads;
-        std::vector<double> ms, share, raw_ms, in_mrays, raw_mrays, rays;
+        std::vector<double> ms, share, raw_ms, in_mrays, raw_mrays, rays, ratios;
         std::vector<double> kind_mrays[3];
         renderer.render(*camera, rs);  // warm-up
         for (int f = 0; f < frames; ++f) {
@@ -78,6 +79,7 @@ int main(int argc, char** argv) {
             }
             const double total = t[0] + t[1] + t[2];
             raw_ms.push_back(total);
+            ratios.push_back(total / fr.stats.ms);  // same rays: (rays / render ms) / (rays / raw ms)
             raw_mrays.push_back(double(cap.camera.size() + cap.bounce.size() + cap.shadow.size()) / (total * 1e3));
             kind_mrays[0].push_back(double(cap.camera.size()) / (t[0] * 1e3));
             kind_mrays[1].push_back(double(cap.bounce.size()) / (t[1] * 1e3));
@@ -87,7 +89,7 @@ int main(int argc, char** argv) {
         Row r{w, h, threads, median(ms), median(share), median(rays), median(in_mrays), 0, 0, 0, 0, 0};
         if (threads == 1) {
           r.raw_mrays = median(raw_mrays);
-          r.ratio = r.in_render_mrays / r.raw_mrays;
+          r.ratio = median(ratios);  // per frame, render and retrace back to back
           r.raw_camera = median(kind_mrays[0]), r.raw_bounce = median(kind_mrays[1]), r.raw_shadow = median(kind_mrays[2]);
           fmt::print("| {}x{} | {} | {:.1f} | {:.0f} | {:.2f} | {:.2f} | **{:.2f}** | {:.0f}% | {:.2f} / {:.2f} / {:.2f} |\n", w, h,
                      threads, r.frame_ms, r.rays_per_frame, r.in_render_mrays, r.raw_mrays, r.ratio, 100 * r.trace_share,

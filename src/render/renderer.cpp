@@ -233,9 +233,11 @@ struct Renderer::Impl {
     const float* p = env.image.at(x, y);
     return Vec3{p[0], p[1], p[2]} * env.scale;
   }
-  // Solid-angle pdf of sampling direction d from the environment (given it was chosen).
-  float env_pdf(Vec3 d) const {
-    if (env.image.pixels.empty()) return 1.0f / (4 * pi);
+  // Solid-angle pdf of sampling direction d from the environment (given it was chosen), at a
+  // point with shading normal n: a constant environment is sampled cosine-weighted about n
+  // (every sample above the surface), an image by its luminance.
+  float env_pdf(Vec3 d, Vec3 n) const {
+    if (env.image.pixels.empty()) return std::max(0.0f, dot(d, n)) / pi;
     const float u = 0.5f + std::atan2(d.x, -d.z) / (2 * pi);
     const float theta = std::acos(std::clamp(d.y, -1.0f, 1.0f));
     const int w = env.image.width, h = env.image.height;
@@ -246,11 +248,13 @@ struct Renderer::Impl {
     const float pdf_uv = env_rows.pmf(size_t(y)) * env_cols[size_t(y)].pmf(size_t(x)) * float(w) * float(h);
     return pdf_uv / (2 * pi * pi * sin_theta);
   }
-  Vec3 env_sample(float u1, float u2, float& pdf) const {
+  Vec3 env_sample(float u1, float u2, Vec3 n, float& pdf) const {
     if (env.image.pixels.empty()) {
-      const float z = 1 - 2 * u1, r = std::sqrt(std::max(0.0f, 1 - z * z)), phi = 2 * pi * u2;
-      pdf = 1.0f / (4 * pi);
-      return {r * std::cos(phi), z, r * std::sin(phi)};
+      const float r = std::sqrt(u1), phi = 2 * pi * u2;
+      const Vec3 local{r * std::cos(phi), r * std::sin(phi), std::sqrt(std::max(0.0f, 1.0f - u1))};
+      const Vec3 d = Basis(n).to_world(local);
+      pdf = env_pdf(d, n);
+      return d;
     }
     float ru, cu;
     const size_t y = env_rows.sample(u1, &ru);
@@ -259,7 +263,7 @@ struct Renderer::Impl {
     const float v = (float(y) + ru) / float(env.image.height);
     const float theta = v * pi, phi = (u - 0.5f) * 2 * pi;
     const Vec3 d{std::sin(theta) * std::sin(phi), std::cos(theta), -std::sin(theta) * std::cos(phi)};
-    pdf = env_pdf(d);
+    pdf = env_pdf(d, n);
     return d;
   }
 
@@ -385,6 +389,7 @@ struct PathState {
   Vec3 throughput{1, 1, 1}, radiance{0, 0, 0};
   uint32_t pixel;      // index into the tile's pixel list
   float bsdf_pdf = 0;  // pdf of the direction that led here (solid angle)
+  Vec3 prev_normal{0, 0, 1};  // shading normal where that direction was sampled
   bool aov_pending = true;
 };
 
@@ -507,7 +512,7 @@ void Renderer::Impl::render_tile(const CameraModel& cam, const CameraModel& prev
         const Vec3 le = env_radiance(ray.dir);
         float w = 1;
         if (depth > 0 && p_env > 0) {
-          const float lp = p_env * env_pdf(ray.dir);
+          const float lp = p_env * env_pdf(ray.dir, ps.prev_normal);
           w = ps.bsdf_pdf * ps.bsdf_pdf / (ps.bsdf_pdf * ps.bsdf_pdf + lp * lp);
         }
         ps.radiance = ps.radiance + ps.throughput * le * w;
@@ -606,7 +611,7 @@ void Renderer::Impl::render_tile(const CameraModel& cam, const CameraModel& prev
         Vec3 dir;
         if (ul < p_env) {
           float epdf;
-          wi = env_sample(u1, u2, epdf);
+          wi = env_sample(u1, u2, ns, epdf);
           pdf = p_env * epdf;
           le = env_radiance(wi);
           dir = wi;
@@ -654,6 +659,7 @@ void Renderer::Impl::render_tile(const CameraModel& cam, const CameraModel& prev
       if (dot(wi, ng) <= 0) continue;
       ps.throughput = ps.throughput * bs.weight;
       ps.bsdf_pdf = bs.pdf;
+      ps.prev_normal = ns;
       if (depth + 1 >= s.rr_depth) {
         const float q = std::min(0.95f, std::max({ps.throughput.x, ps.throughput.y, ps.throughput.z}));
         if (!(rng.uniform() < q)) continue;
