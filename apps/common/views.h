@@ -17,14 +17,14 @@ struct PinholeCamera {
   Ray ray(int px, int py, int width, int height, float jx = 0.5f, float jy = 0.5f) const;
 };
 
-/// Bounds of every valid triangle of the scene.
-Bounds3 scene_bounds(const Scene& scene);
+using kestrel::scene_bounds;
 
-/// The framing view: target the box centre, eye = target + normalize(0.3, 0.35, -1) * r /
-/// sin(vfov / 2), r = half the box diagonal, vfov 45.
+/// The framing view (kestrel::framing_camera): target the box centre, eye = target +
+/// normalize(0.3, 0.35, -1) * r / sin(vfov / 2), r = half the box diagonal, vfov 45.
 PinholeCamera framing_view(const Scene& scene);
 
-/// A named view ("framing" always exists; "inside" for Dabrovic Sponza). nullopt if unknown.
+/// A named view (kestrel::find_view: "framing" always exists, others from the scene's
+/// views file or data/views, e.g. "inside" for Dabrovic Sponza). nullopt if unknown.
 std::optional<PinholeCamera> named_view(const Scene& scene, const std::string& name);
 
 }  // namespace kestrel::tools

@@ -67,8 +67,9 @@ struct Environment {
   Vec3 color{0, 0, 0};
   FloatImage image;  ///< 3 channels, linear; empty = constant colour
   float scale = 1.0f;
-  /// "none", "constant:R,G,B" (or "R,G,B"), "sky" (a soft white sky, the default for
-  /// scenes without emitters), or an image file (.hdr, .exr, .pfm, .png): see read_float_image.
+  /// "none", "constant:R,G,B" (or "R,G,B"), "sky" (a white CIE overcast sky: zenith 1,
+  /// horizon 1/3, ground 0.1; the default for scenes without emitters), or an image file
+  /// (.hdr, .exr, .pfm, .png): see read_float_image.
   static Environment parse(const std::string& spec);
 };
 

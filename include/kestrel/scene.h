@@ -76,6 +76,9 @@ struct SceneValidation {
 /// Checks every triangle: finite vertices, indices in range, non-zero area.
 SceneValidation validate_scene(const Scene& scene);
 
+/// Bounds of every finite vertex used by a triangle (empty for an empty scene).
+Bounds3 scene_bounds(const Scene& scene);
+
 /// Loads an OBJ (+MTL), glTF or GLB file, or a built-in scene named "builtin:cornell_box".
 /// Throws Error naming the file (and line, where the format has lines) on failure.
 Scene load_scene(const std::string& path);

@@ -55,4 +55,12 @@ SceneValidation validate_scene(const Scene& scene) {
   return out;
 }
 
+Bounds3 scene_bounds(const Scene& scene) {
+  Bounds3 b;
+  for (const TriangleMesh& m : scene.meshes)
+    for (uint32_t i : m.indices)
+      if (i < m.positions.size() && is_finite(m.positions[i])) extend(b, m.positions[i]);
+  return b;
+}
+
 }  // namespace kestrel

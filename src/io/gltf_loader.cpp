@@ -59,8 +59,7 @@ Scene load_gltf(const std::string& path) {
         if (!reader.read_triangles(prim, positions, indices)) continue;  // points/lines/strips skipped
         std::vector<Vec3> normals;
         std::vector<Vec2> uvs;
-        if (auto it = prim.attributes.find("NORMAL"); it != prim.attributes.end()) normals = reader.read_vec3(it->second);
-        if (auto it = prim.attributes.find("TEXCOORD_0"); it != prim.attributes.end()) uvs = reader.read_vec2(it->second);
+        reader.read_normals_uvs(prim, positions.size(), normals, uvs);
         all_normals &= normals.size() == positions.size();
         all_uvs &= uvs.size() == positions.size();
         const uint32_t base = uint32_t(mesh.positions.size());

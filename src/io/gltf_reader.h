@@ -151,6 +151,16 @@ struct GltfReader {
     return true;
   }
 
+  // A primitive's NORMAL and TEXCOORD_0, each left empty unless it has one per vertex.
+  void read_normals_uvs(const tinygltf::Primitive& prim, size_t vertex_count, std::vector<Vec3>& normals,
+                        std::vector<Vec2>& uvs) const {
+    normals.clear(), uvs.clear();
+    if (auto it = prim.attributes.find("NORMAL"); it != prim.attributes.end()) normals = read_vec3(it->second);
+    if (auto it = prim.attributes.find("TEXCOORD_0"); it != prim.attributes.end()) uvs = read_vec2(it->second);
+    if (normals.size() != vertex_count) normals.clear();
+    if (uvs.size() != vertex_count) uvs.clear();
+  }
+
   std::vector<Vec3> read_vec3(int accessor_index) const {
     size_t count, stride;
     int type;

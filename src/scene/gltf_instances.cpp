@@ -162,8 +162,7 @@ GltfInstances GltfInstances::load(const std::string& path, size_t clip) {
       if (!reader.read_triangles(prim, positions, indices)) continue;
       std::vector<Vec3> normals;
       std::vector<Vec2> uvs;
-      if (auto it = prim.attributes.find("NORMAL"); it != prim.attributes.end()) normals = reader.read_vec3(it->second);
-      if (auto it = prim.attributes.find("TEXCOORD_0"); it != prim.attributes.end()) uvs = reader.read_vec2(it->second);
+      reader.read_normals_uvs(prim, positions.size(), normals, uvs);
       all_normals &= normals.size() == positions.size();
       all_uvs &= uvs.size() == positions.size();
       if (all_normals) mm.base.normals.insert(mm.base.normals.end(), normals.begin(), normals.end());
