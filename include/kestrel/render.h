@@ -65,6 +65,9 @@ struct CameraPath {
 /// (u = 0.5 + atan2(d.x, -d.z) / 2pi, v = acos(d.y) / pi, row 0 = straight up), scaled.
 struct Environment {
   Vec3 color{0, 0, 0};
+  /// CIE overcast sky: radiance color * (1 + 2 cos theta) / 3 above the horizon (theta from
+  /// +Y), color * 0.1 below (a dark ground). Used when image is empty.
+  bool overcast = false;
   FloatImage image;  ///< 3 channels, linear; empty = constant colour
   float scale = 1.0f;
   /// "none", "constant:R,G,B" (or "R,G,B"), "sky" (a white CIE overcast sky: zenith 1,

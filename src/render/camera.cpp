@@ -182,16 +182,8 @@ Environment Environment::parse(const std::string& spec) {
   Environment env;
   if (spec == "none") return env;
   if (spec == "sky") {
-    // CIE overcast sky, L(theta) = (1 + 2 cos theta) / 3 (zenith 1, horizon 1/3), over a
-    // dark ground of 0.1: light from above with some shape, as a default for scenes
-    // without emitters. An equirectangular image, so it is importance-sampled like one.
-    env.image = FloatImage(256, 128, 3);
-    for (int y = 0; y < 128; ++y) {
-      const float cos_theta = std::cos(3.14159265f * (float(y) + 0.5f) / 128.0f);
-      const float l = cos_theta > 0 ? (1.0f + 2.0f * cos_theta) / 3.0f : 0.1f;
-      for (int x = 0; x < 256; ++x)
-        for (int c = 0; c < 3; ++c) env.image.at(x, y)[c] = l;
-    }
+    env.color = {1.0f, 1.0f, 1.0f};
+    env.overcast = true;
     return env;
   }
   std::string values = spec.rfind("constant:", 0) == 0 ? spec.substr(9) : spec;

@@ -225,7 +225,11 @@ struct Renderer::Impl {
 
   Vec3 env_radiance(Vec3 d) const {
     if (!env_on) return {0, 0, 0};
-    if (env.image.pixels.empty()) return env.color * env.scale;
+    if (env.image.pixels.empty()) {
+      if (!env.overcast) return env.color * env.scale;
+      const float cos_theta = d.y / std::sqrt(dot(d, d));
+      return env.color * (env.scale * (cos_theta > 0 ? (1.0f + 2.0f * cos_theta) * (1.0f / 3.0f) : 0.1f));
+    }
     const float u = 0.5f + std::atan2(d.x, -d.z) / (2 * pi);
     const float v = std::acos(std::clamp(d.y, -1.0f, 1.0f)) / pi;
     const int x = std::clamp(int(u * float(env.image.width)), 0, env.image.width - 1);

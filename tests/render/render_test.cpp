@@ -154,6 +154,20 @@ TEST(Furnace, WhiteSphereInConstantEnvironmentIsInvisible) {
   }
 }
 
+TEST(Furnace, WhitePlaneUnderTheOvercastSky) {
+  // Irradiance of an up-facing plane under L = (1 + 2 cos theta) / 3: E / pi = 7/9, so a
+  // white Lambertian plane has radiance 7/9 everywhere (no interreflection on a plane).
+  Scene s = plane_scene(0, Material{.name = "white", .base_color = {1, 1, 1}});
+  for (Vec3& p : s.meshes[0].positions) std::swap(p.y, p.z);  // the plane y = 0, facing +Y
+  Renderer r(std::move(s), Environment::parse("sky"));
+  RenderSettings rs;
+  rs.width = 48, rs.height = 48, rs.spp = 32;
+  const Frame f = r.render(Camera{{0, 1, 0.01f}, {0, 0, 0}, 60}, rs);
+  double mean, se;
+  mean_and_error(f[Aov::color], 0, mean, se);
+  EXPECT_NEAR(mean, 7.0 / 9.0, 0.005 * 7.0 / 9.0) << "standard error " << se;
+}
+
 TEST(Aovs, ExactOnAPlane) {
   const Material mat{.name = "m", .base_color = {0.3f, 0.6f, 0.9f}, .roughness = 0.4f};
   Renderer r(plane_scene(-5, mat), Environment::parse("sky"));
