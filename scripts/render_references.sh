@@ -13,7 +13,7 @@ table=$out/README.md
   echo "# Reference renders"
   echo
   echo "\`scripts/render_references.sh\`: \`kestrel render\` at $spp spp, max depth 8, seed 0, both threads of"
-  echo "the 2-vCPU machine, the default environment (the white overcast \\`sky\\` for scenes without"
+  echo "the 2-vCPU machine, the default environment (the white overcast sky for scenes without"
   echo "emitters; also for the water bottle, whose only emitter is its small label), tone map of"
   echo "docs/renderer.md. Time = the render alone (wall clock)."
   echo
