@@ -211,7 +211,9 @@ TEST(Aovs, DepthAndNormalOnASphere) {
       const float b = dot3(oc, d), disc = b * b - (dot3(oc, oc) - radius * radius);
       const float depth = f[Aov::depth].at(x, y)[0];
       if (disc < 0.05f) {  // misses and silhouette pixels (tessellation) are left out
-        if (disc < -0.05f) EXPECT_EQ(depth, 0.0f);
+        if (disc < -0.05f) {
+          EXPECT_EQ(depth, 0.0f);
+        }
         continue;
       }
       const float t = -b - std::sqrt(disc);
