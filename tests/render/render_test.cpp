@@ -168,6 +168,60 @@ TEST(Furnace, WhitePlaneUnderTheOvercastSky) {
   EXPECT_NEAR(mean, 7.0 / 9.0, 0.005 * 7.0 / 9.0) << "standard error " << se;
 }
 
+TEST(Furnace, SkyAsAnImageMatchesTheAnalyticSky) {
+  // The same overcast sky written as a 256 x 128 equirectangular image: exercises the image
+  // environment's importance sampling and pdf (MIS weights) with a non-constant image.
+  FloatImage img(256, 128, 3);
+  for (int y = 0; y < img.height; ++y) {
+    const float c = std::cos(kPi * (float(y) + 0.5f) / float(img.height));
+    for (int x = 0; x < img.width; ++x)
+      for (int k = 0; k < 3; ++k) img.at(x, y)[k] = c > 0 ? (1 + 2 * c) / 3 : 0.1f;
+  }
+  const std::string path = test::write_temp_file("overcast.pfm", "");
+  write_pfm(path, img);
+  Scene s = plane_scene(0, Material{.name = "white", .base_color = {1, 1, 1}});
+  for (Vec3& p : s.meshes[0].positions) std::swap(p.y, p.z);
+  Renderer r(std::move(s), Environment::parse(path));
+  RenderSettings rs;
+  rs.width = 48, rs.height = 48, rs.spp = 32;
+  const Frame f = r.render(Camera{{0, 1, 0.01f}, {0, 0, 0}, 60}, rs);
+  double mean, se;
+  mean_and_error(f[Aov::color], 0, mean, se);
+  EXPECT_NEAR(mean, 7.0 / 9.0, 0.005 * 7.0 / 9.0) << "standard error " << se;
+}
+
+TEST(Cameras, ThinLensIsSharpOnlyAtItsFocusDistance) {
+  // A checker-textured plane at distance 5. Through a thin lens focused at 5, every ray of a
+  // pixel meets the plane where the pinhole ray does: the albedo AOV equals the pinhole
+  // one. Focused at 2, the lens rays spread over the plane and the albedo blurs.
+  Material mat{.name = "checker", .base_color = {1, 1, 1}};
+  mat.base_color_texture = 0;
+  Scene base = plane_scene(-5, mat);
+  base.meshes[0].uvs = {{0, 0}, {8, 0}, {8, 8}, {0, 8}};
+  Texture tex;
+  tex.width = tex.height = 8;
+  for (int y = 0; y < 8; ++y)
+    for (int x = 0; x < 8; ++x)
+      for (int c = 0; c < 4; ++c) tex.rgba.push_back((x + y) % 2 ? 255 : 0);
+  base.textures = {tex};
+  Renderer r(base, Environment::parse("sky"));
+  RenderSettings rs;
+  rs.width = 32, rs.height = 32, rs.spp = 4, rs.jitter = false;
+  const Camera pinhole{{0, 0, 0}, {0, 0, -1}, 40};
+  Camera focused = pinhole, unfocused = pinhole;
+  focused.aperture_radius = unfocused.aperture_radius = 0.3f;
+  focused.focus_distance = 5;
+  unfocused.focus_distance = 2;
+  const Frame a = r.render(pinhole, rs), b = r.render(focused, rs), c = r.render(unfocused, rs);
+  double diff_focused = 0, diff_unfocused = 0;
+  for (size_t i = 0; i < a[Aov::albedo].pixels.size(); ++i) {
+    diff_focused = std::max(diff_focused, double(std::fabs(a[Aov::albedo].pixels[i] - b[Aov::albedo].pixels[i])));
+    diff_unfocused = std::max(diff_unfocused, double(std::fabs(a[Aov::albedo].pixels[i] - c[Aov::albedo].pixels[i])));
+  }
+  EXPECT_LT(diff_focused, 1e-3);
+  EXPECT_GT(diff_unfocused, 0.1);
+}
+
 TEST(Aovs, ExactOnAPlane) {
   const Material mat{.name = "m", .base_color = {0.3f, 0.6f, 0.9f}, .roughness = 0.4f};
   Renderer r(plane_scene(-5, mat), Environment::parse("sky"));
