@@ -190,13 +190,17 @@ struct Renderer::Impl {
     return e;
   }
 
-  void finish_setup(std::optional<Environment> environment) {
+  // A trailing "default" material (what out-of-range ids fall back to), every one checked.
+  void check_materials() {
     if (materials.empty() || materials.back().name != "default") materials.push_back(Material{.name = "default"});
     for (const Material& m : materials)
       if (!is_finite(m.base_color) || !is_finite(m.emission) || !std::isfinite(m.metallic) || !std::isfinite(m.roughness) ||
           !std::isfinite(m.specular) || m.emission.x < 0 || m.emission.y < 0 || m.emission.z < 0)
         throw Error(ErrorCode::invalid_argument, fmt::format("material '{}': non-finite or negative parameter", m.name));
-    sync_lights();
+  }
+
+  // After the lights are known: the given environment, else the sky when nothing emits.
+  void choose_environment(std::optional<Environment> environment) {
     if (environment) env = std::move(*environment);
     else env = Environment::parse(lights.empty() ? "sky" : "none");
     setup_environment();
@@ -719,6 +723,7 @@ Renderer::Renderer(Scene scene, std::optional<Environment> environment) : impl_(
   r.accel = build_accel(r.scene, config);
   r.materials = r.scene.materials;
   r.textures = r.scene.textures;
+  r.check_materials();
   size_t offset = 0;
   for (const TriangleMesh& m : r.scene.meshes) {
     r.prim_offset.push_back(offset);
@@ -737,7 +742,8 @@ Renderer::Renderer(Scene scene, std::optional<Environment> environment) : impl_(
         throw Error(ErrorCode::invalid_argument,
                     fmt::format("{}: mesh '{}' names material {} of {}", r.scene.source, m.name, id, r.scene.materials.size()));
   }
-  r.finish_setup(std::move(environment));
+  r.sync_lights();
+  r.choose_environment(std::move(environment));
 }
 
 Renderer::Renderer(const InstancedScene& scene, std::vector<Material> materials, std::vector<Texture> textures,
@@ -747,9 +753,10 @@ Renderer::Renderer(const InstancedScene& scene, std::vector<Material> materials,
   r.instanced = &scene;
   r.materials = std::move(materials);
   r.textures = std::move(textures);
+  r.check_materials();
   sync();
   for (auto& is : r.instances) is.prev_xf = is.xf;
-  r.finish_setup(std::move(environment));
+  r.choose_environment(std::move(environment));
 }
 
 Renderer::~Renderer() = default;
@@ -776,7 +783,7 @@ void Renderer::sync() {
     for (int row = 0; row < 3; ++row)
       for (int col = 0; col < 3; ++col) is.nrm[row * 3 + col] = inv.m[col * 4 + row];
   }
-  if (!r.materials.empty()) r.sync_lights();
+  r.sync_lights();
 }
 
 Bounds3 Renderer::bounds() const { return impl_->bounds; }
