@@ -721,6 +721,9 @@ Renderer::Renderer(Scene scene, std::optional<Environment> environment) : impl_(
   r.scene = std::move(scene);
   BuildConfig config;
   r.accel = build_accel(r.scene, config);
+  if (r.accel.validation.report.valid_triangle_count == 0)
+    throw Error(ErrorCode::invalid_geometry, fmt::format("{}: no valid triangle to render ({})", r.scene.source,
+                                                         r.accel.validation.report.summary()));
   r.materials = r.scene.materials;
   r.textures = r.scene.textures;
   r.check_materials();

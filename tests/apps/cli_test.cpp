@@ -158,6 +158,10 @@ TEST(Cli, RenderWritesEveryAovAndIsThreadIndependent) {
   EXPECT_NE(r.out.find("nowhere"), std::string::npos) << r.out;
   r = run("render builtin:cornell_box --camera 1,2,3 -o " + d + "/c.exr");
   EXPECT_EQ(r.status, 1);
+  const std::string nan_obj = test::write_temp_file("render_nan.obj", "v nan 0 0\nv 0 1 0\nv 0 0 1\nf 1 2 3\n");
+  r = run("render " + nan_obj + " -o " + d + "/c.exr");
+  EXPECT_EQ(r.status, 1);
+  EXPECT_NE(r.out.find("no valid triangle"), std::string::npos) << r.out;
   r = run("render builtin:cornell_box --env /no/sky.hdr -o " + d + "/c.exr");
   EXPECT_EQ(r.status, 1);
   EXPECT_NE(r.out.find("/no/sky.hdr"), std::string::npos) << r.out;

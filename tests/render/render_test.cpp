@@ -445,6 +445,9 @@ TEST(BadInput, ClearErrors) {
   Scene s = plane_scene(-1, Material{.name = "m"});
   s.meshes[0].material_ids[1] = 7;
   expect_error([&] { Renderer bad(std::move(s)); }, "material 7");
+  Scene empty;
+  empty.source = "test:empty";
+  expect_error([&] { Renderer bad(std::move(empty)); }, "test:empty: no valid triangle");
   Scene nan_mat = plane_scene(-1, Material{.name = "glow", .emission = {NAN, 0, 0}});
   expect_error([&] { Renderer bad(std::move(nan_mat)); }, "glow");
 }
