@@ -69,6 +69,15 @@ void sample_texture(const Texture& tex, Vec2 uv, bool srgb, float out[4]) {
   out[3] = (float(t00[3]) * w00 + float(t10[3]) * w10 + float(t01[3]) * w01 + float(t11[3]) * w11) * (1.0f / 255.0f);
 }
 
+// Texture coordinates at barycentrics (1 - b1 - b2, b1, b2) of a triangle; (0, 0) without uvs.
+Vec2 uv_at(const TriangleMesh& m, uint32_t prim, float b1, float b2) {
+  if (m.uvs.empty()) return {0, 0};
+  const size_t tri = 3 * size_t(prim);
+  const Vec2 a = m.uvs[m.indices[tri]], b = m.uvs[m.indices[tri + 1]], c = m.uvs[m.indices[tri + 2]];
+  const float b0 = 1 - b1 - b2;
+  return {a.x * b0 + b.x * b1 + c.x * b2, a.y * b0 + b.y * b1 + c.y * b2};
+}
+
 Vec3 normal_transform(const float n[9], Vec3 v) {
   return {n[0] * v.x + n[1] * v.y + n[2] * v.z, n[3] * v.x + n[4] * v.y + n[5] * v.z, n[6] * v.x + n[7] * v.y + n[8] * v.z};
 }
@@ -341,9 +350,12 @@ struct Renderer::Impl {
     const InstanceShade& is = instances[instance];
     const int32_t r = emissive_rank[is.mesh_key][prim];
     if (r < 0) return 0;
-    const size_t li = is.light_base + size_t(r);
+    return light_pdf_of(is.light_base + size_t(r), dist2, cos_light);
+  }
+  // The same for light li (solid angle: pick probability / area * distance^2 / cos).
+  float light_pdf_of(size_t li, float dist2, float cos_light) const {
     const LightTri& l = lights[li];
-    if (l.area <= 0) return 0;
+    if (cos_light <= 0 || l.area <= 0) return 0;
     return (1 - p_env) * light_dist.pmf(li) / l.area * dist2 / cos_light;
   }
 
@@ -355,13 +367,15 @@ struct Renderer::Impl {
 
 void Renderer::Impl::trace(std::span<const Ray> rays, std::span<SurfaceHit> hits) const {
   if (instanced) {
-    std::vector<InstanceHit> h(rays.size());
-    instanced->trace(rays, h);
+    thread_local std::vector<InstanceHit> h;  // scratch, reused by every batch of this thread
+    h.resize(rays.size());
+    instanced->trace(rays, std::span<InstanceHit>(h.data(), rays.size()));
     for (size_t i = 0; i < rays.size(); ++i) hits[i] = {h[i].t, h[i].instance_id, h[i].prim_id, h[i].u, h[i].v};
     return;
   }
-  std::vector<Hit> h(rays.size());
-  kestrel::trace(accel, rays, h);
+  thread_local std::vector<Hit> h;
+  h.resize(rays.size());
+  kestrel::trace(accel, rays, std::span<Hit>(h.data(), rays.size()));
   for (size_t i = 0; i < rays.size(); ++i) {
     if (!h[i].hit()) {
       hits[i] = SurfaceHit{};
@@ -493,10 +507,8 @@ void Renderer::Impl::render_tile(const CameraModel& cam, const CameraModel& prev
       if (m.uvs.empty()) return;
       const Texture* t = texture(material_of(m, h.prim).base_color_texture);
       if (!t) return;
-      const size_t tri = 3 * size_t(h.prim);
-      const Vec2 a = m.uvs[m.indices[tri]], b = m.uvs[m.indices[tri + 1]], c = m.uvs[m.indices[tri + 2]];
-      const float b0 = 1 - h.u - h.v;
-      const float u = a.x * b0 + b.x * h.u + c.x * h.v, v = a.y * b0 + b.y * h.u + c.y * h.v;
+      const Vec2 uv = uv_at(m, h.prim, h.u, h.v);
+      const float u = uv.x, v = uv.y;
       const float x = (u - std::floor(u)) * float(t->width), y = (v - std::floor(v)) * float(t->height);
       if (!(x >= 0 && x < float(t->width) && y >= 0 && y < float(t->height))) return;
       const size_t row = size_t(y) * size_t(t->width);
@@ -557,11 +569,7 @@ void Renderer::Impl::render_tile(const CameraModel& cam, const CameraModel& prev
           if (dot(nn, wo) > 1e-4f) ns = nn;
         }
       }
-      Vec2 uv{0, 0};
-      if (!mesh.uvs.empty()) {
-        const Vec2 a = mesh.uvs[i0], b = mesh.uvs[i1], c = mesh.uvs[i2];
-        uv = {a.x * b0 + b.x * h.u + c.x * h.v, a.y * b0 + b.y * h.u + c.y * h.v};
-      }
+      const Vec2 uv = uv_at(mesh, h.prim, h.u, h.v);
       const Material& mat = material_of(mesh, h.prim);
       BsdfParams bp;
       bp.base = mat.base_color;
@@ -636,16 +644,8 @@ void Renderer::Impl::render_tile(const CameraModel& cam, const CameraModel& prev
           const float cos_l = std::fabs(dot(normalize(nl), wi));
           const InstanceShade& lis = instances[l.instance];
           const Material& lm = material_of(*lis.mesh, l.prim);
-          Vec2 luv{0, 0};
-          if (!lis.mesh->uvs.empty()) {
-            const TriangleMesh& lmesh = *lis.mesh;
-            const Vec2 a = lmesh.uvs[lmesh.indices[3 * l.prim]], b = lmesh.uvs[lmesh.indices[3 * l.prim + 1]],
-                       c = lmesh.uvs[lmesh.indices[3 * l.prim + 2]];
-            const float lb0 = 1 - lb1 - lb2;
-            luv = {a.x * lb0 + b.x * lb1 + c.x * lb2, a.y * lb0 + b.y * lb1 + c.y * lb2};
-          }
-          le = emission_at(lm, luv);
-          pdf = cos_l > 0 && l.area > 0 ? (1 - p_env) * light_dist.pmf(li) / l.area * dist2 / cos_l : 0;
+          le = emission_at(lm, uv_at(*lis.mesh, l.prim, lb1, lb2));
+          pdf = light_pdf_of(li, dist2, cos_l);
           tmax = 1.0f - 1e-3f;
         }
         if (pdf > 0 && dot(wi, ng) > 0 && luminance(le) > 0) {
