@@ -16,6 +16,7 @@ Action add_rays_command(CLI::App& app);
 Action add_preview_command(CLI::App& app);
 Action add_render_command(CLI::App& app);
 Action add_render_sequence_command(CLI::App& app);
+Action add_denoise_command(CLI::App& app);
 
 /// Options shared by the commands that build a BVH.
 struct BuildOptions {

@@ -11,6 +11,7 @@
 #include "commands.h"
 #include "kestrel/error.h"
 #include "kestrel/io.h"
+#include "kestrel/denoise.h"
 #include "kestrel/render.h"
 
 namespace kestrel::cli {
@@ -18,7 +19,7 @@ namespace kestrel::cli {
 namespace {
 
 struct RenderArgs {
-  std::string scene = "builtin:cornell_box", view, camera, res = "640x360", out, pfm, png, env, path;
+  std::string scene = "builtin:cornell_box", view, camera, res = "640x360", out, pfm, png, env, path, denoise;
   int spp = 1, max_depth = 8, threads = 0, frames = 0, frame = 0;
   uint64_t seed = 0;
   double time_limit = 0, time = 0;
@@ -40,6 +41,7 @@ void add_common(CLI::App& cmd, RenderArgs& a) {
   cmd.add_option("--clamp", a.clamp, "Clamp sample radiance to this (biased; 0 = off)")->capture_default_str();
   cmd.add_flag("--no-jitter", a.no_jitter, "Sample pixel centres (no Halton jitter)");
   cmd.add_flag("--quiet", a.quiet, "No progress bar");
+  cmd.add_option("--denoise", a.denoise, "Denoise the colour AOV: neural | svgf | atrous (the noisy one is kept as layer 'noisy' / noisy.pfm)");
 }
 
 RenderSettings settings_of(const RenderArgs& a) {
@@ -87,13 +89,40 @@ Camera parse_camera(const std::string& text) {
   return c;
 }
 
-void write_outputs(const Frame& f, const std::string& exr, const std::string& pfm, const std::string& png, float exposure) {
+std::unique_ptr<Denoiser> denoiser_of(const RenderArgs& a) {
+  if (a.denoise.empty()) return nullptr;
+  const auto m = denoise_method_from_name(a.denoise);
+  if (!m) throw Error(ErrorCode::invalid_argument, fmt::format("--denoise '{}': expected neural, svgf or atrous", a.denoise));
+  DenoiserOptions o;
+  o.method = *m;
+  return std::make_unique<Denoiser>(o);
+}
+
+// With a denoiser, the colour AOV becomes the denoised colour and the noisy one is written
+// beside it (EXR layer "noisy", noisy.pfm).
+void write_outputs(Frame f, const std::string& exr, const std::string& pfm, const std::string& png, float exposure,
+                   Denoiser* denoiser = nullptr) {
+  FloatImage noisy;
+  if (denoiser) {
+    noisy = f[Aov::color];
+    f.aov[int(Aov::color)] = denoiser->denoise({&f[Aov::color], &f[Aov::albedo], &f[Aov::normal], &f[Aov::depth],
+                                                &f[Aov::roughness], &f[Aov::motion]});
+  }
   if (!exr.empty()) {
     const std::filesystem::path parent = std::filesystem::path(exr).parent_path();
     if (!parent.empty()) std::filesystem::create_directories(parent);
-    write_frame_exr(exr, f);
+    if (denoiser) {
+      std::vector<ImageLayer> layers = f.layers();
+      layers.push_back({"noisy", {"R", "G", "B"}, noisy});
+      write_exr(exr, layers);
+    } else {
+      write_frame_exr(exr, f);
+    }
   }
-  if (!pfm.empty()) write_frame_pfms(pfm, f);
+  if (!pfm.empty()) {
+    write_frame_pfms(pfm, f);
+    if (denoiser) write_pfm((std::filesystem::path(pfm) / "noisy.pfm").string(), noisy);
+  }
   if (!png.empty()) write_png(png, f.width, f.height, tonemap_srgb8(f[Aov::color], exposure));
 }
 
@@ -128,10 +157,11 @@ void run_render(const RenderArgs& a) {
   Renderer renderer(std::move(scene), environment_of(a));
   RenderSettings rs = s;
   rs.frame = uint32_t(a.frame);
+  const std::unique_ptr<Denoiser> denoiser = denoiser_of(a);
   const Frame f = renderer.render(camera, rs);
   fmt::print("scene    {} ({} triangles, {} light triangles)\n", source, triangles, renderer.light_count());
   print_stats(f.stats);
-  write_outputs(f, a.out, a.pfm, a.png, a.exposure);
+  write_outputs(f, a.out, a.pfm, a.png, a.exposure, denoiser.get());
   for (const std::string& o : {a.out, a.pfm, a.png})
     if (!o.empty()) fmt::print("wrote    {}\n", o);
 }
@@ -142,10 +172,32 @@ bool is_gltf(const std::string& path) {
   return ext == ".gltf" || ext == ".glb";
 }
 
+// --path FILE.json, or orbit[:DEGREES] (default 360): a turntable about the start view
+// (--view, else the scene's "front", else "framing").
+CameraPath camera_path_of(const RenderArgs& a) {
+  if (a.path.rfind("orbit", 0) != 0) {
+    if (!a.view.empty()) throw Error(ErrorCode::invalid_argument, "render-sequence: --view is only for --path orbit[:DEG]");
+    return CameraPath::load(a.path);
+  }
+  double degrees = 360;
+  if (a.path != "orbit") {
+    char* end = nullptr;
+    const std::string arg = a.path.size() > 6 && a.path[5] == ':' ? a.path.substr(6) : "";
+    degrees = std::strtod(arg.c_str(), &end);
+    if (arg.empty() || end != arg.c_str() + arg.size())
+      throw Error(ErrorCode::invalid_argument, fmt::format("--path '{}': expected a JSON file or orbit[:DEGREES]", a.path));
+  }
+  const Scene scene = load_scene(a.scene);
+  std::string view = a.view;
+  if (view.empty()) view = find_view(scene, "front") ? "front" : "framing";
+  const auto c = find_view(scene, view);
+  if (!c) throw Error(ErrorCode::invalid_argument, fmt::format("{}: no view named '{}'", a.scene, view));
+  return CameraPath::orbit(*c, degrees);
+}
+
 void run_sequence(const RenderArgs& a) {
   if (a.frames <= 0) throw Error(ErrorCode::invalid_argument, fmt::format("render-sequence: --frames must be positive, got {}", a.frames));
   if (a.out.empty()) throw Error(ErrorCode::invalid_argument, "render-sequence: -o DIR is required");
-  const CameraPath path = CameraPath::load(a.path);
   RenderSettings s = settings_of(a);
   s.progress = false;
   std::filesystem::create_directories(a.out);
@@ -162,7 +214,9 @@ void run_sequence(const RenderArgs& a) {
   } else {
     renderer = std::make_unique<Renderer>(load_scene(a.scene), environment_of(a));
   }
+  const CameraPath path = camera_path_of(a);
   const double t0 = path.start(), t1 = path.end();
+  const std::unique_ptr<Denoiser> denoiser = denoiser_of(a);
   std::optional<Camera> prev;
   for (int i = 0; i < a.frames; ++i) {
     const double t = a.frames > 1 ? t0 + (t1 - t0) * double(i) / double(a.frames - 1) : t0;
@@ -177,7 +231,7 @@ void run_sequence(const RenderArgs& a) {
     prev = cam;
     const std::string stem = (std::filesystem::path(a.out) / fmt::format("frame_{:04d}", i)).string();
     write_outputs(f, stem + ".exr", a.pfm.empty() ? "" : (std::filesystem::path(a.pfm) / fmt::format("frame_{:04d}", i)).string(),
-                  a.png.empty() ? "" : stem + ".png", a.exposure);
+                  a.png.empty() ? "" : stem + ".png", a.exposure, denoiser.get());
     if (!a.quiet)
       fmt::print("frame {:4d}/{}  t = {:.3f} s  {:.1f} ms  {:.2f} Mrays/s\n", i + 1, a.frames, t, f.stats.ms,
                  double(f.stats.rays()) / (f.stats.ms * 1e3));
@@ -201,7 +255,8 @@ Action add_render_command(CLI::App& cmd) {
 Action add_render_sequence_command(CLI::App& cmd) {
   auto a = std::make_shared<RenderArgs>();
   add_common(cmd, *a);
-  cmd.add_option("--path", a->path, "Camera path JSON (keyframes)")->required();
+  cmd.add_option("--path", a->path, "Camera path JSON (keyframes), or orbit[:DEGREES] about --view")->required();
+  cmd.add_option("--view", a->view, "Start view of --path orbit (default: front, else framing)");
   cmd.add_option("--frames", a->frames, "Frames, evenly spread over the path's time span")->required();
   cmd.add_option("-o,--out", a->out, "Output directory: frame_NNNN.exr (+ .png with --png x, PFMs under --pfm DIR)")->required();
   return [a] { run_sequence(*a); };

@@ -18,6 +18,7 @@ int main(int argc, char** argv) {
   add(kestrel::cli::add_preview_command, "preview", "Render a shaded depth/normal PNG of a scene");
   add(kestrel::cli::add_render_command, "render", "Path-trace one frame with every AOV (EXR, PFM, PNG)");
   add(kestrel::cli::add_render_sequence_command, "render-sequence", "Path-trace a camera path, one file set per frame");
+  add(kestrel::cli::add_denoise_command, "denoise", "Denoise a frame or a sequence (neural, svgf, atrous)");
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {

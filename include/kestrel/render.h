@@ -56,6 +56,10 @@ struct CameraPath {
   };
   std::vector<Key> keys;
   static CameraPath load(const std::string& path);
+  /// A turntable: `start`'s eye turned about the vertical (+Y) axis through its target by
+  /// `degrees` over `seconds` (keys every 15 degrees at most). Throws Error on a bad camera
+  /// or non-finite / non-positive arguments.
+  static CameraPath orbit(const Camera& start, double degrees, double seconds = 1.0);
   double start() const { return keys.empty() ? 0.0 : keys.front().time; }
   double end() const { return keys.empty() ? 0.0 : keys.back().time; }
   Camera at(double time) const;

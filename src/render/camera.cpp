@@ -150,6 +150,26 @@ CameraPath CameraPath::load(const std::string& path) {
   return out;
 }
 
+CameraPath CameraPath::orbit(const Camera& start, double degrees, double seconds) {
+  check_camera(start);
+  if (!std::isfinite(degrees) || !std::isfinite(seconds) || !(seconds > 0) || std::abs(degrees) > 3600)
+    throw Error(ErrorCode::invalid_argument,
+                fmt::format("orbit: expected finite degrees (|d| <= 3600) and seconds > 0, got {} and {}", degrees, seconds));
+  const int steps = std::max(1, int(std::ceil(std::abs(degrees) / 15.0)));
+  CameraPath out;
+  const Vec3 arm = start.eye - start.target;
+  for (int i = 0; i <= steps; ++i) {
+    const double a = degrees * double(i) / double(steps) * 3.14159265358979 / 180.0;
+    const float c = float(std::cos(a)), s = float(std::sin(a));
+    Key key;
+    key.time = seconds * double(i) / double(steps);
+    key.camera = start;
+    key.camera.eye = start.target + Vec3{c * arm.x + s * arm.z, arm.y, -s * arm.x + c * arm.z};
+    out.keys.push_back(key);
+  }
+  return out;
+}
+
 Camera CameraPath::at(double time) const {
   if (keys.empty()) throw Error(ErrorCode::invalid_argument, "camera path has no keyframes");
   if (keys.size() == 1 || time <= keys.front().time) return keys.front().camera;

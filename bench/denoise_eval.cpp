@@ -1,0 +1,320 @@
+// kestrel_denoise_eval: the denoisers on the held-out test clips of
+// scripts/denoise/make_dataset.py. Per method and input spp: PSNR and SSIM on tone-mapped
+// sRGB (exposure 0 -> ACES fit -> sRGB, tonemap_aces_srgb), relMSE on linear HDR, temporal
+// error tErr = mean |(o_t - o_{t-1}) - (r_t - r_{t-1})| (tone-mapped), and ms per 1280x720
+// frame (median after warm-up, the machine's threads). Writes a Markdown table, a JSON file
+// and side-by-side crops (PNG).
+#include <fmt/format.h>
+#include <tbb/global_control.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <map>
+#include <sstream>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "kestrel/denoise.h"
+#include "kestrel/error.h"
+#include "kestrel/io.h"
+#include "kestrel/render.h"
+
+using namespace kestrel;
+namespace fs = std::filesystem;
+
+namespace {
+
+struct InputFrame {
+  FloatImage color, albedo, normal, depth, rough, motion;
+  DenoiseInput input() const { return {&color, &albedo, &normal, &depth, &rough, &motion}; }
+};
+
+InputFrame load_frame(const fs::path& dir) {
+  InputFrame f;
+  f.color = read_pfm((dir / "color.pfm").string());
+  f.albedo = read_pfm((dir / "albedo.pfm").string());
+  f.normal = read_pfm((dir / "normal.pfm").string());
+  f.depth = read_pfm((dir / "depth.pfm").string());
+  f.rough = read_pfm((dir / "roughness.pfm").string());
+  f.motion = read_pfm((dir / "motion.pfm").string());
+  return f;
+}
+
+std::vector<float> tonemapped(const FloatImage& img) {
+  std::vector<float> out(size_t(img.width) * size_t(img.height) * 3);
+  for (size_t p = 0; p < size_t(img.width) * size_t(img.height); ++p)
+    for (int c = 0; c < 3; ++c) out[p * 3 + size_t(c)] = tonemap_aces_srgb(img.pixels[p * size_t(img.channels) + size_t(c)]);
+  return out;
+}
+
+double psnr(const std::vector<float>& a, const std::vector<float>& b) {
+  double mse = 0;
+  for (size_t i = 0; i < a.size(); ++i) mse += double(a[i] - b[i]) * double(a[i] - b[i]);
+  mse /= double(a.size());
+  return 10.0 * std::log10(1.0 / std::max(mse, 1e-12));
+}
+
+// SSIM (Wang et al. 2004): 11x11 Gaussian window (sigma 1.5), per channel, averaged.
+double ssim(const std::vector<float>& a, const std::vector<float>& b, int w, int h) {
+  const int r = 5;
+  float g[11];
+  float gs = 0;
+  for (int i = -r; i <= r; ++i) gs += (g[i + r] = std::exp(-float(i * i) / (2 * 1.5f * 1.5f)));
+  for (float& v : g) v /= gs;
+  const double c1 = 0.01 * 0.01, c2 = 0.03 * 0.03;
+  double total = 0;
+  for (int c = 0; c < 3; ++c) {
+    // Separable blur of a, b, a^2, b^2, ab.
+    std::vector<float> maps[5], tmp(size_t(w) * size_t(h));
+    for (auto& m : maps) m.assign(size_t(w) * size_t(h), 0.0f);
+    auto val = [&](int k, size_t p) {
+      const float x = a[p * 3 + size_t(c)], y = b[p * 3 + size_t(c)];
+      return k == 0 ? x : k == 1 ? y : k == 2 ? x * x : k == 3 ? y * y : x * y;
+    };
+    for (int k = 0; k < 5; ++k) {
+      for (int y = 0; y < h; ++y)
+        for (int x = 0; x < w; ++x) {
+          float s = 0;
+          for (int i = -r; i <= r; ++i) s += g[i + r] * val(k, size_t(y) * size_t(w) + size_t(std::clamp(x + i, 0, w - 1)));
+          tmp[size_t(y) * size_t(w) + size_t(x)] = s;
+        }
+      for (int y = 0; y < h; ++y)
+        for (int x = 0; x < w; ++x) {
+          float s = 0;
+          for (int i = -r; i <= r; ++i) s += g[i + r] * tmp[size_t(std::clamp(y + i, 0, h - 1)) * size_t(w) + size_t(x)];
+          maps[k][size_t(y) * size_t(w) + size_t(x)] = s;
+        }
+    }
+    double sum = 0;
+    for (size_t p = 0; p < size_t(w) * size_t(h); ++p) {
+      const double ma = maps[0][p], mb = maps[1][p];
+      const double va = maps[2][p] - ma * ma, vb = maps[3][p] - mb * mb, cov = maps[4][p] - ma * mb;
+      sum += ((2 * ma * mb + c1) * (2 * cov + c2)) / ((ma * ma + mb * mb + c1) * (va + vb + c2));
+    }
+    total += sum / double(size_t(w) * size_t(h));
+  }
+  return total / 3.0;
+}
+
+double relmse(const FloatImage& o, const FloatImage& r) {
+  double s = 0;
+  size_t n = 0;
+  for (size_t p = 0; p < size_t(o.width) * size_t(o.height); ++p)
+    for (int c = 0; c < 3; ++c) {
+      const double a = o.pixels[p * 3 + size_t(c)], b = r.pixels[p * size_t(r.channels) + size_t(c)];
+      s += (a - b) * (a - b) / (b * b + 1e-2);
+      ++n;
+    }
+  return s / double(n);
+}
+
+struct Scores {
+  double psnr = 0, ssim = 0, relmse = 0, terr = 0;
+  int frames = 0;
+};
+
+struct Method {
+  std::string name;
+  DenoiserOptions options;
+  bool identity = false;  // the noisy input
+};
+
+double median(std::vector<double> v) {
+  std::sort(v.begin(), v.end());
+  return v[v.size() / 2];
+}
+
+void write_crop_png(const std::string& path, const std::vector<const FloatImage*>& images, int x0, int y0, int cw, int ch) {
+  const int scale = 2, W = cw * scale * int(images.size()) + 4 * int(images.size() - 1), H = ch * scale;
+  std::vector<uint8_t> rgb(size_t(W) * size_t(H) * 3, 255);
+  for (size_t k = 0; k < images.size(); ++k)
+    for (int y = 0; y < H; ++y)
+      for (int x = 0; x < cw * scale; ++x) {
+        const FloatImage& img = *images[k];
+        const float* px = img.at(std::min(x0 + x / scale, img.width - 1), std::min(y0 + y / scale, img.height - 1));
+        uint8_t* o = &rgb[(size_t(y) * size_t(W) + size_t(int(k) * (cw * scale + 4) + x)) * 3];
+        for (int c = 0; c < 3; ++c) o[c] = uint8_t(std::lround(255.0f * tonemap_aces_srgb(px[c])));
+      }
+  write_png(path, W, H, rgb);
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  std::string dataset = std::string(KESTREL_SOURCE_DIR) + "/out/denoise_dataset";
+  std::string out_dir = std::string(KESTREL_SOURCE_DIR) + "/docs/denoiser";
+  std::string weights;
+  int threads = int(std::thread::hardware_concurrency()), repeat = 9;
+  bool quick = false;
+  for (int i = 1; i < argc; ++i) {
+    const std::string a = argv[i];
+    auto next = [&]() -> std::string {
+      if (i + 1 >= argc) throw Error(ErrorCode::invalid_argument, a + " needs a value");
+      return argv[++i];
+    };
+    if (a == "--dataset") dataset = next();
+    else if (a == "--out") out_dir = next();
+    else if (a == "--weights") weights = next();
+    else if (a == "--threads") threads = std::stoi(next());
+    else if (a == "--repeat") repeat = std::stoi(next());
+    else if (a == "--quick") quick = true;
+    else {
+      fmt::print(stderr, "usage: kestrel_denoise_eval [--dataset DIR] [--out DIR] [--weights F] [--threads N] [--repeat N] [--quick]\n");
+      return 2;
+    }
+  }
+  tbb::global_control threads_limit(tbb::global_control::max_allowed_parallelism, size_t(std::max(threads, 1)));
+  try {
+    std::vector<Method> methods = {{"input (noisy)", {}, true}};
+    DenoiserOptions o;
+    o.weights = weights;
+    o.method = DenoiseMethod::atrous;
+    methods.push_back({"a-trous (Dammertz 2010)", o, false});
+    o.method = DenoiseMethod::svgf;
+    methods.push_back({"SVGF-like", o, false});
+    o.method = DenoiseMethod::neural;
+    o.recurrent = false;
+    methods.push_back({"neural, frame by frame", o, false});
+    o.recurrent = true;
+    methods.push_back({"neural (recurrent)", o, false});
+    const size_t params = Denoiser(o).parameter_count();
+
+    // Test clips from the manifest.
+    std::ifstream mf(fs::path(dataset) / "manifest.json");
+    if (!mf) throw Error(ErrorCode::io_error, fmt::format("{}/manifest.json: not found (run scripts/denoise/make_dataset.py)", dataset));
+    std::stringstream ss;
+    ss << mf.rdbuf();
+    const std::string manifest = ss.str();
+    std::vector<std::string> clips;
+    for (size_t at = manifest.find("\"test_"); at != std::string::npos; at = manifest.find("\"test_", at + 1)) {
+      const size_t end = manifest.find('"', at + 1);
+      const std::string name = manifest.substr(at + 1, end - at - 1);
+      if (manifest.compare(end + 1, 1, ":") == 0 && std::find(clips.begin(), clips.end(), name) == clips.end()) clips.push_back(name);
+    }
+    if (clips.empty()) throw Error(ErrorCode::parse_error, fmt::format("{}: no test clips in the manifest", dataset));
+    fs::create_directories(out_dir);
+    std::map<std::string, std::map<int, Scores>> total;  // method -> spp -> scores (summed over clips)
+    std::string per_clip;
+    const std::vector<int> spps = quick ? std::vector<int>{1} : std::vector<int>{1, 2, 4};
+    for (const std::string& clip : clips) {
+      const fs::path root = fs::path(dataset) / clip;
+      int frames = 0;
+      while (fs::exists(root / "ref" / "pfm" / fmt::format("frame_{:04d}", frames))) ++frames;
+      if (quick) frames = std::min(frames, 3);
+      std::vector<FloatImage> refs;
+      for (int t = 0; t < frames; ++t) refs.push_back(read_pfm((root / "ref" / "pfm" / fmt::format("frame_{:04d}", t) / "color.pfm").string()));
+      for (int spp : spps) {
+        if (!fs::exists(root / fmt::format("spp{}", spp))) continue;
+        std::vector<InputFrame> inputs;
+        for (int t = 0; t < frames; ++t) inputs.push_back(load_frame(root / fmt::format("spp{}", spp) / "pfm" / fmt::format("frame_{:04d}", t)));
+        std::vector<FloatImage> last;  // per method, the last frame (crops)
+        for (const Method& m : methods) {
+          std::unique_ptr<Denoiser> d = m.identity ? nullptr : std::make_unique<Denoiser>(m.options);
+          Scores s;
+          std::vector<float> prev_o, prev_r;
+          FloatImage out;
+          for (int t = 0; t < frames; ++t) {
+            out = m.identity ? inputs[size_t(t)].color : d->denoise(inputs[size_t(t)].input());
+            const std::vector<float> to = tonemapped(out), tr = tonemapped(refs[size_t(t)]);
+            s.psnr += psnr(to, tr);
+            s.ssim += ssim(to, tr, out.width, out.height);
+            s.relmse += relmse(out, refs[size_t(t)]);
+            if (t > 0) {
+              double e = 0;
+              for (size_t i = 0; i < to.size(); ++i) e += std::abs((to[i] - prev_o[i]) - (tr[i] - prev_r[i]));
+              s.terr += e / double(to.size());
+            }
+            prev_o = to, prev_r = tr;
+          }
+          s.psnr /= frames, s.ssim /= frames, s.relmse /= frames;
+          s.terr /= std::max(frames - 1, 1);
+          s.frames = frames;
+          per_clip += fmt::format("| {} | {} | {} | {:.2f} | {:.4f} | {:.4f} | {:.5f} |\n", clip, spp, m.name, s.psnr, s.ssim, s.relmse, s.terr);
+          fmt::print("{:20s} {} spp  {:26s} PSNR {:6.2f}  SSIM {:.4f}  relMSE {:.4f}  tErr {:.5f}\n", clip, spp, m.name, s.psnr,
+                     s.ssim, s.relmse, s.terr);
+          Scores& t = total[m.name][spp];
+          t.psnr += s.psnr, t.ssim += s.ssim, t.relmse += s.relmse, t.terr += s.terr, t.frames += 1;
+          last.push_back(out);
+        }
+        if (spp == 1) {
+          std::vector<const FloatImage*> imgs;
+          for (const FloatImage& f : last)
+            imgs.push_back(&f);
+          imgs.push_back(&refs.back());
+          const int cw = std::min(128, refs.back().width), ch = std::min(96, refs.back().height);
+          write_crop_png((fs::path(out_dir) / (clip + "_crops.png")).string(), imgs, (refs.back().width - cw) / 2,
+                         (refs.back().height - ch) / 2, cw, ch);
+        }
+      }
+    }
+    // Timing on 1280x720: the first test clip's 1-spp frames tiled.
+    const fs::path root = fs::path(dataset) / clips.front() / "spp1" / "pfm";
+    std::vector<InputFrame> small;
+    for (int t = 0; t < 2; ++t) small.push_back(load_frame(root / fmt::format("frame_{:04d}", t)));
+    auto tile = [](const FloatImage& s) {
+      FloatImage b(1280, 720, s.channels);
+      for (int y = 0; y < 720; ++y)
+        for (int x = 0; x < 1280; ++x)
+          for (int c = 0; c < s.channels; ++c) b.at(x, y)[c] = s.at(x % s.width, y % s.height)[c];
+      return b;
+    };
+    std::vector<InputFrame> big;
+    for (const InputFrame& f : small) big.push_back({tile(f.color), tile(f.albedo), tile(f.normal), tile(f.depth), tile(f.rough), tile(f.motion)});
+    std::map<std::string, double> ms;
+    for (const Method& m : methods) {
+      if (m.identity) continue;
+      Denoiser d(m.options);
+      std::vector<double> times;
+      for (int r = 0; r < repeat + 2; ++r) {
+        const auto t0 = std::chrono::steady_clock::now();
+        (void)d.denoise(big[size_t(r % 2)].input());
+        const double t = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+        if (r >= 2) times.push_back(t);
+      }
+      ms[m.name] = median(times);
+      fmt::print("{:26s} {:.1f} ms per 1280x720 frame ({} threads, median of {})\n", m.name, ms[m.name], threads, repeat);
+    }
+    // Table.
+    std::string md = fmt::format(
+        "# Denoiser evaluation\n\nWritten by `kestrel_denoise_eval` (bench/denoise_eval.cpp) on the test clips of `{}`: {}. "
+        "Means over clips of per-clip means over frames. PSNR / SSIM on tone-mapped sRGB (ACES fit, exposure 0), relMSE on "
+        "linear HDR ((o-r)^2/(r^2+0.01)), tErr = mean |(o_t - o_t-1) - (r_t - r_t-1)| on tone-mapped values; ms per "
+        "1280x720 frame with {} threads (median of {} after 2 warm-up frames). Neural parameters: {}.\n\n"
+        "| method | spp | PSNR dB | SSIM | relMSE | tErr | ms @1280x720 |\n|---|---:|---:|---:|---:|---:|---:|\n",
+        fs::path(dataset).filename().string(), fmt::join(clips, ", "), threads, repeat, params);
+    std::string json = "{\n  \"clips\": [";
+    for (size_t i = 0; i < clips.size(); ++i) json += fmt::format("{}\"{}\"", i ? ", " : "", clips[i]);
+    json += fmt::format("],\n  \"threads\": {},\n  \"parameters\": {},\n  \"results\": [\n", threads, params);
+    bool first = true;
+    for (int spp : spps)
+      for (const Method& m : methods) {
+        auto it = total[m.name].find(spp);
+        if (it == total[m.name].end()) continue;
+        const Scores& s = it->second;
+        const double n = s.frames;
+        const std::string t = ms.count(m.name) ? fmt::format("{:.1f}", ms[m.name]) : "";
+        md += fmt::format("| {} | {} | {:.2f} | {:.4f} | {:.4f} | {:.5f} | {} |\n", m.name, spp, s.psnr / n, s.ssim / n, s.relmse / n,
+                          s.terr / n, t);
+        json += fmt::format("{}    {{\"method\": \"{}\", \"spp\": {}, \"psnr\": {:.3f}, \"ssim\": {:.4f}, \"relmse\": {:.5f}, "
+                            "\"terr\": {:.5f}, \"ms\": {}}}",
+                            first ? "" : ",\n", m.name, spp, s.psnr / n, s.ssim / n, s.relmse / n, s.terr / n,
+                            ms.count(m.name) ? fmt::format("{:.2f}", ms[m.name]) : "null");
+        first = false;
+      }
+    json += "\n  ]\n}\n";
+    md += "\nPer clip:\n\n| clip | spp | method | PSNR dB | SSIM | relMSE | tErr |\n|---|---:|---|---:|---:|---:|---:|\n" + per_clip;
+    md += "\nCrops (last frame, 1 spp; left to right: input, a-trous, SVGF-like, neural frame by frame, neural, reference): "
+          "`<clip>_crops.png`.\n";
+    std::ofstream(fs::path(out_dir) / "eval.md") << md;
+    std::ofstream(fs::path(out_dir) / "eval.json") << json;
+    fmt::print("wrote {}/eval.md, eval.json and crops\n", out_dir);
+  } catch (const std::exception& e) {
+    fmt::print(stderr, "kestrel_denoise_eval: error: {}\n", e.what());
+    return 1;
+  }
+  return 0;
+}

@@ -1,0 +1,68 @@
+// Denoising path-traced frames: kestrel's recurrent neural denoiser (a small CNN at 1/4
+// resolution predicting the per-pixel temporal blend and edge-stopping strengths of a
+// full-resolution a-trous filter on albedo-demodulated colour) and two non-neural
+// baselines, an edge-avoiding a-trous wavelet filter (Dammertz et al. 2010) and an
+// SVGF-like filter (Schied et al. 2017). See docs/denoiser.md.
+#pragma once
+#include <memory>
+#include <optional>
+#include <string>
+#include <string_view>
+
+#include "kestrel/io.h"
+
+namespace kestrel {
+
+enum class DenoiseMethod { neural, svgf, atrous };
+const char* denoise_method_name(DenoiseMethod m);
+std::optional<DenoiseMethod> denoise_method_from_name(std::string_view name);
+
+/// One frame's inputs (pointers, not owned). colour is required (3 channels, linear HDR);
+/// the rest may be null: albedo (3; default 1), normal (3, world space; default none),
+/// depth (1; default 1), roughness (1; default 0), motion (2 or 3 channels, pixels, "p +
+/// motion = where the surface was in the previous frame"; default 0). Every given image must
+/// have colour's size. NaN/Inf values are read as 0, negative colours as 0.
+struct DenoiseInput {
+  const FloatImage* color = nullptr;
+  const FloatImage* albedo = nullptr;
+  const FloatImage* normal = nullptr;
+  const FloatImage* depth = nullptr;
+  const FloatImage* roughness = nullptr;
+  const FloatImage* motion = nullptr;
+};
+
+struct DenoiserOptions {
+  DenoiseMethod method = DenoiseMethod::neural;
+  std::string weights;     ///< neural: weights file ("" = default_denoiser_weights())
+  bool recurrent = true;   ///< neural: carry the warped previous output (false: frame by frame)
+};
+
+/// Where the committed weights are: $KESTREL_WEIGHTS_DIR/denoiser.kdw, else the source
+/// tree's weights/denoiser.kdw.
+std::string default_denoiser_weights();
+
+/// A denoiser for one sequence of frames (state carries from frame to frame; reset() starts
+/// a new sequence). Work runs on the TBB thread pool of the caller's arena.
+class Denoiser {
+ public:
+  /// Throws Error naming the file for a missing, corrupt or mismatched weights file.
+  explicit Denoiser(const DenoiserOptions& options = {});
+  ~Denoiser();
+  Denoiser(Denoiser&&) noexcept;
+  Denoiser& operator=(Denoiser&&) noexcept;
+
+  /// Denoises one frame (3 channels, colour's size). Throws Error on missing colour or
+  /// mismatched sizes / channel counts (naming the input).
+  FloatImage denoise(const DenoiseInput& input);
+  /// The same into `out`, reusing its storage (no allocation per frame once warm).
+  void denoise(const DenoiseInput& input, FloatImage& out);
+  void reset();
+  DenoiseMethod method() const;
+  size_t parameter_count() const;  ///< 0 for the non-neural filters
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace kestrel

@@ -1,0 +1,137 @@
+"""kestrel's denoiser, the reference definition (training; the C++ engine in
+src/denoise/neural.cpp computes the same function, checked by tests/denoise parity).
+
+Per frame, at full resolution H x W (padded to multiples of 8 by edge replication):
+  x  = log(1 + color / (albedo + EPS))              demodulated irradiance, HDR transfer
+  yw, zw = previous output and depth warped by the motion vectors (bilinear, clamped),
+  valid  = the previous position lies inside the image (0 on the first frame)
+  features (17): x, albedo, normal, roughness, yw, valid, |zw - z| / z, relative depth
+                 gradient, mean(x)^2
+A small CNN at 1/4 and 1/8 resolution (4x4 average pool in) predicts 17 maps per
+quarter-res pixel, activated there (sigmoid / softplus) and bilinearly upsampled: a temporal blend weight alpha and, for each of 4
+a-trous levels (3x3 taps, dilation 1, 2, 4, 8), edge-stopping strengths for colour,
+normal and depth and a mix weight beta:
+  x0 = x + alpha * valid * (yw - x)
+  x_{l+1} = x_l + beta_l * (sum_q h_q w_q x_l(q) / sum_q h_q w_q - x_l)
+  w_q = exp(-sc |x_l(p) - x_l(q)|^2 - sn max(0, n_p.n_p - n_p.n_q) - sz |z_p - z_q| / max(z_p, 1e-3))
+  (n_p.n_p rather than 1: the centre tap weighs exactly 1 even where there is no normal, so
+  the sum of weights never vanishes)
+The output colour is expm1(max(x_4, 0)) * (albedo + EPS); x_4 and z are the recurrent state.
+"""
+import torch
+import torch.nn as nn
+import torch.nn.functional as F
+
+EPS = 0.01
+LEVELS = 4
+FEATURES = 17
+OUTPUTS = 1 + 4 * LEVELS
+ZMIN = 1e-3
+# 3x3 a-trous taps (dy, dx, h): h = (1/4, 1/2, 1/4) x (1/4, 1/2, 1/4), times 4 (centre 1).
+TAPS = [(dy, dx, (2.0 if dy == 0 else 1.0) * (2.0 if dx == 0 else 1.0) / 4.0) for dy in (-1, 0, 1) for dx in (-1, 0, 1)]
+
+
+def pad8(t):
+    h, w = t.shape[-2:]
+    ph, pw = (-h) % 8, (-w) % 8
+    return F.pad(t, (0, pw, 0, ph), mode="replicate") if (ph or pw) else t
+
+
+def warp(img, motion):
+    """img (B,C,H,W) sampled at p + motion (pixels), bilinear with clamped coordinates;
+    returns the warped image and the in-bounds mask (B,1,H,W)."""
+    b, _, h, w = img.shape
+    ys, xs = torch.meshgrid(torch.arange(h, dtype=img.dtype), torch.arange(w, dtype=img.dtype), indexing="ij")
+    px = xs[None] + motion[:, 0]
+    py = ys[None] + motion[:, 1]
+    valid = ((px >= -0.5) & (px <= w - 0.5) & (py >= -0.5) & (py <= h - 0.5)).to(img.dtype)[:, None]
+    gx = 2 * px.clamp(0, w - 1) / max(w - 1, 1) - 1
+    gy = 2 * py.clamp(0, h - 1) / max(h - 1, 1) - 1
+    grid = torch.stack([gx, gy], dim=-1)
+    out = F.grid_sample(img, grid, mode="bilinear", padding_mode="border", align_corners=True)
+    return out, valid
+
+
+def shift(t, dy, dx):
+    """t(p + (dy, dx)) with edge replication."""
+    if dy == 0 and dx == 0:
+        return t
+    h, w = t.shape[-2:]
+    p = max(abs(dy), abs(dx))
+    tp = F.pad(t, (p, p, p, p), mode="replicate")
+    return tp[..., p + dy:p + dy + h, p + dx:p + dx + w]
+
+
+class Denoiser(nn.Module):
+    def __init__(self):
+        super().__init__()
+        self.enc1 = nn.Conv2d(FEATURES, 16, 3, padding=1)
+        self.enc2 = nn.Conv2d(16, 32, 3, padding=1)
+        self.enc3 = nn.Conv2d(32, 32, 3, padding=1)
+        self.dec1 = nn.Conv2d(48, 16, 3, padding=1)
+        self.head = nn.Conv2d(16, OUTPUTS, 1)
+        with torch.no_grad():
+            self.head.weight.mul_(0.1)
+            b = torch.zeros(OUTPUTS)
+            b[0] = 0.0
+            for l in range(LEVELS):
+                b[1 + 4 * l:5 + 4 * l] = torch.tensor([1.0, 3.0, 3.0, 2.0])
+            self.head.bias.copy_(b)
+
+    def params(self, feat):
+        h = F.avg_pool2d(feat, 4)
+        e1 = F.relu(self.enc1(h))
+        e2 = F.relu(self.enc2(F.avg_pool2d(e1, 2)))
+        e3 = F.relu(self.enc3(e2))
+        u = F.interpolate(e3, scale_factor=2, mode="nearest")
+        d1 = F.relu(self.dec1(torch.cat([u, e1], dim=1)))
+        o = self.head(d1)
+        act = [torch.sigmoid(o[:, 0:1])]
+        for l in range(LEVELS):
+            act += [F.softplus(o[:, 1 + 4 * l:4 + 4 * l]), torch.sigmoid(o[:, 4 + 4 * l:5 + 4 * l])]
+        return F.interpolate(torch.cat(act, dim=1), scale_factor=4, mode="bilinear", align_corners=False)
+
+    def forward(self, color, albedo, normal, depth, rough, motion, state=None, recurrent=True):
+        """All inputs (B,C,H,W) with H, W multiples of 8. state = (y, z) of the previous
+        frame or None. Returns (colour, new state)."""
+        x = torch.log1p(color.clamp(min=0) / (albedo.clamp(min=0) + EPS))
+        z = depth
+        zc = z.clamp(min=ZMIN)
+        if state is None or not recurrent:
+            yw, zw, valid = x, z, torch.zeros_like(z)
+        else:
+            yw, valid = warp(state[0], motion)
+            zw, _ = warp(state[1], motion)
+        dz = ((zw - z).abs() / zc).clamp(max=1.0) * valid
+        zg = (((shift(z, 0, 1) - z).abs() + (shift(z, 1, 0) - z).abs()) / zc).clamp(max=1.0)
+        xl = x.mean(dim=1, keepdim=True)
+        feat = torch.cat([x, albedo, normal, rough, yw, valid, dz, zg, xl * xl], dim=1)
+        o = self.params(feat)
+        alpha = o[:, 0:1] * valid
+        xi = x + alpha * (yw - x)
+        nn_p = (normal * normal).sum(1, keepdim=True)
+        for l in range(LEVELS):
+            d = 1 << l
+            sc = o[:, 1 + 4 * l:2 + 4 * l]
+            sn = o[:, 2 + 4 * l:3 + 4 * l]
+            sz = o[:, 3 + 4 * l:4 + 4 * l] / zc
+            beta = o[:, 4 + 4 * l:5 + 4 * l]
+            h, w = xi.shape[-2:]
+            g = F.pad(torch.cat([xi, normal, z], dim=1), (d, d, d, d), mode="replicate")
+            acc, wsum = 0, 0
+            for dy, dx, hq in TAPS:
+                q = g[..., d + dy * d:d + dy * d + h, d + dx * d:d + dx * d + w]
+                xq = q[:, 0:3]
+                e = sc * ((xi - xq) ** 2).sum(1, keepdim=True) \
+                    + sn * (nn_p - (normal * q[:, 3:6]).sum(1, keepdim=True)).clamp(min=0) \
+                    + sz * (z - q[:, 6:7]).abs()
+                wq = hq * torch.exp(-e)
+                acc = acc + wq * xq
+                wsum = wsum + wq
+            xi = xi + beta * (acc / wsum - xi)
+        out = torch.expm1(xi.clamp(min=0)) * (albedo.clamp(min=0) + EPS)
+        return out, (xi, z)
+
+
+def parameter_count(model):
+    return sum(p.numel() for p in model.parameters())

@@ -1,0 +1,233 @@
+#!/usr/bin/env python3
+"""Trains kestrel's denoiser (model.py) on the train clips of make_dataset.py and writes
+  weights/denoiser.kdw           the weights (format: docs/denoiser.md)
+  weights/denoiser.json          provenance: dataset, command, steps, seed, final losses
+  weights/denoiser_loss.png      the loss curve
+  tests/data/denoise/            a parity fixture: two small frames and this model's output
+
+    train.py [--data out/denoise_dataset] [--steps 2500] [--seed 1] [--threads 2]
+"""
+import argparse
+import json
+import math
+import os
+import random
+import struct
+import subprocess
+import sys
+import time
+
+import numpy as np
+import torch
+import torch.nn.functional as F
+
+import model as M
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+ROOT = os.path.normpath(os.path.join(HERE, "..", ".."))
+
+
+def read_pfm(path):
+    with open(path, "rb") as f:
+        kind = f.readline().strip()
+        w, h = map(int, f.readline().split())
+        scale = float(f.readline())
+        c = 3 if kind == b"PF" else 1
+        data = np.frombuffer(f.read(w * h * c * 4), dtype="<f4" if scale < 0 else ">f4").reshape(h, w, c)
+    return np.ascontiguousarray(data[::-1]).astype(np.float32)
+
+
+def write_pfm(path, img):
+    img = np.asarray(img, dtype="<f4")
+    if img.ndim == 2:
+        img = img[:, :, None]
+    h, w, c = img.shape
+    with open(path, "wb") as f:
+        f.write(b"PF\n" if c == 3 else b"Pf\n")
+        f.write(f"{w} {h}\n-1.0\n".encode())
+        f.write(np.ascontiguousarray(img[::-1]).tobytes())
+
+
+AOVS = [("color", 3), ("albedo", 3), ("normal", 3), ("depth", 1), ("roughness", 1), ("motion", 2)]
+
+
+def load_frame(d):
+    out = []
+    for name, c in AOVS:
+        a = read_pfm(os.path.join(d, name + ".pfm"))[:, :, :c]
+        out.append(np.nan_to_num(a, nan=0.0, posinf=0.0, neginf=0.0))
+    return np.concatenate(out, axis=2)  # H, W, 13
+
+
+def load_clip(root, name, frames, spp=1):
+    ins, refs = [], []
+    for i in range(frames):
+        ins.append(load_frame(os.path.join(root, name, f"spp{spp}", "pfm", f"frame_{i:04d}")))
+        refs.append(np.nan_to_num(read_pfm(os.path.join(root, name, "ref", "pfm", f"frame_{i:04d}", "color.pfm"))))
+    return np.stack(ins), np.stack(refs)  # T,H,W,13 and T,H,W,3
+
+
+def split_inputs(t):
+    """(B,13,H,W) -> the model's named inputs."""
+    return dict(color=t[:, 0:3], albedo=t[:, 3:6], normal=t[:, 6:9], depth=t[:, 9:10], rough=t[:, 10:11],
+                motion=t[:, 11:13])
+
+
+def run_sequence(model, seq, recurrent=True):
+    """seq (B,T,13,H,W) -> outputs (B,T,3,H,W)."""
+    state, outs = None, []
+    for t in range(seq.shape[1]):
+        o, state = model(**split_inputs(seq[:, t]), state=state, recurrent=recurrent)
+        outs.append(o)
+    return torch.stack(outs, dim=1)
+
+
+def tr(c):
+    return torch.log1p(c.clamp(min=0))
+
+
+def losses(out, ref):
+    a, b = tr(out), tr(ref)
+    spatial = (a - b).abs().mean()
+    grad = ((a[..., :, 1:] - a[..., :, :-1]) - (b[..., :, 1:] - b[..., :, :-1])).abs().mean() + \
+           ((a[..., 1:, :] - a[..., :-1, :]) - (b[..., 1:, :] - b[..., :-1, :])).abs().mean()
+    temporal = ((a[:, 1:] - a[:, :-1]) - (b[:, 1:] - b[:, :-1])).abs().mean()
+    return spatial, grad, temporal
+
+
+W_SPATIAL, W_GRAD, W_TEMPORAL = 1.0, 0.25, 0.5
+
+
+def export_weights(model, path):
+    """kestrel denoiser weights v1: magic, version, architecture, tensors, FNV-1a 64 of all
+    preceding bytes."""
+    blob = bytearray(b"KSTRLDNW")
+    blob += struct.pack("<III", 1, 1, len(list(model.named_parameters())))
+    for name, p in model.named_parameters():
+        a = p.detach().cpu().numpy().astype("<f4")
+        nb = name.encode()
+        blob += struct.pack("<I", len(nb)) + nb + struct.pack("<I", a.ndim) + struct.pack(f"<{a.ndim}I", *a.shape)
+        blob += a.tobytes()
+    h = 0xcbf29ce484222325
+    for byte in blob:
+        h = ((h ^ byte) * 0x100000001b3) & 0xFFFFFFFFFFFFFFFF
+    blob += struct.pack("<Q", h)
+    with open(path, "wb") as f:
+        f.write(blob)
+
+
+def write_fixture(model, clip, out_dir):
+    """Two frames of a 44 x 30 crop (not a multiple of 8: exercises the padding), their
+    inputs as PFMs and the model's outputs."""
+    os.makedirs(out_dir, exist_ok=True)
+    ins = clip[:2, 40:70, 60:104]  # T,H,W,13
+    seq = torch.from_numpy(ins).permute(0, 3, 1, 2)[None].contiguous()
+    with torch.no_grad():
+        state = None
+        for t in range(2):
+            x = split_inputs(seq[:, t])
+            h, w = x["color"].shape[-2:]
+            padded_state = None if state is None else (M.pad8(state[0]), M.pad8(state[1]))
+            o, state = model(**{k: M.pad8(v) for k, v in x.items()}, state=padded_state)
+            d = os.path.join(out_dir, f"frame_{t}")
+            os.makedirs(d, exist_ok=True)
+            f = ins[t]
+            write_pfm(os.path.join(d, "color.pfm"), f[:, :, 0:3])
+            write_pfm(os.path.join(d, "albedo.pfm"), f[:, :, 3:6])
+            write_pfm(os.path.join(d, "normal.pfm"), f[:, :, 6:9])
+            write_pfm(os.path.join(d, "depth.pfm"), f[:, :, 9])
+            write_pfm(os.path.join(d, "roughness.pfm"), f[:, :, 10])
+            write_pfm(os.path.join(d, "motion.pfm"), np.concatenate([f[:, :, 11:13], np.zeros_like(f[:, :, :1])], 2))
+            write_pfm(os.path.join(d, "expected.pfm"), o[0, :, :h, :w].permute(1, 2, 0).numpy())
+            state = (state[0][..., :h, :w], state[1][..., :h, :w])
+
+
+def main():
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--data", default=os.path.join(ROOT, "out", "denoise_dataset"))
+    ap.add_argument("--steps", type=int, default=2500)
+    ap.add_argument("--batch", type=int, default=4)
+    ap.add_argument("--crop", type=int, default=96)
+    ap.add_argument("--lr", type=float, default=1e-3)
+    ap.add_argument("--seed", type=int, default=1)
+    ap.add_argument("--threads", type=int, default=2)
+    ap.add_argument("--out", default=os.path.join(ROOT, "weights"))
+    ap.add_argument("--fixture", default=os.path.join(ROOT, "tests", "data", "denoise"))
+    args = ap.parse_args()
+    torch.set_num_threads(args.threads)
+    torch.manual_seed(args.seed)
+    random.seed(args.seed)
+    np.random.seed(args.seed)
+    manifest = json.load(open(os.path.join(args.data, "manifest.json")))
+    names = sorted(n for n, c in manifest["clips"].items() if c["split"] == "train")
+    clips = [load_clip(args.data, n, manifest["clips"][n]["frames"]) for n in names]
+    print(f"{len(clips)} train clips: {', '.join(names)}", flush=True)
+    model = M.Denoiser()
+    opt = torch.optim.Adam(model.parameters(), lr=args.lr)
+    sched = torch.optim.lr_scheduler.OneCycleLR(opt, max_lr=args.lr, total_steps=args.steps, pct_start=0.1)
+    history = []
+    t0 = time.time()
+    cs = args.crop
+    for step in range(args.steps):
+        batch_in, batch_ref = [], []
+        for _ in range(args.batch):
+            ins, refs = clips[random.randrange(len(clips))]
+            T, H, W, _ = ins.shape
+            y, x = random.randrange(0, H - cs + 1), random.randrange(0, W - cs + 1)
+            batch_in.append(ins[:, y:y + cs, x:x + cs])
+            batch_ref.append(refs[:, y:y + cs, x:x + cs])
+        seq = torch.from_numpy(np.stack(batch_in)).permute(0, 1, 4, 2, 3).contiguous()
+        ref = torch.from_numpy(np.stack(batch_ref)).permute(0, 1, 4, 2, 3).contiguous()
+        out = run_sequence(model, seq)
+        ls, lg, lt = losses(out, ref)
+        loss = W_SPATIAL * ls + W_GRAD * lg + W_TEMPORAL * lt
+        opt.zero_grad()
+        loss.backward()
+        norm = torch.nn.utils.clip_grad_norm_(model.parameters(), 1.0)
+        if not torch.isfinite(loss) or not torch.isfinite(norm):
+            print(f"step {step}: non-finite loss or gradient, step skipped", flush=True)
+            sched.step()
+            continue
+        opt.step()
+        sched.step()
+        history.append([step, loss.item(), ls.item(), lg.item(), lt.item()])
+        if step % 50 == 0 or step == args.steps - 1:
+            print(f"step {step:5d}  loss {loss.item():.4f}  l1 {ls.item():.4f}  grad {lg.item():.4f}  "
+                  f"temporal {lt.item():.4f}  {time.time() - t0:.0f} s", flush=True)
+    os.makedirs(args.out, exist_ok=True)
+    export_weights(model, os.path.join(args.out, "denoiser.kdw"))
+    tail = np.array(history[-100:])
+    commit = subprocess.run(["git", "-C", ROOT, "rev-parse", "--short", "HEAD"], capture_output=True, text=True).stdout.strip()
+    prov = dict(file="denoiser.kdw", architecture="kestrel-denoiser-1 (scripts/denoise/model.py)",
+                parameters=M.parameter_count(model), framework=f"PyTorch {torch.__version__} (Debian python3-torch)",
+                dataset=dict(command="python3 scripts/denoise/make_dataset.py --split train (defaults: 256x144, 6 frames, "
+                                     "1 spp inputs, 256 spp references)", clips=names),
+                command="python3 scripts/denoise/train.py " + " ".join(sys.argv[1:]), steps=args.steps,
+                batch=args.batch, crop=args.crop, seed=args.seed, lr=args.lr, threads=args.threads,
+                loss=dict(weights=dict(spatial=W_SPATIAL, gradient=W_GRAD, temporal=W_TEMPORAL),
+                          final_mean_last_100=dict(total=float(tail[:, 1].mean()), spatial=float(tail[:, 2].mean()),
+                                                   gradient=float(tail[:, 3].mean()), temporal=float(tail[:, 4].mean()))),
+                seconds=round(time.time() - t0), git=commit)
+    json.dump(prov, open(os.path.join(args.out, "denoiser.json"), "w"), indent=1)
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    h = np.array(history)
+    k = max(1, min(25, len(history) // 4))
+    smooth = lambda v: np.convolve(v, np.ones(k) / k, mode="valid")
+    plt.figure(figsize=(7, 4))
+    for i, lab in [(1, "total"), (2, "L1 (log)"), (3, "gradient"), (4, "temporal")]:
+        plt.plot(h[k - 1:, 0], smooth(h[:, i]), label=lab)
+    plt.yscale("log")
+    plt.xlabel("step")
+    plt.ylabel("loss (moving mean)")
+    plt.title(f"kestrel denoiser: {M.parameter_count(model)} parameters, {len(names)} clips")
+    plt.legend()
+    plt.tight_layout()
+    plt.savefig(os.path.join(args.out, "denoiser_loss.png"), dpi=100)
+    write_fixture(model, clips[0][0], args.fixture)
+    print("wrote", args.out, args.fixture)
+
+
+if __name__ == "__main__":
+    main()

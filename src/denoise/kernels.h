@@ -1,0 +1,50 @@
+// The denoiser's hot loops, compiled once per instruction set (kernels_*.cpp include
+// kernels.inl with their own -m flags) and picked at run time by the host's CPU.
+#pragma once
+#include <cstddef>
+
+#include "denoise/neural.h"
+
+namespace kestrel::denoise {
+
+/// A 3x3 (or 1x1) convolution, zero padded, on channels-last images: in [h][w][cin],
+/// weights [ky][kx][cin][cout], out [h][w][cout]; rows [row0, row1) of the output.
+struct ConvArgs {
+  const float* in = nullptr;
+  const float* weights = nullptr;
+  const float* bias = nullptr;
+  float* out = nullptr;
+  int width = 0, height = 0, cin = 0, cout = 0, ksize = 3;
+  bool relu = true;
+};
+
+/// One a-trous level of the neural filter on planar images (width x height each):
+/// out_c = x_c + beta * (sum_q h_q w_q x_c(q) / sum_q h_q w_q - x_c), 3x3 taps at
+/// +-dilation, clamped at the borders, w_q = exp(-sc |x - x_q|^2 - sn max(0, n.n - n.n_q)
+/// - sz |z - z_q|) (sz already divided by max(z, 1e-3)).
+struct AtrousArgs {
+  const float* x[3] = {};
+  const float* n[3] = {};
+  const float* z = nullptr;
+  const float* sc = nullptr;
+  const float* sn = nullptr;
+  const float* sz = nullptr;
+  const float* beta = nullptr;
+  float* out[3] = {};
+  int width = 0, height = 0, dilation = 1;
+};
+
+struct KernelTable {
+  void (*conv)(const ConvArgs& a, int row0, int row1);
+  void (*atrous)(const AtrousArgs& a, int row0, int row1);
+  const Planes& (*network)(const NeuralWeights& w, const Planes& in, Planes& state, bool recurrent, Workspace& ws,
+                           StageTimes* times);
+  const char* isa;
+};
+
+const KernelTable& kernels_sse2();
+const KernelTable& kernels_avx2();
+const KernelTable& kernels_avx512();
+const KernelTable& host_kernels();
+
+}  // namespace kestrel::denoise

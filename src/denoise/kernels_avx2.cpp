@@ -1,0 +1,22 @@
+// The denoiser's kernels built for avx2 (flags in CMakeLists.txt).
+#include <tbb/parallel_for.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstring>
+#include <vector>
+
+#include "denoise/kernels.h"
+
+namespace kestrel::denoise {
+namespace avx2_ns {
+#include "denoise/kernels.inl"
+}  // namespace avx2_ns
+
+const KernelTable& kernels_avx2() {
+  static const KernelTable table{avx2_ns::conv_rows, avx2_ns::atrous_rows, avx2_ns::network, "avx2"};
+  return table;
+}
+
+}  // namespace kestrel::denoise

@@ -1,0 +1,22 @@
+// The denoiser's kernels built for avx512 (flags in CMakeLists.txt).
+#include <tbb/parallel_for.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstring>
+#include <vector>
+
+#include "denoise/kernels.h"
+
+namespace kestrel::denoise {
+namespace avx512_ns {
+#include "denoise/kernels.inl"
+}  // namespace avx512_ns
+
+const KernelTable& kernels_avx512() {
+  static const KernelTable table{avx512_ns::conv_rows, avx512_ns::atrous_rows, avx512_ns::network, "avx512"};
+  return table;
+}
+
+}  // namespace kestrel::denoise

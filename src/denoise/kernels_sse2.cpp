@@ -1,0 +1,22 @@
+// The denoiser's kernels built for sse2 (flags in CMakeLists.txt).
+#include <tbb/parallel_for.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstring>
+#include <vector>
+
+#include "denoise/kernels.h"
+
+namespace kestrel::denoise {
+namespace sse2_ns {
+#include "denoise/kernels.inl"
+}  // namespace sse2_ns
+
+const KernelTable& kernels_sse2() {
+  static const KernelTable table{sse2_ns::conv_rows, sse2_ns::atrous_rows, sse2_ns::network, "sse2"};
+  return table;
+}
+
+}  // namespace kestrel::denoise

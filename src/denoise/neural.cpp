@@ -1,0 +1,126 @@
+// The neural denoiser: weights file and the per-frame network (model.py's function).
+#include "denoise/neural.h"
+
+#include <fmt/format.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstring>
+#include <fstream>
+#include <iterator>
+
+#include "denoise/kernels.h"
+#include "kestrel/error.h"
+
+namespace kestrel::denoise {
+
+namespace {
+
+constexpr char kMagic[8] = {'K', 'S', 'T', 'R', 'L', 'D', 'N', 'W'};
+constexpr uint32_t kVersion = 1, kArchitecture = 1;
+
+uint64_t fnv1a(const uint8_t* p, size_t n) {
+  uint64_t h = 0xcbf29ce484222325ull;
+  for (size_t i = 0; i < n; ++i) h = (h ^ p[i]) * 0x100000001b3ull;
+  return h;
+}
+
+struct Reader {
+  const std::string& path;
+  const std::vector<uint8_t>& bytes;
+  size_t at = 0, end = 0;
+  template <class T>
+  T get(const char* what) {
+    if (end - at < sizeof(T))
+      throw Error(ErrorCode::parse_error, fmt::format("{}: truncated weights file (reading {})", path, what));
+    T v;
+    std::memcpy(&v, bytes.data() + at, sizeof v);
+    at += sizeof v;
+    return v;
+  }
+};
+
+ConvLayer read_layer(Reader& r, const std::string& name, int cout, int cin, int k) {
+  ConvLayer layer;
+  const int stride = (cout + 15) / 16 * 16;  // stored output channels: whole 16-wide blocks
+  layer.cin = cin, layer.cout = stride, layer.outputs = cout, layer.ksize = k;
+  for (const bool is_bias : {false, true}) {
+    const std::string want = name + (is_bias ? ".bias" : ".weight");
+    const uint32_t len = r.get<uint32_t>("a tensor name length");
+    if (len > 256 || r.end - r.at < len)
+      throw Error(ErrorCode::parse_error, fmt::format("{}: corrupt tensor name (expected '{}')", r.path, want));
+    const std::string got(reinterpret_cast<const char*>(r.bytes.data() + r.at), len);
+    r.at += len;
+    if (got != want)
+      throw Error(ErrorCode::parse_error, fmt::format("{}: expected tensor '{}', found '{}' (not this network's weights)", r.path, want, got));
+    const uint32_t ndim = r.get<uint32_t>("a tensor rank");
+    std::vector<uint32_t> dims;
+    for (uint32_t i = 0; i < ndim && i < 8; ++i) dims.push_back(r.get<uint32_t>("a tensor shape"));
+    const std::vector<uint32_t> expect = is_bias ? std::vector<uint32_t>{uint32_t(cout)}
+                                                 : std::vector<uint32_t>{uint32_t(cout), uint32_t(cin), uint32_t(k), uint32_t(k)};
+    if (dims != expect)
+      throw Error(ErrorCode::parse_error, fmt::format("{}: tensor '{}' has shape [{}], this network needs [{}]", r.path, want,
+                                                      fmt::join(dims, ","), fmt::join(expect, ",")));
+    size_t count = 1;
+    for (uint32_t d : dims) count *= d;
+    if ((r.end - r.at) / sizeof(float) < count)
+      throw Error(ErrorCode::parse_error, fmt::format("{}: truncated weights file (tensor '{}')", r.path, want));
+    std::vector<float> v(count);
+    std::memcpy(v.data(), r.bytes.data() + r.at, count * sizeof(float));
+    r.at += count * sizeof(float);
+    for (float f : v)
+      if (!std::isfinite(f)) throw Error(ErrorCode::parse_error, fmt::format("{}: tensor '{}' holds NaN or Inf", r.path, want));
+    if (is_bias) {
+      layer.bias = std::move(v);
+      layer.bias.resize(size_t(stride), 0.0f);
+    } else {  // [cout][cin][ky][kx] -> [ky][kx][cin][stride], zero beyond cout
+      layer.weights.assign(size_t(k * k) * size_t(cin) * size_t(stride), 0.0f);
+      for (int co = 0; co < cout; ++co)
+        for (int ci = 0; ci < cin; ++ci)
+          for (int t = 0; t < k * k; ++t)
+            layer.weights[(size_t(t) * size_t(cin) + size_t(ci)) * size_t(stride) + size_t(co)] =
+                v[(size_t(co) * size_t(cin) + size_t(ci)) * size_t(k * k) + size_t(t)];
+    }
+  }
+  return layer;
+}
+
+}  // namespace
+
+NeuralWeights NeuralWeights::load(const std::string& path) {
+  std::ifstream f(path, std::ios::binary);
+  if (!f) throw Error(ErrorCode::io_error, fmt::format("{}: cannot open the denoiser weights", path));
+  const std::vector<uint8_t> bytes((std::istreambuf_iterator<char>(f)), std::istreambuf_iterator<char>());
+  if (bytes.size() < 8 + 12 + 8 || std::memcmp(bytes.data(), kMagic, 8) != 0)
+    throw Error(ErrorCode::parse_error, fmt::format("{}: not a kestrel denoiser weights file (bad magic)", path));
+  Reader r{path, bytes, 8, bytes.size() - 8};
+  const uint32_t version = r.get<uint32_t>("the version");
+  if (version != kVersion)
+    throw Error(ErrorCode::parse_error, fmt::format("{}: weights format version {}, this build reads version {}", path, version, kVersion));
+  const uint32_t arch = r.get<uint32_t>("the architecture");
+  if (arch != kArchitecture)
+    throw Error(ErrorCode::parse_error, fmt::format("{}: architecture {}, this build runs architecture {}", path, arch, kArchitecture));
+  uint64_t stored;
+  std::memcpy(&stored, bytes.data() + bytes.size() - 8, 8);
+  if (stored != fnv1a(bytes.data(), bytes.size() - 8))
+    throw Error(ErrorCode::parse_error, fmt::format("{}: checksum mismatch (the file is corrupt or truncated)", path));
+  const uint32_t tensors = r.get<uint32_t>("the tensor count");
+  if (tensors != 10) throw Error(ErrorCode::parse_error, fmt::format("{}: {} tensors, this network has 10", path, tensors));
+  NeuralWeights w;
+  w.enc1 = read_layer(r, "enc1", 16, kFeatures, 3);
+  w.enc2 = read_layer(r, "enc2", 32, 16, 3);
+  w.enc3 = read_layer(r, "enc3", 32, 32, 3);
+  w.dec1 = read_layer(r, "dec1", 16, 48, 3);
+  w.head = read_layer(r, "head", kOutputs, 16, 1);
+  if (r.at != r.end) throw Error(ErrorCode::parse_error, fmt::format("{}: {} unexpected bytes after the tensors", path, r.end - r.at));
+  for (const ConvLayer* l : {&w.enc1, &w.enc2, &w.enc3, &w.dec1, &w.head})
+    w.parameters += size_t(l->outputs) * (size_t(l->cin) * size_t(l->ksize * l->ksize) + 1);
+  return w;
+}
+
+const Planes& run_network(const NeuralWeights& w, const Planes& in, Planes& state, bool recurrent, Workspace& ws,
+                          StageTimes* times) {
+  return host_kernels().network(w, in, state, recurrent, ws, times);
+}
+
+}  // namespace kestrel::denoise

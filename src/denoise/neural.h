@@ -1,0 +1,58 @@
+// The neural denoiser's weights and per-frame network (see scripts/denoise/model.py, the
+// reference definition, and docs/denoiser.md).
+#pragma once
+#include <string>
+#include <vector>
+#include <cstddef>
+
+namespace kestrel::denoise {
+
+/// Planar float images of one frame, padded to multiples of 8 (edge replicated).
+struct Planes {
+  int width = 0, height = 0;
+  std::vector<float> data;  ///< channel-major: channel c at data[c * width * height]
+  int channels = 0;
+  Planes() = default;
+  Planes(int w, int h, int c) : width(w), height(h), data(size_t(w) * size_t(h) * size_t(c), 0.0f), channels(c) {}
+  float* ch(int c) { return data.data() + size_t(c) * size_t(width) * size_t(height); }
+  const float* ch(int c) const { return data.data() + size_t(c) * size_t(width) * size_t(height); }
+};
+
+struct ConvLayer {
+  int cin = 0, cout = 0, ksize = 3;  ///< cout: stored outputs, a multiple of 16
+  int outputs = 0;                   ///< the layer's real outputs (<= cout; the rest are zero)
+  std::vector<float> weights;  ///< [ky][kx][cin][cout]
+  std::vector<float> bias;
+};
+
+struct NeuralWeights {
+  ConvLayer enc1, enc2, enc3, dec1, head;
+  size_t parameters = 0;
+  /// Reads a weights file (format v1, docs/denoiser.md); throws Error naming the file.
+  static NeuralWeights load(const std::string& path);
+};
+
+constexpr int kFeatures = 17;
+constexpr int kLevels = 4;
+constexpr int kOutputs = 1 + 4 * kLevels;
+constexpr float kAlbedoEps = 0.01f;
+constexpr float kMinDepth = 1e-3f;
+
+/// Buffers reused from frame to frame (no allocation or page faults once warm).
+struct Workspace {
+  Planes x, yw, xi, xo, out, next_state;
+  std::vector<float> zw, valid, zc, feat, e1, pooled, e2, e3, cat, d1, o, act, param, padded, hrows;
+};
+
+/// Milliseconds per stage of the last frame (KESTREL_DENOISE_PROFILE=1 prints them).
+struct StageTimes {
+  double prepare = 0, features = 0, cnn = 0, temporal = 0, filter = 0, output = 0;
+};
+
+/// Inputs of one frame as planes (padded): color 0-2, albedo 3-5, normal 6-8, depth 9,
+/// roughness 10, motion 11-12. state: y 0-2, z 3 (empty on the first frame).
+/// Returns the output colour planes (3, in ws.out) and replaces state.
+const Planes& run_network(const NeuralWeights& w, const Planes& in, Planes& state, bool recurrent, Workspace& ws,
+                          StageTimes* times = nullptr);
+
+}  // namespace kestrel::denoise

@@ -1,0 +1,211 @@
+// The denoisers: the neural one against PyTorch (committed fixture), its weights file's
+// checks, and behaviour every method must have against analytic oracles (a constant image
+// is a fixed point; noise around a known mean shrinks; a static sequence improves over
+// time for the temporal methods; bad input is an error).
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <random>
+
+#include "kestrel/denoise.h"
+#include "kestrel/error.h"
+#include "kestrel/io.h"
+
+namespace kestrel {
+namespace {
+
+const std::string kFixture = std::string(KESTREL_SOURCE_DIR) + "/tests/data/denoise";
+
+FloatImage constant(int w, int h, int c, float v) {
+  FloatImage img(w, h, c);
+  std::fill(img.pixels.begin(), img.pixels.end(), v);
+  return img;
+}
+
+struct Aux {
+  FloatImage albedo, normal, depth, rough, motion;
+  Aux(int w, int h, float albedo_value = 0.5f)
+      : albedo(constant(w, h, 3, albedo_value)), normal(w, h, 3), depth(constant(w, h, 1, 2.0f)),
+        rough(constant(w, h, 1, 1.0f)), motion(w, h, 2) {
+    for (int y = 0; y < h; ++y)
+      for (int x = 0; x < w; ++x) normal.at(x, y)[1] = 1.0f;
+  }
+  DenoiseInput with(const FloatImage& color) const { return {&color, &albedo, &normal, &depth, &rough, &motion}; }
+};
+
+DenoiserOptions options(DenoiseMethod m) {
+  DenoiserOptions o;
+  o.method = m;
+  return o;
+}
+
+const DenoiseMethod kMethods[] = {DenoiseMethod::neural, DenoiseMethod::svgf, DenoiseMethod::atrous};
+
+TEST(Denoise, NeuralMatchesPyTorchOnTheFixture) {
+  Denoiser d;  // the committed weights
+  for (int t = 0; t < 2; ++t) {
+    const std::string dir = kFixture + "/frame_" + std::to_string(t) + "/";
+    const FloatImage color = read_pfm(dir + "color.pfm"), albedo = read_pfm(dir + "albedo.pfm"),
+                     normal = read_pfm(dir + "normal.pfm"), depth = read_pfm(dir + "depth.pfm"),
+                     rough = read_pfm(dir + "roughness.pfm"), motion = read_pfm(dir + "motion.pfm"),
+                     expected = read_pfm(dir + "expected.pfm");
+    const FloatImage out = d.denoise({&color, &albedo, &normal, &depth, &rough, &motion});
+    ASSERT_EQ(out.width, expected.width);
+    ASSERT_EQ(out.height, expected.height);
+    double worst = 0;
+    for (size_t i = 0; i < out.pixels.size(); ++i)
+      worst = std::max(worst, std::abs(double(out.pixels[i]) - expected.pixels[i]) / (std::abs(expected.pixels[i]) + 1e-2));
+    EXPECT_LT(worst, 1e-4) << "frame " << t;
+  }
+  EXPECT_LE(d.parameter_count(), 100000u);
+  EXPECT_GT(d.parameter_count(), 1000u);
+}
+
+std::string copy_weights(const std::string& name) {
+  const std::string path = (std::filesystem::temp_directory_path() / name).string();
+  std::filesystem::copy_file(default_denoiser_weights(), path, std::filesystem::copy_options::overwrite_existing);
+  return path;
+}
+
+void expect_error(const std::string& weights, const std::string& fragment) {
+  DenoiserOptions o;
+  o.weights = weights;
+  try {
+    Denoiser d(o);
+    FAIL() << "no error for " << weights;
+  } catch (const Error& e) {
+    const std::string msg = e.what();
+    EXPECT_NE(msg.find(weights), std::string::npos) << msg;
+    EXPECT_NE(msg.find(fragment), std::string::npos) << msg;
+  }
+}
+
+TEST(Denoise, CorruptOrMismatchedWeightsAreClearErrors) {
+  expect_error("/nonexistent/denoiser.kdw", "cannot open");
+  const std::string flipped = copy_weights("kestrel_flipped.kdw");
+  {
+    std::fstream f(flipped, std::ios::in | std::ios::out | std::ios::binary);
+    f.seekp(200);
+    f.put('\x55');
+  }
+  expect_error(flipped, "checksum");
+  const std::string truncated = copy_weights("kestrel_truncated.kdw");
+  std::filesystem::resize_file(truncated, std::filesystem::file_size(truncated) / 2);
+  expect_error(truncated, "checksum");
+  const std::string version = copy_weights("kestrel_version.kdw");
+  {
+    std::fstream f(version, std::ios::in | std::ios::out | std::ios::binary);
+    f.seekp(8);
+    f.put('\x07');
+  }
+  expect_error(version, "version 7");
+  const std::string garbage = (std::filesystem::temp_directory_path() / "kestrel_garbage.kdw").string();
+  std::ofstream(garbage) << "this is not a weights file at all, just text";
+  expect_error(garbage, "bad magic");
+}
+
+TEST(Denoise, AConstantImageIsAFixedPoint) {
+  const int w = 37, h = 29;  // not multiples of 8
+  const Aux aux(w, h);
+  const FloatImage color = constant(w, h, 3, 0.3f);
+  for (DenoiseMethod m : kMethods) {
+    Denoiser d(options(m));
+    for (int t = 0; t < 3; ++t) {
+      const FloatImage out = d.denoise(aux.with(color));
+      for (float v : out.pixels) ASSERT_NEAR(v, 0.3f, 2e-4f) << denoise_method_name(m) << " frame " << t;
+    }
+  }
+}
+
+double mse(const FloatImage& a, float truth) {
+  double s = 0;
+  for (float v : a.pixels) s += (double(v) - truth) * (double(v) - truth);
+  return s / double(a.pixels.size());
+}
+
+TEST(Denoise, NoiseAroundAKnownMeanShrinks) {
+  const int w = 96, h = 64;
+  const Aux aux(w, h);
+  std::mt19937 rng(7);
+  std::exponential_distribution<float> radiance(1.0f / 0.4f);  // mean 0.4, like 1-spp noise
+  auto noisy = [&] {
+    FloatImage c(w, h, 3);
+    for (size_t p = 0; p < size_t(w) * size_t(h); ++p) {
+      const float v = radiance(rng);
+      for (int k = 0; k < 3; ++k) c.pixels[p * 3 + size_t(k)] = v;
+    }
+    return c;
+  };
+  for (DenoiseMethod m : kMethods) {
+    Denoiser d(options(m));
+    std::vector<double> err;
+    double input_err = 0;
+    for (int t = 0; t < 8; ++t) {
+      const FloatImage c = noisy();
+      input_err = mse(c, 0.4f);
+      err.push_back(mse(d.denoise(aux.with(c)), 0.4f));
+    }
+    // The a-trous filter's colour edge stop (its sigma halves every pass) keeps much of
+    // such heavy noise by design; the others must remove most of it.
+    const double gain = m == DenoiseMethod::atrous ? 0.85 : 0.25;
+    EXPECT_LT(err.front(), gain * input_err) << denoise_method_name(m);
+    if (m != DenoiseMethod::atrous) {
+      EXPECT_LT(err.back(), 0.7 * err.front()) << denoise_method_name(m) << ": no temporal gain";
+    }
+  }
+}
+
+TEST(Denoise, EdgesBetweenSurfacesSurvive) {
+  // Two surfaces (left: normal +y, depth 2, radiance 1; right: normal +x, depth 5,
+  // radiance 0.05), noise-free: no method may bleed one into the other.
+  const int w = 64, h = 32;
+  Aux aux(w, h);
+  FloatImage color(w, h, 3);
+  for (int y = 0; y < h; ++y)
+    for (int x = 0; x < w; ++x) {
+      const bool left = x < w / 2;
+      for (int c = 0; c < 3; ++c) color.at(x, y)[c] = left ? 1.0f : 0.05f;
+      aux.normal.at(x, y)[0] = left ? 0.0f : 1.0f;
+      aux.normal.at(x, y)[1] = left ? 1.0f : 0.0f;
+      aux.depth.at(x, y)[0] = left ? 2.0f : 5.0f;
+    }
+  for (DenoiseMethod m : kMethods) {
+    Denoiser d(options(m));
+    const FloatImage out = d.denoise(aux.with(color));
+    EXPECT_NEAR(out.at(w / 2, h / 2)[0], 0.05f, 0.01f) << denoise_method_name(m);
+    EXPECT_NEAR(out.at(w / 2 - 1, h / 2)[0], 1.0f, 0.05f) << denoise_method_name(m);
+  }
+}
+
+TEST(Denoise, BadInputIsAnErrorAndNaNIsSanitised) {
+  const int w = 16, h = 16;
+  const Aux aux(w, h);
+  FloatImage color = constant(w, h, 3, 0.5f);
+  color.at(3, 3)[0] = std::nanf("");
+  color.at(4, 3)[1] = INFINITY;
+  color.at(5, 3)[2] = -1.0f;
+  for (DenoiseMethod m : kMethods) {
+    Denoiser d(options(m));
+    const FloatImage out = d.denoise(aux.with(color));
+    for (float v : out.pixels) ASSERT_TRUE(std::isfinite(v) && v >= 0) << denoise_method_name(m);
+    const FloatImage small = constant(8, 16, 3, 1.0f);
+    DenoiseInput in = aux.with(color);
+    in.albedo = &small;
+    try {
+      d.denoise(in);
+      FAIL() << "mismatched albedo accepted";
+    } catch (const Error& e) {
+      EXPECT_NE(std::string(e.what()).find("albedo is 8x16"), std::string::npos) << e.what();
+    }
+    EXPECT_THROW(d.denoise(DenoiseInput{}), Error);
+    const FloatImage one_channel = constant(w, h, 1, 1.0f);
+    EXPECT_THROW(d.denoise(aux.with(one_channel)), Error);
+  }
+  EXPECT_FALSE(denoise_method_from_name("oidn"));
+  EXPECT_EQ(denoise_method_from_name("svgf"), DenoiseMethod::svgf);
+}
+
+}  // namespace
+}  // namespace kestrel
