@@ -59,13 +59,22 @@ static void conv_rows_padded(const ConvArgs& a, const float* padded, int row0, i
       }
 }
 
-// Zero-pads a channels-last image by one pixel and to a multiple of 8 columns.
+// Zero-pads a channels-last image by one pixel and to a multiple of 8 columns (rows in
+// parallel; only the border is cleared).
 static void pad_for_conv(const float* in, int w, int h, int c, std::vector<float>& out) {
   const int wp = (w + 7) / 8 * 8, pw = wp + 2;
-  out.assign(size_t(pw) * size_t(h + 2) * size_t(c), 0.0f);
-  for (int y = 0; y < h; ++y)
-    std::memcpy(&out[(size_t(y + 1) * size_t(pw) + 1) * size_t(c)], in + size_t(y) * size_t(w) * size_t(c),
-                sizeof(float) * size_t(w) * size_t(c));
+  const size_t row_floats = size_t(pw) * size_t(c);
+  out.resize(row_floats * size_t(h + 2));
+  std::fill(out.begin(), out.begin() + std::ptrdiff_t(row_floats), 0.0f);
+  std::fill(out.end() - std::ptrdiff_t(row_floats), out.end(), 0.0f);
+  tbb::parallel_for(tbb::blocked_range<int>(0, h, 8), [&](const tbb::blocked_range<int>& r) {
+    for (int y = r.begin(); y < r.end(); ++y) {
+      float* dst = &out[size_t(y + 1) * row_floats];
+      std::fill(dst, dst + c, 0.0f);
+      std::memcpy(dst + c, in + size_t(y) * size_t(w) * size_t(c), sizeof(float) * size_t(w) * size_t(c));
+      std::fill(dst + size_t(w + 1) * size_t(c), dst + row_floats, 0.0f);
+    }
+  });
 }
 
 static void conv_rows_any(const ConvArgs& a, int row0, int row1) {
@@ -148,12 +157,14 @@ static void atrous_rows(const AtrousArgs& a, int row0, int row1) {
       const float* sc = a.sc + row + c0;
       const float* sn = a.sn + row + c0;
       const float* sz = a.sz + row + c0;
-      for (int i = 0; i < n; ++i) acc0[i] = acc1[i] = acc2[i] = wsum[i] = 0.0f;
+      // The centre tap weighs exactly 1 (every difference is 0, and n.n - n.n = 0).
+      for (int i = 0; i < n; ++i) acc0[i] = x0[i], acc1[i] = x1[i], acc2[i] = x2[i], wsum[i] = 1.0f;
       for (int ty = -1; ty <= 1; ++ty) {
         int qy = y + ty * d;
         qy = qy < 0 ? 0 : (qy >= h ? h - 1 : qy);
         const size_t qrow = size_t(qy) * size_t(w);
         for (int tx = -1; tx <= 1; ++tx) {
+          if (tx == 0 && ty == 0) continue;
           const float hq = (ty == 0 ? 2.0f : 1.0f) * (tx == 0 ? 2.0f : 1.0f) * 0.25f;
           const int off = tx * d;
           // Chunk-relative [lo, hi): c0 + i + off inside [0, w).
@@ -305,66 +316,89 @@ static const Planes& network(const NeuralWeights& nw, const Planes& in, Planes& 
     }
   });
   lap(&st.prepare);
-  // Features, 4x4 average pooled to quarter resolution (channels last).
-  ws.feat.assign(size_t(Wq) * size_t(Hq) * kFeatures, 0.0f);
+  // Features, 4x4 average pooled to quarter resolution (channels last). Per quarter row:
+  // 13 features are input planes, 4 are computed per full-res row; each is summed over 4x4.
+  ws.feat.resize(size_t(Wq) * size_t(Hq) * kFeatures);
   parallel_rows(Hq, 2, [&](int r0, int r1) {
-    float f[kFeatures];
-    for (int qy = r0; qy < r1; ++qy)
-      for (int qx = 0; qx < Wq; ++qx) {
-        float* out = &ws.feat[(size_t(qy) * size_t(Wq) + size_t(qx)) * kFeatures];
-        for (int sy = 0; sy < 4; ++sy)
-          for (int sx = 0; sx < 4; ++sx) {
-            const int y = qy * 4 + sy, i = qx * 4 + sx;
-            const size_t p = size_t(y) * size_t(W) + size_t(i);
-            for (int c = 0; c < 3; ++c) f[c] = ws.x.ch(c)[p], f[3 + c] = in.ch(3 + c)[p], f[6 + c] = in.ch(6 + c)[p];
-            f[9] = in.ch(10)[p];
-            for (int c = 0; c < 3; ++c) f[10 + c] = ws.yw.ch(c)[p];
-            f[13] = ws.valid[p];
-            f[14] = std::min(std::abs(ws.zw[p] - z[p]) / ws.zc[p], 1.0f) * ws.valid[p];
-            const float zr = z[size_t(y) * size_t(W) + size_t(i + 1 < W ? i + 1 : W - 1)];
-            const float zd = z[size_t(y + 1 < H ? y + 1 : H - 1) * size_t(W) + size_t(i)];
-            f[15] = std::min((std::abs(zr - z[p]) + std::abs(zd - z[p])) / ws.zc[p], 1.0f);
-            const float xl = (f[0] + f[1] + f[2]) / 3.0f;
-            f[16] = xl * xl;
-            for (int k = 0; k < kFeatures; ++k) out[k] += f[k];
-          }
-        for (int k = 0; k < kFeatures; ++k) out[k] *= 1.0f / 16.0f;
+    std::vector<float> sum(size_t(kFeatures) * size_t(Wq)), tmp(size_t(4) * size_t(W));
+    const float* planes[13] = {ws.x.ch(0),  ws.x.ch(1),  ws.x.ch(2),  in.ch(3),   in.ch(4),  in.ch(5),  in.ch(6),
+                               in.ch(7),    in.ch(8),    in.ch(10),   ws.yw.ch(0), ws.yw.ch(1), ws.yw.ch(2)};
+    for (int qy = r0; qy < r1; ++qy) {
+      std::fill(sum.begin(), sum.end(), 0.0f);
+      for (int sy = 0; sy < 4; ++sy) {
+        const int y = qy * 4 + sy;
+        const size_t row = size_t(y) * size_t(W);
+        const size_t below = size_t(y + 1 < H ? y + 1 : H - 1) * size_t(W);
+        float* valid = tmp.data();
+        float* dz = valid + W;
+        float* zg = dz + W;
+        float* xl2 = zg + W;
+        for (int i = 0; i < W; ++i) {
+          const size_t p = row + size_t(i);
+          const float inv = 1.0f / ws.zc[p];
+          const float v = ws.valid[p];
+          valid[i] = v;
+          const float d = std::abs(ws.zw[p] - z[p]) * inv;
+          dz[i] = (d < 1.0f ? d : 1.0f) * v;
+          const float zr = z[row + size_t(i + 1 < W ? i + 1 : W - 1)], zd = z[below + size_t(i)];
+          const float g = (std::abs(zr - z[p]) + std::abs(zd - z[p])) * inv;
+          zg[i] = g < 1.0f ? g : 1.0f;
+          const float xl = (ws.x.ch(0)[p] + ws.x.ch(1)[p] + ws.x.ch(2)[p]) / 3.0f;
+          xl2[i] = xl * xl;
+        }
+        // Feature order: x 0-2, albedo 3-5, normal 6-8, roughness 9, yw 10-12, valid 13,
+        // dz 14, zg 15, mean(x)^2 16.
+        for (int k = 0; k < kFeatures; ++k) {
+          const float* src = k < 13 ? planes[k] + row : tmp.data() + size_t(k - 13) * size_t(W);
+          float* acc = sum.data() + size_t(k) * size_t(Wq);
+          for (int qx = 0; qx < Wq; ++qx) acc[qx] += src[4 * qx] + src[4 * qx + 1] + src[4 * qx + 2] + src[4 * qx + 3];
+        }
       }
+      float* out = &ws.feat[size_t(qy) * size_t(Wq) * kFeatures];
+      for (int qx = 0; qx < Wq; ++qx)
+        for (int k = 0; k < kFeatures; ++k) out[size_t(qx) * kFeatures + size_t(k)] = sum[size_t(k) * size_t(Wq) + size_t(qx)] * (1.0f / 16.0f);
+    }
   });
   lap(&st.features);
   // The CNN at 1/4 and 1/8 resolution.
   conv_layer(nw.enc1, ws.feat, Wq, Hq, ws.e1, true, ws.padded);
   const int We = Wq / 2, He = Hq / 2;
   ws.pooled.resize(size_t(We) * size_t(He) * 16);
-  for (int y = 0; y < He; ++y)
+  parallel_rows(He, 4, [&](int r0, int r1) {
+  for (int y = r0; y < r1; ++y)
     for (int i = 0; i < We; ++i) {
       const float* a = &ws.e1[(size_t(2 * y) * size_t(Wq) + size_t(2 * i)) * 16];
       const float* b = a + size_t(Wq) * 16;
       float* o = &ws.pooled[(size_t(y) * size_t(We) + size_t(i)) * 16];
       for (int c = 0; c < 16; ++c) o[c] = (a[c] + a[16 + c] + b[c] + b[16 + c]) * 0.25f;
     }
+  });
   conv_layer(nw.enc2, ws.pooled, We, He, ws.e2, true, ws.padded);
   conv_layer(nw.enc3, ws.e2, We, He, ws.e3, true, ws.padded);
   ws.cat.resize(size_t(Wq) * size_t(Hq) * 48);
-  for (int y = 0; y < Hq; ++y)
-    for (int i = 0; i < Wq; ++i) {
-      float* c = &ws.cat[(size_t(y) * size_t(Wq) + size_t(i)) * 48];
-      std::memcpy(c, &ws.e3[(size_t(y / 2) * size_t(We) + size_t(i / 2)) * 32], 32 * sizeof(float));
-      std::memcpy(c + 32, &ws.e1[(size_t(y) * size_t(Wq) + size_t(i)) * 16], 16 * sizeof(float));
-    }
+  parallel_rows(Hq, 4, [&](int r0, int r1) {
+    for (int y = r0; y < r1; ++y)
+      for (int i = 0; i < Wq; ++i) {
+        float* c = &ws.cat[(size_t(y) * size_t(Wq) + size_t(i)) * 48];
+        std::memcpy(c, &ws.e3[(size_t(y / 2) * size_t(We) + size_t(i / 2)) * 32], 32 * sizeof(float));
+        std::memcpy(c + 32, &ws.e1[(size_t(y) * size_t(Wq) + size_t(i)) * 16], 16 * sizeof(float));
+      }
+  });
   conv_layer(nw.dec1, ws.cat, Wq, Hq, ws.d1, true, ws.padded);
   conv_layer(nw.head, ws.d1, Wq, Hq, ws.o, false, ws.padded);
   // Activations at quarter resolution, planar.
   const size_t Nq = size_t(Wq) * size_t(Hq);
   ws.act.resize(Nq * kOutputs);
-  for (size_t p = 0; p < Nq; ++p) {
+  tbb::parallel_for(tbb::blocked_range<size_t>(0, Nq, 2048), [&](const tbb::blocked_range<size_t>& range) {
+  for (size_t p = range.begin(); p < range.end(); ++p) {
     const float* v = &ws.o[p * size_t(nw.head.cout)];
     for (int k = 0; k < kOutputs; ++k) {
       const bool gate = k == 0 || k % 4 == 0;  // alpha and the betas: sigmoid; the rest softplus
-      const float e = std::exp(gate ? -v[k] : v[k]);
-      ws.act[size_t(k) * Nq + p] = gate ? 1.0f / (1.0f + e) : (v[k] > 20.0f ? v[k] : std::log1p(e));
+      const float e = exp_any(gate ? -v[k] : v[k]);
+      ws.act[size_t(k) * Nq + p] = gate ? 1.0f / (1.0f + e) : (v[k] > 20.0f ? v[k] : log1p_pos(e));
     }
   }
+  });
   lap(&st.cnn);
   // Bilinear x4 upsampling of one activation plane (optionally divided per pixel).
   // Bilinear x4 upsampling (PyTorch's align_corners=False): each quarter-res row is first

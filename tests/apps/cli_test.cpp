@@ -34,7 +34,7 @@ CliRun run(const std::string& args) {
 }
 
 TEST(Cli, HelpForEveryCommand) {
-  for (const char* c : {"", "bvh", "trace", "rays", "preview", "render", "render-sequence"}) {
+  for (const char* c : {"", "bvh", "trace", "rays", "preview", "render", "render-sequence", "denoise"}) {
     const CliRun r = run(std::string(c) + " --help");
     EXPECT_EQ(r.status, 0) << c << ": " << r.out;
     EXPECT_NE(r.out.find("Usage"), std::string::npos) << c;
@@ -190,6 +190,57 @@ TEST(Cli, RenderSequenceWritesOneFileSetPerFrame) {
                          "/paths/box_animated_orbit.json --frames 2 --spp 1 --res 32x24 --quiet -o " + (dir / "gltf").string());
     EXPECT_EQ(g.status, 0) << g.out;
   }
+}
+
+TEST(Cli, RenderSequenceOrbitsAndDenoises) {
+  const auto dir = std::filesystem::temp_directory_path() / "kestrel_tests" / "cli_orbit";
+  std::filesystem::remove_all(dir);
+  const CliRun r = run("render-sequence builtin:cornell_box --path orbit:20 --frames 2 --spp 1 --res 32x24 --quiet --denoise svgf -o " +
+                       dir.string() + " --pfm " + (dir / "pfm").string());
+  ASSERT_EQ(r.status, 0) << r.out;
+  // The denoised colour replaces the colour layer; the noisy one is kept beside it.
+  const auto layers = read_exr((dir / "frame_0001.exr").string());
+  bool noisy = false;
+  for (const auto& l : layers) noisy = noisy || l.name == "noisy";
+  EXPECT_TRUE(noisy);
+  EXPECT_TRUE(std::filesystem::exists(dir / "pfm" / "frame_0001" / "noisy.pfm"));
+  EXPECT_NE(run("render-sequence builtin:cornell_box --path orbit:x --frames 2 -o " + dir.string()).status, 0);
+  EXPECT_NE(run("render builtin:cornell_box --res 8x8 --denoise magic -o " + (dir / "x.exr").string()).status, 0);
+}
+
+TEST(Cli, DenoiseReadsPfmsAndExrSequences) {
+  const std::string fix = std::string(KESTREL_SOURCE_DIR) + "/tests/data/denoise/frame_%d/";
+  const auto dir = std::filesystem::temp_directory_path() / "kestrel_tests" / "cli_denoise";
+  std::filesystem::remove_all(dir);
+  for (const char* method : {"neural", "svgf", "atrous"}) {
+    const std::string out = (dir / (std::string(method) + "_%d.pfm")).string();
+    const CliRun r = run("denoise --sequence --frames 2 --hdr " + fix + "color.pfm --alb " + fix + "albedo.pfm --nrm " + fix +
+                         "normal.pfm --depth " + fix + "depth.pfm --rough " + fix + "roughness.pfm --motion " + fix +
+                         "motion.pfm --method " + method + " -o " + out);
+    ASSERT_EQ(r.status, 0) << method << ": " << r.out;
+    const FloatImage img = read_pfm((dir / (std::string(method) + "_1.pfm")).string());
+    EXPECT_EQ(img.width, 44);
+    EXPECT_EQ(img.height, 30);
+    for (float v : img.pixels) ASSERT_TRUE(std::isfinite(v)) << method;
+  }
+  // kestrel's own multi-layer EXRs in, EXR out.
+  const auto frames = dir / "frames";
+  ASSERT_EQ(run("render-sequence builtin:cornell_box --path orbit:10 --frames 2 --spp 1 --res 24x16 --quiet -o " + frames.string()).status, 0);
+  const CliRun e = run("denoise --sequence --frames 2 -i " + (frames / "frame_%04d.exr").string() + " -o " +
+                       (dir / "exr_%02d.exr").string());
+  ASSERT_EQ(e.status, 0) << e.out;
+  EXPECT_TRUE(std::filesystem::exists(dir / "exr_01.exr"));
+  // Errors: a size mismatch names the input; a pattern without %d; no colour.
+  const std::string small = (dir / "small.pfm").string();
+  write_pfm(small, FloatImage(8, 8, 3));
+  CliRun bad = run("denoise --hdr " + std::string(KESTREL_SOURCE_DIR) + "/tests/data/denoise/frame_0/color.pfm --alb " + small +
+                   " -o " + (dir / "bad.pfm").string());
+  EXPECT_EQ(bad.status, 1);
+  EXPECT_NE(bad.out.find("albedo is 8x8"), std::string::npos) << bad.out;
+  bad = run("denoise --sequence --frames 2 --hdr " + small + " -o " + (dir / "x.pfm").string());
+  EXPECT_EQ(bad.status, 1);
+  EXPECT_NE(bad.out.find("%d"), std::string::npos) << bad.out;
+  EXPECT_EQ(run("denoise -o " + (dir / "x.pfm").string()).status, 1);
 }
 
 }  // namespace

@@ -379,6 +379,27 @@ TEST(Outputs, ExrAndPfmHoldEveryAov) {
   }
 }
 
+TEST(Cameras, OrbitTurnsTheEyeAboutTheTargetsVerticalAxis) {
+  Camera start;
+  start.eye = {3, 2, 0};
+  start.target = {1, 0.5f, 0};
+  const CameraPath p = CameraPath::orbit(start, 90.0, 2.0);
+  EXPECT_EQ(p.start(), 0.0);
+  EXPECT_EQ(p.end(), 2.0);
+  for (double t : {0.0, 0.3, 0.77, 1.0, 1.5, 2.0}) {
+    const Camera c = p.at(t);
+    const float dx = c.eye.x - 1, dz = c.eye.z;
+    EXPECT_NEAR(std::sqrt(dx * dx + dz * dz), 2.0f, 2e-3f) << t;  // on the circle (Catmull-Rom through keys 15 deg apart)
+    EXPECT_NEAR(c.eye.y, 2.0f, 1e-5f) << t;
+    EXPECT_NEAR(c.target.x, 1.0f, 1e-6f);
+  }
+  const Camera end = p.at(2.0);  // +90 degrees: (1,0,0) arm -> (0,0,-1)
+  EXPECT_NEAR(end.eye.x, 1.0f, 1e-5f);
+  EXPECT_NEAR(end.eye.z, -2.0f, 1e-5f);
+  EXPECT_THROW(CameraPath::orbit(start, std::nan(""), 1.0), Error);
+  EXPECT_THROW(CameraPath::orbit(start, 90, 0.0), Error);
+}
+
 TEST(Cameras, PathPassesThroughItsKeysAndViewsLoad) {
   const std::string path = test::write_temp_file("cam.json", R"({"keyframes": [
     {"time": 0, "eye": [0, 1, 5], "target": [0, 1, 0], "vfov": 40},
