@@ -1,22 +1,26 @@
 """kestrel's denoiser, the reference definition (training; the C++ engine in
-src/denoise/neural.cpp computes the same function, checked by tests/denoise parity).
+src/denoise/kernels.inl computes the same function, checked by tests/denoise parity).
 
-Per frame, at full resolution H x W (padded to multiples of 8 by edge replication):
-  x  = log(1 + color / (albedo + EPS))              demodulated irradiance, HDR transfer
-  yw, zw = previous output and depth warped by the motion vectors (bilinear, clamped),
-  valid  = the previous position lies inside the image (0 on the first frame)
-  features (17): x, albedo, normal, roughness, yw, valid, |zw - z| / z, relative depth
-                 gradient, mean(x)^2
+Architecture 2. Per frame, at full resolution H x W (padded to multiples of 8 by edge
+replication):
+  r  = colour / (albedo + EPS)                     demodulated irradiance (linear)
+  x  = log(1 + r)                                  its HDR transfer (features, guides)
+  yw, zw = previous output irradiance and depth warped by the motion vectors (bilinear,
+           clamped); valid = the previous position lies inside the image (0 on frame 0)
+  features (17): x, albedo, normal, roughness, log(1 + yw), valid, |zw - z| / z, relative
+                 depth gradient, mean(x)^2
 A small CNN at 1/4 and 1/8 resolution (4x4 average pool in) predicts 17 maps per
-quarter-res pixel, activated there (sigmoid / softplus) and bilinearly upsampled: a temporal blend weight alpha and, for each of 4
-a-trous levels (3x3 taps, dilation 1, 2, 4, 8), edge-stopping strengths for colour,
-normal and depth and a mix weight beta:
-  x0 = x + alpha * valid * (yw - x)
-  x_{l+1} = x_l + beta_l * (sum_q h_q w_q x_l(q) / sum_q h_q w_q - x_l)
-  w_q = exp(-sc |x_l(p) - x_l(q)|^2 - sn max(0, n_p.n_p - n_p.n_q) - sz |z_p - z_q| / max(z_p, 1e-3))
+quarter-res pixel, activated there (sigmoid / softplus) and bilinearly upsampled: a temporal
+blend weight alpha and, for each of 4 a-trous levels (3x3 taps, dilation 1, 2, 4, 8),
+edge-stopping strengths for colour, normal and depth and a mix weight beta. The filter
+averages *linear* irradiance (no log-domain bias) with weights from log irradiance:
+  r0 = r + alpha * valid * (yw - r)
+  r_{l+1} = r_l + beta_l * (sum_q h_q w_q r_l(q) / sum_q h_q w_q - r_l)
+  w_q = exp(-sc |g(p) - g(q)|^2 - sn max(0, n_p.n_p - n_p.n_q) - sz |z_p - z_q| / max(z_p, 1e-3)),
+  g = log(1 + r_l)
   (n_p.n_p rather than 1: the centre tap weighs exactly 1 even where there is no normal, so
   the sum of weights never vanishes)
-The output colour is expm1(max(x_4, 0)) * (albedo + EPS); x_4 and z are the recurrent state.
+The output colour is max(r_4, 0) * (albedo + EPS); r_4 and z are the recurrent state.
 """
 import torch
 import torch.nn as nn
@@ -94,21 +98,23 @@ class Denoiser(nn.Module):
     def forward(self, color, albedo, normal, depth, rough, motion, state=None, recurrent=True):
         """All inputs (B,C,H,W) with H, W multiples of 8. state = (y, z) of the previous
         frame or None. Returns (colour, new state)."""
-        x = torch.log1p(color.clamp(min=0) / (albedo.clamp(min=0) + EPS))
+        x_lin = color.clamp(min=0) / (albedo.clamp(min=0) + EPS)
+        x = torch.log1p(x_lin)
         z = depth
         zc = z.clamp(min=ZMIN)
         if state is None or not recurrent:
-            yw, zw, valid = x, z, torch.zeros_like(z)
+            yw_lin, zw, valid = x_lin, z, torch.zeros_like(z)
         else:
-            yw, valid = warp(state[0], motion)
+            yw_lin, valid = warp(state[0], motion)
             zw, _ = warp(state[1], motion)
+        yw = torch.log1p(yw_lin.clamp(min=0))
         dz = ((zw - z).abs() / zc).clamp(max=1.0) * valid
         zg = (((shift(z, 0, 1) - z).abs() + (shift(z, 1, 0) - z).abs()) / zc).clamp(max=1.0)
         xl = x.mean(dim=1, keepdim=True)
         feat = torch.cat([x, albedo, normal, rough, yw, valid, dz, zg, xl * xl], dim=1)
         o = self.params(feat)
         alpha = o[:, 0:1] * valid
-        xi = x + alpha * (yw - x)
+        xi = x_lin + alpha * (yw_lin - x_lin)
         nn_p = (normal * normal).sum(1, keepdim=True)
         for l in range(LEVELS):
             d = 1 << l
@@ -117,19 +123,19 @@ class Denoiser(nn.Module):
             sz = o[:, 3 + 4 * l:4 + 4 * l] / zc
             beta = o[:, 4 + 4 * l:5 + 4 * l]
             h, w = xi.shape[-2:]
-            g = F.pad(torch.cat([xi, normal, z], dim=1), (d, d, d, d), mode="replicate")
+            lg = torch.log1p(xi.clamp(min=0))  # the edge-stopping guide: log irradiance
+            g = F.pad(torch.cat([lg, normal, z, xi], dim=1), (d, d, d, d), mode="replicate")
             acc, wsum = 0, 0
             for dy, dx, hq in TAPS:
                 q = g[..., d + dy * d:d + dy * d + h, d + dx * d:d + dx * d + w]
-                xq = q[:, 0:3]
-                e = sc * ((xi - xq) ** 2).sum(1, keepdim=True) \
+                e = sc * ((lg - q[:, 0:3]) ** 2).sum(1, keepdim=True) \
                     + sn * (nn_p - (normal * q[:, 3:6]).sum(1, keepdim=True)).clamp(min=0) \
                     + sz * (z - q[:, 6:7]).abs()
                 wq = hq * torch.exp(-e)
-                acc = acc + wq * xq
+                acc = acc + wq * q[:, 7:10]
                 wsum = wsum + wq
             xi = xi + beta * (acc / wsum - xi)
-        out = torch.expm1(xi.clamp(min=0)) * (albedo.clamp(min=0) + EPS)
+        out = xi.clamp(min=0) * (albedo.clamp(min=0) + EPS)
         return out, (xi, z)
 
 

@@ -96,13 +96,14 @@ def losses(out, ref):
 
 
 W_SPATIAL, W_GRAD, W_TEMPORAL = 1.0, 0.25, 0.5
+ARCHITECTURE = 2  # model.py's network (1: the same filter in log space, retired)
 
 
 def export_weights(model, path):
     """kestrel denoiser weights v1: magic, version, architecture, tensors, FNV-1a 64 of all
     preceding bytes."""
     blob = bytearray(b"KSTRLDNW")
-    blob += struct.pack("<III", 1, 1, len(list(model.named_parameters())))
+    blob += struct.pack("<III", 1, ARCHITECTURE, len(list(model.named_parameters())))
     for name, p in model.named_parameters():
         a = p.detach().cpu().numpy().astype("<f4")
         nb = name.encode()
@@ -155,6 +156,7 @@ def main():
     ap.add_argument("--fixture", default=os.path.join(ROOT, "tests", "data", "denoise"))
     args = ap.parse_args()
     torch.set_num_threads(args.threads)
+    torch.set_flush_denormal(True)  # exp() of large negative arguments: denormals are ~50x slower
     torch.manual_seed(args.seed)
     random.seed(args.seed)
     np.random.seed(args.seed)
@@ -198,7 +200,7 @@ def main():
     export_weights(model, os.path.join(args.out, "denoiser.kdw"))
     tail = np.array(history[-100:])
     commit = subprocess.run(["git", "-C", ROOT, "rev-parse", "--short", "HEAD"], capture_output=True, text=True).stdout.strip()
-    prov = dict(file="denoiser.kdw", architecture="kestrel-denoiser-1 (scripts/denoise/model.py)",
+    prov = dict(file="denoiser.kdw", architecture=f"kestrel-denoiser-{ARCHITECTURE} (scripts/denoise/model.py)",
                 parameters=M.parameter_count(model), framework=f"PyTorch {torch.__version__} (Debian python3-torch)",
                 dataset=dict(command="python3 scripts/denoise/make_dataset.py --split train (defaults: 256x144, 6 frames, "
                                      "1 spp inputs, 256 spp references)", clips=names),

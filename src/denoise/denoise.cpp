@@ -206,17 +206,26 @@ struct DepthGradient {
   }
 };
 
+// The baselines' demodulation: by albedo, except where the albedo is (nearly) black
+// (emitters, black surfaces): there the colour is filtered as it is, since dividing by ~0
+// would turn it into huge irradiance that the filters then spread onto lit neighbours.
+float demod_albedo(const Planes& g, size_t p, int c) {
+  const float a0 = g.ch(3)[p], a1 = g.ch(4)[p], a2 = g.ch(5)[p];
+  if (std::max(a0, std::max(a1, a2)) < 0.02f) return 1.0f;
+  return std::max(g.ch(3 + c)[p], 0.0f) + kEps;
+}
+
 Planes demodulate(const Planes& g) {
   Planes x(g.width, g.height, 3);
   for (size_t p = 0; p < size_t(g.width) * size_t(g.height); ++p)
-    for (int c = 0; c < 3; ++c) x.ch(c)[p] = g.ch(c)[p] / (std::max(g.ch(3 + c)[p], 0.0f) + kEps);
+    for (int c = 0; c < 3; ++c) x.ch(c)[p] = g.ch(c)[p] / demod_albedo(g, p, c);
   return x;
 }
 
 Planes remodulate(const Planes& x, const Planes& g) {
   Planes out(g.width, g.height, 3);
   for (size_t p = 0; p < size_t(g.width) * size_t(g.height); ++p)
-    for (int c = 0; c < 3; ++c) out.ch(c)[p] = std::max(x.ch(c)[p], 0.0f) * (std::max(g.ch(3 + c)[p], 0.0f) + kEps);
+    for (int c = 0; c < 3; ++c) out.ch(c)[p] = std::max(x.ch(c)[p], 0.0f) * demod_albedo(g, p, c);
   return out;
 }
 

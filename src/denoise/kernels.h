@@ -20,16 +20,17 @@ struct ConvArgs {
 
 /// One a-trous level of the neural filter on planar images (width x height each):
 /// out_c = x_c + beta * (sum_q h_q w_q x_c(q) / sum_q h_q w_q - x_c), 3x3 taps at
-/// +-dilation, clamped at the borders, w_q = exp(-sc |x - x_q|^2 - sn max(0, n.n - n.n_q)
-/// - sz |z - z_q|) (sz already divided by max(z, 1e-3)).
+/// +-dilation, clamped at the borders, w_q = exp(-sc |g - g_q|^2 - sn max(0, n.n - n.n_q)
+/// - sz |z - z_q| / max(z, 1e-3)). The strengths sc, sn, sz, beta come from quarter-res maps
+/// already upsampled horizontally (`rows` x width each, `param[k]`); each output row lerps two
+/// of those rows (PyTorch's bilinear x4), fused into the filter so no full-res map is written.
 struct AtrousArgs {
-  const float* x[3] = {};
+  const float* x[3] = {};  ///< linear irradiance, filtered
+  const float* g[3] = {};  ///< its log(1 + x): the colour edge-stopping guide
   const float* n[3] = {};
   const float* z = nullptr;
-  const float* sc = nullptr;
-  const float* sn = nullptr;
-  const float* sz = nullptr;
-  const float* beta = nullptr;
+  const float* param[4] = {};  ///< sc, sn, sz, beta: horizontally upsampled quarter-res rows
+  int param_rows = 0;
   float* out[3] = {};
   int width = 0, height = 0, dilation = 1;
 };

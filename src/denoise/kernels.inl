@@ -102,99 +102,147 @@ static void conv_rows_any(const ConvArgs& a, int row0, int row1) {
 
 static void conv_rows(const ConvArgs& a, int row0, int row1) { conv_rows_any(a, row0, row1); }
 
-// The interior of one tap over a span of pixels: p-side arrays, q-side arrays, accumulators.
-static void atrous_span(int m, float hq, const float* __restrict px0, const float* __restrict px1,
-                        const float* __restrict px2, const float* __restrict pn0, const float* __restrict pn1,
-                        const float* __restrict pn2, const float* __restrict pz, const float* __restrict psc,
-                        const float* __restrict psn, const float* __restrict psz, const float* __restrict q0,
-                        const float* __restrict q1, const float* __restrict q2, const float* __restrict m0,
-                        const float* __restrict m1, const float* __restrict m2, const float* __restrict qz,
-                        float* __restrict r0, float* __restrict r1, float* __restrict r2, float* __restrict rw) {
-  for (int i = 0; i < m; ++i) {
-    const float d0 = px0[i] - q0[i], d1 = px1[i] - q1[i], d2 = px2[i] - q2[i];
-    const float dot = pn0[i] * m0[i] + pn1[i] * m1[i] + pn2[i] * m2[i];
-    const float nn = pn0[i] * pn0[i] + pn1[i] * pn1[i] + pn2[i] * pn2[i];
+// One pixel's 8 outer taps (the centre weighs exactly 1: every difference is 0 and
+// n.n - n.n = 0), the accumulation and the mix. `off[t]` are the taps' index offsets from
+// p; `h[t]` their spline weights. Inlined into a vectorised interior loop and a scalar one
+// for the border pixels, whose offsets are clamped per pixel.
+struct TapSet {
+  long off[8];
+  float h[8];
+};
+
+struct ParamRows {
+  const float* top[4];
+  const float* bot[4];
+  float fy;
+};
+
+static inline float param_at(const ParamRows& r, int k, int i) { return r.top[k][i] * (1 - r.fy) + r.bot[k][i] * r.fy; }
+
+static inline void atrous_pixel(const AtrousArgs& a, size_t p, int i, const ParamRows& pr, const TapSet& taps) {
+  const float x0 = a.x[0][p], x1 = a.x[1][p], x2 = a.x[2][p];
+  const float g0 = a.g[0][p], g1 = a.g[1][p], g2 = a.g[2][p];
+  const float n0 = a.n[0][p], n1 = a.n[1][p], n2 = a.n[2][p], z = a.z[p];
+  const float sc = param_at(pr, 0, i), sn = param_at(pr, 1, i);
+  const float sz = param_at(pr, 2, i) / (z > kMinDepth ? z : kMinDepth);
+  const float nn = n0 * n0 + n1 * n1 + n2 * n2;
+  float acc0 = x0, acc1 = x1, acc2 = x2, wsum = 1.0f;
+#pragma GCC unroll 8
+  for (int t = 0; t < 8; ++t) {
+    const size_t q = size_t(long(p) + taps.off[t]);
+    const float q0 = a.x[0][q], q1 = a.x[1][q], q2 = a.x[2][q];
+    const float d0 = g0 - a.g[0][q], d1 = g1 - a.g[1][q], d2 = g2 - a.g[2][q];
+    const float dot = n0 * a.n[0][q] + n1 * a.n[1][q] + n2 * a.n[2][q];
     const float nd = nn - dot > 0.0f ? nn - dot : 0.0f;
-    const float dz = pz[i] - qz[i];
-    const float e = psc[i] * (d0 * d0 + d1 * d1 + d2 * d2) + psn[i] * nd + psz[i] * (dz < 0.0f ? -dz : dz);
-    const float wq = hq * exp_neg(-e);
-    r0[i] += wq * q0[i];
-    r1[i] += wq * q1[i];
-    r2[i] += wq * q2[i];
-    rw[i] += wq;
+    const float dz = z - a.z[q];
+    const float e = sc * (d0 * d0 + d1 * d1 + d2 * d2) + sn * nd + sz * (dz < 0.0f ? -dz : dz);
+    const float wq = taps.h[t] * exp_neg(-e);
+    acc0 += wq * q0;
+    acc1 += wq * q1;
+    acc2 += wq * q2;
+    wsum += wq;
+  }
+  const float inv = 1.0f / wsum, beta = param_at(pr, 3, i);
+  a.out[0][p] = x0 + beta * (acc0 * inv - x0);
+  a.out[1][p] = x1 + beta * (acc1 * inv - x1);
+  a.out[2][p] = x2 + beta * (acc2 * inv - x2);
+}
+
+// The interior pixels [i0, i1) of a row: every tap inside the image, fixed offsets. The
+// arrays are restrict-qualified parameters (GCC's dependence analysis honours restrict on
+// parameters, not on locals), so the loop vectorises across pixels.
+static void atrous_interior_impl(size_t row, int i0, int i1, float fy, const long* off, const float* h,
+                                 const float* __restrict X0, const float* __restrict X1, const float* __restrict X2,
+                                 const float* __restrict G0, const float* __restrict G1, const float* __restrict G2,
+                                 const float* __restrict N0, const float* __restrict N1, const float* __restrict N2,
+                                 const float* __restrict Z, const float* __restrict SCt, const float* __restrict SCb,
+                                 const float* __restrict SNt, const float* __restrict SNb, const float* __restrict SZt,
+                                 const float* __restrict SZb, const float* __restrict Bt, const float* __restrict Bb,
+                                 float* __restrict O0, float* __restrict O1, float* __restrict O2) {
+  long o[8];
+  float hh[8];
+  for (int t = 0; t < 8; ++t) o[t] = off[t], hh[t] = h[t];
+  const float gy = 1 - fy;
+  for (int i = i0; i < i1; ++i) {
+    const size_t p = row + size_t(i);
+    const float x0 = X0[p], x1 = X1[p], x2 = X2[p];
+    const float g0 = G0[p], g1 = G1[p], g2 = G2[p];
+    const float n0 = N0[p], n1 = N1[p], n2 = N2[p], z = Z[p];
+    const float sc = SCt[i] * gy + SCb[i] * fy, sn = SNt[i] * gy + SNb[i] * fy;
+    const float sz = (SZt[i] * gy + SZb[i] * fy) / (z > kMinDepth ? z : kMinDepth);
+    const float nn = n0 * n0 + n1 * n1 + n2 * n2;
+    float acc0 = x0, acc1 = x1, acc2 = x2, wsum = 1.0f;
+#pragma GCC unroll 8
+    for (int t = 0; t < 8; ++t) {
+      const size_t q = p + size_t(o[t]);
+      const float q0 = X0[q], q1 = X1[q], q2 = X2[q];
+      const float d0 = g0 - G0[q], d1 = g1 - G1[q], d2 = g2 - G2[q];
+      const float dot = n0 * N0[q] + n1 * N1[q] + n2 * N2[q];
+      const float nd = nn - dot > 0.0f ? nn - dot : 0.0f;
+      const float dz = z - Z[q];
+      const float e = sc * (d0 * d0 + d1 * d1 + d2 * d2) + sn * nd + sz * (dz < 0.0f ? -dz : dz);
+      const float wq = hh[t] * exp_neg(-e);
+      acc0 += wq * q0;
+      acc1 += wq * q1;
+      acc2 += wq * q2;
+      wsum += wq;
+    }
+    const float inv = 1.0f / wsum, beta = Bt[i] * gy + Bb[i] * fy;
+    O0[p] = x0 + beta * (acc0 * inv - x0);
+    O1[p] = x1 + beta * (acc1 * inv - x1);
+    O2[p] = x2 + beta * (acc2 * inv - x2);
   }
 }
 
-static void atrous_finish(int n, const float* __restrict beta, const float* __restrict x0, const float* __restrict x1,
-                          const float* __restrict x2, const float* __restrict acc0, const float* __restrict acc1,
-                          const float* __restrict acc2, const float* __restrict wsum, float* __restrict o0,
-                          float* __restrict o1, float* __restrict o2) {
-  for (int i = 0; i < n; ++i) {
-    const float inv = 1.0f / wsum[i];
-    o0[i] = x0[i] + beta[i] * (acc0[i] * inv - x0[i]);
-    o1[i] = x1[i] + beta[i] * (acc1[i] * inv - x1[i]);
-    o2[i] = x2[i] + beta[i] * (acc2[i] * inv - x2[i]);
-  }
+static void atrous_interior(const AtrousArgs& a, size_t row, int i0, int i1, const ParamRows& r, const TapSet& taps) {
+  atrous_interior_impl(row, i0, i1, r.fy, taps.off, taps.h, a.x[0], a.x[1], a.x[2], a.g[0], a.g[1], a.g[2], a.n[0], a.n[1], a.n[2], a.z, r.top[0],
+                       r.bot[0], r.top[1], r.bot[1], r.top[2], r.bot[2], r.top[3], r.bot[3], a.out[0], a.out[1], a.out[2]);
 }
 
 static void atrous_rows(const AtrousArgs& a, int row0, int row1) {
   const int w = a.width, h = a.height, d = a.dilation;
-  // Per row and chunk of 256 pixels: accumulate tap by tap over the chunk (contiguous,
-  // vectorisable); taps outside the image are clamped to the border.
-  constexpr int kChunk = 256;
-  float acc0[kChunk], acc1[kChunk], acc2[kChunk], wsum[kChunk];
   for (int y = row0; y < row1; ++y) {
     const size_t row = size_t(y) * size_t(w);
-    for (int c0 = 0; c0 < w; c0 += kChunk) {
-      const int c1 = c0 + kChunk < w ? c0 + kChunk : w, n = c1 - c0;
-      const float* x0 = a.x[0] + row + c0;
-      const float* x1 = a.x[1] + row + c0;
-      const float* x2 = a.x[2] + row + c0;
-      const float* n0 = a.n[0] + row + c0;
-      const float* n1 = a.n[1] + row + c0;
-      const float* n2 = a.n[2] + row + c0;
-      const float* zp = a.z + row + c0;
-      const float* sc = a.sc + row + c0;
-      const float* sn = a.sn + row + c0;
-      const float* sz = a.sz + row + c0;
-      // The centre tap weighs exactly 1 (every difference is 0, and n.n - n.n = 0).
-      for (int i = 0; i < n; ++i) acc0[i] = x0[i], acc1[i] = x1[i], acc2[i] = x2[i], wsum[i] = 1.0f;
-      for (int ty = -1; ty <= 1; ++ty) {
-        int qy = y + ty * d;
-        qy = qy < 0 ? 0 : (qy >= h ? h - 1 : qy);
-        const size_t qrow = size_t(qy) * size_t(w);
+    // Taps in PyTorch's order (dy, dx), centre left out; rows clamped to the image.
+    TapSet inner;
+    long row_off[3];
+    for (int ty = -1; ty <= 1; ++ty) {
+      int qy = y + ty * d;
+      qy = qy < 0 ? 0 : (qy >= h ? h - 1 : qy);
+      row_off[ty + 1] = (long(qy) - long(y)) * long(w);
+    }
+    int t = 0;
+    for (int ty = -1; ty <= 1; ++ty)
+      for (int tx = -1; tx <= 1; ++tx) {
+        if (tx == 0 && ty == 0) continue;
+        inner.off[t] = row_off[ty + 1] + long(tx * d);
+        inner.h[t] = (ty == 0 ? 2.0f : 1.0f) * (tx == 0 ? 2.0f : 1.0f) * 0.25f;
+        ++t;
+      }
+    // PyTorch's bilinear (align_corners=False) source rows and weight for output row y.
+    float sy = 0.25f * (float(y) + 0.5f) - 0.5f;
+    sy = sy < 0 ? 0 : sy;
+    const int r0 = int(sy), r1 = r0 < a.param_rows - 1 ? r0 + 1 : r0;
+    ParamRows pr;
+    pr.fy = sy - float(r0);
+    for (int k = 0; k < 4; ++k)
+      pr.top[k] = a.param[k] + size_t(r0) * size_t(w), pr.bot[k] = a.param[k] + size_t(r1) * size_t(w);
+    const int i0 = d < w ? d : w, i1 = w - d > i0 ? w - d : i0;
+    auto border = [&](int i) {  // columns clamped per pixel
+      TapSet c = inner;
+      int k = 0;
+      for (int ty = -1; ty <= 1; ++ty)
         for (int tx = -1; tx <= 1; ++tx) {
           if (tx == 0 && ty == 0) continue;
-          const float hq = (ty == 0 ? 2.0f : 1.0f) * (tx == 0 ? 2.0f : 1.0f) * 0.25f;
-          const int off = tx * d;
-          // Chunk-relative [lo, hi): c0 + i + off inside [0, w).
-          int lo = -off - c0, hi = w - off - c0;
-          lo = lo < 0 ? 0 : (lo > n ? n : lo);
-          hi = hi > n ? n : (hi < lo ? lo : hi);
-          auto tap = [&](int i, size_t q) {
-            const float d0 = x0[i] - a.x[0][q], d1 = x1[i] - a.x[1][q], d2 = x2[i] - a.x[2][q];
-            const float dot = n0[i] * a.n[0][q] + n1[i] * a.n[1][q] + n2[i] * a.n[2][q];
-            const float nn = n0[i] * n0[i] + n1[i] * n1[i] + n2[i] * n2[i];
-            const float nd = nn - dot > 0.0f ? nn - dot : 0.0f;
-            const float dz = zp[i] - a.z[q];
-            const float e = sc[i] * (d0 * d0 + d1 * d1 + d2 * d2) + sn[i] * nd + sz[i] * (dz < 0.0f ? -dz : dz);
-            const float wq = hq * exp_neg(-e);
-            acc0[i] += wq * a.x[0][q];
-            acc1[i] += wq * a.x[1][q];
-            acc2[i] += wq * a.x[2][q];
-            wsum[i] += wq;
-          };
-          for (int i = 0; i < lo; ++i) tap(i, qrow);
-          const size_t base = qrow + size_t(c0 + off + lo);
-          atrous_span(hi - lo, hq, x0 + lo, x1 + lo, x2 + lo, n0 + lo, n1 + lo, n2 + lo, zp + lo, sc + lo, sn + lo, sz + lo,
-                      a.x[0] + base, a.x[1] + base, a.x[2] + base, a.n[0] + base, a.n[1] + base, a.n[2] + base, a.z + base,
-                      acc0 + lo, acc1 + lo, acc2 + lo, wsum + lo);
-          for (int i = hi; i < n; ++i) tap(i, qrow + size_t(w - 1));
+          int qx = i + tx * d;
+          qx = qx < 0 ? 0 : (qx >= w ? w - 1 : qx);
+          c.off[k++] = row_off[ty + 1] + long(qx - i);
         }
-      }
-      atrous_finish(n, a.beta + row + c0, x0, x1, x2, acc0, acc1, acc2, wsum, a.out[0] + row + c0, a.out[1] + row + c0,
-                    a.out[2] + row + c0);
-    }
+      atrous_pixel(a, row + size_t(i), i, pr, c);
+    };
+    for (int i = 0; i < i0; ++i) border(i);
+    atrous_interior(a, row, i0, i1, pr, inner);
+    for (int i = i1; i < w; ++i) border(i);
   }
 }
 
@@ -272,47 +320,73 @@ static const Planes& network(const NeuralWeights& nw, const Planes& in, Planes& 
   const size_t N = size_t(W) * size_t(H);
   const int Wq = W / 4, Hq = H / 4;
   ensure(ws.x, W, H, 3);
+  ensure(ws.xlin, W, H, 3);
   ensure(ws.yw, W, H, 3);
   ws.zw.resize(N), ws.valid.resize(N), ws.zc.resize(N);
   const float* z = in.ch(9);
   const bool have_state = recurrent && state.width == W && state.height == H && state.channels == 4;
   // x = log1p(demodulated colour); the previous output and depth warped by the motion.
   parallel_rows(H, 8, [&](int r0, int r1) {
+    struct {
+      std::vector<int> idx, dx;
+      std::vector<long> dy;
+      std::vector<float> fx, fy;
+    } scratch;
+    if (have_state) {
+      scratch.idx.resize(size_t(W)), scratch.dx.resize(size_t(W)), scratch.dy.resize(size_t(W));
+      scratch.fx.resize(size_t(W)), scratch.fy.resize(size_t(W));
+    }
     for (int y = r0; y < r1; ++y) {
       const size_t row = size_t(y) * size_t(W);
       for (int c = 0; c < 3; ++c) {
         const float* col = in.ch(c) + row;
         const float* alb = in.ch(3 + c) + row;
         float* xo = ws.x.ch(c) + row;
+        float* xl = ws.xlin.ch(c) + row;
         for (int i = 0; i < W; ++i) {
           const float a = alb[i] > 0.0f ? alb[i] : 0.0f;
           const float v = col[i] > 0.0f ? col[i] : 0.0f;
-          xo[i] = log1p_pos(v / (a + kAlbedoEps));
+          xl[i] = v / (a + kAlbedoEps);
+          xo[i] = log1p_pos(xl[i]);
         }
       }
       for (int i = 0; i < W; ++i) ws.zc[row + size_t(i)] = z[row + size_t(i)] > kMinDepth ? z[row + size_t(i)] : kMinDepth;
       if (!have_state) {
-        for (int c = 0; c < 3; ++c) std::memcpy(ws.yw.ch(c) + row, ws.x.ch(c) + row, sizeof(float) * size_t(W));
+        for (int c = 0; c < 3; ++c) std::memcpy(ws.yw.ch(c) + row, ws.xlin.ch(c) + row, sizeof(float) * size_t(W));
         std::memcpy(ws.zw.data() + row, z + row, sizeof(float) * size_t(W));
         std::fill(ws.valid.begin() + std::ptrdiff_t(row), ws.valid.begin() + std::ptrdiff_t(row + size_t(W)), 0.0f);
         continue;
       }
+      // Bilinear taps of p + motion (clamped), then the four planes gathered.
+      int* i00 = scratch.idx.data();
+      float* fx = scratch.fx.data();
+      float* fy = scratch.fy.data();
+      int* dx = scratch.dx.data();
+      long* dy = scratch.dy.data();
+      const float* mx = in.ch(11) + row;
+      const float* my = in.ch(12) + row;
+      float* valid = ws.valid.data() + row;
       for (int i = 0; i < W; ++i) {
-        const size_t p = row + size_t(i);
-        const float px = float(i) + in.ch(11)[p], py = float(y) + in.ch(12)[p];
-        ws.valid[p] = (px >= -0.5f && px <= float(W) - 0.5f && py >= -0.5f && py <= float(H) - 0.5f) ? 1.0f : 0.0f;
-        const float cx = std::clamp(px, 0.0f, float(W - 1)), cy = std::clamp(py, 0.0f, float(H - 1));
+        const float px = float(i) + mx[i], py = float(y) + my[i];
+        valid[i] = (px >= -0.5f && px <= float(W) - 0.5f && py >= -0.5f && py <= float(H) - 0.5f) ? 1.0f : 0.0f;
+        const float cx = px < 0.0f ? 0.0f : (px > float(W - 1) ? float(W - 1) : px);
+        const float cy = py < 0.0f ? 0.0f : (py > float(H - 1) ? float(H - 1) : py);
         const int x0 = int(cx), y0 = int(cy);
-        const int x1 = x0 + 1 < W ? x0 + 1 : W - 1, y1 = y0 + 1 < H ? y0 + 1 : H - 1;
-        const float fx = cx - float(x0), fy = cy - float(y0);
-        const size_t a00 = size_t(y0) * size_t(W) + size_t(x0), a01 = size_t(y0) * size_t(W) + size_t(x1);
-        const size_t a10 = size_t(y1) * size_t(W) + size_t(x0), a11 = size_t(y1) * size_t(W) + size_t(x1);
-        auto bil = [&](const float* s) {
-          return (s[a00] * (1 - fx) + s[a01] * fx) * (1 - fy) + (s[a10] * (1 - fx) + s[a11] * fx) * fy;
-        };
-        for (int c = 0; c < 3; ++c) ws.yw.ch(c)[p] = bil(state.ch(c));
-        ws.zw[p] = bil(state.ch(3));
+        fx[i] = cx - float(x0), fy[i] = cy - float(y0);
+        dx[i] = x0 + 1 < W ? 1 : 0;
+        dy[i] = y0 + 1 < H ? long(W) : 0;
+        i00[i] = y0 * W + x0;
       }
+      auto gather4 = [&](const float* s, float* out) {
+        for (int i = 0; i < W; ++i) {
+          const long a = i00[i];
+          const float top = s[a] * (1 - fx[i]) + s[a + dx[i]] * fx[i];
+          const float bot = s[a + dy[i]] * (1 - fx[i]) + s[a + dy[i] + dx[i]] * fx[i];
+          out[i] = top * (1 - fy[i]) + bot * fy[i];
+        }
+      };
+      for (int c = 0; c < 3; ++c) gather4(state.ch(c), ws.yw.ch(c) + row);
+      gather4(state.ch(3), ws.zw.data() + row);
     }
   });
   lap(&st.prepare);
@@ -320,21 +394,26 @@ static const Planes& network(const NeuralWeights& nw, const Planes& in, Planes& 
   // 13 features are input planes, 4 are computed per full-res row; each is summed over 4x4.
   ws.feat.resize(size_t(Wq) * size_t(Hq) * kFeatures);
   parallel_rows(Hq, 2, [&](int r0, int r1) {
-    std::vector<float> sum(size_t(kFeatures) * size_t(Wq)), tmp(size_t(4) * size_t(W));
-    const float* planes[13] = {ws.x.ch(0),  ws.x.ch(1),  ws.x.ch(2),  in.ch(3),   in.ch(4),  in.ch(5),  in.ch(6),
-                               in.ch(7),    in.ch(8),    in.ch(10),   ws.yw.ch(0), ws.yw.ch(1), ws.yw.ch(2)};
+    std::vector<float> sum(size_t(kFeatures) * size_t(Wq)), tmp(size_t(7) * size_t(W));
+    const float* planes[10] = {ws.x.ch(0), ws.x.ch(1), ws.x.ch(2), in.ch(3), in.ch(4),
+                               in.ch(5),   in.ch(6),   in.ch(7),   in.ch(8), in.ch(10)};
     for (int qy = r0; qy < r1; ++qy) {
       std::fill(sum.begin(), sum.end(), 0.0f);
       for (int sy = 0; sy < 4; ++sy) {
         const int y = qy * 4 + sy;
         const size_t row = size_t(y) * size_t(W);
         const size_t below = size_t(y + 1 < H ? y + 1 : H - 1) * size_t(W);
-        float* valid = tmp.data();
+        float* ywl = tmp.data();  // 3 rows: log(1 + warped previous irradiance)
+        float* valid = ywl + 3 * size_t(W);
         float* dz = valid + W;
         float* zg = dz + W;
         float* xl2 = zg + W;
         for (int i = 0; i < W; ++i) {
           const size_t p = row + size_t(i);
+          for (int c = 0; c < 3; ++c) {
+            const float v = ws.yw.ch(c)[p];
+            ywl[size_t(c) * size_t(W) + size_t(i)] = log1p_pos(v > 0.0f ? v : 0.0f);
+          }
           const float inv = 1.0f / ws.zc[p];
           const float v = ws.valid[p];
           valid[i] = v;
@@ -349,7 +428,7 @@ static const Planes& network(const NeuralWeights& nw, const Planes& in, Planes& 
         // Feature order: x 0-2, albedo 3-5, normal 6-8, roughness 9, yw 10-12, valid 13,
         // dz 14, zg 15, mean(x)^2 16.
         for (int k = 0; k < kFeatures; ++k) {
-          const float* src = k < 13 ? planes[k] + row : tmp.data() + size_t(k - 13) * size_t(W);
+          const float* src = k < 10 ? planes[k] + row : tmp.data() + size_t(k - 10) * size_t(W);
           float* acc = sum.data() + size_t(k) * size_t(Wq);
           for (int qx = 0; qx < Wq; ++qx) acc[qx] += src[4 * qx] + src[4 * qx + 1] + src[4 * qx + 2] + src[4 * qx + 3];
         }
@@ -389,77 +468,78 @@ static const Planes& network(const NeuralWeights& nw, const Planes& in, Planes& 
   // Activations at quarter resolution, planar.
   const size_t Nq = size_t(Wq) * size_t(Hq);
   ws.act.resize(Nq * kOutputs);
-  tbb::parallel_for(tbb::blocked_range<size_t>(0, Nq, 2048), [&](const tbb::blocked_range<size_t>& range) {
-  for (size_t p = range.begin(); p < range.end(); ++p) {
-    const float* v = &ws.o[p * size_t(nw.head.cout)];
+  const size_t ostride = size_t(nw.head.cout);
+  tbb::parallel_for(tbb::blocked_range<size_t>(0, Nq, 4096), [&](const tbb::blocked_range<size_t>& range) {
     for (int k = 0; k < kOutputs; ++k) {
-      const bool gate = k == 0 || k % 4 == 0;  // alpha and the betas: sigmoid; the rest softplus
-      const float e = exp_any(gate ? -v[k] : v[k]);
-      ws.act[size_t(k) * Nq + p] = gate ? 1.0f / (1.0f + e) : (v[k] > 20.0f ? v[k] : log1p_pos(e));
+      const float* v = ws.o.data() + size_t(k);
+      float* out = ws.act.data() + size_t(k) * Nq;
+      if (k == 0 || k % 4 == 0) {  // alpha and the betas: sigmoid
+        for (size_t p = range.begin(); p < range.end(); ++p) out[p] = 1.0f / (1.0f + exp_any(-v[p * ostride]));
+      } else {  // the edge-stopping strengths: softplus
+        for (size_t p = range.begin(); p < range.end(); ++p) {
+          const float x = v[p * ostride];
+          out[p] = x > 20.0f ? x : log1p_pos(exp_any(x));
+        }
+      }
     }
-  }
   });
   lap(&st.cnn);
-  // Bilinear x4 upsampling of one activation plane (optionally divided per pixel).
-  // Bilinear x4 upsampling (PyTorch's align_corners=False): each quarter-res row is first
-  // upsampled horizontally once (Hq x W), then every output row is a lerp of two such rows.
+  // Bilinear x4 upsampling (PyTorch's align_corners=False), separable: every activation
+  // map's quarter-res rows are upsampled horizontally once (Hq x W per map); output rows
+  // lerp two of them, inside the temporal blend and the a-trous filter (no full-res maps).
   std::vector<int> c0(static_cast<size_t>(W)), c1(static_cast<size_t>(W));
   std::vector<float> cf(static_cast<size_t>(W));
   for (int i = 0; i < W; ++i) {
     const UpTap tx = up_tap(i, Wq, 0.25f);
     c0[size_t(i)] = tx.i0, c1[size_t(i)] = tx.i1, cf[size_t(i)] = tx.f;
   }
-  ws.hrows.resize(size_t(Hq) * size_t(W));
-  auto upsample = [&](int channel, float* out, const float* divide) {
-    const float* s = &ws.act[size_t(channel) * Nq];
-    float* hr = ws.hrows.data();
-    parallel_rows(Hq, 4, [&](int r0, int r1) {
-      for (int y = r0; y < r1; ++y) {
-        const float* a = s + size_t(y) * size_t(Wq);
-        float* o = hr + size_t(y) * size_t(W);
-        for (int i = 0; i < W; ++i) o[i] = a[c0[size_t(i)]] * (1 - cf[size_t(i)]) + a[c1[size_t(i)]] * cf[size_t(i)];
-      }
-    });
-    parallel_rows(H, 8, [&](int r0, int r1) {
-      for (int y = r0; y < r1; ++y) {
-        const UpTap ty = up_tap(y, Hq, 0.25f);
-        const float* top = hr + size_t(ty.i0) * size_t(W);
-        const float* bot = hr + size_t(ty.i1) * size_t(W);
-        float* o = out + size_t(y) * size_t(W);
-        const float fy = ty.f;
-        if (divide) {
-          const float* d = divide + size_t(y) * size_t(W);
-          for (int i = 0; i < W; ++i) o[i] = (top[i] * (1 - fy) + bot[i] * fy) / d[i];
-        } else {
-          for (int i = 0; i < W; ++i) o[i] = top[i] * (1 - fy) + bot[i] * fy;
-        }
-      }
-    });
-  };
-  ws.param.resize(N * 4);
+  const size_t hplane = size_t(Hq) * size_t(W);
+  ws.hrows.resize(hplane * kOutputs);
+  parallel_rows(Hq * kOutputs, 4, [&](int r0, int r1) {
+    for (int r = r0; r < r1; ++r) {
+      const int k = r / Hq, y = r % Hq;
+      const float* a = &ws.act[size_t(k) * Nq + size_t(y) * size_t(Wq)];
+      float* o = ws.hrows.data() + size_t(k) * hplane + size_t(y) * size_t(W);
+      for (int i = 0; i < W; ++i) o[i] = a[c0[size_t(i)]] * (1 - cf[size_t(i)]) + a[c1[size_t(i)]] * cf[size_t(i)];
+    }
+  });
   ensure(ws.xi, W, H, 3);
   ensure(ws.xo, W, H, 3);
-  upsample(0, ws.param.data(), nullptr);
-  for (int c = 0; c < 3; ++c) {
-    const float* x = ws.x.ch(c);
-    const float* yw = ws.yw.ch(c);
-    float* xi = ws.xi.ch(c);
-    for (size_t p = 0; p < N; ++p) xi[p] = x[p] + ws.param[p] * ws.valid[p] * (yw[p] - x[p]);
-  }
+  parallel_rows(H, 8, [&](int r0, int r1) {
+    for (int y = r0; y < r1; ++y) {
+      const UpTap ty = up_tap(y, Hq, 0.25f);
+      const float* top = ws.hrows.data() + size_t(ty.i0) * size_t(W);
+      const float* bot = ws.hrows.data() + size_t(ty.i1) * size_t(W);
+      const size_t row = size_t(y) * size_t(W);
+      for (int c = 0; c < 3; ++c) {
+        const float* x = ws.xlin.ch(c) + row;
+        const float* yw = ws.yw.ch(c) + row;
+        const float* valid = ws.valid.data() + row;
+        float* xi = ws.xi.ch(c) + row;
+        for (int i = 0; i < W; ++i) {
+          const float alpha = top[i] * (1 - ty.f) + bot[i] * ty.f;
+          xi[i] = x[i] + alpha * valid[i] * (yw[i] - x[i]);
+        }
+      }
+    }
+  });
   lap(&st.temporal);
   // The a-trous levels.
+  ensure(ws.lg, W, H, 3);
   for (int l = 0; l < kLevels; ++l) {
-    float* sc = ws.param.data();
-    float* sn = sc + N;
-    float* sz = sn + N;
-    float* beta = sz + N;
-    upsample(1 + 4 * l, sc, nullptr);
-    upsample(2 + 4 * l, sn, nullptr);
-    upsample(3 + 4 * l, sz, ws.zc.data());
-    upsample(4 + 4 * l, beta, nullptr);
+    parallel_rows(H, 8, [&](int r0, int r1) {  // the guide: log(1 + irradiance)
+      const size_t b = size_t(r0) * size_t(W), e = size_t(r1) * size_t(W);
+      for (int c = 0; c < 3; ++c) {
+        const float* xi = ws.xi.ch(c);
+        float* g = ws.lg.ch(c);
+        for (size_t p = b; p < e; ++p) g[p] = log1p_pos(xi[p] > 0.0f ? xi[p] : 0.0f);
+      }
+    });
     AtrousArgs a;
-    for (int c = 0; c < 3; ++c) a.x[c] = ws.xi.ch(c), a.n[c] = in.ch(6 + c), a.out[c] = ws.xo.ch(c);
-    a.z = z, a.sc = sc, a.sn = sn, a.sz = sz, a.beta = beta;
+    for (int c = 0; c < 3; ++c) a.x[c] = ws.xi.ch(c), a.g[c] = ws.lg.ch(c), a.n[c] = in.ch(6 + c), a.out[c] = ws.xo.ch(c);
+    a.z = z;
+    for (int k = 0; k < 4; ++k) a.param[k] = ws.hrows.data() + size_t(1 + 4 * l + k) * hplane;
+    a.param_rows = Hq;
     a.width = W, a.height = H, a.dilation = 1 << l;
     parallel_rows(H, 4, [&](int r0, int r1) { atrous_rows(a, r0, r1); });
     std::swap(ws.xi, ws.xo);
@@ -476,7 +556,7 @@ static const Planes& network(const NeuralWeights& nw, const Planes& in, Planes& 
       for (size_t p = b; p < e; ++p) {
         const float v = xi[p] > 0.0f ? xi[p] : 0.0f;
         const float a = alb[p] > 0.0f ? alb[p] : 0.0f;
-        o[p] = (exp_any(v) - 1.0f) * (a + kAlbedoEps);
+        o[p] = v * (a + kAlbedoEps);
       }
       std::memcpy(ws.next_state.ch(c) + b, xi + b, sizeof(float) * (e - b));
     }

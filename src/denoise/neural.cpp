@@ -17,7 +17,7 @@ namespace kestrel::denoise {
 namespace {
 
 constexpr char kMagic[8] = {'K', 'S', 'T', 'R', 'L', 'D', 'N', 'W'};
-constexpr uint32_t kVersion = 1, kArchitecture = 1;
+constexpr uint32_t kVersion = 1, kArchitecture = 2;  // 2: linear-space filter (model.py)
 
 uint64_t fnv1a(const uint8_t* p, size_t n) {
   uint64_t h = 0xcbf29ce484222325ull;
