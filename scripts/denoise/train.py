@@ -117,11 +117,36 @@ def export_weights(model, path):
         f.write(blob)
 
 
+def load_weights(model, path):
+    """Reads a .kdw file written by export_weights into `model` (checks the hash)."""
+    blob = open(path, "rb").read()
+    assert blob[:8] == b"KSTRLDNW", f"{path}: not a kestrel weights file"
+    h = 0xcbf29ce484222325
+    for byte in blob[:-8]:
+        h = ((h ^ byte) * 0x100000001b3) & 0xFFFFFFFFFFFFFFFF
+    assert struct.unpack("<Q", blob[-8:])[0] == h, f"{path}: checksum mismatch"
+    version, arch, count = struct.unpack("<III", blob[8:20])
+    assert version == 1 and arch == ARCHITECTURE, f"{path}: version {version}, architecture {arch}"
+    at, params = 20, dict(model.named_parameters())
+    with torch.no_grad():
+        for _ in range(count):
+            (n,) = struct.unpack("<I", blob[at:at + 4]); at += 4
+            name = blob[at:at + n].decode(); at += n
+            (rank,) = struct.unpack("<I", blob[at:at + 4]); at += 4
+            dims = struct.unpack(f"<{rank}I", blob[at:at + 4 * rank]); at += 4 * rank
+            size = int(np.prod(dims))
+            params[name].copy_(torch.from_numpy(np.frombuffer(blob[at:at + 4 * size], dtype="<f4").reshape(dims).copy()))
+            at += 4 * size
+
+
 def write_fixture(model, clip, out_dir):
-    """Two frames of a 44 x 30 crop (not a multiple of 8: exercises the padding), their
-    inputs as PFMs and the model's outputs."""
+    """Two frames of a 44 x 30 crop (not a multiple of 8: exercises the padding) from the
+    middle of a clip (it must show content: the Cornell box), their inputs as PFMs and the
+    model's outputs."""
     os.makedirs(out_dir, exist_ok=True)
-    ins = clip[:2, 40:70, 60:104]  # T,H,W,13
+    T, H, W, _ = clip.shape
+    y0, x0 = H // 2 - 15, W // 2 - 22
+    ins = clip[:2, y0:y0 + 30, x0:x0 + 44]  # T,H,W,13
     seq = torch.from_numpy(ins).permute(0, 3, 1, 2)[None].contiguous()
     with torch.no_grad():
         state = None
@@ -154,12 +179,19 @@ def main():
     ap.add_argument("--threads", type=int, default=2)
     ap.add_argument("--out", default=os.path.join(ROOT, "weights"))
     ap.add_argument("--fixture", default=os.path.join(ROOT, "tests", "data", "denoise"))
+    ap.add_argument("--fixture-only", action="store_true", help="write the parity fixture from --out's weights and stop")
     args = ap.parse_args()
     torch.set_num_threads(args.threads)
     torch.set_flush_denormal(True)  # exp() of large negative arguments: denormals are ~50x slower
     torch.manual_seed(args.seed)
     random.seed(args.seed)
     np.random.seed(args.seed)
+    if args.fixture_only:  # the parity fixture from committed weights, without training
+        model = M.Denoiser()
+        load_weights(model, os.path.join(args.out, "denoiser.kdw"))
+        write_fixture(model, load_clip(args.data, "cornell_box", 2)[0], args.fixture)
+        print("wrote", args.fixture)
+        return
     manifest = json.load(open(os.path.join(args.data, "manifest.json")))
     names = sorted(n for n, c in manifest["clips"].items() if c["split"] == "train")
     clips = [load_clip(args.data, n, manifest["clips"][n]["frames"]) for n in names]
@@ -227,7 +259,7 @@ def main():
     plt.legend()
     plt.tight_layout()
     plt.savefig(os.path.join(args.out, "denoiser_loss.png"), dpi=100)
-    write_fixture(model, clips[0][0], args.fixture)
+    write_fixture(model, clips[names.index("cornell_box") if "cornell_box" in names else 0][0], args.fixture)
     print("wrote", args.out, args.fixture)
 
 

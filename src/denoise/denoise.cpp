@@ -175,6 +175,12 @@ void atrous_pass(const Planes& in, Planes& out, const Planes& g, int dilation, c
   });
 }
 
+// x^(2^k) by k squarings (SVGF's normal weight max(0, n.n_q)^128 without pow).
+float pow2k(float x, int k) {
+  for (int i = 0; i < k; ++i) x *= x;
+  return x;
+}
+
 float normal_dot(const Planes& g, size_t p, size_t q) {
   return g.ch(6)[p] * g.ch(6)[q] + g.ch(7)[p] * g.ch(7)[q] + g.ch(8)[p] * g.ch(8)[q];
 }
@@ -321,7 +327,7 @@ struct Svgf {
               const int sy = y + j, sx = i + k;
               if (sx < 0 || sy < 0 || sx >= W || sy >= H) continue;
               const size_t q = size_t(sy) * size_t(W) + size_t(sx);
-              const float w = std::exp(-rel_depth(g, p, q) / 0.05f) * std::pow(std::max(0.0f, normal_dot(g, p, q)), 32.0f) +
+              const float w = std::exp(-rel_depth(g, p, q) / 0.05f) * pow2k(std::max(0.0f, normal_dot(g, p, q)), 5) +
                               (q == p ? 1.0f : 0.0f);
               s1 += w * m1[q], s2 += w * m2[q], ws += w;
             }
@@ -331,7 +337,7 @@ struct Svgf {
     var = var2;
     Planes t(W, H, 3);
     std::vector<float> var_next(N), gvar(N);
-    const float sigma_l = 4.0f, sigma_z = 1.0f, sigma_n = 128.0f;
+    const float sigma_l = 4.0f, sigma_z = 1.0f;  // sigma_n = 128 = 2^7 (pow2k below)
     const DepthGradient dz(g);
     Planes first;
     for (int it = 0; it < 5; ++it) {
@@ -356,7 +362,7 @@ struct Svgf {
         const float wl = std::abs(lp - lq) / (sigma_l * std::sqrt(gvar[p]) + 1e-4f);
         const float wz = dz.weight(gg, p, q, sigma_z);
         const bool no_normal = gg.ch(6)[p] == 0 && gg.ch(7)[p] == 0 && gg.ch(8)[p] == 0;
-        const float wn = no_normal ? 1.0f : std::pow(std::max(0.0f, normal_dot(gg, p, q)), sigma_n);
+        const float wn = no_normal ? 1.0f : pow2k(std::max(0.0f, normal_dot(gg, p, q)), 7);  // ^sigma_n = ^128
         return wn * std::exp(-wl - wz);
       });
       std::swap(acc, t);

@@ -1,5 +1,6 @@
 // The denoiser's kernels built for sse2 (flags in CMakeLists.txt).
 #include <tbb/parallel_for.h>
+#include <xmmintrin.h>
 
 #include <algorithm>
 #include <chrono>
