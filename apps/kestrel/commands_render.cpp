@@ -100,14 +100,17 @@ std::unique_ptr<Denoiser> denoiser_of(const RenderArgs& a) {
 
 // With a denoiser, the colour AOV becomes the denoised colour and the noisy one is written
 // beside it (EXR layer "noisy", noisy.pfm).
-void write_outputs(Frame f, const std::string& exr, const std::string& pfm, const std::string& png, float exposure,
+void write_outputs(const Frame& frame, const std::string& exr, const std::string& pfm, const std::string& png, float exposure,
                    Denoiser* denoiser = nullptr) {
-  FloatImage noisy;
+  // Without a denoiser the frame is written as it is; with one, a copy whose colour is denoised.
+  Frame denoised;
   if (denoiser) {
-    noisy = f[Aov::color];
-    f.aov[int(Aov::color)] = denoiser->denoise({&f[Aov::color], &f[Aov::albedo], &f[Aov::normal], &f[Aov::depth],
-                                                &f[Aov::roughness], &f[Aov::motion]});
+    denoised = frame;
+    denoised.aov[int(Aov::color)] = denoiser->denoise({&frame[Aov::color], &frame[Aov::albedo], &frame[Aov::normal],
+                                                       &frame[Aov::depth], &frame[Aov::roughness], &frame[Aov::motion]});
   }
+  const Frame& f = denoiser ? denoised : frame;
+  const FloatImage& noisy = frame[Aov::color];
   if (!exr.empty()) {
     const std::filesystem::path parent = std::filesystem::path(exr).parent_path();
     if (!parent.empty()) std::filesystem::create_directories(parent);

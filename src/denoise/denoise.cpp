@@ -8,6 +8,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdlib>
+#include <cstring>
 #include <filesystem>
 
 #include "denoise/kernels.h"
@@ -63,6 +64,20 @@ void rows(int h, F&& f) {
   tbb::parallel_for(tbb::blocked_range<int>(0, h, 4), [&](const tbb::blocked_range<int>& r) { f(r.begin(), r.end()); });
 }
 
+// Fills every plane of `p` outside its top-left width x height region by edge replication
+// (the padding of the inputs and of the neural denoiser's state).
+void replicate_edges(Planes& p, int width, int height) {
+  if (width == p.width && height == p.height) return;
+  rows(p.height, [&](int r0, int r1) {
+    for (int c = 0; c < p.channels; ++c)
+      for (int y = r0; y < r1; ++y) {
+        float* dst = p.ch(c) + size_t(y) * size_t(p.width);
+        if (y >= height) std::memcpy(dst, p.ch(c) + size_t(height - 1) * size_t(p.width), sizeof(float) * size_t(width));
+        std::fill(dst + width, dst + p.width, dst[width - 1]);
+      }
+  });
+}
+
 // The inputs as padded planes (multiple of `align`, edge replicated): colour 0-2, albedo
 // 3-5, normal 6-8, depth 9, roughness 10, motion 11-12; NaN/Inf to 0, negative colour to 0;
 // absent images: albedo 1, normal 0, depth 1, roughness 0, motion 0. `p` is reused.
@@ -95,29 +110,28 @@ void gather(const DenoiseInput& in, int align, Planes& p) {
   const Source sources[] = {{in.color, 0, 3, 0.0f},     {in.albedo, 3, 3, 1.0f}, {in.normal, 6, 3, 0.0f},
                             {in.depth, 9, 1, 1.0f},     {in.roughness, 10, 1, 0.0f}, {in.motion, 11, 2, 0.0f}};
   const int cw = c.width;
-  rows(H, [&](int r0, int r1) {
+  rows(c.height, [&](int r0, int r1) {
     for (int y = r0; y < r1; ++y) {
-      const int sy = std::min(y, c.height - 1);
       const size_t row = size_t(y) * size_t(W);
       for (const Source& s : sources)
         for (int k = 0; k < s.count; ++k) {
           float* dst = p.ch(s.first + k) + row;
           if (!s.img) {
-            std::fill(dst, dst + W, s.fallback);
+            std::fill(dst, dst + cw, s.fallback);
             continue;
           }
           const int stride = s.img->channels;
-          const float* src = s.img->pixels.data() + size_t(sy) * size_t(cw) * size_t(stride) + size_t(k);
+          const float* src = s.img->pixels.data() + size_t(y) * size_t(cw) * size_t(stride) + size_t(k);
           const bool colour = s.first == 0;
           for (int x = 0; x < cw; ++x) {
             const float v = src[size_t(x) * size_t(stride)];
             const float finite = v - v == 0.0f ? v : 0.0f;  // NaN and +-Inf to 0
-            dst[x] = colour ? (finite > 0.0f ? finite : 0.0f) : finite;
+            dst[x] = colour && finite < 0.0f ? 0.0f : finite;  // negative colour to 0
           }
-          for (int x = cw; x < W; ++x) dst[x] = dst[cw - 1];
         }
     }
   });
+  replicate_edges(p, cw, c.height);
 }
 
 void to_image(const Planes& p, int width, int height, FloatImage& out) {
@@ -422,17 +436,8 @@ void Denoiser::denoise(const DenoiseInput& input, FloatImage& out) {
       gather(input, 8, g);
       // The state is kept at the padded size of this sequence's frames; a size change restarts it.
       if (impl_->state.width != g.width || impl_->state.height != g.height) impl_->state = Planes();
-      else if (!impl_->state.data.empty() && (width != g.width || height != g.height)) {
-        // Re-pad the state as the reference does: the padding replicates the image's last
-        // row / column of the previous output.
-        Planes& s = impl_->state;
-        for (int c = 0; c < s.channels; ++c)
-          for (int y = 0; y < s.height; ++y)
-            for (int x = 0; x < s.width; ++x)
-              if (x >= width || y >= height)
-                s.ch(c)[size_t(y) * size_t(s.width) + size_t(x)] =
-                    s.ch(c)[size_t(std::min(y, height - 1)) * size_t(s.width) + size_t(std::min(x, width - 1))];
-      }
+      // Re-pad the state as the reference does: the previous output's edges replicated.
+      else if (!impl_->state.data.empty()) replicate_edges(impl_->state, width, height);
       denoise::StageTimes times;
       const Planes& result = denoise::run_network(*impl_->weights, g, impl_->state, impl_->options.recurrent, impl_->workspace,
                                                   impl_->profile ? &times : nullptr);

@@ -8,7 +8,7 @@
 namespace kestrel::denoise {
 
 /// A 3x3 (or 1x1) convolution, zero padded, on channels-last images: in [h][w][cin],
-/// weights [ky][kx][cin][cout], out [h][w][cout]; rows [row0, row1) of the output.
+/// weights [ky][kx][cin][cout], out [h][w][cout], cout a multiple of 16.
 struct ConvArgs {
   const float* in = nullptr;
   const float* weights = nullptr;
@@ -36,8 +36,6 @@ struct AtrousArgs {
 };
 
 struct KernelTable {
-  void (*conv)(const ConvArgs& a, int row0, int row1);
-  void (*atrous)(const AtrousArgs& a, int row0, int row1);
   const Planes& (*network)(const NeuralWeights& w, const Planes& in, Planes& state, bool recurrent, Workspace& ws,
                            StageTimes* times);
   const char* isa;

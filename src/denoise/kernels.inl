@@ -77,30 +77,19 @@ static void pad_for_conv(const float* in, int w, int h, int c, std::vector<float
   });
 }
 
-static void conv_rows_any(const ConvArgs& a, int row0, int row1) {
-  const int w = a.width, h = a.height, cin = a.cin, cout = a.cout, k = a.ksize, r = k / 2;
-  for (int y = row0; y < row1; ++y)
-    for (int x = 0; x < w; ++x) {
-      float* o = a.out + (size_t(y) * size_t(w) + size_t(x)) * size_t(cout);
-      for (int co = 0; co < cout; ++co) o[co] = a.bias[co];
-      for (int ky = 0; ky < k; ++ky) {
-        const int sy = y + ky - r;
-        if (sy < 0 || sy >= h) continue;
-        for (int kx = 0; kx < k; ++kx) {
-          const int sx = x + kx - r;
-          if (sx < 0 || sx >= w) continue;
-          const float* ip = a.in + (size_t(sy) * size_t(w) + size_t(sx)) * size_t(cin);
-          const float* wk = a.weights + size_t(ky * k + kx) * size_t(cin) * size_t(cout);
-          for (int ci = 0; ci < cin; ++ci)
-            for (int co = 0; co < cout; ++co) o[co] += ip[ci] * wk[size_t(ci) * size_t(cout) + size_t(co)];
-        }
-      }
-      if (a.relu)
-        for (int co = 0; co < cout; ++co) o[co] = o[co] > 0.0f ? o[co] : 0.0f;
-    }
-}
 
-static void conv_rows(const ConvArgs& a, int row0, int row1) { conv_rows_any(a, row0, row1); }
+struct UpTap {
+  int i0, i1;
+  float f;
+};
+
+// PyTorch's bilinear (align_corners=False) source indices and weight for output i.
+static UpTap up_tap(int i, int in, float scale) {
+  float s = scale * (float(i) + 0.5f) - 0.5f;
+  s = s < 0 ? 0 : s;
+  const int i0 = int(s);
+  return {i0, i0 < in - 1 ? i0 + 1 : i0, s - float(i0)};
+}
 
 // One pixel's 8 outer taps (the centre weighs exactly 1: every difference is 0 and
 // n.n - n.n = 0), the accumulation and the mix. `off[t]` are the taps' index offsets from
@@ -219,14 +208,11 @@ static void atrous_rows(const AtrousArgs& a, int row0, int row1) {
         inner.h[t] = (ty == 0 ? 2.0f : 1.0f) * (tx == 0 ? 2.0f : 1.0f) * 0.25f;
         ++t;
       }
-    // PyTorch's bilinear (align_corners=False) source rows and weight for output row y.
-    float sy = 0.25f * (float(y) + 0.5f) - 0.5f;
-    sy = sy < 0 ? 0 : sy;
-    const int r0 = int(sy), r1 = r0 < a.param_rows - 1 ? r0 + 1 : r0;
+    const UpTap ty = up_tap(y, a.param_rows, 0.25f);
     ParamRows pr;
-    pr.fy = sy - float(r0);
+    pr.fy = ty.f;
     for (int k = 0; k < 4; ++k)
-      pr.top[k] = a.param[k] + size_t(r0) * size_t(w), pr.bot[k] = a.param[k] + size_t(r1) * size_t(w);
+      pr.top[k] = a.param[k] + size_t(ty.i0) * size_t(w), pr.bot[k] = a.param[k] + size_t(ty.i1) * size_t(w);
     const int i0 = d < w ? d : w, i1 = w - d > i0 ? w - d : i0;
     auto border = [&](int i) {  // columns clamped per pixel
       TapSet c = inner;
@@ -292,29 +278,12 @@ static void conv_layer(const ConvLayer& l, const std::vector<float>& in, int w, 
   ConvArgs a;
   a.in = in.data(), a.weights = l.weights.data(), a.bias = l.bias.data(), a.out = out.data();
   a.width = w, a.height = h, a.cin = l.cin, a.cout = l.cout, a.ksize = l.ksize, a.relu = relu;
-  if (l.cout % 16 == 0) {
-    pad_for_conv(in.data(), w, h, l.cin, scratch);
-    parallel_rows(h, 2, [&](int r0, int r1) { conv_rows_padded(a, scratch.data(), r0, r1); });
-  } else {
-    parallel_rows(h, 2, [&](int r0, int r1) { conv_rows_any(a, r0, r1); });
-  }
+  pad_for_conv(in.data(), w, h, l.cin, scratch);  // l.cout is a multiple of 16 (NeuralWeights::load)
+  parallel_rows(h, 2, [&](int r0, int r1) { conv_rows_padded(a, scratch.data(), r0, r1); });
 }
 
 static void ensure(Planes& p, int w, int h, int c) {
   if (p.width != w || p.height != h || p.channels != c) p = Planes(w, h, c);
-}
-
-struct UpTap {
-  int i0, i1;
-  float f;
-};
-
-// PyTorch's bilinear (align_corners=False) source indices and weight for output i.
-static UpTap up_tap(int i, int in, float scale) {
-  float s = scale * (float(i) + 0.5f) - 0.5f;
-  s = s < 0 ? 0 : s;
-  const int i0 = int(s);
-  return {i0, i0 < in - 1 ? i0 + 1 : i0, s - float(i0)};
 }
 
 static const Planes& network(const NeuralWeights& nw, const Planes& in, Planes& state, bool recurrent, Workspace& ws,

@@ -16,7 +16,7 @@ namespace avx2_ns {
 }  // namespace avx2_ns
 
 const KernelTable& kernels_avx2() {
-  static const KernelTable table{avx2_ns::conv_rows, avx2_ns::atrous_rows, avx2_ns::network, "avx2"};
+  static const KernelTable table{avx2_ns::network, "avx2"};
   return table;
 }
 

@@ -41,7 +41,7 @@ constexpr float kMinDepth = 1e-3f;
 /// Buffers reused from frame to frame (no allocation or page faults once warm).
 struct Workspace {
   Planes x, xlin, yw, xi, xo, lg, out, next_state;
-  std::vector<float> zw, valid, zc, feat, e1, pooled, e2, e3, cat, d1, o, act, param, padded, hrows;
+  std::vector<float> zw, valid, zc, feat, e1, pooled, e2, e3, cat, d1, o, act, padded, hrows;
 };
 
 /// Milliseconds per stage of the last frame (KESTREL_DENOISE_PROFILE=1 prints them).
