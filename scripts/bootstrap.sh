@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # kestrel set-up on a fresh Debian 12 machine: installs what is missing, builds (Release),
 # then runs the main job (`demo`) or the whole test suite (`test`).
-#   bash scripts/bootstrap.sh demo   # install + build + path-trace the built-in Cornell box
+#   bash scripts/bootstrap.sh demo   # install + build + run the real-time pipeline on the built-in Cornell box
 #   bash scripts/bootstrap.sh test   # install + build + run every test (ctest)
 set -euo pipefail
 mode=${1:-demo}
@@ -11,7 +11,8 @@ build_dir=${KESTREL_BUILD_DIR:-$here/build/release}
 packages=(build-essential cmake ninja-build ccache pkg-config
   libtbb-dev libtinyobjloader-dev libtinygltf-dev nlohmann-json3-dev libstb-dev
   libpng-dev libcli11-dev libfmt-dev libgtest-dev libgmock-dev libbenchmark-dev
-  libembree-dev libopenexr-dev python3 python3-matplotlib)
+  libembree-dev libopenexr-dev python3 python3-matplotlib
+  libsdl2-dev libsdl2-ttf-dev fonts-dejavu-core xvfb xauth)
 missing=()
 for p in "${packages[@]}"; do
   dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
@@ -33,8 +34,10 @@ cmake --build "$build_dir" -j "$(nproc)"
 case "$mode" in
   demo)
     mkdir -p "$here/out"
-    "$build_dir/apps/kestrel/kestrel" render builtin:cornell_box --res 512x512 --spp 64 --quiet \
-      -o "$here/out/cornell_box.exr" --png "$here/out/cornell_box.png"
+    # The real-time pipeline (1-spp path tracing -> neural denoiser -> neural 2x2 upsampler
+    # -> tone map) along an orbit of the built-in Cornell box: frames and per-stage timings.
+    "$build_dir/apps/kestrel/kestrel" run builtin:cornell_box --path orbit:30 --frames 30 \
+      --res 1280x720 --internal 640x360 -o "$here/out/run" --quiet
     ;;
   test)
     cd "$build_dir" && ctest --output-on-failure -j "$(nproc)"

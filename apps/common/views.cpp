@@ -1,9 +1,12 @@
 #include "common/views.h"
 
+#include <fmt/format.h>
+
 #include <cmath>
 #include <filesystem>
 
 #include "core/vec.h"
+#include "kestrel/error.h"
 #include "kestrel/render.h"
 
 namespace kestrel::tools {
@@ -30,6 +33,31 @@ std::optional<PinholeCamera> named_view(const Scene& scene, const std::string& n
   const std::optional<Camera> c = find_view(scene, name);
   if (!c) return std::nullopt;
   return PinholeCamera{c->eye, c->target, c->vfov_degrees};
+}
+
+CameraPath camera_path_for(const std::string& scene_path, const std::string& path_spec, const std::string& view_name) {
+  if (path_spec.rfind("orbit", 0) != 0) {
+    if (!view_name.empty()) throw Error(ErrorCode::invalid_argument, "--view is only for --path orbit[:DEG]");
+    return CameraPath::load(path_spec);
+  }
+  double degrees = 360;
+  if (path_spec != "orbit") {
+    char* end = nullptr;
+    const std::string arg = path_spec.size() > 6 && path_spec[5] == ':' ? path_spec.substr(6) : "";
+    degrees = std::strtod(arg.c_str(), &end);
+    if (arg.empty() || end != arg.c_str() + arg.size())
+      throw Error(ErrorCode::invalid_argument, fmt::format("--path '{}': expected a JSON file or orbit[:DEGREES]", path_spec));
+  }
+  return CameraPath::orbit(start_camera_for(scene_path, view_name), degrees);
+}
+
+Camera start_camera_for(const std::string& scene_path, const std::string& view_name) {
+  const Scene scene = load_scene(scene_path);
+  std::string view = view_name;
+  if (view.empty()) view = find_view(scene, "front") ? "front" : "framing";
+  const auto c = find_view(scene, view);
+  if (!c) throw Error(ErrorCode::invalid_argument, fmt::format("{}: no view named '{}'", scene_path, view));
+  return *c;
 }
 
 }  // namespace kestrel::tools

@@ -4,6 +4,7 @@
 #include <optional>
 #include <string>
 
+#include "kestrel/render.h"
 #include "kestrel/trace.h"
 
 namespace kestrel::tools {
@@ -26,5 +27,12 @@ PinholeCamera framing_view(const Scene& scene);
 /// A named view (kestrel::find_view: "framing" always exists, others from the scene's
 /// views file or data/views, e.g. "inside" for Dabrovic Sponza). nullopt if unknown.
 std::optional<PinholeCamera> named_view(const Scene& scene, const std::string& name);
+
+/// A camera path: a keyframe JSON file (CameraPath::load), or "orbit[:DEGREES]" (default
+/// 360), a turntable about start_camera_for(scene_path, view_name). Throws Error.
+CameraPath camera_path_for(const std::string& scene_path, const std::string& path_spec, const std::string& view_name);
+/// A named view of a scene file (its .views.json or data/views); "" = "front", else
+/// "framing". Throws Error for an unknown name.
+Camera start_camera_for(const std::string& scene_path, const std::string& view_name);
 
 }  // namespace kestrel::tools

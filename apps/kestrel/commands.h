@@ -5,6 +5,9 @@
 #include <string>
 
 #include "kestrel/bvh.h"
+#include "kestrel/io.h"
+#include "common/views.h"
+#include "kestrel/render.h"
 
 namespace kestrel::cli {
 
@@ -17,6 +20,14 @@ Action add_preview_command(CLI::App& app);
 Action add_render_command(CLI::App& app);
 Action add_render_sequence_command(CLI::App& app);
 Action add_denoise_command(CLI::App& app);
+Action add_upscale_command(CLI::App& app);
+Action add_run_command(CLI::App& app);
+Action add_view_command(CLI::App& app);
+
+/// "name_%04d.pfm" with frame 7 -> "name_0007.pfm"; exactly one %d / %0Nd, else Error.
+std::string frame_name(const std::string& pattern, int frame);
+/// Writes a 3-channel image as .exr or .pfm (by extension; parent directories created).
+void write_image(const std::string& path, const FloatImage& img);
 
 /// Options shared by the commands that build a BVH.
 struct BuildOptions {
@@ -29,6 +40,9 @@ struct BuildOptions {
   void add_to(CLI::App& cmd);
   BuildConfig config() const;  ///< throws Error on an unknown builder/quality
 };
+
+using tools::camera_path_for;
+using tools::start_camera_for;
 
 /// Parses "WxH" into positive width and height; throws Error otherwise.
 void parse_resolution(const std::string& text, int& width, int& height);

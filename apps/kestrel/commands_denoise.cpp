@@ -23,7 +23,8 @@ struct DenoiseArgs {
   int frames = 0, start = 0, bench = 0;
 };
 
-// "name_%04d.pfm" with frame 7 -> "name_0007.pfm"; exactly one %d / %0Nd.
+}  // namespace
+
 std::string frame_name(const std::string& pattern, int frame) {
   const size_t at = pattern.find('%');
   size_t end = at == std::string::npos ? at : pattern.find('d', at);
@@ -35,6 +36,8 @@ std::string frame_name(const std::string& pattern, int frame) {
   const int width = spec.empty() ? 0 : std::stoi(spec);
   return pattern.substr(0, at) + fmt::format("{:0{}d}", frame, width) + pattern.substr(end + 1);
 }
+
+namespace {
 
 struct Loaded {
   FloatImage color, albedo, normal, depth, rough, motion;
@@ -70,6 +73,8 @@ Loaded load_inputs(const DenoiseArgs& a, int frame) {
   return l;
 }
 
+}  // namespace
+
 void write_image(const std::string& path, const FloatImage& img) {
   const std::filesystem::path parent = std::filesystem::path(path).parent_path();
   if (!parent.empty()) std::filesystem::create_directories(parent);
@@ -84,6 +89,8 @@ void write_image(const std::string& path, const FloatImage& img) {
     throw Error(ErrorCode::invalid_argument, fmt::format("{}: output must be .pfm or .exr", path));
   }
 }
+
+namespace {
 
 void run_denoise(const DenoiseArgs& a) {
   if (a.hdr.empty() == a.input.empty())

@@ -12,6 +12,7 @@
 #include "kestrel/error.h"
 #include "kestrel/io.h"
 #include "kestrel/denoise.h"
+#include "kestrel/upscale.h"
 #include "kestrel/render.h"
 
 namespace kestrel::cli {
@@ -19,12 +20,12 @@ namespace kestrel::cli {
 namespace {
 
 struct RenderArgs {
-  std::string scene = "builtin:cornell_box", view, camera, res = "640x360", out, pfm, png, env, path, denoise;
-  int spp = 1, max_depth = 8, threads = 0, frames = 0, frame = 0;
+  std::string scene = "builtin:cornell_box", view, camera, res = "640x360", out, pfm, png, env, path, denoise, upscale;
+  int spp = 1, max_depth = 8, threads = 0, frames = 0, frame = 0, factor = 2;
   uint64_t seed = 0;
   double time_limit = 0, time = 0;
   float exposure = 0, clamp = 0, fps = 30;
-  bool no_jitter = false, quiet = false;
+  bool no_jitter = false, fixed_jitter = false, quiet = false;
 };
 
 void add_common(CLI::App& cmd, RenderArgs& a) {
@@ -40,6 +41,7 @@ void add_common(CLI::App& cmd, RenderArgs& a) {
   cmd.add_option("--exposure", a.exposure, "Exposure of the PNG, stops")->capture_default_str();
   cmd.add_option("--clamp", a.clamp, "Clamp sample radiance to this (biased; 0 = off)")->capture_default_str();
   cmd.add_flag("--no-jitter", a.no_jitter, "Sample pixel centres (no Halton jitter)");
+  cmd.add_flag("--fixed-jitter", a.fixed_jitter, "Every sample at the frame's jitter (point-sampled, as an upsampler's input)");
   cmd.add_flag("--quiet", a.quiet, "No progress bar");
   cmd.add_option("--denoise", a.denoise, "Denoise the colour AOV: neural | svgf | atrous (the noisy one is kept as layer 'noisy' / noisy.pfm)");
 }
@@ -53,6 +55,7 @@ RenderSettings settings_of(const RenderArgs& a) {
   s.threads = a.threads;
   s.time_limit_s = a.time_limit;
   s.jitter = !a.no_jitter;
+  s.fixed_jitter = a.fixed_jitter;
   s.clamp = a.clamp;
   s.progress = !a.quiet && isatty(2);
   return s;
@@ -98,23 +101,21 @@ std::unique_ptr<Denoiser> denoiser_of(const RenderArgs& a) {
   return std::make_unique<Denoiser>(o);
 }
 
-// With a denoiser, the colour AOV becomes the denoised colour and the noisy one is written
-// beside it (EXR layer "noisy", noisy.pfm).
+// With a denoised colour, the colour AOV becomes it and the noisy one is written beside it
+// (EXR layer "noisy", noisy.pfm).
 void write_outputs(const Frame& frame, const std::string& exr, const std::string& pfm, const std::string& png, float exposure,
-                   Denoiser* denoiser = nullptr) {
-  // Without a denoiser the frame is written as it is; with one, a copy whose colour is denoised.
-  Frame denoised;
-  if (denoiser) {
-    denoised = frame;
-    denoised.aov[int(Aov::color)] = denoiser->denoise({&frame[Aov::color], &frame[Aov::albedo], &frame[Aov::normal],
-                                                       &frame[Aov::depth], &frame[Aov::roughness], &frame[Aov::motion]});
+                   const FloatImage* denoised = nullptr) {
+  Frame copy;
+  if (denoised) {
+    copy = frame;
+    copy.aov[int(Aov::color)] = *denoised;
   }
-  const Frame& f = denoiser ? denoised : frame;
+  const Frame& f = denoised ? copy : frame;
   const FloatImage& noisy = frame[Aov::color];
   if (!exr.empty()) {
     const std::filesystem::path parent = std::filesystem::path(exr).parent_path();
     if (!parent.empty()) std::filesystem::create_directories(parent);
-    if (denoiser) {
+    if (denoised) {
       std::vector<ImageLayer> layers = f.layers();
       layers.push_back({"noisy", {"R", "G", "B"}, noisy});
       write_exr(exr, layers);
@@ -124,9 +125,22 @@ void write_outputs(const Frame& frame, const std::string& exr, const std::string
   }
   if (!pfm.empty()) {
     write_frame_pfms(pfm, f);
-    if (denoiser) write_pfm((std::filesystem::path(pfm) / "noisy.pfm").string(), noisy);
+    if (denoised) write_pfm((std::filesystem::path(pfm) / "noisy.pfm").string(), noisy);
   }
   if (!png.empty()) write_png(png, f.width, f.height, tonemap_srgb8(f[Aov::color], exposure));
+}
+
+FloatImage denoise_frame(Denoiser& d, const Frame& f) {
+  return d.denoise({&f[Aov::color], &f[Aov::albedo], &f[Aov::normal], &f[Aov::depth], &f[Aov::roughness], &f[Aov::motion]});
+}
+
+std::unique_ptr<Upscaler> upscaler_of(const RenderArgs& a) {
+  if (a.upscale.empty()) return nullptr;
+  const auto m = upscale_method_from_name(a.upscale);
+  if (!m) throw Error(ErrorCode::invalid_argument, fmt::format("--upscale '{}': expected neural, taau, bicubic or bilinear", a.upscale));
+  UpscalerOptions o;
+  o.method = *m, o.factor = a.factor;
+  return std::make_unique<Upscaler>(o);
 }
 
 void print_stats(const RenderStats& st) {
@@ -164,7 +178,8 @@ void run_render(const RenderArgs& a) {
   const Frame f = renderer.render(camera, rs);
   fmt::print("scene    {} ({} triangles, {} light triangles)\n", source, triangles, renderer.light_count());
   print_stats(f.stats);
-  write_outputs(f, a.out, a.pfm, a.png, a.exposure, denoiser.get());
+  const FloatImage denoised = denoiser ? denoise_frame(*denoiser, f) : FloatImage{};
+  write_outputs(f, a.out, a.pfm, a.png, a.exposure, denoiser ? &denoised : nullptr);
   for (const std::string& o : {a.out, a.pfm, a.png})
     if (!o.empty()) fmt::print("wrote    {}\n", o);
 }
@@ -175,28 +190,7 @@ bool is_gltf(const std::string& path) {
   return ext == ".gltf" || ext == ".glb";
 }
 
-// --path FILE.json, or orbit[:DEGREES] (default 360): a turntable about the start view
-// (--view, else the scene's "front", else "framing").
-CameraPath camera_path_of(const RenderArgs& a) {
-  if (a.path.rfind("orbit", 0) != 0) {
-    if (!a.view.empty()) throw Error(ErrorCode::invalid_argument, "render-sequence: --view is only for --path orbit[:DEG]");
-    return CameraPath::load(a.path);
-  }
-  double degrees = 360;
-  if (a.path != "orbit") {
-    char* end = nullptr;
-    const std::string arg = a.path.size() > 6 && a.path[5] == ':' ? a.path.substr(6) : "";
-    degrees = std::strtod(arg.c_str(), &end);
-    if (arg.empty() || end != arg.c_str() + arg.size())
-      throw Error(ErrorCode::invalid_argument, fmt::format("--path '{}': expected a JSON file or orbit[:DEGREES]", a.path));
-  }
-  const Scene scene = load_scene(a.scene);
-  std::string view = a.view;
-  if (view.empty()) view = find_view(scene, "front") ? "front" : "framing";
-  const auto c = find_view(scene, view);
-  if (!c) throw Error(ErrorCode::invalid_argument, fmt::format("{}: no view named '{}'", a.scene, view));
-  return CameraPath::orbit(*c, degrees);
-}
+CameraPath camera_path_of(const RenderArgs& a) { return camera_path_for(a.scene, a.path, a.view); }
 
 void run_sequence(const RenderArgs& a) {
   if (a.frames <= 0) throw Error(ErrorCode::invalid_argument, fmt::format("render-sequence: --frames must be positive, got {}", a.frames));
@@ -220,6 +214,12 @@ void run_sequence(const RenderArgs& a) {
   const CameraPath path = camera_path_of(a);
   const double t0 = path.start(), t1 = path.end();
   const std::unique_ptr<Denoiser> denoiser = denoiser_of(a);
+  const std::unique_ptr<Upscaler> upscaler = upscaler_of(a);
+  if (upscaler) {  // --res is the output; render at 1/factor, every sample at the frame's jitter
+    if (s.width % a.factor || s.height % a.factor)
+      throw Error(ErrorCode::invalid_argument, fmt::format("render-sequence: --res {} is not divisible by --factor {}", a.res, a.factor));
+    s.width /= a.factor, s.height /= a.factor, s.fixed_jitter = true;
+  }
   std::optional<Camera> prev;
   for (int i = 0; i < a.frames; ++i) {
     const double t = a.frames > 1 ? t0 + (t1 - t0) * double(i) / double(a.frames - 1) : t0;
@@ -232,9 +232,20 @@ void run_sequence(const RenderArgs& a) {
     s.frame = uint32_t(i);
     const Frame f = renderer->render(cam, s, prev);
     prev = cam;
-    const std::string stem = (std::filesystem::path(a.out) / fmt::format("frame_{:04d}", i)).string();
-    write_outputs(f, stem + ".exr", a.pfm.empty() ? "" : (std::filesystem::path(a.pfm) / fmt::format("frame_{:04d}", i)).string(),
-                  a.png.empty() ? "" : stem + ".png", a.exposure, denoiser.get());
+    const std::string name = fmt::format("frame_{:04d}", i);
+    const std::string stem = (std::filesystem::path(a.out) / name).string();
+    const std::string pfm_dir = a.pfm.empty() ? "" : (std::filesystem::path(a.pfm) / name).string();
+    const FloatImage denoised = denoiser ? denoise_frame(*denoiser, f) : FloatImage{};
+    if (upscaler) {  // the low-resolution frame under low/, the upsampled colour as the frame
+      const FloatImage& color = denoiser ? denoised : f[Aov::color];
+      const FloatImage up = upscaler->upscale({&color, &f[Aov::depth], &f[Aov::motion], f.jitter_x, f.jitter_y});
+      write_outputs(f, (std::filesystem::path(a.out) / "low" / (name + ".exr")).string(), pfm_dir, "", a.exposure,
+                    denoiser ? &denoised : nullptr);
+      write_image(stem + ".exr", up);
+      if (!a.png.empty()) write_png(stem + ".png", up.width, up.height, tonemap_srgb8(up, a.exposure));
+    } else {
+      write_outputs(f, stem + ".exr", pfm_dir, a.png.empty() ? "" : stem + ".png", a.exposure, denoiser ? &denoised : nullptr);
+    }
     if (!a.quiet)
       fmt::print("frame {:4d}/{}  t = {:.3f} s  {:.1f} ms  {:.2f} Mrays/s\n", i + 1, a.frames, t, f.stats.ms,
                  double(f.stats.rays()) / (f.stats.ms * 1e3));
@@ -261,6 +272,10 @@ Action add_render_sequence_command(CLI::App& cmd) {
   cmd.add_option("--path", a->path, "Camera path JSON (keyframes), or orbit[:DEGREES] about --view")->required();
   cmd.add_option("--view", a->view, "Start view of --path orbit (default: front, else framing)");
   cmd.add_option("--frames", a->frames, "Frames, evenly spread over the path's time span")->required();
+  cmd.add_option("--upscale", a->upscale,
+                 "Render at --res / --factor (fixed jitter), then upsample: neural | taau | bicubic | bilinear "
+                 "(frame_NNNN.exr: the upsampled colour; low/: the low-resolution frames)");
+  cmd.add_option("--factor", a->factor, "Upsampling factor, 2 or 4")->capture_default_str();
   cmd.add_option("-o,--out", a->out, "Output directory: frame_NNNN.exr (+ .png with --png x, PFMs under --pfm DIR)")->required();
   return [a] { run_sequence(*a); };
 }

@@ -19,6 +19,9 @@ int main(int argc, char** argv) {
   add(kestrel::cli::add_render_command, "render", "Path-trace one frame with every AOV (EXR, PFM, PNG)");
   add(kestrel::cli::add_render_sequence_command, "render-sequence", "Path-trace a camera path, one file set per frame");
   add(kestrel::cli::add_denoise_command, "denoise", "Denoise a frame or a sequence (neural, svgf, atrous)");
+  add(kestrel::cli::add_upscale_command, "upscale", "Upsample a jittered low-resolution sequence (neural, taau, bicubic, bilinear)");
+  add(kestrel::cli::add_run_command, "run", "The real-time pipeline headless along a camera path: frames and stage timings");
+  add(kestrel::cli::add_view_command, "view", "The real-time pipeline in a window (SDL2): WASD + mouse, stages, overlay");
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {

@@ -88,6 +88,9 @@ struct RenderSettings {
   uint64_t seed = 0;
   uint32_t frame = 0;         ///< frame index: picks the Halton jitter and decorrelates noise
   bool jitter = true;         ///< sub-pixel jitter (Halton 2,3 by frame); false = pixel centres
+  /// Every pass at the frame's jitter (Halton index frame + 1, the 1-spp sequence): a clean,
+  /// point-sampled low-resolution frame, as temporal upsamplers see it, from many passes.
+  bool fixed_jitter = false;
   int max_depth = 8;          ///< path vertices after the camera (1 = direct light only)
   int rr_depth = 3;           ///< Russian roulette from this bounce on
   float clamp = 0;            ///< > 0: clamp each sample's radiance (biased); 0 = off

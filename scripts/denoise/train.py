@@ -12,7 +12,6 @@ import json
 import math
 import os
 import random
-import struct
 import subprocess
 import sys
 import time
@@ -23,29 +22,12 @@ import torch.nn.functional as F
 
 import model as M
 
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), ".."))
+import kestrel_nn  # noqa: E402
+from kestrel_nn import read_pfm, write_pfm  # noqa: E402
+
 HERE = os.path.dirname(os.path.abspath(__file__))
 ROOT = os.path.normpath(os.path.join(HERE, "..", ".."))
-
-
-def read_pfm(path):
-    with open(path, "rb") as f:
-        kind = f.readline().strip()
-        w, h = map(int, f.readline().split())
-        scale = float(f.readline())
-        c = 3 if kind == b"PF" else 1
-        data = np.frombuffer(f.read(w * h * c * 4), dtype="<f4" if scale < 0 else ">f4").reshape(h, w, c)
-    return np.ascontiguousarray(data[::-1]).astype(np.float32)
-
-
-def write_pfm(path, img):
-    img = np.asarray(img, dtype="<f4")
-    if img.ndim == 2:
-        img = img[:, :, None]
-    h, w, c = img.shape
-    with open(path, "wb") as f:
-        f.write(b"PF\n" if c == 3 else b"Pf\n")
-        f.write(f"{w} {h}\n-1.0\n".encode())
-        f.write(np.ascontiguousarray(img[::-1]).tobytes())
 
 
 AOVS = [("color", 3), ("albedo", 3), ("normal", 3), ("depth", 1), ("roughness", 1), ("motion", 2)]
@@ -100,43 +82,11 @@ ARCHITECTURE = 2  # model.py's network (1: the same filter in log space, retired
 
 
 def export_weights(model, path):
-    """kestrel denoiser weights v1: magic, version, architecture, tensors, FNV-1a 64 of all
-    preceding bytes."""
-    blob = bytearray(b"KSTRLDNW")
-    blob += struct.pack("<III", 1, ARCHITECTURE, len(list(model.named_parameters())))
-    for name, p in model.named_parameters():
-        a = p.detach().cpu().numpy().astype("<f4")
-        nb = name.encode()
-        blob += struct.pack("<I", len(nb)) + nb + struct.pack("<I", a.ndim) + struct.pack(f"<{a.ndim}I", *a.shape)
-        blob += a.tobytes()
-    h = 0xcbf29ce484222325
-    for byte in blob:
-        h = ((h ^ byte) * 0x100000001b3) & 0xFFFFFFFFFFFFFFFF
-    blob += struct.pack("<Q", h)
-    with open(path, "wb") as f:
-        f.write(blob)
+    kestrel_nn.export_kdw(model, path, b"KSTRLDNW", ARCHITECTURE)
 
 
 def load_weights(model, path):
-    """Reads a .kdw file written by export_weights into `model` (checks the hash)."""
-    blob = open(path, "rb").read()
-    assert blob[:8] == b"KSTRLDNW", f"{path}: not a kestrel weights file"
-    h = 0xcbf29ce484222325
-    for byte in blob[:-8]:
-        h = ((h ^ byte) * 0x100000001b3) & 0xFFFFFFFFFFFFFFFF
-    assert struct.unpack("<Q", blob[-8:])[0] == h, f"{path}: checksum mismatch"
-    version, arch, count = struct.unpack("<III", blob[8:20])
-    assert version == 1 and arch == ARCHITECTURE, f"{path}: version {version}, architecture {arch}"
-    at, params = 20, dict(model.named_parameters())
-    with torch.no_grad():
-        for _ in range(count):
-            (n,) = struct.unpack("<I", blob[at:at + 4]); at += 4
-            name = blob[at:at + n].decode(); at += n
-            (rank,) = struct.unpack("<I", blob[at:at + 4]); at += 4
-            dims = struct.unpack(f"<{rank}I", blob[at:at + 4 * rank]); at += 4 * rank
-            size = int(np.prod(dims))
-            params[name].copy_(torch.from_numpy(np.frombuffer(blob[at:at + 4 * size], dtype="<f4").reshape(dims).copy()))
-            at += 4 * size
+    kestrel_nn.load_kdw(model, path, b"KSTRLDNW", ARCHITECTURE)
 
 
 def write_fixture(model, clip, out_dir):

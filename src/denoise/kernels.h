@@ -2,6 +2,7 @@
 // kernels.inl with their own -m flags) and picked at run time by the host's CPU.
 #pragma once
 #include <cstddef>
+#include <vector>
 
 #include "denoise/neural.h"
 
@@ -38,6 +39,10 @@ struct AtrousArgs {
 struct KernelTable {
   const Planes& (*network)(const NeuralWeights& w, const Planes& in, Planes& state, bool recurrent, Workspace& ws,
                            StageTimes* times);
+  /// One convolution on a channels-last image (w x h x l.cin) -> out (w x h x l.cout), on the
+  /// thread pool; scratch holds the zero-padded input.
+  void (*conv)(const ConvLayer& l, const std::vector<float>& in, int w, int h, std::vector<float>& out, bool relu,
+               std::vector<float>& scratch);
   const char* isa;
 };
 

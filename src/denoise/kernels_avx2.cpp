@@ -16,7 +16,7 @@ namespace avx2_ns {
 }  // namespace avx2_ns
 
 const KernelTable& kernels_avx2() {
-  static const KernelTable table{avx2_ns::network, "avx2"};
+  static const KernelTable table{avx2_ns::network, avx2_ns::conv_layer, "avx2"};
   return table;
 }
 

@@ -16,7 +16,7 @@ namespace avx512_ns {
 }  // namespace avx512_ns
 
 const KernelTable& kernels_avx512() {
-  static const KernelTable table{avx512_ns::network, "avx512"};
+  static const KernelTable table{avx512_ns::network, avx512_ns::conv_layer, "avx512"};
   return table;
 }
 

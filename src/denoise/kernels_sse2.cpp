@@ -16,7 +16,7 @@ namespace sse2_ns {
 }  // namespace sse2_ns
 
 const KernelTable& kernels_sse2() {
-  static const KernelTable table{sse2_ns::network, "sse2"};
+  static const KernelTable table{sse2_ns::network, sse2_ns::conv_layer, "sse2"};
   return table;
 }
 

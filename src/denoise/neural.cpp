@@ -16,7 +16,7 @@ namespace kestrel::denoise {
 
 namespace {
 
-constexpr char kMagic[8] = {'K', 'S', 'T', 'R', 'L', 'D', 'N', 'W'};
+constexpr char kMagic[9] = "KSTRLDNW";
 constexpr uint32_t kVersion = 1, kArchitecture = 2;  // 2: linear-space filter (model.py)
 
 uint64_t fnv1a(const uint8_t* p, size_t n) {
@@ -87,34 +87,42 @@ ConvLayer read_layer(Reader& r, const std::string& name, int cout, int cin, int 
 
 }  // namespace
 
-NeuralWeights NeuralWeights::load(const std::string& path) {
+std::vector<ConvLayer> load_layers(const std::string& path, const char (&magic)[9], uint32_t architecture,
+                                   const std::vector<LayerSpec>& specs, const char* what) {
   std::ifstream f(path, std::ios::binary);
-  if (!f) throw Error(ErrorCode::io_error, fmt::format("{}: cannot open the denoiser weights", path));
+  if (!f) throw Error(ErrorCode::io_error, fmt::format("{}: cannot open the {} weights", path, what));
   const std::vector<uint8_t> bytes((std::istreambuf_iterator<char>(f)), std::istreambuf_iterator<char>());
-  if (bytes.size() < 8 + 12 + 8 || std::memcmp(bytes.data(), kMagic, 8) != 0)
-    throw Error(ErrorCode::parse_error, fmt::format("{}: not a kestrel denoiser weights file (bad magic)", path));
+  if (bytes.size() < 8 + 12 + 8 || std::memcmp(bytes.data(), magic, 8) != 0)
+    throw Error(ErrorCode::parse_error, fmt::format("{}: not a kestrel {} weights file (bad magic)", path, what));
   Reader r{path, bytes, 8, bytes.size() - 8};
   const uint32_t version = r.get<uint32_t>("the version");
   if (version != kVersion)
     throw Error(ErrorCode::parse_error, fmt::format("{}: weights format version {}, this build reads version {}", path, version, kVersion));
   const uint32_t arch = r.get<uint32_t>("the architecture");
-  if (arch != kArchitecture)
-    throw Error(ErrorCode::parse_error, fmt::format("{}: architecture {}, this build runs architecture {}", path, arch, kArchitecture));
+  if (arch != architecture)
+    throw Error(ErrorCode::parse_error, fmt::format("{}: architecture {}, this build runs architecture {}", path, arch, architecture));
   uint64_t stored;
   std::memcpy(&stored, bytes.data() + bytes.size() - 8, 8);
   if (stored != fnv1a(bytes.data(), bytes.size() - 8))
     throw Error(ErrorCode::parse_error, fmt::format("{}: checksum mismatch (the file is corrupt or truncated)", path));
   const uint32_t tensors = r.get<uint32_t>("the tensor count");
-  if (tensors != 10) throw Error(ErrorCode::parse_error, fmt::format("{}: {} tensors, this network has 10", path, tensors));
-  NeuralWeights w;
-  w.enc1 = read_layer(r, "enc1", 16, kFeatures, 3);
-  w.enc2 = read_layer(r, "enc2", 32, 16, 3);
-  w.enc3 = read_layer(r, "enc3", 32, 32, 3);
-  w.dec1 = read_layer(r, "dec1", 16, 48, 3);
-  w.head = read_layer(r, "head", kOutputs, 16, 1);
+  if (tensors != 2 * specs.size())
+    throw Error(ErrorCode::parse_error, fmt::format("{}: {} tensors, this network has {}", path, tensors, 2 * specs.size()));
+  std::vector<ConvLayer> layers;
+  for (const LayerSpec& s : specs) layers.push_back(read_layer(r, s.name, s.cout, s.cin, s.ksize));
   if (r.at != r.end) throw Error(ErrorCode::parse_error, fmt::format("{}: {} unexpected bytes after the tensors", path, r.end - r.at));
-  for (const ConvLayer* l : {&w.enc1, &w.enc2, &w.enc3, &w.dec1, &w.head})
-    w.parameters += size_t(l->outputs) * (size_t(l->cin) * size_t(l->ksize * l->ksize) + 1);
+  return layers;
+}
+
+NeuralWeights NeuralWeights::load(const std::string& path) {
+  std::vector<ConvLayer> l = load_layers(path, kMagic, kArchitecture,
+                                         {{"enc1", 16, kFeatures, 3}, {"enc2", 32, 16, 3}, {"enc3", 32, 32, 3},
+                                          {"dec1", 16, 48, 3}, {"head", kOutputs, 16, 1}},
+                                         "denoiser");
+  NeuralWeights w;
+  w.enc1 = std::move(l[0]), w.enc2 = std::move(l[1]), w.enc3 = std::move(l[2]), w.dec1 = std::move(l[3]), w.head = std::move(l[4]);
+  for (const ConvLayer* c : {&w.enc1, &w.enc2, &w.enc3, &w.dec1, &w.head})
+    w.parameters += size_t(c->outputs) * (size_t(c->cin) * size_t(c->ksize * c->ksize) + 1);
   return w;
 }
 

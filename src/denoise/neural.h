@@ -4,6 +4,7 @@
 #include <string>
 #include <vector>
 #include <cstddef>
+#include <cstdint>
 
 namespace kestrel::denoise {
 
@@ -24,6 +25,19 @@ struct ConvLayer {
   std::vector<float> weights;  ///< [ky][kx][cin][cout]
   std::vector<float> bias;
 };
+
+/// One convolution of a weights file: its tensor names are name.weight [cout][cin][k][k] and
+/// name.bias [cout].
+struct LayerSpec {
+  const char* name;
+  int cout, cin, ksize;
+};
+
+/// Reads a kestrel weights file (format v1, docs/denoiser.md): `magic`, version 1,
+/// `architecture`, exactly the tensors of `specs` in order, the FNV-1a 64 checksum. `what`
+/// names the network in errors. Throws Error naming the file and the problem.
+std::vector<ConvLayer> load_layers(const std::string& path, const char (&magic)[9], uint32_t architecture,
+                                   const std::vector<LayerSpec>& specs, const char* what);
 
 struct NeuralWeights {
   ConvLayer enc1, enc2, enc3, dec1, head;

@@ -6,6 +6,7 @@
 #include <cmath>
 #include <filesystem>
 
+#include "core/parallel.h"
 #include "kestrel/error.h"
 #include "kestrel/render.h"
 
@@ -62,11 +63,28 @@ float tonemap_aces_srgb(float x) {
 
 std::vector<uint8_t> tonemap_srgb8(const FloatImage& color, float exposure_stops) {
   if (color.channels < 3) throw Error(ErrorCode::invalid_argument, "tone map: the image needs 3 channels");
+  // The sRGB OETF of the ACES output y in [0, 1], quantised to 8 bits, from a table of y
+  // (2^16 steps: under 0.06 of a code value from the exact curve where it is steepest).
+  static const std::vector<uint8_t> oetf = [] {
+    std::vector<uint8_t> t(65536);
+    for (size_t i = 0; i < t.size(); ++i) {
+      const float y = float(i) / 65535.0f;
+      t[i] = uint8_t(std::lround(255.0f * (y <= 0.0031308f ? 12.92f * y : 1.055f * std::pow(y, 1.0f / 2.4f) - 0.055f)));
+    }
+    return t;
+  }();
   const float scale = std::exp2(exposure_stops);
-  std::vector<uint8_t> out(size_t(color.width) * size_t(color.height) * 3);
-  for (size_t p = 0; p < size_t(color.width) * size_t(color.height); ++p)
-    for (int c = 0; c < 3; ++c)
-      out[3 * p + size_t(c)] = uint8_t(std::lround(255.0f * tonemap_aces_srgb(color.pixels[p * size_t(color.channels) + size_t(c)] * scale)));
+  const size_t n = size_t(color.width) * size_t(color.height), ch = size_t(color.channels);
+  std::vector<uint8_t> out(n * 3);
+  parallel_for(0, n, 16384, [&](size_t b, size_t e) {
+    for (size_t p = b; p < e; ++p)
+      for (size_t c = 0; c < 3; ++c) {
+        float x = color.pixels[p * ch + c] * scale;
+        x = x > 0 ? std::min(x, 1e6f) : 0.0f;  // NaN and negatives to black
+        const float y = std::clamp((x * (2.51f * x + 0.03f)) / (x * (2.43f * x + 0.59f) + 0.14f), 0.0f, 1.0f);
+        out[3 * p + c] = oetf[size_t(y * 65535.0f + 0.5f)];
+      }
+  });
   return out;
 }
 

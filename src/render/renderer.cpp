@@ -844,7 +844,7 @@ Frame Renderer::render(const Camera& camera, const RenderSettings& s, std::optio
   for (int pass = 0; pass < s.spp; ++pass) {
     float jx = 0.5f, jy = 0.5f;
     if (s.jitter) {
-      const uint32_t index = s.frame * uint32_t(s.spp) + uint32_t(pass) + 1;
+      const uint32_t index = s.fixed_jitter ? s.frame + 1 : s.frame * uint32_t(s.spp) + uint32_t(pass) + 1;
       jx = radical_inverse(2, index), jy = radical_inverse(3, index);
     }
     if (pass == 0) frame.jitter_x = jx, frame.jitter_y = jy;

@@ -1,5 +1,6 @@
 // The `kestrel` binary end to end: help, errors and exit codes, and a rays -> trace -> hits
 // round trip checked against the library.
+#include <fmt/format.h>
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -34,7 +35,7 @@ CliRun run(const std::string& args) {
 }
 
 TEST(Cli, HelpForEveryCommand) {
-  for (const char* c : {"", "bvh", "trace", "rays", "preview", "render", "render-sequence", "denoise"}) {
+  for (const char* c : {"", "bvh", "trace", "rays", "preview", "render", "render-sequence", "denoise", "upscale", "run", "view"}) {
     const CliRun r = run(std::string(c) + " --help");
     EXPECT_EQ(r.status, 0) << c << ": " << r.out;
     EXPECT_NE(r.out.find("Usage"), std::string::npos) << c;
@@ -241,6 +242,75 @@ TEST(Cli, DenoiseReadsPfmsAndExrSequences) {
   EXPECT_EQ(bad.status, 1);
   EXPECT_NE(bad.out.find("%d"), std::string::npos) << bad.out;
   EXPECT_EQ(run("denoise -o " + (dir / "x.pfm").string()).status, 1);
+}
+
+TEST(Cli, UpscaleAndRenderSequenceUpscale) {
+  const auto dir = std::filesystem::temp_directory_path() / "kestrel_tests" / "cli_upscale";
+  std::filesystem::remove_all(dir);
+  // Low-resolution frames (fixed jitter), then every method at both factors.
+  const auto frames = dir / "low";
+  ASSERT_EQ(run("render-sequence builtin:cornell_box --path orbit:10 --frames 3 --spp 4 --fixed-jitter --res 24x16 --quiet -o " +
+                frames.string()).status, 0);
+  for (const char* method : {"neural", "taau", "bicubic", "bilinear"})
+    for (int f : {2, 4}) {
+      const std::string out = (dir / fmt::format("{}_x{}_%04d.exr", method, f)).string();
+      const CliRun r = run(fmt::format("upscale --sequence {} --factor {} --method {} -o {} --quiet", (frames / "frame_%04d.exr").string(),
+                                       f, method, out));
+      ASSERT_EQ(r.status, 0) << method << ": " << r.out;
+      EXPECT_NE(r.out.find("3 frames"), std::string::npos) << r.out;  // every consecutive file
+      const auto layers = read_exr((dir / fmt::format("{}_x{}_0002.exr", method, f)).string());
+      ASSERT_FALSE(layers.empty());
+      EXPECT_EQ(layers[0].image.width, 24 * f);
+      EXPECT_EQ(layers[0].image.height, 16 * f);
+      for (float v : layers[0].image.pixels) ASSERT_TRUE(std::isfinite(v) && v >= 0) << method;
+    }
+  // render-sequence --upscale: full-resolution frames, low-resolution ones under low/.
+  const auto seq = dir / "seq";
+  const CliRun r = run("render-sequence builtin:cornell_box --path orbit:10 --frames 2 --res 48x32 --upscale taau --factor 4 --quiet -o " +
+                       seq.string());
+  ASSERT_EQ(r.status, 0) << r.out;
+  EXPECT_EQ(read_exr((seq / "frame_0001.exr").string())[0].image.width, 48);
+  EXPECT_EQ(read_exr((seq / "low" / "frame_0001.exr").string())[0].image.width, 12);
+  // Errors name the problem.
+  CliRun bad = run("upscale --sequence " + (frames / "frame_%04d.exr").string() + " --factor 3 -o " + (dir / "x_%d.exr").string());
+  EXPECT_EQ(bad.status, 1);
+  EXPECT_NE(bad.out.find("factor"), std::string::npos) << bad.out;
+  bad = run("upscale -i /nonexistent/frame.exr -o " + (dir / "x.exr").string());
+  EXPECT_EQ(bad.status, 1);
+  EXPECT_NE(bad.out.find("/nonexistent/frame.exr"), std::string::npos) << bad.out;
+  bad = run("render-sequence builtin:cornell_box --path orbit:10 --frames 1 --res 30x30 --upscale neural --factor 4 -o " + seq.string());
+  EXPECT_EQ(bad.status, 1);
+  EXPECT_NE(bad.out.find("divisible"), std::string::npos) << bad.out;
+}
+
+TEST(Cli, RunWritesFramesAndAStageTable) {
+  const auto dir = std::filesystem::temp_directory_path() / "kestrel_tests" / "cli_run";
+  std::filesystem::remove_all(dir);
+  const CliRun r = run("run builtin:cornell_box --path orbit:20 --frames 3 --res 64x48 --internal 16x12 --max-depth 2 --quiet --exr -o " +
+                       dir.string());
+  ASSERT_EQ(r.status, 0) << r.out;
+  for (const char* f : {"frame_0000.png", "frame_0002.png", "frame_0002.exr", "timings.md", "timings.csv"})
+    EXPECT_TRUE(std::filesystem::exists(dir / f)) << f;
+  std::ifstream md(dir / "timings.md");
+  const std::string table((std::istreambuf_iterator<char>(md)), std::istreambuf_iterator<char>());
+  for (const char* stage : {"| render |", "| denoise |", "| upscale |", "| tone map |", "| frame |", "frames per second"})
+    EXPECT_NE(table.find(stage), std::string::npos) << stage << "\n" << table;
+  EXPECT_NE(table.find("16x12 internal (x4)"), std::string::npos) << table;
+  EXPECT_EQ(read_exr((dir / "frame_0002.exr").string())[0].image.width, 64);
+  // Same path, same settings: the same frames (deterministic pipeline).
+  const auto again = dir / "again";
+  ASSERT_EQ(run("run builtin:cornell_box --path orbit:20 --frames 3 --res 64x48 --internal 16x12 --max-depth 2 --quiet --threads 1 -o " +
+                again.string()).status, 0);
+  std::ifstream a(dir / "frame_0002.png", std::ios::binary), b(again / "frame_0002.png", std::ios::binary);
+  const std::string pa((std::istreambuf_iterator<char>(a)), std::istreambuf_iterator<char>());
+  const std::string pb((std::istreambuf_iterator<char>(b)), std::istreambuf_iterator<char>());
+  EXPECT_TRUE(!pa.empty() && pa == pb) << "1 thread and all threads differ";
+  CliRun bad = run("run builtin:cornell_box --res 64x48 --internal 30x12 -o " + again.string());
+  EXPECT_EQ(bad.status, 1);
+  EXPECT_NE(bad.out.find("--internal 30x12"), std::string::npos) << bad.out;
+  bad = run("run builtin:cornell_box --denoise fancy -o " + again.string());
+  EXPECT_EQ(bad.status, 1);
+  EXPECT_NE(bad.out.find("fancy"), std::string::npos) << bad.out;
 }
 
 }  // namespace

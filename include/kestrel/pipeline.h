@@ -1,0 +1,82 @@
+// The real-time frame loop: per frame, update the scene (animation, TLAS), trace at the
+// internal resolution with jitter (1 spp, NEE), denoise, upsample to the output resolution
+// and tone-map; every stage timed, all on the caller's TBB arena. See docs/pipeline.md.
+#pragma once
+#include <cstdint>
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "kestrel/denoise.h"
+#include "kestrel/render.h"
+#include "kestrel/upscale.h"
+
+namespace kestrel {
+
+struct PipelineSettings {
+  int width = 1280, height = 720;  ///< output resolution
+  int factor = 2;                  ///< internal = output / factor: 1, 2 or 4
+  bool denoise = true;
+  DenoiseMethod denoiser = DenoiseMethod::neural;
+  UpscaleMethod upscaler = UpscaleMethod::neural;  ///< unused at factor 1
+  int spp = 1, max_depth = 4;
+  float clamp = 16.0f;         ///< sample radiance clamp (0 = off): fireflies hurt a 1-spp loop
+  float exposure = 0.0f;       ///< stops, for the tone map
+  double target_ms = 0;        ///< > 0: change the factor (1, 2, 4) to hold this frame time
+  uint64_t seed = 0;
+};
+
+/// Milliseconds of one frame's stages.
+struct PipelineTimes {
+  double update = 0, render = 0, denoise = 0, upscale = 0, tonemap = 0, total = 0;
+};
+
+/// What the loop shows. The images are reused from frame to frame.
+struct PipelineFrame {
+  FloatImage noisy;      ///< the internal-resolution render (colour)
+  FloatImage denoised;   ///< after the denoiser (= noisy without one)
+  FloatImage upscaled;   ///< the output resolution, linear
+  std::vector<uint8_t> rgb8;  ///< upscaled, tone-mapped sRGB, width x height x 3
+  int width = 0, height = 0, internal_width = 0, internal_height = 0, factor = 1;
+  uint32_t index = 0;    ///< frames since the start (the Halton jitter's index)
+  PipelineTimes times;
+  RenderStats stats;
+};
+
+class Pipeline {
+ public:
+  /// Loads a scene (OBJ, glTF/GLB with its animation, builtin:NAME; see load_scene) and
+  /// builds its acceleration structures. environment: as Environment::parse ("" = the
+  /// scene's default). Throws Error naming the file or the bad setting.
+  Pipeline(const std::string& scene, const PipelineSettings& settings, const std::string& environment = "");
+  ~Pipeline();
+  Pipeline(Pipeline&&) noexcept;
+  Pipeline& operator=(Pipeline&&) noexcept;
+
+  /// Runs one frame at scene time `time` (seconds; animations) seen by `camera`; the
+  /// previous frame's camera drives the motion vectors.
+  const PipelineFrame& frame(const Camera& camera, double time);
+  /// Progressive reference: adds one full-resolution sample per pixel to a running mean
+  /// (restarted when the camera or time changes) and returns it tone-mapped in rgb8.
+  const PipelineFrame& accumulate(const Camera& camera, double time);
+  /// Samples per pixel in the progressive reference so far.
+  int accumulated() const;
+
+  /// New settings; resets the temporal history when the resolution or methods change.
+  void set_settings(const PipelineSettings& settings);
+  const PipelineSettings& settings() const;
+  /// Forgets the history (denoiser, upsampler, previous camera).
+  void reset();
+  /// Bounds of the scene, the source's name, whether it animates (glTF animation).
+  Bounds3 bounds() const;
+  const std::string& source() const;
+  double animation_duration() const;
+  size_t triangle_count() const;
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace kestrel

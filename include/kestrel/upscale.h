@@ -1,0 +1,77 @@
+// Temporal upsampling of jittered low-resolution frames: kestrel's learned TAAU (a small CNN
+// at 1/4 of the output resolution predicting, per pixel, how much to trust the reprojected
+// history: its blend weight, the width of its neighbourhood clamp and how fast the current
+// frame's weight falls off with the distance to its samples) and three baselines: a
+// TAAU-like upsampler (the same reconstruction with constants), bicubic (Catmull-Rom) and
+// bilinear of the current frame. See docs/upscaler.md.
+#pragma once
+#include <memory>
+#include <optional>
+#include <string>
+#include <string_view>
+
+#include "kestrel/io.h"
+
+namespace kestrel {
+
+enum class UpscaleMethod { neural, taau, bicubic, bilinear };
+const char* upscale_method_name(UpscaleMethod m);
+std::optional<UpscaleMethod> upscale_method_from_name(std::string_view name);
+
+/// One low-resolution frame (pointers, not owned). colour (3 channels, linear HDR) is
+/// point-sampled: pixel (i, j) holds the sample at (i + jitter_x, j + jitter_y), jitter in
+/// [0, 1] (kestrel's Frame::jitter_x/y; RenderSettings::fixed_jitter for many samples).
+/// depth (1 channel; null = 1) and motion (2 or 3 channels, low-resolution pixels, "p +
+/// motion = where the surface was in the previous frame"; null = 0) must have colour's size.
+/// NaN/Inf read as 0, negative colours as 0.
+struct UpscaleInput {
+  const FloatImage* color = nullptr;
+  const FloatImage* depth = nullptr;
+  const FloatImage* motion = nullptr;
+  float jitter_x = 0.5f, jitter_y = 0.5f;
+};
+
+struct UpscalerOptions {
+  UpscaleMethod method = UpscaleMethod::neural;
+  int factor = 2;        ///< 2 or 4: the output is factor x the input in each dimension
+  std::string weights;   ///< neural: weights file ("" = default_upscaler_weights())
+};
+
+/// $KESTREL_WEIGHTS_DIR/upscaler.kdw, else the source tree's weights/upscaler.kdw.
+std::string default_upscaler_weights();
+
+/// Halton (2, 3) jitter of kestrel's frame `index` at 1 spp (or with fixed_jitter).
+void frame_jitter(uint32_t index, float& jx, float& jy);
+
+/// An upsampler for one sequence (the history carries from frame to frame; reset() starts a
+/// new sequence, as does a change of input size). Work runs on the caller's TBB arena.
+class Upscaler {
+ public:
+  /// Throws Error for a factor other than 2 or 4, or naming the file for a missing, corrupt
+  /// or mismatched weights file.
+  explicit Upscaler(const UpscalerOptions& options = {});
+  ~Upscaler();
+  Upscaler(Upscaler&&) noexcept;
+  Upscaler& operator=(Upscaler&&) noexcept;
+
+  /// Upsamples one frame to factor x its size (3 channels, linear). Throws Error on missing
+  /// colour, mismatched sizes or channel counts, or a non-finite jitter.
+  FloatImage upscale(const UpscaleInput& input);
+  /// The same into `out`, reusing its storage.
+  void upscale(const UpscaleInput& input, FloatImage& out);
+  void reset();
+  UpscaleMethod method() const;
+  int factor() const;
+  size_t parameter_count() const;  ///< 0 for the baselines
+  /// Milliseconds of the last frame's stages: features, network, reconstruction.
+  struct Times {
+    double features = 0, network = 0, reconstruct = 0;
+  };
+  Times last_times() const;
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace kestrel

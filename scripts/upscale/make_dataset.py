@@ -1,0 +1,113 @@
+#!/usr/bin/env python3
+"""The upsampler's dataset, rendered by `kestrel render-sequence`. Per clip, the same camera
+path and frames at three resolutions:
+  - full/: the target, --res (default 320x180), --ref-spp samples spread over each pixel
+    (antialiased, as the high-resolution frame should look);
+  - x2/, x4/: the inputs at 1/2 and 1/4 of the resolution, point-sampled at the frame's
+    Halton jitter (--fixed-jitter) with --in-spp samples: the clean low-resolution frames a
+    real-time renderer would produce after denoising, with depth and motion vectors.
+Clips: shared scenes (turntables) and procedural rooms (../denoise/procedural.py). The test
+clips' scenes are never used in training: Sponza, the Lamborghini and rooms with seeds >= 1000.
+
+    make_dataset.py [--out out/upscale_dataset] [--split train|test|all] [--res 320x180]
+                    [--frames 12] [--test-frames 16] [--ref-spp 256] [--test-ref-spp 384]
+                    [--in-spp 128] [--rooms 8] [--max-depth 3] [--clamp 8]
+
+Re-running skips finished clips (a clip is finished when its manifest entry exists).
+"""
+import argparse
+import json
+import os
+import subprocess
+import sys
+import time
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+ROOT = os.path.normpath(os.path.join(HERE, "..", ".."))
+SCENES = os.path.normpath(os.path.join(ROOT, "..", "shared", "scenes"))
+
+
+def clips(args):
+    out = []
+    shared = [
+        ("cornell_box", "cornell_box/cornell_box.obj", "orbit:24"),
+        ("teapot", "teapot/teapot.obj", "orbit:40"),
+        ("bunny", "stanford_bunny/stanford_bunny.obj", "orbit:40"),
+        ("box_animated", "gltf_box_animated/BoxAnimated.gltf", os.path.join(ROOT, "data/paths/box_animated_orbit.json")),
+        ("flight_helmet", "gltf_flight_helmet/FlightHelmet.gltf", "orbit:40"),
+    ]
+    for name, scene, path in shared:
+        out.append(dict(name=name, split="train", scene=os.path.join(SCENES, scene), path=path))
+    for i in range(args.rooms):
+        out.append(dict(name=f"room_{i:03d}", split="train", room=i))
+    out.append(dict(name="test_sponza", split="test", scene=os.path.join(SCENES, "dabrovic_sponza/sponza.obj"),
+                    path=os.path.join(ROOT, "data/paths/sponza_short.json")))
+    out.append(dict(name="test_lamborghini", split="test", scene=os.path.join(SCENES, "lamborghini/lamborghini.obj"),
+                    path="orbit:32"))
+    out.append(dict(name="test_room_1000", split="test", room=1000))
+    return out
+
+
+def run(cmd):
+    print("+", " ".join(cmd), flush=True)
+    subprocess.run(cmd, check=True, stdout=subprocess.DEVNULL)
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--out", default=os.path.join(ROOT, "out", "upscale_dataset"))
+    ap.add_argument("--kestrel", default=os.path.join(ROOT, "build", "release", "apps", "kestrel", "kestrel"))
+    ap.add_argument("--split", default="all", choices=["train", "test", "all"])
+    ap.add_argument("--res", default="320x180")
+    ap.add_argument("--frames", type=int, default=12)
+    ap.add_argument("--test-frames", type=int, default=16)
+    ap.add_argument("--ref-spp", type=int, default=256)
+    ap.add_argument("--test-ref-spp", type=int, default=384)
+    ap.add_argument("--in-spp", type=int, default=128)
+    ap.add_argument("--rooms", type=int, default=8)
+    ap.add_argument("--max-depth", type=int, default=3, help="path vertices (fewer: less noise, what matters here is detail)")
+    ap.add_argument("--clamp", type=float, default=8.0, help="sample radiance clamp (no fireflies in the targets)")
+    args = ap.parse_args()
+    w, h = (int(v) for v in args.res.split("x"))
+    if w % 4 or h % 4:
+        sys.exit(f"--res {args.res}: width and height must be multiples of 4")
+    os.makedirs(args.out, exist_ok=True)
+    manifest_path = os.path.join(args.out, "manifest.json")
+    manifest = json.load(open(manifest_path)) if os.path.exists(manifest_path) else {"clips": {}}
+    order = [c for c in clips(args) if c["split"] == "test"] + [c for c in clips(args) if c["split"] == "train"]
+    for clip in order:
+        if args.split != "all" and clip["split"] != args.split:
+            continue
+        if clip["name"] in manifest["clips"]:
+            continue
+        d = os.path.join(args.out, clip["name"])
+        t0 = time.time()
+        scene, path, env = clip.get("scene"), clip.get("path"), None
+        if "room" in clip:
+            rd = os.path.join(d, "scene")
+            run([sys.executable, os.path.join(HERE, "..", "denoise", "procedural.py"), str(clip["room"]), rd])
+            scene, path = os.path.join(rd, "room.obj"), os.path.join(rd, "path.json")
+            env = open(os.path.join(rd, "env.txt")).read().strip()
+        test = clip["split"] == "test"
+        frames = args.test_frames if test else args.frames
+        base = [args.kestrel, "render-sequence", scene, "--path", path, "--frames", str(frames), "--quiet",
+                "--max-depth", str(args.max_depth), "--clamp", str(args.clamp)]
+        if env and env != "none":
+            base += ["--env", env]
+        for f in (2, 4):
+            sub = os.path.join(d, f"x{f}")
+            run(base + ["--res", f"{w // f}x{h // f}", "--spp", str(args.in_spp), "--fixed-jitter", "--seed", "11",
+                        "-o", sub, "--pfm", os.path.join(sub, "pfm")])
+        ref_spp = args.test_ref_spp if test else args.ref_spp
+        run(base + ["--res", args.res, "--spp", str(ref_spp), "--seed", "7", "-o", os.path.join(d, "full"), "--pfm",
+                    os.path.join(d, "full", "pfm"), "--png", "1"])
+        manifest["clips"][clip["name"]] = dict(split=clip["split"], scene=scene, path=path, env=env or "default",
+                                               frames=frames, res=args.res, ref_spp=ref_spp, in_spp=args.in_spp,
+                                               max_depth=args.max_depth, clamp=args.clamp,
+                                               seconds=round(time.time() - t0, 1))
+        json.dump(manifest, open(manifest_path, "w"), indent=1)
+        print(f"{clip['name']}: {time.time() - t0:.0f} s", flush=True)
+
+
+if __name__ == "__main__":
+    main()

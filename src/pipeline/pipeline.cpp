@@ -1,0 +1,223 @@
+// The real-time frame loop (kestrel/pipeline.h): scene update, 1-spp render at the internal
+// resolution, denoiser, upsampler, tone map; each stage timed.
+#include "kestrel/pipeline.h"
+
+#include <fmt/format.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <filesystem>
+#include <string>
+
+#include "kestrel/error.h"
+#include "kestrel/instances.h"
+#include "kestrel/scene.h"
+
+namespace kestrel {
+
+namespace {
+
+double now_ms() {
+  return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now().time_since_epoch()).count();
+}
+
+bool is_gltf(const std::string& path) {
+  std::string ext = std::filesystem::path(path).extension().string();
+  for (char& c : ext) c = char(std::tolower(static_cast<unsigned char>(c)));
+  return ext == ".gltf" || ext == ".glb";
+}
+
+void check(const PipelineSettings& s) {
+  if (s.width <= 0 || s.height <= 0 || s.width > 16384 || s.height > 16384)
+    throw Error(ErrorCode::invalid_argument, fmt::format("pipeline: output {}x{} is out of range", s.width, s.height));
+  if (s.factor != 1 && s.factor != 2 && s.factor != 4)
+    throw Error(ErrorCode::invalid_argument, fmt::format("pipeline: factor must be 1, 2 or 4, got {}", s.factor));
+  if (s.width % s.factor || s.height % s.factor)
+    throw Error(ErrorCode::invalid_argument,
+                fmt::format("pipeline: output {}x{} is not divisible by the factor {}", s.width, s.height, s.factor));
+  if (s.spp <= 0 || s.max_depth <= 0 || !(s.clamp >= 0) || !std::isfinite(s.exposure) || !(s.target_ms >= 0))
+    throw Error(ErrorCode::invalid_argument, "pipeline: spp and max depth must be positive, clamp and target time >= 0");
+}
+
+bool same_camera(const Camera& a, const Camera& b) {
+  return a.eye.x == b.eye.x && a.eye.y == b.eye.y && a.eye.z == b.eye.z && a.target.x == b.target.x &&
+         a.target.y == b.target.y && a.target.z == b.target.z && a.vfov_degrees == b.vfov_degrees &&
+         a.aperture_radius == b.aperture_radius && a.focus_distance == b.focus_distance;
+}
+
+}  // namespace
+
+struct Pipeline::Impl {
+  PipelineSettings settings;
+  std::string source;
+  size_t triangles = 0;
+  std::unique_ptr<InstancedScene> instanced;
+  std::unique_ptr<GltfInstances> gltf;
+  std::unique_ptr<Renderer> renderer;
+  std::unique_ptr<Denoiser> denoiser;
+  std::unique_ptr<Upscaler> upscaler;
+  std::optional<Camera> prev_camera;
+  double last_time = -1;
+  PipelineFrame out;
+  // Progressive reference.
+  std::vector<double> sum;
+  int samples = 0;
+  std::optional<Camera> acc_camera;
+  double acc_time = 0;
+
+  void make_filters() {
+    denoiser.reset(), upscaler.reset();
+    if (settings.denoise) {
+      DenoiserOptions o;
+      o.method = settings.denoiser;
+      denoiser = std::make_unique<Denoiser>(o);
+    }
+    if (settings.factor > 1) {
+      UpscalerOptions o;
+      o.method = settings.upscaler, o.factor = settings.factor;
+      upscaler = std::make_unique<Upscaler>(o);
+    }
+    prev_camera.reset();
+  }
+
+  // Poses an animated scene at `time`: commit (BLAS refits / rebuilds, TLAS) and sync.
+  void update(double time) {
+    if (!gltf || time == last_time) return;
+    gltf->set_time(*instanced, time);
+    instanced->commit();
+    renderer->sync();
+    last_time = time;
+  }
+
+  RenderSettings render_settings(int w, int h, uint32_t frame) const {
+    RenderSettings rs;
+    rs.width = w, rs.height = h, rs.spp = settings.spp, rs.seed = settings.seed, rs.frame = frame;
+    rs.max_depth = settings.max_depth, rs.clamp = settings.clamp, rs.fixed_jitter = true;
+    return rs;
+  }
+};
+
+Pipeline::Pipeline(const std::string& scene, const PipelineSettings& settings, const std::string& environment)
+    : impl_(std::make_unique<Impl>()) {
+  check(settings);
+  Impl& m = *impl_;
+  m.settings = settings;
+  std::optional<Environment> env;
+  if (!environment.empty()) env = Environment::parse(environment);
+  if (is_gltf(scene)) {
+    m.instanced = std::make_unique<InstancedScene>();
+    m.gltf = std::make_unique<GltfInstances>(GltfInstances::load(scene));
+    m.gltf->add_to(*m.instanced);
+    m.instanced->commit();
+    m.renderer = std::make_unique<Renderer>(*m.instanced, m.gltf->materials(), m.gltf->textures(), env);
+    m.last_time = 0;
+    m.source = scene;
+    for (size_t i = 0; i < m.instanced->instance_capacity(); ++i)
+      if (m.instanced->has_instance(InstanceId(i)))
+        m.triangles += m.instanced->mesh(m.instanced->instance_mesh(InstanceId(i))).triangle_count();
+  } else {
+    Scene s = load_scene(scene);
+    m.source = s.source;
+    m.triangles = s.triangle_count();
+    m.renderer = std::make_unique<Renderer>(std::move(s), env);
+  }
+  m.make_filters();
+}
+
+Pipeline::~Pipeline() = default;
+Pipeline::Pipeline(Pipeline&&) noexcept = default;
+Pipeline& Pipeline::operator=(Pipeline&&) noexcept = default;
+
+void Pipeline::set_settings(const PipelineSettings& s) {
+  check(s);
+  const PipelineSettings old = impl_->settings;
+  impl_->settings = s;
+  if (s.factor != old.factor || s.width != old.width || s.height != old.height || s.denoise != old.denoise ||
+      s.denoiser != old.denoiser || s.upscaler != old.upscaler)
+    impl_->make_filters();
+  if (s.width != old.width || s.height != old.height || s.max_depth != old.max_depth || s.clamp != old.clamp)
+    impl_->samples = 0;
+}
+
+const PipelineSettings& Pipeline::settings() const { return impl_->settings; }
+void Pipeline::reset() {
+  impl_->make_filters();
+  impl_->samples = 0;
+}
+Bounds3 Pipeline::bounds() const { return impl_->renderer->bounds(); }
+const std::string& Pipeline::source() const { return impl_->source; }
+double Pipeline::animation_duration() const { return impl_->gltf ? impl_->gltf->duration() : 0.0; }
+size_t Pipeline::triangle_count() const { return impl_->triangles; }
+int Pipeline::accumulated() const { return impl_->samples; }
+
+const PipelineFrame& Pipeline::frame(const Camera& camera, double time) {
+  Impl& m = *impl_;
+  PipelineFrame& o = m.out;
+  const PipelineSettings& s = m.settings;
+  const double t0 = now_ms();
+  m.update(time);
+  const double t1 = now_ms();
+  const int iw = s.width / s.factor, ih = s.height / s.factor;
+  const Frame f = m.renderer->render(camera, m.render_settings(iw, ih, o.index), m.prev_camera);
+  m.prev_camera = camera;
+  const double t2 = now_ms();
+  o.noisy = f[Aov::color];
+  if (m.denoiser)
+    m.denoiser->denoise({&f[Aov::color], &f[Aov::albedo], &f[Aov::normal], &f[Aov::depth], &f[Aov::roughness], &f[Aov::motion]},
+                        o.denoised);
+  else
+    o.denoised = o.noisy;
+  const double t3 = now_ms();
+  if (m.upscaler) m.upscaler->upscale({&o.denoised, &f[Aov::depth], &f[Aov::motion], f.jitter_x, f.jitter_y}, o.upscaled);
+  else o.upscaled = o.denoised;
+  const double t4 = now_ms();
+  o.rgb8 = tonemap_srgb8(o.upscaled, s.exposure);
+  const double t5 = now_ms();
+  o.width = s.width, o.height = s.height, o.internal_width = iw, o.internal_height = ih, o.factor = s.factor;
+  o.times = {t1 - t0, t2 - t1, t3 - t2, t4 - t3, t5 - t4, t5 - t0};
+  o.stats = f.stats;
+  ++o.index;
+  // Hold the target frame time: a coarser factor when slow, a finer one when well under.
+  if (s.target_ms > 0) {
+    PipelineSettings next = s;
+    if (o.times.total > 1.15 * s.target_ms && s.factor < 4) next.factor = s.factor * 2;
+    else if (o.times.total < 0.3 * s.target_ms && s.factor > 1) next.factor = s.factor / 2;
+    if (next.factor != s.factor && s.width % next.factor == 0 && s.height % next.factor == 0) set_settings(next);
+  }
+  return o;
+}
+
+const PipelineFrame& Pipeline::accumulate(const Camera& camera, double time) {
+  Impl& m = *impl_;
+  PipelineFrame& o = m.out;
+  const PipelineSettings& s = m.settings;
+  if (!m.acc_camera || !same_camera(*m.acc_camera, camera) || m.acc_time != time ||
+      m.sum.size() != size_t(s.width) * size_t(s.height) * 3)
+    m.samples = 0;
+  const double t0 = now_ms();
+  m.update(time);
+  const double t1 = now_ms();
+  RenderSettings rs = m.render_settings(s.width, s.height, uint32_t(m.samples));
+  rs.fixed_jitter = false;  // antialiased: a new jitter every sample
+  rs.seed = s.seed + 1000003;
+  const Frame f = m.renderer->render(camera, rs);
+  const double t2 = now_ms();
+  if (m.samples == 0) m.sum.assign(size_t(s.width) * size_t(s.height) * 3, 0.0);
+  const FloatImage& c = f[Aov::color];
+  for (size_t i = 0; i < m.sum.size(); ++i) m.sum[i] += std::isfinite(c.pixels[i]) ? double(c.pixels[i]) : 0.0;
+  ++m.samples;
+  m.acc_camera = camera, m.acc_time = time;
+  if (o.upscaled.width != s.width || o.upscaled.height != s.height || o.upscaled.channels != 3)
+    o.upscaled = FloatImage(s.width, s.height, 3);
+  for (size_t i = 0; i < m.sum.size(); ++i) o.upscaled.pixels[i] = float(m.sum[i] / m.samples);
+  o.rgb8 = tonemap_srgb8(o.upscaled, s.exposure);
+  const double t3 = now_ms();
+  o.width = s.width, o.height = s.height, o.internal_width = s.width, o.internal_height = s.height, o.factor = 1;
+  o.times = {t1 - t0, t2 - t1, 0, 0, t3 - t2, t3 - t0};
+  o.stats = f.stats;
+  m.prev_camera.reset();  // the real-time history is stale after a rest
+  return o;
+}
+
+}  // namespace kestrel

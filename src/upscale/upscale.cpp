@@ -1,0 +1,530 @@
+// kestrel's temporal upsampler: scripts/upscale/model.py is the reference definition; this
+// computes the same function (tests/upscale compares them on a fixture). Layout: colours
+// channels-last; the network's grid is 1/4 of the output in each dimension.
+#include "kestrel/upscale.h"
+
+#include <fmt/format.h>
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+#include <xmmintrin.h>
+
+#include <algorithm>
+#include <array>
+#include <chrono>
+#include <cmath>
+#include <cstdlib>
+#include <vector>
+
+#include "denoise/kernels.h"
+#include "denoise/neural.h"
+#include "kestrel/error.h"
+
+namespace kestrel {
+
+namespace {
+
+constexpr float kLuma[3] = {0.2126f, 0.7152f, 0.0722f};
+constexpr int kFeatures = 11, kLowFeatures = 8, kOutputs = 3;
+constexpr float kCurrentSharpness = 2.0f;
+constexpr float kMinDepth = 1e-3f, kMaxMotion = 65536.0f;
+constexpr char kMagic[9] = "KSTRLUPW";
+constexpr uint32_t kArchitecture = 1;
+// The TAAU-like baseline's constants, picked on the training clips by a grid search
+// (scripts/upscale/train.py --tune-taau; weights/upscaler.json records them).
+constexpr float kTaauA = 0.6f, kTaauGamma = 0.75f, kTaauKappa = 0.0625f;
+
+double now_ms() {
+  return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now().time_since_epoch()).count();
+}
+
+struct FlushDenormals {
+  unsigned saved = _mm_getcsr();
+  FlushDenormals() { _mm_setcsr(saved | 0x8040); }
+  ~FlushDenormals() { _mm_setcsr(saved); }
+};
+
+template <class F>
+void parallel_rows(int h, int grain, F&& f) {
+  tbb::parallel_for(tbb::blocked_range<int>(0, h, grain), [&](const tbb::blocked_range<int>& r) {
+    FlushDenormals ftz;
+    f(r.begin(), r.end());
+  });
+}
+
+inline float luma(const float* c) { return kLuma[0] * c[0] + kLuma[1] * c[1] + kLuma[2] * c[2]; }
+inline float finite_or_zero(float v) { return std::isfinite(v) ? v : 0.0f; }
+inline int clampi(int v, int lo, int hi) { return v < lo ? lo : (v > hi ? hi : v); }
+// floor as an int without libm (baseline x86-64 has no roundss); |x| < 2^31.
+inline int floor_int(float x) {
+  const int i = int(x);
+  return i - (float(i) > x);
+}
+inline float sigmoid(float x) { return 1.0f / (1.0f + std::exp(-x)); }
+inline float softplus(float x) { return x > 20.0f ? x : std::log1p(std::exp(x)); }
+
+// Catmull-Rom weights of the four taps around t in [0, 1).
+inline void catmull_rom(float t, float w[4]) {
+  const float t2 = t * t, t3 = t2 * t;
+  w[0] = -0.5f * t3 + t2 - 0.5f * t;
+  w[1] = 1.5f * t3 - 2.5f * t2 + 1.0f;
+  w[2] = -1.5f * t3 + 2.0f * t2 + 0.5f * t;
+  w[3] = 0.5f * t3 - 0.5f * t2;
+}
+
+// Samples a channels-last image (c channels) at continuous coordinates, pixel centres at
+// k + 0.5, edges clamped: bilinear or Catmull-Rom.
+template <int C>
+inline void sample_bilinear(const float* img, int w, int h, float x, float y, float* out) {
+  const float xf = x - 0.5f, yf = y - 0.5f;
+  const int x0 = floor_int(xf), y0 = floor_int(yf);
+  const float tx = xf - float(x0), ty = yf - float(y0);
+  const int ix0 = clampi(x0, 0, w - 1), ix1 = clampi(x0 + 1, 0, w - 1);
+  const int iy0 = clampi(y0, 0, h - 1), iy1 = clampi(y0 + 1, 0, h - 1);
+  const float* p00 = img + (size_t(iy0) * size_t(w) + size_t(ix0)) * C;
+  const float* p01 = img + (size_t(iy0) * size_t(w) + size_t(ix1)) * C;
+  const float* p10 = img + (size_t(iy1) * size_t(w) + size_t(ix0)) * C;
+  const float* p11 = img + (size_t(iy1) * size_t(w) + size_t(ix1)) * C;
+  for (int c = 0; c < C; ++c)
+    out[c] = (1 - ty) * ((1 - tx) * p00[c] + tx * p01[c]) + ty * ((1 - tx) * p10[c] + tx * p11[c]);
+}
+
+inline void sample_catmull_rom3(const float* img, int w, int h, float x, float y, float* out) {
+  const float xf = x - 0.5f, yf = y - 0.5f;
+  const int x1 = floor_int(xf), y1 = floor_int(yf);
+  float wx[4], wy[4];
+  catmull_rom(xf - float(x1), wx);
+  catmull_rom(yf - float(y1), wy);
+  int ix[4], iy[4];
+  if (x1 >= 1 && x1 + 2 < w) {
+    for (int i = 0; i < 4; ++i) ix[i] = x1 + i - 1;
+  } else {
+    for (int i = 0; i < 4; ++i) ix[i] = clampi(x1 + i - 1, 0, w - 1);
+  }
+  if (y1 >= 1 && y1 + 2 < h) {
+    for (int i = 0; i < 4; ++i) iy[i] = y1 + i - 1;
+  } else {
+    for (int i = 0; i < 4; ++i) iy[i] = clampi(y1 + i - 1, 0, h - 1);
+  }
+  float acc[3] = {0, 0, 0};
+  for (int j = 0; j < 4; ++j) {
+    const float* row = img + size_t(iy[j]) * size_t(w) * 3;
+    float r[3] = {0, 0, 0};
+    for (int i = 0; i < 4; ++i) {
+      const float* p = row + size_t(ix[i]) * 3;
+      r[0] += wx[i] * p[0], r[1] += wx[i] * p[1], r[2] += wx[i] * p[2];
+    }
+    acc[0] += wy[j] * r[0], acc[1] += wy[j] * r[1], acc[2] += wy[j] * r[2];
+  }
+  out[0] = acc[0], out[1] = acc[1], out[2] = acc[2];
+}
+
+void check_input(const UpscaleInput& in) {
+  if (!in.color) throw Error(ErrorCode::invalid_argument, "upscale: the colour image is required");
+  const FloatImage& c = *in.color;
+  if (c.channels != 3 || c.width <= 0 || c.height <= 0 || c.pixels.size() != size_t(c.width) * size_t(c.height) * 3)
+    throw Error(ErrorCode::invalid_argument, fmt::format("upscale: colour must be a non-empty 3-channel image (got {}x{}x{})",
+                                                         c.width, c.height, c.channels));
+  auto same = [&](const FloatImage* im, const char* name, int c0, int c1) {
+    if (!im) return;
+    if (im->width != c.width || im->height != c.height)
+      throw Error(ErrorCode::invalid_argument, fmt::format("upscale: {} is {}x{}, colour is {}x{}", name, im->width,
+                                                           im->height, c.width, c.height));
+    if (im->channels < c0 || im->channels > c1 ||
+        im->pixels.size() != size_t(im->width) * size_t(im->height) * size_t(im->channels))
+      throw Error(ErrorCode::invalid_argument, fmt::format("upscale: {} has {} channels (expected {}{})", name,
+                                                           im->channels, c0, c1 > c0 ? fmt::format(" to {}", c1) : ""));
+  };
+  same(in.depth, "depth", 1, 1);
+  same(in.motion, "motion", 2, 3);
+  if (!std::isfinite(in.jitter_x) || !std::isfinite(in.jitter_y) || in.jitter_x < -1 || in.jitter_x > 2 ||
+      in.jitter_y < -1 || in.jitter_y > 2)
+    throw Error(ErrorCode::invalid_argument, fmt::format("upscale: jitter ({}, {}) is not a sub-pixel position",
+                                                         in.jitter_x, in.jitter_y));
+}
+
+// Per output column (or row): the nearest sample's index, its three Gaussian weights
+// (offsets -1, 0, +1) and the offset to the nearest sample, in low-resolution pixels.
+struct Axis {
+  std::vector<int> i0;
+  std::vector<float> w;  // 3 per entry
+  std::vector<float> d0;
+  void build(int out, int in, int f, float jitter) {
+    i0.resize(size_t(out)), w.resize(3 * size_t(out)), d0.resize(size_t(out));
+    for (int X = 0; X < out; ++X) {
+      const float u = (float(X) + 0.5f) / float(f) - jitter;
+      const int i = clampi(floor_int(u + 0.5f), 0, in - 1);
+      i0[size_t(X)] = i;
+      d0[size_t(X)] = u - float(i);
+      for (int k = 0; k < 3; ++k) {
+        const float d = u - float(i + k - 1);
+        w[3 * size_t(X) + size_t(k)] = std::exp(-kCurrentSharpness * d * d);
+      }
+    }
+  }
+};
+
+// Bilinear taps of the parameter grid (pixel centres at 4k + 2 in output pixels).
+struct GridAxis {
+  std::vector<int> a, b;
+  std::vector<float> t;
+  void build(int out, int grid) {
+    a.resize(size_t(out)), b.resize(size_t(out)), t.resize(size_t(out));
+    for (int X = 0; X < out; ++X) {
+      const float xf = (float(X) + 0.5f) / 4.0f - 0.5f;
+      const int x0 = floor_int(xf);
+      a[size_t(X)] = clampi(x0, 0, grid - 1), b[size_t(X)] = clampi(x0 + 1, 0, grid - 1);
+      t[size_t(X)] = xf - float(x0);
+    }
+  }
+};
+
+// The per-output-pixel reconstruction (model.step), rows [r0, r1); cloned per instruction set.
+struct Recon {
+  const float *y, *mdil, *mu, *sigma, *grid, *hist;
+  float *next, *out;
+  const Axis *ax, *ay;
+  const GridAxis *gx, *gy;
+  int w, h, W, H, gw, f;
+  bool history;
+};
+
+__attribute__((target_clones("avx512f", "arch=haswell", "default")))
+void reconstruct_rows(const Recon& a, int r0, int r1) {
+  std::vector<float> vert(3 * size_t(a.w));
+  for (int Y = r0; Y < r1; ++Y) {
+    const int j0 = a.ay->i0[size_t(Y)];
+    const float* wy = &a.ay->w[3 * size_t(Y)];
+    const float dy0 = a.ay->d0[size_t(Y)];
+    const int rows[3] = {clampi(j0 - 1, 0, a.h - 1), j0, clampi(j0 + 1, 0, a.h - 1)};
+    const float ty = a.gy->t[size_t(Y)];
+    const float* ga = &a.grid[size_t(a.gy->a[size_t(Y)]) * size_t(a.gw) * 3];
+    const float* gb = &a.grid[size_t(a.gy->b[size_t(Y)]) * size_t(a.gw) * 3];
+    // The current frame's three rows, weighted for this output row: vert[i] = sum_b wy_b y(i, row_b).
+    const float* y0 = &a.y[size_t(rows[0]) * size_t(a.w) * 3];
+    const float* y1 = &a.y[size_t(rows[1]) * size_t(a.w) * 3];
+    const float* y2 = &a.y[size_t(rows[2]) * size_t(a.w) * 3];
+    for (size_t q = 0; q < 3 * size_t(a.w); ++q) vert[q] = wy[0] * y0[q] + wy[1] * y1[q] + wy[2] * y2[q];
+    for (int X = 0; X < a.W; ++X) {
+      const int i0 = a.ax->i0[size_t(X)];
+      const float* wx = &a.ax->w[3 * size_t(X)];
+      const int cols[3] = {clampi(i0 - 1, 0, a.w - 1), i0, clampi(i0 + 1, 0, a.w - 1)};
+      float cur[3] = {0, 0, 0};
+      for (int k = 0; k < 3; ++k) {
+        const float* v = &vert[size_t(cols[k]) * 3];
+        cur[0] += wx[k] * v[0], cur[1] += wx[k] * v[1], cur[2] += wx[k] * v[2];
+      }
+      const float inv = 1.0f / ((wx[0] + wx[1] + wx[2]) * (wy[0] + wy[1] + wy[2]));
+      for (float& c : cur) c *= inv;
+      const size_t P = size_t(Y) * size_t(a.W) + size_t(X);
+      float* o = &a.next[3 * P];
+      if (!a.history) {
+        o[0] = cur[0], o[1] = cur[1], o[2] = cur[2];
+      } else {
+        const size_t pl = size_t(j0) * size_t(a.w) + size_t(i0);
+        const float hx = float(X) + 0.5f + float(a.f) * a.mdil[2 * pl], hy = float(Y) + 0.5f + float(a.f) * a.mdil[2 * pl + 1];
+        const bool valid = hx >= 0 && hx < float(a.W) && hy >= 0 && hy < float(a.H);
+        // Parameters: bilinear from the grid.
+        const float tx = a.gx->t[size_t(X)];
+        const size_t xa = 3 * size_t(a.gx->a[size_t(X)]), xb = 3 * size_t(a.gx->b[size_t(X)]);
+        float prm[3];
+        for (int k = 0; k < 3; ++k)
+          prm[k] = (1 - ty) * ((1 - tx) * ga[xa + size_t(k)] + tx * ga[xb + size_t(k)]) +
+                   ty * ((1 - tx) * gb[xa + size_t(k)] + tx * gb[xb + size_t(k)]);
+        const float dx0 = a.ax->d0[size_t(X)];
+        const float conf = std::exp(-prm[2] * float(a.f * a.f) * (dx0 * dx0 + dy0 * dy0));
+        const float alpha = valid ? prm[0] * conf : 1.0f;
+        float hc[3];
+        sample_catmull_rom3(a.hist, a.W, a.H, hx, hy, hc);
+        for (int k = 0; k < 3; ++k) {
+          const float m = a.mu[3 * pl + size_t(k)], s = prm[1] * a.sigma[3 * pl + size_t(k)];
+          const float v = std::min(std::max(hc[k], m - s), m + s);
+          o[k] = v + alpha * (cur[k] - v);
+        }
+      }
+      float yc[3] = {std::max(o[0], 0.0f), std::max(o[1], 0.0f), std::max(o[2], 0.0f)};
+      const float s = 1.0f / std::max(1.0f - luma(yc), 1e-3f);
+      float* lin = a.out + 3 * P;
+      lin[0] = yc[0] * s, lin[1] = yc[1] * s, lin[2] = yc[2] * s;
+    }
+  }
+}
+
+}  // namespace
+
+const char* upscale_method_name(UpscaleMethod m) {
+  switch (m) {
+    case UpscaleMethod::neural: return "neural";
+    case UpscaleMethod::taau: return "taau";
+    case UpscaleMethod::bicubic: return "bicubic";
+    case UpscaleMethod::bilinear: return "bilinear";
+  }
+  return "?";
+}
+
+std::optional<UpscaleMethod> upscale_method_from_name(std::string_view name) {
+  for (UpscaleMethod m : {UpscaleMethod::neural, UpscaleMethod::taau, UpscaleMethod::bicubic, UpscaleMethod::bilinear})
+    if (name == upscale_method_name(m)) return m;
+  return std::nullopt;
+}
+
+std::string default_upscaler_weights() {
+  if (const char* dir = std::getenv("KESTREL_WEIGHTS_DIR"); dir && *dir) return std::string(dir) + "/upscaler.kdw";
+  return std::string(KESTREL_SOURCE_DIR) + "/weights/upscaler.kdw";
+}
+
+void frame_jitter(uint32_t index, float& jx, float& jy) {
+  auto radical_inverse = [](uint32_t base, uint32_t i) {
+    double inv = 1.0 / base, f = inv, r = 0;
+    while (i > 0) r += f * double(i % base), i /= base, f *= inv;
+    return float(r);
+  };
+  jx = radical_inverse(2, index + 1), jy = radical_inverse(3, index + 1);
+}
+
+struct Upscaler::Impl {
+  UpscalerOptions options;
+  std::vector<denoise::ConvLayer> layers;  // c1, c2, c3, head
+  size_t parameters = 0;
+  Times times;
+  // Sizes of the current sequence (0 = none yet).
+  int w = 0, h = 0;
+  bool has_history = false;
+  // Per-frame buffers (reused).
+  std::vector<float> y, depth, mdil, mu, sigma, feat, grid, act0, act1, scratch, hist, next_hist, prev_depth;
+  Axis ax, ay;
+  GridAxis gx, gy;
+
+  void prepare(const UpscaleInput& in);
+  void spatial(const UpscaleInput& in, FloatImage& out, bool cubic);
+  void temporal(const UpscaleInput& in, FloatImage& out);
+};
+
+Upscaler::Upscaler(const UpscalerOptions& options) : impl_(std::make_unique<Impl>()) {
+  if (options.factor != 2 && options.factor != 4)
+    throw Error(ErrorCode::invalid_argument, fmt::format("upscale: factor must be 2 or 4, got {}", options.factor));
+  impl_->options = options;
+  if (options.method == UpscaleMethod::neural) {
+    const std::string path = options.weights.empty() ? default_upscaler_weights() : options.weights;
+    impl_->layers = denoise::load_layers(path, kMagic, kArchitecture,
+                                         {{"c1", 16, kFeatures, 3}, {"c2", 16, 16, 3}, {"c3", 16, 16, 3},
+                                          {"head", kOutputs, 16, 3}},
+                                         "upsampler");
+    for (const auto& l : impl_->layers)
+      impl_->parameters += size_t(l.outputs) * (size_t(l.cin) * size_t(l.ksize * l.ksize) + 1);
+  }
+}
+Upscaler::~Upscaler() = default;
+Upscaler::Upscaler(Upscaler&&) noexcept = default;
+Upscaler& Upscaler::operator=(Upscaler&&) noexcept = default;
+
+void Upscaler::reset() {
+  impl_->has_history = false;
+}
+UpscaleMethod Upscaler::method() const { return impl_->options.method; }
+int Upscaler::factor() const { return impl_->options.factor; }
+size_t Upscaler::parameter_count() const { return impl_->parameters; }
+Upscaler::Times Upscaler::last_times() const { return impl_->times; }
+
+FloatImage Upscaler::upscale(const UpscaleInput& input) {
+  FloatImage out;
+  upscale(input, out);
+  return out;
+}
+
+void Upscaler::upscale(const UpscaleInput& input, FloatImage& out) {
+  check_input(input);
+  Impl& m = *impl_;
+  const int f = m.options.factor;
+  const int w = input.color->width, h = input.color->height;
+  if (w != m.w || h != m.h) m.w = w, m.h = h, m.has_history = false;
+  if (out.width != f * w || out.height != f * h || out.channels != 3) out = FloatImage(f * w, f * h, 3);
+  m.times = {};
+  switch (m.options.method) {
+    case UpscaleMethod::bilinear: m.spatial(input, out, false); break;
+    case UpscaleMethod::bicubic: m.spatial(input, out, true); break;
+    default: m.temporal(input, out); break;
+  }
+}
+
+void Upscaler::Impl::spatial(const UpscaleInput& in, FloatImage& out, bool cubic) {
+  const double t0 = now_ms();
+  const int f = options.factor;
+  y.resize(size_t(w) * size_t(h) * 3);
+  for (size_t p = 0; p < y.size(); ++p) y[p] = std::max(finite_or_zero(in.color->pixels[p]), 0.0f);
+  const int W = out.width;
+  parallel_rows(out.height, 4, [&](int r0, int r1) {
+    for (int Y = r0; Y < r1; ++Y) {
+      const float sy = (float(Y) + 0.5f) / float(f) - in.jitter_y + 0.5f;
+      for (int X = 0; X < W; ++X) {
+        const float sx = (float(X) + 0.5f) / float(f) - in.jitter_x + 0.5f;
+        float* o = out.at(X, Y);
+        if (cubic) sample_catmull_rom3(y.data(), w, h, sx, sy, o);
+        else sample_bilinear<3>(y.data(), w, h, sx, sy, o);
+        for (int c = 0; c < 3; ++c) o[c] = std::max(o[c], 0.0f);
+      }
+    }
+  });
+  times.reconstruct = now_ms() - t0;
+}
+
+// Inputs in the tone-mapped space, the least-depth motion, the 3x3 statistics and (for the
+// network) the low-resolution features pooled onto the grid.
+void Upscaler::Impl::prepare(const UpscaleInput& in) {
+  const size_t n = size_t(w) * size_t(h);
+  y.resize(3 * n), depth.resize(n), mdil.resize(2 * n), mu.resize(3 * n), sigma.resize(3 * n);
+  std::vector<float>& motion = scratch;  // raw motion, reused below as conv scratch
+  motion.resize(2 * n);
+  const int mc = in.motion ? in.motion->channels : 0;
+  parallel_rows(h, 8, [&](int r0, int r1) {
+    for (size_t p = size_t(r0) * size_t(w); p < size_t(r1) * size_t(w); ++p) {
+      float c[3];
+      for (int k = 0; k < 3; ++k) c[k] = std::max(finite_or_zero(in.color->pixels[3 * p + size_t(k)]), 0.0f);
+      const float s = 1.0f / (1.0f + luma(c));
+      for (int k = 0; k < 3; ++k) y[3 * p + size_t(k)] = c[k] * s;
+      depth[p] = in.depth ? std::max(finite_or_zero(in.depth->pixels[p]), 0.0f) : 1.0f;
+      for (int k = 0; k < 2; ++k)  // beyond any frame, and safe to convert to int
+        motion[2 * p + size_t(k)] = mc ? std::clamp(finite_or_zero(in.motion->pixels[size_t(mc) * p + size_t(k)]), -kMaxMotion, kMaxMotion) : 0.0f;
+    }
+  });
+  parallel_rows(h, 8, [&](int r0, int r1) {
+    std::vector<float> c1(3 * size_t(w)), c2(3 * size_t(w));  // vertical 3-sums of y and y^2
+    for (int j = r0; j < r1; ++j) {
+      const float* rows[3] = {&y[size_t(clampi(j - 1, 0, h - 1)) * size_t(w) * 3], &y[size_t(j) * size_t(w) * 3],
+                              &y[size_t(clampi(j + 1, 0, h - 1)) * size_t(w) * 3]};
+      for (size_t q = 0; q < 3 * size_t(w); ++q) {
+        const float a = rows[0][q], b = rows[1][q], c = rows[2][q];
+        c1[q] = a + b + c, c2[q] = a * a + b * b + c * c;
+      }
+      const float* drow[3] = {&depth[size_t(clampi(j - 1, 0, h - 1)) * size_t(w)], &depth[size_t(j) * size_t(w)],
+                              &depth[size_t(clampi(j + 1, 0, h - 1)) * size_t(w)]};
+      const int row_of[3] = {clampi(j - 1, 0, h - 1), j, clampi(j + 1, 0, h - 1)};
+      for (int i = 0; i < w; ++i) {
+        const size_t p = size_t(j) * size_t(w) + size_t(i);
+        const int cols[3] = {clampi(i - 1, 0, w - 1), i, clampi(i + 1, 0, w - 1)};
+        // The least depth (0 = sky, farthest); the first of equals in row-major order.
+        float best = 3e38f;
+        size_t arg = p;
+        for (int b = 0; b < 3; ++b)
+          for (int a = 0; a < 3; ++a) {
+            const float d0 = drow[b][cols[a]];
+            const float d = d0 > 0 ? d0 : 3e38f;
+            if (d < best) best = d, arg = size_t(row_of[b]) * size_t(w) + size_t(cols[a]);
+          }
+        mdil[2 * p] = motion[2 * arg], mdil[2 * p + 1] = motion[2 * arg + 1];
+        for (int k = 0; k < 3; ++k) {
+          const float s1 = c1[3 * size_t(cols[0]) + size_t(k)] + c1[3 * size_t(i) + size_t(k)] + c1[3 * size_t(cols[2]) + size_t(k)];
+          const float s2 = c2[3 * size_t(cols[0]) + size_t(k)] + c2[3 * size_t(i) + size_t(k)] + c2[3 * size_t(cols[2]) + size_t(k)];
+          const float m = s1 / 9.0f;
+          mu[3 * p + size_t(k)] = m;
+          sigma[3 * p + size_t(k)] = std::sqrt(std::max(s2 / 9.0f - m * m, 0.0f));
+        }
+      }
+    }
+  });
+}
+
+void Upscaler::Impl::temporal(const UpscaleInput& in, FloatImage& out) {
+  const int f = options.factor;
+  const int W = out.width, H = out.height;
+  const bool neural = options.method == UpscaleMethod::neural;
+  double t0 = now_ms();
+  prepare(in);
+  if (has_history && (hist.size() != size_t(W) * size_t(H) * 3 || prev_depth.size() != size_t(w) * size_t(h)))
+    has_history = false;
+  // Parameters on the grid (gw x gh, 3 per cell): the network's, decoded, or the constants.
+  const int gw = f == 2 ? (w + 1) / 2 : w, gh = f == 2 ? (h + 1) / 2 : h;
+  grid.resize(size_t(gw) * size_t(gh) * 3);
+  if (neural) {
+    // Low-resolution features (model.features), then pooled onto the grid (pool_features).
+    const size_t n = size_t(w) * size_t(h);
+    feat.resize(n * kLowFeatures);
+    const float* hp = hist.data();
+    parallel_rows(h, 8, [&](int r0, int r1) {
+      for (int j = r0; j < r1; ++j)
+        for (int i = 0; i < w; ++i) {
+          const size_t p = size_t(j) * size_t(w) + size_t(i);
+          const float L = luma(&y[3 * p]), muL = luma(&mu[3 * p]), sigL = luma(&sigma[3 * p]);
+          const float mx = mdil[2 * p], my = mdil[2 * p + 1];
+          float valid = 0, Lh = L, dchange = 0;
+          if (has_history) {
+            const float hx = float(f) * (float(i) + in.jitter_x + mx), hy = float(f) * (float(j) + in.jitter_y + my);
+            valid = (hx >= 0 && hx < float(W) && hy >= 0 && hy < float(H)) ? 1.0f : 0.0f;
+            float hc[3];
+            sample_bilinear<3>(hp, W, H, hx, hy, hc);
+            Lh = luma(hc);
+            const int px = clampi(floor_int(float(i) + 0.5f + mx), 0, w - 1);
+            const int py = clampi(floor_int(float(j) + 0.5f + my), 0, h - 1);
+            const float dp = prev_depth[size_t(py) * size_t(w) + size_t(px)], d = depth[p];
+            if (d > 0 && dp > 0) dchange = std::clamp((dp - d) / std::max(d, kMinDepth), -1.0f, 1.0f);
+            else if ((d > 0) != (dp > 0)) dchange = 1.0f;
+          }
+          const float mmag = std::min(std::sqrt(mx * mx + my * my) / 8.0f, 1.0f);
+          const float d = depth[p];
+          float edge = 0;
+          const int nb[4][2] = {{0, -1}, {-1, 0}, {1, 0}, {0, 1}};
+          for (const auto& o : nb) {
+            const float dn = depth[size_t(clampi(j + o[1], 0, h - 1)) * size_t(w) + size_t(clampi(i + o[0], 0, w - 1))];
+            edge = std::max(edge, std::fabs(dn - d));
+          }
+          edge = std::min(edge / std::max(d, kMinDepth), 1.0f);
+          float* o = &feat[p * kLowFeatures];
+          o[0] = L, o[1] = (Lh - L) * valid, o[2] = sigL, o[3] = (Lh - muL) * valid, o[4] = dchange * valid;
+          o[5] = mmag, o[6] = valid, o[7] = edge;
+        }
+    });
+    act0.resize(size_t(gw) * size_t(gh) * kFeatures);
+    const int s = f == 2 ? 2 : 1;
+    parallel_rows(gh, 8, [&](int r0, int r1) {
+      for (int gj = r0; gj < r1; ++gj)
+        for (int gi = 0; gi < gw; ++gi) {
+          float* o = &act0[(size_t(gj) * size_t(gw) + size_t(gi)) * kFeatures];
+          float sum[kLowFeatures] = {}, mx1 = 0, mx4 = 0;
+          for (int b = 0; b < s; ++b)
+            for (int a = 0; a < s; ++a) {
+              const size_t q = size_t(clampi(s * gj + b, 0, h - 1)) * size_t(w) + size_t(clampi(s * gi + a, 0, w - 1));
+              const float* fq = &feat[q * kLowFeatures];
+              for (int k = 0; k < kLowFeatures; ++k) sum[k] += fq[k];
+              mx1 = std::max(mx1, std::fabs(fq[1])), mx4 = std::max(mx4, std::fabs(fq[4]));
+            }
+          const float inv = 1.0f / float(s * s);
+          for (int k = 0; k < kLowFeatures; ++k) o[k] = sum[k] * inv;
+          o[8] = mx1, o[9] = mx4, o[10] = float(f) / 4.0f;
+        }
+    });
+    const double t1 = now_ms();
+    times.features = t1 - t0;
+    t0 = t1;
+    const denoise::KernelTable& k = denoise::host_kernels();
+    k.conv(layers[0], act0, gw, gh, act1, true, scratch);
+    k.conv(layers[1], act1, gw, gh, act0, true, scratch);
+    k.conv(layers[2], act0, gw, gh, act1, true, scratch);
+    k.conv(layers[3], act1, gw, gh, act0, false, scratch);
+    const int stride = layers[3].cout;
+    for (size_t q = 0; q < size_t(gw) * size_t(gh); ++q) {
+      const float* p = &act0[q * size_t(stride)];
+      grid[3 * q] = sigmoid(p[0]), grid[3 * q + 1] = softplus(p[1]), grid[3 * q + 2] = softplus(p[2]);
+    }
+    times.network = now_ms() - t0;
+    t0 = now_ms();
+  } else {
+    for (size_t q = 0; q < size_t(gw) * size_t(gh); ++q) grid[3 * q] = kTaauA, grid[3 * q + 1] = kTaauGamma, grid[3 * q + 2] = kTaauKappa;
+    times.features = now_ms() - t0;
+    t0 = now_ms();
+  }
+  // Reconstruction (model.step): per output pixel.
+  ax.build(W, w, f, in.jitter_x), ay.build(H, h, f, in.jitter_y);
+  gx.build(W, gw), gy.build(H, gh);
+  next_hist.resize(size_t(W) * size_t(H) * 3);
+  Recon r;
+  r.y = y.data(), r.mdil = mdil.data(), r.mu = mu.data(), r.sigma = sigma.data(), r.grid = grid.data();
+  r.hist = hist.data(), r.next = next_hist.data(), r.out = out.pixels.data();
+  r.ax = &ax, r.ay = &ay, r.gx = &gx, r.gy = &gy;
+  r.w = w, r.h = h, r.W = W, r.H = H, r.gw = gw, r.f = f, r.history = has_history;
+  parallel_rows(H, 4, [&](int r0, int r1) { reconstruct_rows(r, r0, r1); });
+  hist.swap(next_hist);
+  prev_depth = depth;
+  has_history = true;
+  times.reconstruct = now_ms() - t0;
+}
+
+}  // namespace kestrel

@@ -1,0 +1,103 @@
+// The real-time loop: stage outputs have the right sizes and are finite, the adaptive factor
+// moves towards the target frame time, the progressive reference accumulates only while the
+// camera rests and converges towards a many-sample render, and bad settings are errors.
+#include <gtest/gtest.h>
+
+#include <cmath>
+
+#include "kestrel/error.h"
+#include "kestrel/pipeline.h"
+#include "kestrel/render.h"
+#include "kestrel/scene.h"
+
+namespace kestrel {
+namespace {
+
+PipelineSettings small(int factor) {
+  PipelineSettings s;
+  s.width = 64, s.height = 48, s.factor = factor, s.max_depth = 3;
+  return s;
+}
+
+Camera front() { return framing_camera(load_scene("builtin:cornell_box")); }
+
+TEST(Pipeline, StagesHaveTheirSizesAndFiniteValues) {
+  for (int factor : {1, 2, 4}) {
+    Pipeline p("builtin:cornell_box", small(factor));
+    const PipelineFrame* f = nullptr;
+    for (int i = 0; i < 3; ++i) f = &p.frame(front(), 0.0);
+    EXPECT_EQ(f->noisy.width, 64 / factor);
+    EXPECT_EQ(f->denoised.width, 64 / factor);
+    EXPECT_EQ(f->upscaled.width, 64);
+    EXPECT_EQ(f->upscaled.height, 48);
+    EXPECT_EQ(f->rgb8.size(), size_t(64 * 48 * 3));
+    EXPECT_EQ(f->index, 3u);
+    EXPECT_GT(f->stats.rays(), 0u);
+    EXPECT_GT(f->times.render, 0.0);
+    EXPECT_GE(f->times.total, f->times.render + f->times.denoise + f->times.upscale);
+    for (float v : f->upscaled.pixels) ASSERT_TRUE(std::isfinite(v) && v >= 0);
+  }
+}
+
+TEST(Pipeline, AdaptiveFactorFollowsTheTarget) {
+  PipelineSettings s = small(2);
+  s.target_ms = 1e-6;  // impossible: coarser
+  Pipeline p("builtin:cornell_box", s);
+  p.frame(front(), 0.0);
+  EXPECT_EQ(p.settings().factor, 4);
+  s.target_ms = 1e6;  // trivially met: finer, step by step
+  s.factor = 4;
+  p.set_settings(s);
+  p.frame(front(), 0.0);
+  EXPECT_EQ(p.settings().factor, 2);
+  p.frame(front(), 0.0);
+  EXPECT_EQ(p.settings().factor, 1);
+}
+
+TEST(Pipeline, ProgressiveReferenceAccumulatesAtRestAndConverges) {
+  Pipeline p("builtin:cornell_box", small(2));
+  const Camera c = front();
+  for (int i = 0; i < 48; ++i) p.accumulate(c, 0.0);
+  EXPECT_EQ(p.accumulated(), 48);
+  const FloatImage ref48 = p.accumulate(c, 0.0).upscaled;
+  // A many-sample render of the same view (another seed) is close; a 1-sample one is not.
+  Pipeline q("builtin:cornell_box", small(2));
+  PipelineSettings s = small(2);
+  s.seed = 99;
+  q.set_settings(s);
+  for (int i = 0; i < 48; ++i) q.accumulate(c, 0.0);
+  const FloatImage other = q.accumulate(c, 0.0).upscaled;
+  Camera moved = c;
+  moved.eye.x += 0.05f;
+  const FloatImage one = p.accumulate(moved, 0.0).upscaled;
+  EXPECT_EQ(p.accumulated(), 1);  // the camera moved: restarted
+  auto mse = [](const FloatImage& a, const FloatImage& b) {
+    double e = 0;
+    for (size_t i = 0; i < a.pixels.size(); ++i) {
+      const double x = a.pixels[i] / (1 + a.pixels[i]), y = b.pixels[i] / (1 + b.pixels[i]);
+      e += (x - y) * (x - y);
+    }
+    return e / double(a.pixels.size());
+  };
+  EXPECT_LT(mse(ref48, other), 0.5 * mse(one, other));
+}
+
+TEST(Pipeline, BadSettingsAreErrors) {
+  PipelineSettings s = small(3);
+  EXPECT_THROW(Pipeline("builtin:cornell_box", s), Error);
+  s = small(4);
+  s.width = 66;
+  EXPECT_THROW(Pipeline("builtin:cornell_box", s), Error);
+  EXPECT_THROW(Pipeline("/nonexistent/scene.obj", small(2)), Error);
+  s = small(2);
+  s.spp = 0;
+  EXPECT_THROW(Pipeline("builtin:cornell_box", s), Error);
+  Pipeline p("builtin:cornell_box", small(2));
+  s = small(2);
+  s.factor = 8;
+  EXPECT_THROW(p.set_settings(s), Error);
+  EXPECT_EQ(p.settings().factor, 2);  // unchanged
+}
+
+}  // namespace
+}  // namespace kestrel

@@ -1,0 +1,234 @@
+// The upsamplers: the neural one against PyTorch (committed fixture), its weights file's
+// checks, and behaviour against analytic oracles: a constant sequence is a fixed point; a
+// static or translating pattern point-sampled at the jitter converges towards its
+// pixel-averaged reference, better than the current frame alone, and only with the right
+// motion vectors; bad input is an error.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <nlohmann/json.hpp>
+
+#include "kestrel/error.h"
+#include "kestrel/io.h"
+#include "kestrel/upscale.h"
+
+namespace kestrel {
+namespace {
+
+const std::string kFixture = std::string(KESTREL_SOURCE_DIR) + "/tests/data/upscale";
+
+UpscalerOptions options(UpscaleMethod m, int factor) {
+  UpscalerOptions o;
+  o.method = m, o.factor = factor;
+  return o;
+}
+
+const UpscaleMethod kMethods[] = {UpscaleMethod::neural, UpscaleMethod::taau, UpscaleMethod::bicubic,
+                                  UpscaleMethod::bilinear};
+
+TEST(Upscale, NeuralMatchesPyTorchOnTheFixture) {
+  std::ifstream meta_file(kFixture + "/fixture.json");
+  ASSERT_TRUE(meta_file) << kFixture;
+  const nlohmann::json meta = nlohmann::json::parse(meta_file);
+  const int frames = meta["frames"];
+  for (int f : {2, 4}) {
+    Upscaler up(options(UpscaleMethod::neural, f));
+    for (int t = 0; t < frames; ++t) {
+      const std::string p = kFixture + "/x" + std::to_string(f) + "_";
+      const FloatImage color = read_pfm(p + "color_" + std::to_string(t) + ".pfm");
+      FloatImage depth3 = read_pfm(p + "depth_" + std::to_string(t) + ".pfm");
+      const FloatImage motion = read_pfm(p + "motion_" + std::to_string(t) + ".pfm");
+      const FloatImage expected = read_pfm(p + "out_" + std::to_string(t) + ".pfm");
+      FloatImage depth(depth3.width, depth3.height, 1);
+      for (size_t i = 0; i < depth.pixels.size(); ++i) depth.pixels[i] = depth3.pixels[i * size_t(depth3.channels)];
+      UpscaleInput in{&color, &depth, &motion, meta["jitter"][size_t(t)][0], meta["jitter"][size_t(t)][1]};
+      const FloatImage out = up.upscale(in);
+      ASSERT_EQ(out.width, expected.width);
+      ASSERT_EQ(out.height, expected.height);
+      double worst = 0;
+      for (size_t i = 0; i < out.pixels.size(); ++i)
+        worst = std::max(worst, std::abs(double(out.pixels[i]) - expected.pixels[i]) / (std::abs(expected.pixels[i]) + 1e-2));
+      EXPECT_LT(worst, 2e-4) << "factor " << f << " frame " << t;
+    }
+  }
+}
+
+TEST(Upscale, CorruptOrMismatchedWeightsAreErrorsNamingTheFile) {
+  const std::string good = std::string(KESTREL_SOURCE_DIR) + "/weights/upscaler.kdw";
+  std::ifstream in(good, std::ios::binary);
+  std::vector<char> bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  ASSERT_GT(bytes.size(), 100u);
+  const std::string dir = testing::TempDir();
+  auto write = [&](const std::string& name, const std::vector<char>& b) {
+    std::ofstream(dir + name, std::ios::binary).write(b.data(), std::streamsize(b.size()));
+    return dir + name;
+  };
+  std::vector<char> flipped = bytes;
+  flipped[bytes.size() / 2] ^= 0x10;
+  const std::vector<char> truncated(bytes.begin(), bytes.begin() + std::ptrdiff_t(bytes.size() / 3));
+  const std::string denoiser = std::string(KESTREL_SOURCE_DIR) + "/weights/denoiser.kdw";
+  for (const std::string& path : {write("up_flipped.kdw", flipped), write("up_truncated.kdw", truncated), denoiser,
+                                  dir + "does_not_exist.kdw"}) {
+    UpscalerOptions o;
+    o.weights = path;
+    try {
+      Upscaler up(o);
+      FAIL() << "no error for " << path;
+    } catch (const Error& e) {
+      EXPECT_NE(std::string(e.what()).find(path), std::string::npos) << e.what();
+    }
+  }
+}
+
+// A sharp pattern: a rotated checkerboard with a disc, in output pixels.
+float pattern(double x, double y) {
+  const double u = 0.8 * x + 0.6 * y, v = -0.6 * x + 0.8 * y;
+  const bool check = (int(std::floor(u / 5.0)) + int(std::floor(v / 7.0))) % 2 == 0;
+  const double dx = x - 40, dy = y - 30;
+  return (check ? 0.8f : 0.1f) + (dx * dx + dy * dy < 200 ? 1.5f : 0.0f);
+}
+
+// Frame t of the pattern moving by (vx, vy) output pixels per frame: point-sampled at the
+// Halton jitter at low resolution, its motion vectors, and the 8x8-supersampled reference.
+struct Moving {
+  int w, h, f;
+  double vx, vy;
+  FloatImage color(int t, float jx, float jy) const {
+    FloatImage c(w, h, 3);
+    for (int j = 0; j < h; ++j)
+      for (int i = 0; i < w; ++i) {
+        const float v = pattern(f * (i + jx) - vx * t, f * (j + jy) - vy * t);
+        for (int k = 0; k < 3; ++k) c.at(i, j)[k] = v * (0.5f + 0.25f * float(k));
+      }
+    return c;
+  }
+  FloatImage motion(bool right) const {
+    FloatImage m(w, h, 2);
+    for (int p = 0; p < w * h; ++p)
+      m.pixels[2 * size_t(p)] = right ? float(-vx / f) : 0.0f, m.pixels[2 * size_t(p) + 1] = right ? float(-vy / f) : 0.0f;
+    return m;
+  }
+  FloatImage reference(int t) const {
+    FloatImage r(f * w, f * h, 3);
+    for (int Y = 0; Y < f * h; ++Y)
+      for (int X = 0; X < f * w; ++X) {
+        double s = 0;
+        for (int b = 0; b < 8; ++b)
+          for (int a = 0; a < 8; ++a) s += pattern(X + (a + 0.5) / 8 - vx * t, Y + (b + 0.5) / 8 - vy * t);
+        for (int k = 0; k < 3; ++k) r.at(X, Y)[k] = float(s / 64) * (0.5f + 0.25f * float(k));
+      }
+    return r;
+  }
+};
+
+double tonemapped_mse(const FloatImage& a, const FloatImage& b, int margin) {
+  double s = 0;
+  size_t n = 0;
+  for (int y = margin; y < a.height - margin; ++y)
+    for (int x = margin; x < a.width - margin; ++x)
+      for (int k = 0; k < 3; ++k) {
+        const double u = a.at(x, y)[k], v = b.at(x, y)[k];
+        const double d = u / (1 + u) - v / (1 + v);
+        s += d * d, ++n;
+      }
+  return s / double(n);
+}
+
+// Mean error over frames 8..15 of a sequence.
+double sequence_error(UpscaleMethod m, const Moving& scene, bool right_motion) {
+  Upscaler up(options(m, scene.f));
+  const FloatImage depth = [&] {
+    FloatImage d(scene.w, scene.h, 1);
+    std::fill(d.pixels.begin(), d.pixels.end(), 3.0f);
+    return d;
+  }();
+  const FloatImage motion = scene.motion(right_motion);
+  double err = 0;
+  for (int t = 0; t < 16; ++t) {
+    float jx, jy;
+    frame_jitter(uint32_t(t), jx, jy);
+    const FloatImage c = scene.color(t, jx, jy);
+    const FloatImage out = up.upscale({&c, &depth, &motion, jx, jy});
+    if (t >= 8) err += tonemapped_mse(out, scene.reference(t), 2 * scene.f) / 8;
+  }
+  return err;
+}
+
+TEST(Upscale, StaticPatternConvergesBeyondTheCurrentFrame) {
+  for (int f : {2, 4}) {
+    const Moving scene{96 / f, 64 / f, f, 0, 0};
+    const double bicubic = sequence_error(UpscaleMethod::bicubic, scene, true);
+    for (UpscaleMethod m : {UpscaleMethod::taau, UpscaleMethod::neural}) {
+      const double e = sequence_error(m, scene, true);
+      EXPECT_LT(e, 0.9 * bicubic) << upscale_method_name(m) << " x" << f << " " << e << " vs bicubic " << bicubic;
+    }
+  }
+}
+
+TEST(Upscale, MovingPatternNeedsTheRightMotionVectors) {
+  for (int f : {2, 4}) {
+    const Moving scene{96 / f, 64 / f, f, 1.5, -0.75};
+    const double bicubic = sequence_error(UpscaleMethod::bicubic, scene, true);
+    for (UpscaleMethod m : {UpscaleMethod::taau, UpscaleMethod::neural}) {
+      const double right = sequence_error(m, scene, true), wrong = sequence_error(m, scene, false);
+      EXPECT_LT(right, bicubic) << upscale_method_name(m) << " x" << f;
+      EXPECT_LT(right, 0.95 * wrong) << upscale_method_name(m) << " x" << f << " right " << right << " wrong " << wrong;
+    }
+  }
+}
+
+TEST(Upscale, ConstantSequenceIsAFixedPoint) {
+  for (UpscaleMethod m : kMethods)
+    for (int f : {2, 4}) {
+      Upscaler up(options(m, f));
+      FloatImage c(23, 17, 3), d(23, 17, 1), mo(23, 17, 2);
+      for (size_t p = 0; p < c.pixels.size(); ++p) c.pixels[p] = 0.3f + 0.2f * float(p % 3);
+      std::fill(d.pixels.begin(), d.pixels.end(), 2.0f);
+      for (size_t p = 0; p < mo.pixels.size(); ++p) mo.pixels[p] = (p % 2) ? -0.6f : 1.3f;
+      for (int t = 0; t < 4; ++t) {
+        float jx, jy;
+        frame_jitter(uint32_t(t), jx, jy);
+        const FloatImage out = up.upscale({&c, &d, &mo, jx, jy});
+        ASSERT_EQ(out.width, 23 * f);
+        ASSERT_EQ(out.height, 17 * f);
+        for (int y = 0; y < out.height; ++y)
+          for (int x = 0; x < out.width; ++x)
+            for (int k = 0; k < 3; ++k)
+              ASSERT_NEAR(out.at(x, y)[k], 0.3f + 0.2f * float(k), 2e-4) << upscale_method_name(m) << " x" << f;
+      }
+    }
+}
+
+TEST(Upscale, BadInputIsAnError) {
+  EXPECT_THROW(Upscaler(options(UpscaleMethod::taau, 3)), Error);
+  Upscaler up(options(UpscaleMethod::taau, 2));
+  FloatImage c(8, 8, 3), small(4, 4, 1), two(8, 8, 2), d(8, 8, 1);
+  EXPECT_THROW(up.upscale(UpscaleInput{}), Error);
+  EXPECT_THROW(up.upscale({&c, &small, nullptr, 0.5f, 0.5f}), Error);
+  EXPECT_THROW(up.upscale({&c, &two, nullptr, 0.5f, 0.5f}), Error);
+  EXPECT_THROW(up.upscale({&c, &d, &small, 0.5f, 0.5f}), Error);
+  EXPECT_THROW(up.upscale({&two, nullptr, nullptr, 0.5f, 0.5f}), Error);
+  EXPECT_THROW(up.upscale({&c, &d, nullptr, std::nanf(""), 0.5f}), Error);
+  FloatImage empty;
+  EXPECT_THROW(up.upscale({&empty, nullptr, nullptr, 0.5f, 0.5f}), Error);
+}
+
+TEST(Upscale, NonFiniteInputGivesFiniteOutputAndSizeChangesRestart) {
+  for (UpscaleMethod m : kMethods) {
+    Upscaler up(options(m, 4));
+    for (int size : {9, 9, 12, 12}) {
+      FloatImage c(size, size, 3), d(size, size, 1), mo(size, size, 2);
+      for (size_t p = 0; p < c.pixels.size(); ++p) c.pixels[p] = p % 7 == 0 ? NAN : (p % 11 == 0 ? INFINITY : 0.5f);
+      for (size_t p = 0; p < d.pixels.size(); ++p) d.pixels[p] = p % 5 == 0 ? NAN : 1.0f;
+      for (size_t p = 0; p < mo.pixels.size(); ++p) mo.pixels[p] = p % 3 == 0 ? INFINITY : -1e30f;
+      const FloatImage out = up.upscale({&c, &d, &mo, 0.3f, 0.7f});
+      ASSERT_EQ(out.width, 4 * size);
+      for (float v : out.pixels) ASSERT_TRUE(std::isfinite(v) && v >= 0) << upscale_method_name(m);
+    }
+  }
+}
+
+}  // namespace
+}  // namespace kestrel
