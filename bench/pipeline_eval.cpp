@@ -16,6 +16,7 @@
 #include <fstream>
 #include <map>
 #include <nlohmann/json.hpp>
+#include <sstream>
 #include <string>
 #include <thread>
 #include <vector>
@@ -53,7 +54,8 @@ int main(int argc, char** argv) {
   std::string out_dir = std::string(KESTREL_SOURCE_DIR) + "/docs/pipeline";
   std::string timing_scene = std::string(KESTREL_SOURCE_DIR) + "/../shared/scenes/dabrovic_sponza/sponza.obj";
   std::string timing_path = std::string(KESTREL_SOURCE_DIR) + "/data/paths/sponza_walk.json";
-  int threads = int(std::thread::hardware_concurrency()), timing_frames = 12, max_depth = 4;
+  int threads = int(std::thread::hardware_concurrency()), timing_frames = 12;
+  std::vector<int> depths = {4, 2};
   bool quick = false;
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
@@ -67,12 +69,16 @@ int main(int argc, char** argv) {
     else if (a == "--timing-scene") timing_scene = next();
     else if (a == "--timing-path") timing_path = next();
     else if (a == "--timing-frames") timing_frames = std::stoi(next());
-    else if (a == "--max-depth") max_depth = std::stoi(next());
+    else if (a == "--max-depths") {
+      depths.clear();
+      std::stringstream list(next());
+      for (std::string d; std::getline(list, d, ',');) depths.push_back(std::stoi(d));
+    }
     else if (a == "--quick") quick = true;
     else {
       fmt::print(stderr,
                  "usage: kestrel_pipeline_eval [--dataset DIR] [--out DIR] [--threads N] [--timing-scene F] "
-                 "[--timing-path F] [--timing-frames N] [--max-depth N] [--quick]\n");
+                 "[--timing-path F] [--timing-frames N] [--max-depths 4,2] [--quick]\n");
       return 2;
     }
   }
@@ -82,12 +88,13 @@ int main(int argc, char** argv) {
     std::string md = "# Real-time pipeline evaluation\n\nWritten by `kestrel_pipeline_eval` (bench/pipeline_eval.cpp).\n\n";
     nlohmann::json js;
     // Speed.
-    md += fmt::format("## Speed: {} along {}, 1280x720 output, {} threads, 1 spp, max depth {}\n\n", fs::path(timing_scene).filename().string(),
-                      fs::path(timing_path).filename().string(), threads, max_depth);
-    md += "| internal | factor | update | render | denoise | upscale | tone map | frame (median) | frame (p95) | fps | Mrays/s |\n"
-          "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n";
+    md += fmt::format("## Speed: {} along {}, 1280x720 output, {} threads, 1 spp, neural denoiser and upsampler\n\n",
+                      fs::path(timing_scene).filename().string(), fs::path(timing_path).filename().string(), threads);
+    md += "| path depth | internal | factor | update | render | denoise | upscale | tone map | frame (median) | frame (p95) | fps | Mrays/s |\n"
+          "|---:|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n";
     if (!quick || fs::exists(timing_scene)) {
       const CameraPath path = tools::camera_path_for(timing_scene, timing_path, "");
+      for (int max_depth : depths)
       for (int factor : {2, 4}) {
         PipelineSettings s;
         s.width = 1280, s.height = 720, s.factor = factor, s.max_depth = max_depth;
@@ -103,14 +110,15 @@ int main(int argc, char** argv) {
           mr.push_back(double(f.stats.rays()) / (f.times.render * 1e3));
         }
         const double med = percentile(st[5], 0.5);
-        md += fmt::format("| {}x{} | {} | {:.1f} | {:.1f} | {:.1f} | {:.1f} | {:.1f} | {:.1f} | {:.1f} | {:.2f} | {:.2f} |\n", 1280 / factor,
+        md += fmt::format("| {} | {}x{} | {} | {:.1f} | {:.1f} | {:.1f} | {:.1f} | {:.1f} | {:.1f} | {:.1f} | {:.2f} | {:.2f} |\n", max_depth, 1280 / factor,
                           720 / factor, factor, percentile(st[0], 0.5), percentile(st[1], 0.5), percentile(st[2], 0.5),
                           percentile(st[3], 0.5), percentile(st[4], 0.5), med, percentile(st[5], 0.95), 1000 / med,
                           percentile(mr, 0.5));
-        js["speed"].push_back({{"factor", factor}, {"render_ms", percentile(st[1], 0.5)}, {"denoise_ms", percentile(st[2], 0.5)},
+        js["speed"].push_back({{"max_depth", max_depth}, {"factor", factor}, {"render_ms", percentile(st[1], 0.5)}, {"denoise_ms", percentile(st[2], 0.5)},
                                {"upscale_ms", percentile(st[3], 0.5)}, {"frame_ms", med}, {"frame_p95_ms", percentile(st[5], 0.95)},
                                {"fps", 1000 / med}, {"mrays", percentile(mr, 0.5)}});
-        fmt::print("speed x{}: {:.1f} ms per frame ({:.2f} fps), render {:.1f} ms\n", factor, med, 1000 / med, percentile(st[1], 0.5));
+        fmt::print("speed depth {} x{}: {:.1f} ms per frame ({:.2f} fps), render {:.1f} ms\n", max_depth, factor, med, 1000 / med,
+                   percentile(st[1], 0.5));
       }
       md += "\nStages in ms (median over the frames after a warm-up frame).\n\n";
     }
