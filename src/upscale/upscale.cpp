@@ -88,7 +88,9 @@ inline void sample_bilinear(const float* img, int w, int h, float x, float y, fl
     out[c] = (1 - ty) * ((1 - tx) * p00[c] + tx * p01[c]) + ty * ((1 - tx) * p10[c] + tx * p11[c]);
 }
 
-inline void sample_catmull_rom3(const float* img, int w, int h, float x, float y, float* out) {
+// Catmull-Rom of an RGB image (interleaved, one float of padding after the last pixel: each
+// tap is one 4-float load, the fourth lane is junk).
+inline __m128 sample_catmull_rom3(const float* img, int w, int h, float x, float y) {
   const float xf = x - 0.5f, yf = y - 0.5f;
   const int x1 = floor_int(xf), y1 = floor_int(yf);
   float wx[4], wy[4];
@@ -105,17 +107,20 @@ inline void sample_catmull_rom3(const float* img, int w, int h, float x, float y
   } else {
     for (int i = 0; i < 4; ++i) iy[i] = clampi(y1 + i - 1, 0, h - 1);
   }
-  float acc[3] = {0, 0, 0};
+  __m128 acc = _mm_setzero_ps();
   for (int j = 0; j < 4; ++j) {
     const float* row = img + size_t(iy[j]) * size_t(w) * 3;
-    float r[3] = {0, 0, 0};
-    for (int i = 0; i < 4; ++i) {
-      const float* p = row + size_t(ix[i]) * 3;
-      r[0] += wx[i] * p[0], r[1] += wx[i] * p[1], r[2] += wx[i] * p[2];
-    }
-    acc[0] += wy[j] * r[0], acc[1] += wy[j] * r[1], acc[2] += wy[j] * r[2];
+    __m128 r = _mm_mul_ps(_mm_set1_ps(wx[0]), _mm_loadu_ps(row + size_t(ix[0]) * 3));
+    for (int i = 1; i < 4; ++i) r = _mm_add_ps(r, _mm_mul_ps(_mm_set1_ps(wx[i]), _mm_loadu_ps(row + size_t(ix[i]) * 3)));
+    acc = _mm_add_ps(acc, _mm_mul_ps(_mm_set1_ps(wy[j]), r));
   }
-  out[0] = acc[0], out[1] = acc[1], out[2] = acc[2];
+  return acc;
+}
+
+inline void store3(float* dst, __m128 v) {
+  alignas(16) float t[4];
+  _mm_store_ps(t, v);
+  dst[0] = t[0], dst[1] = t[1], dst[2] = t[2];
 }
 
 void check_input(const UpscaleInput& in) {
@@ -190,7 +195,7 @@ struct Recon {
 
 __attribute__((target_clones("avx512f", "arch=haswell", "default")))
 void reconstruct_rows(const Recon& a, int r0, int r1) {
-  std::vector<float> vert(3 * size_t(a.w));
+  std::vector<float> vert(3 * size_t(a.w) + 1, 0.0f), gv(3 * size_t(a.gw) + 1, 0.0f);
   for (int Y = r0; Y < r1; ++Y) {
     const int j0 = a.ay->i0[size_t(Y)];
     const float* wy = &a.ay->w[3 * size_t(Y)];
@@ -204,42 +209,35 @@ void reconstruct_rows(const Recon& a, int r0, int r1) {
     const float* y1 = &a.y[size_t(rows[1]) * size_t(a.w) * 3];
     const float* y2 = &a.y[size_t(rows[2]) * size_t(a.w) * 3];
     for (size_t q = 0; q < 3 * size_t(a.w); ++q) vert[q] = wy[0] * y0[q] + wy[1] * y1[q] + wy[2] * y2[q];
+    for (size_t q = 0; q < 3 * size_t(a.gw); ++q) gv[q] = (1 - ty) * ga[q] + ty * gb[q];
     for (int X = 0; X < a.W; ++X) {
       const int i0 = a.ax->i0[size_t(X)];
       const float* wx = &a.ax->w[3 * size_t(X)];
       const int cols[3] = {clampi(i0 - 1, 0, a.w - 1), i0, clampi(i0 + 1, 0, a.w - 1)};
-      float cur[3] = {0, 0, 0};
-      for (int k = 0; k < 3; ++k) {
-        const float* v = &vert[size_t(cols[k]) * 3];
-        cur[0] += wx[k] * v[0], cur[1] += wx[k] * v[1], cur[2] += wx[k] * v[2];
-      }
-      const float inv = 1.0f / ((wx[0] + wx[1] + wx[2]) * (wy[0] + wy[1] + wy[2]));
-      for (float& c : cur) c *= inv;
+      __m128 cur = _mm_mul_ps(_mm_set1_ps(wx[0]), _mm_loadu_ps(&vert[size_t(cols[0]) * 3]));
+      cur = _mm_add_ps(cur, _mm_mul_ps(_mm_set1_ps(wx[1]), _mm_loadu_ps(&vert[size_t(cols[1]) * 3])));
+      cur = _mm_add_ps(cur, _mm_mul_ps(_mm_set1_ps(wx[2]), _mm_loadu_ps(&vert[size_t(cols[2]) * 3])));
+      cur = _mm_mul_ps(cur, _mm_set1_ps(1.0f / ((wx[0] + wx[1] + wx[2]) * (wy[0] + wy[1] + wy[2]))));
       const size_t P = size_t(Y) * size_t(a.W) + size_t(X);
       float* o = &a.next[3 * P];
       if (!a.history) {
-        o[0] = cur[0], o[1] = cur[1], o[2] = cur[2];
+        store3(o, cur);
       } else {
         const size_t pl = size_t(j0) * size_t(a.w) + size_t(i0);
         const float hx = float(X) + 0.5f + float(a.f) * a.mdil[2 * pl], hy = float(Y) + 0.5f + float(a.f) * a.mdil[2 * pl + 1];
         const bool valid = hx >= 0 && hx < float(a.W) && hy >= 0 && hy < float(a.H);
-        // Parameters: bilinear from the grid.
+        // Parameters: bilinear from the grid (the rows already blended into gv).
         const float tx = a.gx->t[size_t(X)];
-        const size_t xa = 3 * size_t(a.gx->a[size_t(X)]), xb = 3 * size_t(a.gx->b[size_t(X)]);
-        float prm[3];
-        for (int k = 0; k < 3; ++k)
-          prm[k] = (1 - ty) * ((1 - tx) * ga[xa + size_t(k)] + tx * ga[xb + size_t(k)]) +
-                   ty * ((1 - tx) * gb[xa + size_t(k)] + tx * gb[xb + size_t(k)]);
+        alignas(16) float prm[4];
+        _mm_store_ps(prm, _mm_add_ps(_mm_mul_ps(_mm_set1_ps(1 - tx), _mm_loadu_ps(&gv[3 * size_t(a.gx->a[size_t(X)])])),
+                                     _mm_mul_ps(_mm_set1_ps(tx), _mm_loadu_ps(&gv[3 * size_t(a.gx->b[size_t(X)])]))));
         const float dx0 = a.ax->d0[size_t(X)];
         const float conf = std::exp(-prm[2] * float(a.f * a.f) * (dx0 * dx0 + dy0 * dy0));
         const float alpha = valid ? prm[0] * conf : 1.0f;
-        float hc[3];
-        sample_catmull_rom3(a.hist, a.W, a.H, hx, hy, hc);
-        for (int k = 0; k < 3; ++k) {
-          const float m = a.mu[3 * pl + size_t(k)], s = prm[1] * a.sigma[3 * pl + size_t(k)];
-          const float v = std::min(std::max(hc[k], m - s), m + s);
-          o[k] = v + alpha * (cur[k] - v);
-        }
+        const __m128 hc = sample_catmull_rom3(a.hist, a.W, a.H, hx, hy);
+        const __m128 m = _mm_loadu_ps(&a.mu[3 * pl]), sg = _mm_mul_ps(_mm_set1_ps(prm[1]), _mm_loadu_ps(&a.sigma[3 * pl]));
+        const __m128 v = _mm_min_ps(_mm_max_ps(hc, _mm_sub_ps(m, sg)), _mm_add_ps(m, sg));
+        store3(o, _mm_add_ps(v, _mm_mul_ps(_mm_set1_ps(alpha), _mm_sub_ps(cur, v))));
       }
       float yc[3] = {std::max(o[0], 0.0f), std::max(o[1], 0.0f), std::max(o[2], 0.0f)};
       const float s = 1.0f / std::max(1.0f - luma(yc), 1e-3f);
@@ -349,8 +347,8 @@ void Upscaler::upscale(const UpscaleInput& input, FloatImage& out) {
 void Upscaler::Impl::spatial(const UpscaleInput& in, FloatImage& out, bool cubic) {
   const double t0 = now_ms();
   const int f = options.factor;
-  y.resize(size_t(w) * size_t(h) * 3);
-  for (size_t p = 0; p < y.size(); ++p) y[p] = std::max(finite_or_zero(in.color->pixels[p]), 0.0f);
+  y.assign(size_t(w) * size_t(h) * 3 + 1, 0.0f);  // + 1: the 4-float loads of the last pixel
+  for (size_t p = 0; p + 1 < y.size(); ++p) y[p] = std::max(finite_or_zero(in.color->pixels[p]), 0.0f);
   const int W = out.width;
   parallel_rows(out.height, 4, [&](int r0, int r1) {
     for (int Y = r0; Y < r1; ++Y) {
@@ -358,7 +356,7 @@ void Upscaler::Impl::spatial(const UpscaleInput& in, FloatImage& out, bool cubic
       for (int X = 0; X < W; ++X) {
         const float sx = (float(X) + 0.5f) / float(f) - in.jitter_x + 0.5f;
         float* o = out.at(X, Y);
-        if (cubic) sample_catmull_rom3(y.data(), w, h, sx, sy, o);
+        if (cubic) store3(o, sample_catmull_rom3(y.data(), w, h, sx, sy));
         else sample_bilinear<3>(y.data(), w, h, sx, sy, o);
         for (int c = 0; c < 3; ++c) o[c] = std::max(o[c], 0.0f);
       }
@@ -371,7 +369,9 @@ void Upscaler::Impl::spatial(const UpscaleInput& in, FloatImage& out, bool cubic
 // network) the low-resolution features pooled onto the grid.
 void Upscaler::Impl::prepare(const UpscaleInput& in) {
   const size_t n = size_t(w) * size_t(h);
-  y.resize(3 * n), depth.resize(n), mdil.resize(2 * n), mu.resize(3 * n), sigma.resize(3 * n);
+  // + 1: room for the reconstruction's 4-float loads of the last pixel.
+  y.resize(3 * n + 1), depth.resize(n), mdil.resize(2 * n), mu.resize(3 * n + 1), sigma.resize(3 * n + 1);
+  y[3 * n] = mu[3 * n] = sigma[3 * n] = 0.0f;
   std::vector<float>& motion = scratch;  // raw motion, reused below as conv scratch
   motion.resize(2 * n);
   const int mc = in.motion ? in.motion->channels : 0;
@@ -429,7 +429,7 @@ void Upscaler::Impl::temporal(const UpscaleInput& in, FloatImage& out) {
   const bool neural = options.method == UpscaleMethod::neural;
   double t0 = now_ms();
   prepare(in);
-  if (has_history && (hist.size() != size_t(W) * size_t(H) * 3 || prev_depth.size() != size_t(w) * size_t(h)))
+  if (has_history && (hist.size() != size_t(W) * size_t(H) * 3 + 1 || prev_depth.size() != size_t(w) * size_t(h)))
     has_history = false;
   // Parameters on the grid (gw x gh, 3 per cell): the network's, decoded, or the constants.
   const int gw = f == 2 ? (w + 1) / 2 : w, gh = f == 2 ? (h + 1) / 2 : h;
@@ -514,7 +514,7 @@ void Upscaler::Impl::temporal(const UpscaleInput& in, FloatImage& out) {
   // Reconstruction (model.step): per output pixel.
   ax.build(W, w, f, in.jitter_x), ay.build(H, h, f, in.jitter_y);
   gx.build(W, gw), gy.build(H, gh);
-  next_hist.resize(size_t(W) * size_t(H) * 3);
+  next_hist.assign(size_t(W) * size_t(H) * 3 + 1, 0.0f);
   Recon r;
   r.y = y.data(), r.mdil = mdil.data(), r.mu = mu.data(), r.sigma = sigma.data(), r.grid = grid.data();
   r.hist = hist.data(), r.next = next_hist.data(), r.out = out.pixels.data();
