@@ -347,7 +347,8 @@ void Upscaler::upscale(const UpscaleInput& input, FloatImage& out) {
 void Upscaler::Impl::spatial(const UpscaleInput& in, FloatImage& out, bool cubic) {
   const double t0 = now_ms();
   const int f = options.factor;
-  y.assign(size_t(w) * size_t(h) * 3 + 1, 0.0f);  // + 1: the 4-float loads of the last pixel
+  y.resize(size_t(w) * size_t(h) * 3 + 1);  // + 1: the 4-float loads of the last pixel
+  y.back() = 0.0f;
   for (size_t p = 0; p + 1 < y.size(); ++p) y[p] = std::max(finite_or_zero(in.color->pixels[p]), 0.0f);
   const int W = out.width;
   parallel_rows(out.height, 4, [&](int r0, int r1) {
@@ -514,7 +515,8 @@ void Upscaler::Impl::temporal(const UpscaleInput& in, FloatImage& out) {
   // Reconstruction (model.step): per output pixel.
   ax.build(W, w, f, in.jitter_x), ay.build(H, h, f, in.jitter_y);
   gx.build(W, gw), gy.build(H, gh);
-  next_hist.assign(size_t(W) * size_t(H) * 3 + 1, 0.0f);
+  next_hist.resize(size_t(W) * size_t(H) * 3 + 1);  // every pixel is written; + 1: padding
+  next_hist.back() = 0.0f;
   Recon r;
   r.y = y.data(), r.mdil = mdil.data(), r.mu = mu.data(), r.sigma = sigma.data(), r.grid = grid.data();
   r.hist = hist.data(), r.next = next_hist.data(), r.out = out.pixels.data();
