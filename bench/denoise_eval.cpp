@@ -4,6 +4,7 @@
 // error tErr = mean |(o_t - o_{t-1}) - (r_t - r_{t-1})| (tone-mapped), and ms per 1280x720
 // frame (median after warm-up, the machine's threads). Writes a Markdown table, a JSON file
 // and side-by-side crops (PNG).
+#include <CLI/CLI.hpp>
 #include <fmt/format.h>
 #include <tbb/global_control.h>
 
@@ -65,23 +66,14 @@ int main(int argc, char** argv) {
   std::string weights;
   int threads = int(std::thread::hardware_concurrency()), repeat = 9;
   bool quick = false;
-  for (int i = 1; i < argc; ++i) {
-    const std::string a = argv[i];
-    auto next = [&]() -> std::string {
-      if (i + 1 >= argc) throw Error(ErrorCode::invalid_argument, a + " needs a value");
-      return argv[++i];
-    };
-    if (a == "--dataset") dataset = next();
-    else if (a == "--out") out_dir = next();
-    else if (a == "--weights") weights = next();
-    else if (a == "--threads") threads = std::stoi(next());
-    else if (a == "--repeat") repeat = std::stoi(next());
-    else if (a == "--quick") quick = true;
-    else {
-      fmt::print(stderr, "usage: kestrel_denoise_eval [--dataset DIR] [--out DIR] [--weights F] [--threads N] [--repeat N] [--quick]\n");
-      return 2;
-    }
-  }
+  CLI::App app{"kestrel_denoise_eval: the denoisers on the held-out clips"};
+  app.add_option("--dataset", dataset, "The dataset of scripts/denoise/make_dataset.py")->capture_default_str();
+  app.add_option("--out", out_dir, "Where eval.md, eval.json and the crops go")->capture_default_str();
+  app.add_option("--weights", weights, "Neural weights (default: weights/denoiser.kdw)");
+  app.add_option("--threads", threads, "Worker threads")->capture_default_str();
+  app.add_option("--repeat", repeat, "Timed frames (median)")->capture_default_str();
+  app.add_flag("--quick", quick, "Three frames per clip, 1 spp only (smoke test)");
+  CLI11_PARSE(app, argc, argv);
   tbb::global_control threads_limit(tbb::global_control::max_allowed_parallelism, size_t(std::max(threads, 1)));
   try {
     std::vector<Method> methods = {{"input (noisy)", {}, true}};

@@ -7,6 +7,7 @@
 //  - Speed: inside Sponza (data/paths/sponza_walk.json), 1280x720 output from 640x360 and
 //    320x180, the machine's threads: per-stage median and p95, frames per second.
 // Writes docs/pipeline/eval.md and eval.json.
+#include <CLI/CLI.hpp>
 #include <fmt/format.h>
 #include <tbb/global_control.h>
 
@@ -55,32 +56,25 @@ int main(int argc, char** argv) {
   std::string timing_scene = std::string(KESTREL_SOURCE_DIR) + "/../shared/scenes/dabrovic_sponza/sponza.obj";
   std::string timing_path = std::string(KESTREL_SOURCE_DIR) + "/data/paths/sponza_walk.json";
   int threads = int(std::thread::hardware_concurrency()), timing_frames = 12;
-  std::vector<int> depths = {4, 2};
+  std::vector<int> depths;
+  std::string depth_list = "4,2";
   bool quick = false;
-  for (int i = 1; i < argc; ++i) {
-    const std::string a = argv[i];
-    auto next = [&]() -> std::string {
-      if (i + 1 >= argc) throw Error(ErrorCode::invalid_argument, a + " needs a value");
-      return argv[++i];
-    };
-    if (a == "--dataset") dataset = next();
-    else if (a == "--out") out_dir = next();
-    else if (a == "--threads") threads = std::stoi(next());
-    else if (a == "--timing-scene") timing_scene = next();
-    else if (a == "--timing-path") timing_path = next();
-    else if (a == "--timing-frames") timing_frames = std::stoi(next());
-    else if (a == "--max-depths") {
-      depths.clear();
-      std::stringstream list(next());
-      for (std::string d; std::getline(list, d, ',');) depths.push_back(std::stoi(d));
-    }
-    else if (a == "--quick") quick = true;
-    else {
-      fmt::print(stderr,
-                 "usage: kestrel_pipeline_eval [--dataset DIR] [--out DIR] [--threads N] [--timing-scene F] "
-                 "[--timing-path F] [--timing-frames N] [--max-depths 4,2] [--quick]\n");
-      return 2;
-    }
+  CLI::App app{"kestrel_pipeline_eval: the real-time loop, speed and quality"};
+  app.add_option("--dataset", dataset, "The dataset of scripts/upscale/make_dataset.py")->capture_default_str();
+  app.add_option("--out", out_dir, "Where eval.md and eval.json go")->capture_default_str();
+  app.add_option("--threads", threads, "Worker threads")->capture_default_str();
+  app.add_option("--timing-scene", timing_scene, "Scene of the speed measurement")->capture_default_str();
+  app.add_option("--timing-path", timing_path, "Its camera path")->capture_default_str();
+  app.add_option("--timing-frames", timing_frames, "Timed frames")->capture_default_str();
+  app.add_option("--max-depths", depth_list, "Path depths of the speed measurement")->capture_default_str();
+  app.add_flag("--quick", quick, "Three frames per clip and per speed setting (smoke test)");
+  CLI11_PARSE(app, argc, argv);
+  depths.clear();
+  std::stringstream list(depth_list);
+  for (std::string d; std::getline(list, d, ',');) depths.push_back(std::atoi(d.c_str()));
+  if (depths.empty() || *std::min_element(depths.begin(), depths.end()) <= 0) {
+    fmt::print(stderr, "kestrel_pipeline_eval: --max-depths '{}': expected positive numbers, e.g. 4,2\n", depth_list);
+    return 2;
   }
   tbb::global_control threads_limit(tbb::global_control::max_allowed_parallelism, size_t(std::max(threads, 1)));
   try {
@@ -92,7 +86,7 @@ int main(int argc, char** argv) {
                       fs::path(timing_scene).filename().string(), fs::path(timing_path).filename().string(), threads);
     md += "| path depth | internal | factor | update | render | denoise | upscale | tone map | frame (median) | frame (p95) | fps | Mrays/s |\n"
           "|---:|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n";
-    if (!quick || fs::exists(timing_scene)) {
+    if (!quick || fs::exists(timing_scene) || timing_scene.rfind("builtin:", 0) == 0) {
       const CameraPath path = tools::camera_path_for(timing_scene, timing_path, "");
       for (int max_depth : depths)
       for (int factor : {2, 4}) {
