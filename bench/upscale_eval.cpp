@@ -20,6 +20,7 @@
 #include "image_metrics.h"
 #include "kestrel/error.h"
 #include "kestrel/io.h"
+#include "kestrel/render.h"
 #include "kestrel/upscale.h"
 
 using namespace kestrel;

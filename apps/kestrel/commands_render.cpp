@@ -184,12 +184,6 @@ void run_render(const RenderArgs& a) {
     if (!o.empty()) fmt::print("wrote    {}\n", o);
 }
 
-bool is_gltf(const std::string& path) {
-  std::string ext = std::filesystem::path(path).extension().string();
-  for (char& c : ext) c = char(std::tolower(static_cast<unsigned char>(c)));
-  return ext == ".gltf" || ext == ".glb";
-}
-
 CameraPath camera_path_of(const RenderArgs& a) { return camera_path_for(a.scene, a.path, a.view); }
 
 void run_sequence(const RenderArgs& a) {
@@ -202,7 +196,7 @@ void run_sequence(const RenderArgs& a) {
   std::unique_ptr<InstancedScene> instanced;
   std::unique_ptr<GltfInstances> gltf;
   std::unique_ptr<Renderer> renderer;
-  if (is_gltf(a.scene)) {
+  if (is_gltf_path(a.scene)) {
     instanced = std::make_unique<InstancedScene>();
     gltf = std::make_unique<GltfInstances>(GltfInstances::load(a.scene));
     gltf->add_to(*instanced);

@@ -11,6 +11,7 @@
 #include "commands.h"
 #include "kestrel/error.h"
 #include "kestrel/io.h"
+#include "kestrel/render.h"
 #include "kestrel/upscale.h"
 
 namespace kestrel::cli {

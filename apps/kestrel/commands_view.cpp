@@ -72,12 +72,11 @@ const char* stage_name(int s) {
   }
 }
 
-// The displayed stage as RGB8 at the window's size (lower resolutions nearest-upsampled).
-void stage_pixels(const PipelineFrame& f, int stage, float exposure, std::vector<uint8_t>& rgb) {
-  if (stage == 3 || stage == 4 || f.factor == 1) {
-    rgb = f.rgb8;
-    return;
-  }
+// The displayed stage as RGB8 at the window's size: the frame's own for the output stages,
+// else `scratch`, the internal-resolution stage nearest-upsampled.
+const std::vector<uint8_t>& stage_pixels(const PipelineFrame& f, int stage, float exposure, std::vector<uint8_t>& scratch) {
+  if (stage == 3 || stage == 4 || f.factor == 1) return f.rgb8;
+  std::vector<uint8_t>& rgb = scratch;
   const FloatImage& src = stage == 1 ? f.noisy : f.denoised;
   const std::vector<uint8_t> small = tonemap_srgb8(src, exposure);
   rgb.resize(size_t(f.width) * size_t(f.height) * 3);
@@ -87,6 +86,7 @@ void stage_pixels(const PipelineFrame& f, int stage, float exposure, std::vector
       const size_t d = (size_t(y) * size_t(f.width) + size_t(x)) * 3;
       rgb[d] = small[s], rgb[d + 1] = small[s + 1], rgb[d + 2] = small[s + 2];
     }
+  return rgb;
 }
 
 void view(ViewArgs& a) {
@@ -122,7 +122,8 @@ void view(ViewArgs& a) {
 #endif
   bool running = true, overlay = !a.no_overlay, dragging = false;
   int stage = std::clamp(a.stage, 1, 4);
-  std::vector<uint8_t> rgb;
+  std::vector<uint8_t> scratch;
+  const std::vector<uint8_t>* shown = nullptr;  // the last frame's pixels (F12)
   std::string message;
   double fps = 0;
   int frame_count = 0;
@@ -146,7 +147,7 @@ void view(ViewArgs& a) {
           case SDLK_TAB: overlay = !overlay; break;
           case SDLK_F12: {
             const std::string shot = fmt::format("kestrel_{:04d}.png", frame_count);
-            write_png(shot, settings.width, settings.height, rgb);
+            if (shown) write_png(shot, settings.width, settings.height, *shown);
             message = "saved " + shot;
             break;
           }
@@ -191,14 +192,11 @@ void view(ViewArgs& a) {
     } else if (pipeline->animation_duration() > 0) {
       time += dt;
     }
-    const bool resting = camera.eye.x == prev_camera.eye.x && camera.eye.y == prev_camera.eye.y &&
-                         camera.eye.z == prev_camera.eye.z && camera.target.x == prev_camera.target.x &&
-                         camera.target.y == prev_camera.target.y && camera.target.z == prev_camera.target.z &&
-                         pipeline->animation_duration() == 0;
+    const bool resting = camera == prev_camera && pipeline->animation_duration() == 0;
     prev_camera = camera;
     const PipelineFrame& f = stage == 4 && resting ? pipeline->accumulate(camera, time) : pipeline->frame(camera, time);
-    stage_pixels(f, stage == 4 && !resting ? 3 : stage, settings.exposure, rgb);
-    SDL_UpdateTexture(tex, nullptr, rgb.data(), settings.width * 3);
+    shown = &stage_pixels(f, stage == 4 && !resting ? 3 : stage, settings.exposure, scratch);
+    SDL_UpdateTexture(tex, nullptr, shown->data(), settings.width * 3);
     SDL_RenderClear(ren);
     SDL_RenderCopy(ren, tex, nullptr, nullptr);
     fps = fps == 0 ? 1000.0 / f.times.total : 0.9 * fps + 0.1 * 1000.0 / f.times.total;

@@ -26,6 +26,7 @@ struct Camera {
   float vfov_degrees = 45.0f;
   float aperture_radius = 0.0f;
   float focus_distance = 0.0f;
+  bool operator==(const Camera&) const = default;
 };
 
 /// Throws Error unless the camera can make rays: finite values, eye != target, vfov in
@@ -97,6 +98,10 @@ struct RenderSettings {
   int threads = 0;            ///< 0 = all the library may use
   bool progress = false;      ///< a progress bar on stderr
 };
+
+/// The Halton (2, 3) sub-pixel position of sample `index` (pass 0 of frame `index` at 1 spp,
+/// every pass of it with fixed_jitter): radical inverses of index + 1, in [0, 1).
+void frame_jitter(uint32_t index, float& jx, float& jy);
 
 /// The auxiliary buffers, in file order. Every frame has all of them.
 enum class Aov { color, albedo, normal, depth, roughness, motion, spp, variance };

@@ -83,6 +83,10 @@ Bounds3 scene_bounds(const Scene& scene);
 /// Throws Error naming the file (and line, where the format has lines) on failure.
 Scene load_scene(const std::string& path);
 
+/// Whether a path names a glTF file (.gltf or .glb, any case): load_scene reads it flattened,
+/// GltfInstances as a two-level scene with its animation.
+bool is_gltf_path(const std::string& path);
+
 /// Names accepted by load_scene after "builtin:".
 std::vector<std::string> builtin_scene_names();
 

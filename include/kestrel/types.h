@@ -14,6 +14,7 @@ struct Vec3 {
   float x = 0, y = 0, z = 0;
   float operator[](int axis) const { return axis == 0 ? x : (axis == 1 ? y : z); }
   float& operator[](int axis) { return axis == 0 ? x : (axis == 1 ? y : z); }
+  bool operator==(const Vec3&) const = default;
 };
 
 /// An axis-aligned box; empty when lo > hi on any axis (the default is empty).

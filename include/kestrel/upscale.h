@@ -20,7 +20,8 @@ std::optional<UpscaleMethod> upscale_method_from_name(std::string_view name);
 
 /// One low-resolution frame (pointers, not owned). colour (3 channels, linear HDR) is
 /// point-sampled: pixel (i, j) holds the sample at (i + jitter_x, j + jitter_y), jitter in
-/// [0, 1] (kestrel's Frame::jitter_x/y; RenderSettings::fixed_jitter for many samples).
+/// [0, 1] (kestrel's Frame::jitter_x/y, frame_jitter in render.h; RenderSettings::fixed_jitter
+/// for many samples).
 /// depth (1 channel; null = 1) and motion (2 or 3 channels, low-resolution pixels, "p +
 /// motion = where the surface was in the previous frame"; null = 0) must have colour's size.
 /// NaN/Inf read as 0, negative colours as 0.
@@ -39,9 +40,6 @@ struct UpscalerOptions {
 
 /// $KESTREL_WEIGHTS_DIR/upscaler.kdw, else the source tree's weights/upscaler.kdw.
 std::string default_upscaler_weights();
-
-/// Halton (2, 3) jitter of kestrel's frame `index` at 1 spp (or with fixed_jitter).
-void frame_jitter(uint32_t index, float& jx, float& jy);
 
 /// An upsampler for one sequence (the history carries from frame to frame; reset() starts a
 /// new sequence, as does a change of input size). Work runs on the caller's TBB arena.

@@ -17,13 +17,27 @@ void require_readable_file(const std::string& path) {
   if (!f) throw Error(ErrorCode::file_not_found, fmt::format("{}: cannot be opened", path));
 }
 
+namespace {
+
+std::string lower_extension(const std::string& path) {
+  std::string ext = std::filesystem::path(path).extension().string();
+  std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return char(std::tolower(c)); });
+  return ext;
+}
+
+}  // namespace
+
+bool is_gltf_path(const std::string& path) {
+  const std::string ext = lower_extension(path);
+  return ext == ".gltf" || ext == ".glb";
+}
+
 Scene load_scene(const std::string& path) {
   constexpr std::string_view builtin_prefix = "builtin:";
   if (path.rfind(builtin_prefix, 0) == 0) return make_builtin_scene(path.substr(builtin_prefix.size()));
-  std::string ext = std::filesystem::path(path).extension().string();
-  std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return char(std::tolower(c)); });
+  const std::string ext = lower_extension(path);
   if (ext == ".obj") return load_obj(path);
-  if (ext == ".gltf" || ext == ".glb") return load_gltf(path);
+  if (is_gltf_path(path)) return load_gltf(path);
   require_readable_file(path);
   throw Error(ErrorCode::unsupported,
               fmt::format("{}: unknown scene format '{}' (expected .obj, .gltf, .glb or builtin:NAME)", path, ext));

@@ -5,11 +5,10 @@
 #include <fmt/format.h>
 
 #include <algorithm>
-#include <chrono>
 #include <cmath>
-#include <filesystem>
 #include <string>
 
+#include "core/timer.h"
 #include "kestrel/error.h"
 #include "kestrel/instances.h"
 #include "kestrel/scene.h"
@@ -17,16 +16,6 @@
 namespace kestrel {
 
 namespace {
-
-double now_ms() {
-  return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now().time_since_epoch()).count();
-}
-
-bool is_gltf(const std::string& path) {
-  std::string ext = std::filesystem::path(path).extension().string();
-  for (char& c : ext) c = char(std::tolower(static_cast<unsigned char>(c)));
-  return ext == ".gltf" || ext == ".glb";
-}
 
 void check(const PipelineSettings& s) {
   if (s.width <= 0 || s.height <= 0 || s.width > 16384 || s.height > 16384)
@@ -38,12 +27,6 @@ void check(const PipelineSettings& s) {
                 fmt::format("pipeline: output {}x{} is not divisible by the factor {}", s.width, s.height, s.factor));
   if (s.spp <= 0 || s.max_depth <= 0 || !(s.clamp >= 0) || !std::isfinite(s.exposure) || !(s.target_ms >= 0))
     throw Error(ErrorCode::invalid_argument, "pipeline: spp and max depth must be positive, clamp and target time >= 0");
-}
-
-bool same_camera(const Camera& a, const Camera& b) {
-  return a.eye.x == b.eye.x && a.eye.y == b.eye.y && a.eye.z == b.eye.z && a.target.x == b.target.x &&
-         a.target.y == b.target.y && a.target.z == b.target.z && a.vfov_degrees == b.vfov_degrees &&
-         a.aperture_radius == b.aperture_radius && a.focus_distance == b.focus_distance;
 }
 
 }  // namespace
@@ -105,7 +88,7 @@ Pipeline::Pipeline(const std::string& scene, const PipelineSettings& settings, c
   m.settings = settings;
   std::optional<Environment> env;
   if (!environment.empty()) env = Environment::parse(environment);
-  if (is_gltf(scene)) {
+  if (is_gltf_path(scene)) {
     m.instanced = std::make_unique<InstancedScene>();
     m.gltf = std::make_unique<GltfInstances>(GltfInstances::load(scene));
     m.gltf->add_to(*m.instanced);
@@ -155,25 +138,25 @@ const PipelineFrame& Pipeline::frame(const Camera& camera, double time) {
   Impl& m = *impl_;
   PipelineFrame& o = m.out;
   const PipelineSettings& s = m.settings;
-  const double t0 = now_ms();
+  const Timer clock;
   m.update(time);
-  const double t1 = now_ms();
+  const double t1 = clock.ms();
   const int iw = s.width / s.factor, ih = s.height / s.factor;
-  const Frame f = m.renderer->render(camera, m.render_settings(iw, ih, o.index), m.prev_camera);
+  Frame f = m.renderer->render(camera, m.render_settings(iw, ih, o.index), m.prev_camera);
   m.prev_camera = camera;
-  const double t2 = now_ms();
-  o.noisy = f[Aov::color];
+  const double t2 = clock.ms();
+  o.noisy = std::move(f.aov[int(Aov::color)]);
   if (m.denoiser)
-    m.denoiser->denoise({&f[Aov::color], &f[Aov::albedo], &f[Aov::normal], &f[Aov::depth], &f[Aov::roughness], &f[Aov::motion]},
+    m.denoiser->denoise({&o.noisy, &f[Aov::albedo], &f[Aov::normal], &f[Aov::depth], &f[Aov::roughness], &f[Aov::motion]},
                         o.denoised);
   else
     o.denoised = o.noisy;
-  const double t3 = now_ms();
+  const double t3 = clock.ms();
   if (m.upscaler) m.upscaler->upscale({&o.denoised, &f[Aov::depth], &f[Aov::motion], f.jitter_x, f.jitter_y}, o.upscaled);
   else o.upscaled = o.denoised;
-  const double t4 = now_ms();
+  const double t4 = clock.ms();
   o.rgb8 = tonemap_srgb8(o.upscaled, s.exposure);
-  const double t5 = now_ms();
+  const double t5 = clock.ms(), t0 = 0;
   o.width = s.width, o.height = s.height, o.internal_width = iw, o.internal_height = ih, o.factor = s.factor;
   o.times = {t1 - t0, t2 - t1, t3 - t2, t4 - t3, t5 - t4, t5 - t0};
   o.stats = f.stats;
@@ -192,17 +175,17 @@ const PipelineFrame& Pipeline::accumulate(const Camera& camera, double time) {
   Impl& m = *impl_;
   PipelineFrame& o = m.out;
   const PipelineSettings& s = m.settings;
-  if (!m.acc_camera || !same_camera(*m.acc_camera, camera) || m.acc_time != time ||
+  if (!m.acc_camera || *m.acc_camera != camera || m.acc_time != time ||
       m.sum.size() != size_t(s.width) * size_t(s.height) * 3)
     m.samples = 0;
-  const double t0 = now_ms();
+  const Timer clock;
   m.update(time);
-  const double t1 = now_ms();
+  const double t1 = clock.ms();
   RenderSettings rs = m.render_settings(s.width, s.height, uint32_t(m.samples));
   rs.fixed_jitter = false;  // antialiased: a new jitter every sample
   rs.seed = s.seed + 1000003;
   const Frame f = m.renderer->render(camera, rs);
-  const double t2 = now_ms();
+  const double t2 = clock.ms();
   if (m.samples == 0) m.sum.assign(size_t(s.width) * size_t(s.height) * 3, 0.0);
   const FloatImage& c = f[Aov::color];
   for (size_t i = 0; i < m.sum.size(); ++i) m.sum[i] += std::isfinite(c.pixels[i]) ? double(c.pixels[i]) : 0.0;
@@ -212,7 +195,7 @@ const PipelineFrame& Pipeline::accumulate(const Camera& camera, double time) {
     o.upscaled = FloatImage(s.width, s.height, 3);
   for (size_t i = 0; i < m.sum.size(); ++i) o.upscaled.pixels[i] = float(m.sum[i] / m.samples);
   o.rgb8 = tonemap_srgb8(o.upscaled, s.exposure);
-  const double t3 = now_ms();
+  const double t3 = clock.ms(), t0 = 0;
   o.width = s.width, o.height = s.height, o.internal_width = s.width, o.internal_height = s.height, o.factor = 1;
   o.times = {t1 - t0, t2 - t1, 0, 0, t3 - t2, t3 - t0};
   o.stats = f.stats;

@@ -53,13 +53,19 @@ void write_frame_pfms(const std::string& dir, const Frame& frame) {
     write_pfm((std::filesystem::path(dir) / (std::string(aov_name(Aov(a))) + ".pfm")).string(), frame.aov[a]);
 }
 
-float tonemap_aces_srgb(float x) {
-  if (!(x > 0)) return 0.0f;  // NaN and negatives to black
-  x = std::min(x, 1e6f);
-  const float a = 2.51f, b = 0.03f, c = 2.43f, d = 0.59f, e = 0.14f;
-  const float y = std::clamp((x * (a * x + b)) / (x * (c * x + d) + e), 0.0f, 1.0f);
-  return y <= 0.0031308f ? 12.92f * y : 1.055f * std::pow(y, 1.0f / 2.4f) - 0.055f;
+namespace {
+
+// ACES filmic fit (Narkowicz 2015) of linear x, into [0, 1]; NaN and negatives to 0.
+inline float aces_fit(float x) {
+  x = x > 0 ? std::min(x, 1e6f) : 0.0f;
+  return std::clamp((x * (2.51f * x + 0.03f)) / (x * (2.43f * x + 0.59f) + 0.14f), 0.0f, 1.0f);
 }
+
+inline float srgb_oetf(float y) { return y <= 0.0031308f ? 12.92f * y : 1.055f * std::pow(y, 1.0f / 2.4f) - 0.055f; }
+
+}  // namespace
+
+float tonemap_aces_srgb(float x) { return srgb_oetf(aces_fit(x)); }
 
 std::vector<uint8_t> tonemap_srgb8(const FloatImage& color, float exposure_stops) {
   if (color.channels < 3) throw Error(ErrorCode::invalid_argument, "tone map: the image needs 3 channels");
@@ -69,7 +75,7 @@ std::vector<uint8_t> tonemap_srgb8(const FloatImage& color, float exposure_stops
     std::vector<uint8_t> t(65536);
     for (size_t i = 0; i < t.size(); ++i) {
       const float y = float(i) / 65535.0f;
-      t[i] = uint8_t(std::lround(255.0f * (y <= 0.0031308f ? 12.92f * y : 1.055f * std::pow(y, 1.0f / 2.4f) - 0.055f)));
+      t[i] = uint8_t(std::lround(255.0f * srgb_oetf(y)));
     }
     return t;
   }();
@@ -78,12 +84,7 @@ std::vector<uint8_t> tonemap_srgb8(const FloatImage& color, float exposure_stops
   std::vector<uint8_t> out(n * 3);
   parallel_for(0, n, 16384, [&](size_t b, size_t e) {
     for (size_t p = b; p < e; ++p)
-      for (size_t c = 0; c < 3; ++c) {
-        float x = color.pixels[p * ch + c] * scale;
-        x = x > 0 ? std::min(x, 1e6f) : 0.0f;  // NaN and negatives to black
-        const float y = std::clamp((x * (2.51f * x + 0.03f)) / (x * (2.43f * x + 0.59f) + 0.14f), 0.0f, 1.0f);
-        out[3 * p + c] = oetf[size_t(y * 65535.0f + 0.5f)];
-      }
+      for (size_t c = 0; c < 3; ++c) out[3 * p + c] = oetf[size_t(aces_fit(color.pixels[p * ch + c] * scale) * 65535.0f + 0.5f)];
   });
   return out;
 }

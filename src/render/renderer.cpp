@@ -820,6 +820,10 @@ std::array<double, 3> Renderer::retrace(const RayCapture& c) const {
   return ms;
 }
 
+void frame_jitter(uint32_t index, float& jx, float& jy) {
+  jx = radical_inverse(2, index + 1), jy = radical_inverse(3, index + 1);
+}
+
 Frame Renderer::render(const Camera& camera, const RenderSettings& s, std::optional<Camera> prev_camera) {
   check_camera(camera);
   if (prev_camera) check_camera(*prev_camera);
@@ -843,10 +847,7 @@ Frame Renderer::render(const Camera& camera, const RenderSettings& s, std::optio
   std::atomic<size_t> tiles_done{0};
   for (int pass = 0; pass < s.spp; ++pass) {
     float jx = 0.5f, jy = 0.5f;
-    if (s.jitter) {
-      const uint32_t index = s.fixed_jitter ? s.frame + 1 : s.frame * uint32_t(s.spp) + uint32_t(pass) + 1;
-      jx = radical_inverse(2, index), jy = radical_inverse(3, index);
-    }
+    if (s.jitter) frame_jitter(s.fixed_jitter ? s.frame : s.frame * uint32_t(s.spp) + uint32_t(pass), jx, jy);
     if (pass == 0) frame.jitter_x = jx, frame.jitter_y = jy;
     parallel_for(0, tiles, 1, [&](size_t b, size_t e) {
       for (size_t t = b; t < e; ++t) {

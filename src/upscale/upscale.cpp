@@ -10,11 +10,11 @@
 
 #include <algorithm>
 #include <array>
-#include <chrono>
 #include <cmath>
 #include <cstdlib>
 #include <vector>
 
+#include "core/timer.h"
 #include "denoise/kernels.h"
 #include "denoise/neural.h"
 #include "kestrel/error.h"
@@ -32,10 +32,6 @@ constexpr uint32_t kArchitecture = 1;
 // The TAAU-like baseline's constants, picked on the training clips by a grid search
 // (scripts/upscale/train.py --tune-taau; weights/upscaler.json records them).
 constexpr float kTaauA = 0.6f, kTaauGamma = 0.75f, kTaauKappa = 0.0625f;
-
-double now_ms() {
-  return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now().time_since_epoch()).count();
-}
 
 struct FlushDenormals {
   unsigned saved = _mm_getcsr();
@@ -270,15 +266,6 @@ std::string default_upscaler_weights() {
   return std::string(KESTREL_SOURCE_DIR) + "/weights/upscaler.kdw";
 }
 
-void frame_jitter(uint32_t index, float& jx, float& jy) {
-  auto radical_inverse = [](uint32_t base, uint32_t i) {
-    double inv = 1.0 / base, f = inv, r = 0;
-    while (i > 0) r += f * double(i % base), i /= base, f *= inv;
-    return float(r);
-  };
-  jx = radical_inverse(2, index + 1), jy = radical_inverse(3, index + 1);
-}
-
 struct Upscaler::Impl {
   UpscalerOptions options;
   std::vector<denoise::ConvLayer> layers;  // c1, c2, c3, head
@@ -345,7 +332,7 @@ void Upscaler::upscale(const UpscaleInput& input, FloatImage& out) {
 }
 
 void Upscaler::Impl::spatial(const UpscaleInput& in, FloatImage& out, bool cubic) {
-  const double t0 = now_ms();
+  const Timer timer;
   const int f = options.factor;
   y.resize(size_t(w) * size_t(h) * 3 + 1);  // + 1: the 4-float loads of the last pixel
   y.back() = 0.0f;
@@ -363,7 +350,7 @@ void Upscaler::Impl::spatial(const UpscaleInput& in, FloatImage& out, bool cubic
       }
     }
   });
-  times.reconstruct = now_ms() - t0;
+  times.reconstruct = timer.ms();
 }
 
 // Inputs in the tone-mapped space, the least-depth motion, the 3x3 statistics and (for the
@@ -428,7 +415,7 @@ void Upscaler::Impl::temporal(const UpscaleInput& in, FloatImage& out) {
   const int f = options.factor;
   const int W = out.width, H = out.height;
   const bool neural = options.method == UpscaleMethod::neural;
-  double t0 = now_ms();
+  Timer timer;
   prepare(in);
   if (has_history && (hist.size() != size_t(W) * size_t(H) * 3 + 1 || prev_depth.size() != size_t(w) * size_t(h)))
     has_history = false;
@@ -492,9 +479,8 @@ void Upscaler::Impl::temporal(const UpscaleInput& in, FloatImage& out) {
           o[8] = mx1, o[9] = mx4, o[10] = float(f) / 4.0f;
         }
     });
-    const double t1 = now_ms();
-    times.features = t1 - t0;
-    t0 = t1;
+    times.features = timer.ms();
+    timer = Timer();
     const denoise::KernelTable& k = denoise::host_kernels();
     k.conv(layers[0], act0, gw, gh, act1, true, scratch);
     k.conv(layers[1], act1, gw, gh, act0, true, scratch);
@@ -505,12 +491,12 @@ void Upscaler::Impl::temporal(const UpscaleInput& in, FloatImage& out) {
       const float* p = &act0[q * size_t(stride)];
       grid[3 * q] = sigmoid(p[0]), grid[3 * q + 1] = softplus(p[1]), grid[3 * q + 2] = softplus(p[2]);
     }
-    times.network = now_ms() - t0;
-    t0 = now_ms();
+    times.network = timer.ms();
+    timer = Timer();
   } else {
     for (size_t q = 0; q < size_t(gw) * size_t(gh); ++q) grid[3 * q] = kTaauA, grid[3 * q + 1] = kTaauGamma, grid[3 * q + 2] = kTaauKappa;
-    times.features = now_ms() - t0;
-    t0 = now_ms();
+    times.features = timer.ms();
+    timer = Timer();
   }
   // Reconstruction (model.step): per output pixel.
   ax.build(W, w, f, in.jitter_x), ay.build(H, h, f, in.jitter_y);
@@ -524,9 +510,9 @@ void Upscaler::Impl::temporal(const UpscaleInput& in, FloatImage& out) {
   r.w = w, r.h = h, r.W = W, r.H = H, r.gw = gw, r.f = f, r.history = has_history;
   parallel_rows(H, 4, [&](int r0, int r1) { reconstruct_rows(r, r0, r1); });
   hist.swap(next_hist);
-  prev_depth = depth;
+  prev_depth.swap(depth);  // prepare() rewrites every pixel of depth next frame
   has_history = true;
-  times.reconstruct = now_ms() - t0;
+  times.reconstruct = timer.ms();
 }
 
 }  // namespace kestrel

@@ -12,6 +12,7 @@
 
 #include "kestrel/error.h"
 #include "kestrel/io.h"
+#include "kestrel/render.h"
 #include "kestrel/upscale.h"
 
 namespace kestrel {
