@@ -14,7 +14,14 @@ tmax) and are traced in place; images are float32 (H, W, C) arrays, rows top to 
 Errors: TypeError for a wrong dtype, ValueError for a wrong shape or value (and malformed
 files), OSError / FileNotFoundError for files that cannot be opened or written.
 """
-from ._kestrel import *  # noqa: F401,F403
+import os as _os
+
+# An installed package carries the trained weights (setup.py copies them beside the module).
+_weights = _os.path.join(_os.path.dirname(__file__), "weights")
+if _os.path.isdir(_weights):
+    _os.environ.setdefault("KESTREL_WEIGHTS_DIR", _weights)
+
+from ._kestrel import *  # noqa: F401,F403,E402
 from ._kestrel import _last_inputs  # noqa: F401
 from ._kestrel import (Accel, Camera, CameraPath, Denoiser, InstancedScene, Pipeline, Renderer, Scene,  # noqa: F401
                        Upscaler, aov_names, build_accel, builtin_scene_names, bvh_metrics, default_isa, denoise,

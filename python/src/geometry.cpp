@@ -3,6 +3,7 @@
 // layout (used in place), and two-level InstancedScenes with (3, 4) / (4, 4) transforms.
 #include <fmt/format.h>
 #include <pybind11/stl.h>
+#include <pybind11/stl/filesystem.h>
 
 #include <cmath>
 #include <cstddef>
@@ -344,7 +345,8 @@ void bind_geometry(py::module_& m) {
 
   m.def(
       "load_scene",
-      [](const std::string& path) {
+      [](const std::filesystem::path& path_) {
+        const std::string path = path_.string();
         py::gil_scoped_release release;
         return std::make_shared<Scene>(load_scene(path));
       },
@@ -474,7 +476,8 @@ void bind_geometry(py::module_& m) {
       .def(py::init([]() { return std::make_shared<PyInstancedScene>(); }))
       .def_static(
           "load_gltf",
-          [](const std::string& path, size_t clip) {
+          [](const std::filesystem::path& path_, size_t clip) {
+        const std::string path = path_.string();
             auto s = std::make_shared<PyInstancedScene>();
             py::gil_scoped_release release;
             s->gltf.emplace(GltfInstances::load(path, clip));

@@ -2,6 +2,7 @@
 // `.rays` / `.hits` interchange files, and the documented tone map.
 #include <fmt/format.h>
 #include <pybind11/stl.h>
+#include <pybind11/stl/filesystem.h>
 
 #include <cstring>
 
@@ -30,7 +31,8 @@ std::vector<std::string> default_channel_names(const std::string& layer, int cha
 void bind_images(py::module_& m) {
   m.def(
       "read_exr",
-      [](const std::string& path) {
+      [](const std::filesystem::path& path_) {
+        const std::string path = path_.string();
         std::vector<ImageLayer> layers;
         {
           py::gil_scoped_release release;
@@ -43,7 +45,8 @@ void bind_images(py::module_& m) {
       py::arg("path"), "Every layer of an EXR as float32 (H, W, C) arrays, by layer name (bare R, G, B: 'color').");
   m.def(
       "write_exr",
-      [](const std::string& path, py::dict layers, std::optional<std::map<std::string, std::vector<std::string>>> channels) {
+      [](const std::filesystem::path& path_, py::dict layers, std::optional<std::map<std::string, std::vector<std::string>>> channels) {
+        const std::string path = path_.string();
         std::vector<ImageLayer> out;
         for (auto [key, value] : layers) {
           const std::string name = py::str(key);
@@ -72,7 +75,8 @@ void bind_images(py::module_& m) {
       "Writes {layer: (H, W, C) float32} as one EXR ('color' or '' as bare R, G, B).");
   m.def(
       "read_pfm",
-      [](const std::string& path) {
+      [](const std::filesystem::path& path_) {
+        const std::string path = path_.string();
         FloatImage image;
         {
           py::gil_scoped_release release;
@@ -83,7 +87,8 @@ void bind_images(py::module_& m) {
       py::arg("path"), "A PFM as float32 (H, W, 1|3), rows top to bottom.");
   m.def(
       "write_pfm",
-      [](const std::string& path, py::handle image) {
+      [](const std::filesystem::path& path_, py::handle image) {
+        const std::string path = path_.string();
         const FloatImage img = image_from_array(image, "image");
         if (img.channels < 1 || img.channels > 3)
           throw py::value_error(fmt::format("image: PFM holds 1 to 3 channels, got {}", img.channels));
@@ -93,7 +98,8 @@ void bind_images(py::module_& m) {
       py::arg("path"), py::arg("image"), "Writes (H, W, 1|2|3) float32 as PFM (2 channels padded with zeros).");
   m.def(
       "read_image",
-      [](const std::string& path) {
+      [](const std::filesystem::path& path_) {
+        const std::string path = path_.string();
         FloatImage image;
         {
           py::gil_scoped_release release;
@@ -104,7 +110,8 @@ void bind_images(py::module_& m) {
       py::arg("path"), "Any float image kestrel reads (.pfm, .exr, .hdr, 8-bit sRGB-decoded PNG/JPEG).");
   m.def(
       "write_png",
-      [](const std::string& path, py::handle rgb) {
+      [](const std::filesystem::path& path_, py::handle rgb) {
+        const std::string path = path_.string();
         auto a = input_array<uint8_t>(rgb, "rgb", {-1, -1, 3});
         py::gil_scoped_release release;
         write_png(path, int(a.shape(1)), int(a.shape(0)), {a.data(), size_t(a.size())});
@@ -122,7 +129,8 @@ void bind_images(py::module_& m) {
 
   m.def(
       "read_rays",
-      [](const std::string& path) {
+      [](const std::filesystem::path& path_) {
+        const std::string path = path_.string();
         std::vector<Ray> rays;
         {
           py::gil_scoped_release release;
@@ -135,7 +143,8 @@ void bind_images(py::module_& m) {
       py::arg("path"), "A `.rays` file as (N, 8) float32.");
   m.def(
       "write_rays",
-      [](const std::string& path, py::handle rays) {
+      [](const std::filesystem::path& path_, py::handle rays) {
+        const std::string path = path_.string();
         auto r = input_array<float>(rays, "rays", {-1, 8});
         py::gil_scoped_release release;
         write_rays(path, {reinterpret_cast<const Ray*>(r.data()), size_t(r.shape(0))});
@@ -143,7 +152,8 @@ void bind_images(py::module_& m) {
       py::arg("path"), py::arg("rays"));
   m.def(
       "read_hits",
-      [](const std::string& path) {
+      [](const std::filesystem::path& path_) {
+        const std::string path = path_.string();
         std::vector<Hit> hits;
         {
           py::gil_scoped_release release;
@@ -163,7 +173,8 @@ void bind_images(py::module_& m) {
       py::arg("path"), "A `.hits` file as a dict of t (float32) and prim_id (uint32).");
   m.def(
       "write_hits",
-      [](const std::string& path, py::handle t, py::handle prim_id) {
+      [](const std::filesystem::path& path_, py::handle t, py::handle prim_id) {
+        const std::string path = path_.string();
         auto ts = input_array<float>(t, "t", {-1});
         auto ids = input_array<uint32_t>(prim_id, "prim_id", {ts.shape(0)});
         std::vector<Hit> hits(size_t(ts.shape(0)));

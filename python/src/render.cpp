@@ -4,6 +4,7 @@
 // frame by frame.
 #include <fmt/format.h>
 #include <pybind11/stl.h>
+#include <pybind11/stl/filesystem.h>
 
 #include <cmath>
 #include <cstring>
@@ -212,16 +213,19 @@ void bind_render(py::module_& m) {
 
   m.def(
       "view",
-      [](const Scene& scene, const std::string& name) {
-        auto cam = find_view(scene, name);
-        if (!cam) throw py::value_error(fmt::format("view: {} has no view named '{}'", scene.source, name));
+      [](const Scene& scene, std::optional<std::string> name) {
+        // As `kestrel render`: the scene's "front" view where it has one, else "framing".
+        if (!name) name = find_view(scene, "front") ? "front" : "framing";
+        auto cam = find_view(scene, *name);
+        if (!cam) throw py::value_error(fmt::format("view: {} has no view named '{}'", scene.source, *name));
         return *cam;
       },
-      py::arg("scene"), py::arg("name") = "framing",
-      "A named view of the scene ('framing' always exists; Sponza has 'inside').");
+      py::arg("scene"), py::arg("name") = py::none(),
+      "A named view of the scene (None: 'front' where the scene has one, else 'framing', as `kestrel render`; "
+      "'framing' always exists; Sponza has 'inside').");
 
   py::class_<CameraPath>(m, "CameraPath", "A keyframed camera path (JSON) or a turntable orbit.")
-      .def_static("load", &CameraPath::load, py::arg("path"))
+      .def_static("load", [](const std::filesystem::path& path) { return CameraPath::load(path.string()); }, py::arg("path"))
       .def_static("orbit", &CameraPath::orbit, py::arg("start"), py::arg("degrees"), py::arg("seconds") = 1.0)
       .def_property_readonly("start", &CameraPath::start)
       .def_property_readonly("end", &CameraPath::end)
@@ -359,13 +363,13 @@ void bind_render(py::module_& m) {
       "Upsamples one point-sampled frame (H, W, 3) by factor 2 or 4. For sequences (temporal methods), use Upscaler.");
 
   py::class_<Pipeline>(m, "Pipeline", "The real-time loop: update, 1-spp render, denoise, upsample, tone map.")
-      .def(py::init([](const std::string& scene, py::handle res, int factor, std::optional<std::string> denoiser,
+      .def(py::init([](const std::filesystem::path& scene, py::handle res, int factor, std::optional<std::string> denoiser,
                        const std::string& upscaler, int spp, int max_depth, float clamp, float exposure,
                        double target_ms, uint64_t seed, const std::string& environment) {
              const PipelineSettings s = pipeline_settings(resolution(res), factor, denoiser, upscaler, spp, max_depth,
                                                           clamp, exposure, target_ms, seed);
              py::gil_scoped_release release;
-             return std::make_unique<Pipeline>(scene, s, environment);
+             return std::make_unique<Pipeline>(scene.string(), s, environment);
            }),
            py::arg("scene"), py::arg("res") = py::make_tuple(1280, 720), py::arg("factor") = 2,
            py::arg("denoiser") = "neural", py::arg("upscaler") = "neural", py::arg("spp") = 1, py::arg("max_depth") = 4,

@@ -1,0 +1,170 @@
+"""Rendering, denoising, upsampling, the real-time loop and image files from Python, against
+the CLI's outputs for the same settings."""
+import numpy as np
+import pytest
+
+import kestrel
+from conftest import bits
+
+RES = (48, 32)
+
+
+@pytest.fixture(scope="module")
+def cornell():
+    return kestrel.load_scene("builtin:cornell_box")
+
+
+@pytest.fixture(scope="module")
+def frame(cornell):
+    return kestrel.Renderer(cornell).render(kestrel.view(cornell), spp=4, res=RES, seed=3)
+
+
+def test_aovs_equal_the_cli_pfms(cli, frame, tmp_path):
+    cli("render", "builtin:cornell_box", "--res", f"{RES[0]}x{RES[1]}", "--spp", 4, "--seed", 3, "--quiet",
+        "-o", tmp_path / "f.exr", "--pfm", tmp_path / "pfm")
+    assert sorted(frame) == sorted(kestrel.aov_names)
+    for name in kestrel.aov_names:
+        pfm = kestrel.read_pfm(str(tmp_path / "pfm" / f"{name}.pfm"))
+        mine = frame[name]
+        assert mine.dtype == np.float32 and mine.shape[:2] == (RES[1], RES[0])
+        assert np.array_equal(bits(mine), bits(pfm[..., : mine.shape[2]])), name
+    exr = kestrel.read_exr(str(tmp_path / "f.exr"))
+    assert np.array_equal(bits(exr["color"]), bits(frame["color"]))
+    assert np.array_equal(bits(exr["normal"]), bits(frame["normal"]))
+    assert frame["color"].mean() > 0.01  # it is lit
+
+
+def test_aovs_are_arrays_over_the_frame(frame):
+    for name in kestrel.aov_names:
+        assert not frame[name].flags.owndata  # numpy views of the frame's pixels, not copies
+        assert frame[name].flags.c_contiguous
+
+
+def test_render_is_the_same_for_any_thread_count(cornell):
+    r = kestrel.Renderer(cornell)
+    a = r.render(kestrel.view(cornell), spp=2, res=RES, seed=9, threads=1)
+    b = r.render(kestrel.view(cornell), spp=2, res=RES, seed=9, threads=2)
+    for name in kestrel.aov_names:
+        assert np.array_equal(bits(a[name]), bits(b[name])), name
+    assert r.last_stats["passes"] == 2
+
+
+def test_render_arguments_are_checked(cornell):
+    r = kestrel.Renderer(cornell)
+    cam = kestrel.view(cornell)
+    with pytest.raises(ValueError, match="res"):
+        r.render(cam, res=(0, 10))
+    with pytest.raises(TypeError, match="res"):
+        r.render(cam, res="big")
+    with pytest.raises(ValueError, match="spp"):
+        r.render(cam, spp=0, res=RES)
+    with pytest.raises(ValueError, match="eye and target"):
+        kestrel.Camera(eye=(0, 0, 0), target=(0, 0, 0))
+    with pytest.raises(ValueError, match="no view named 'nowhere'"):
+        kestrel.view(cornell, "nowhere")
+    with pytest.raises((ValueError, OSError)):
+        kestrel.Renderer(cornell, environment="/no/such/sky.exr")
+
+
+def test_denoise_equals_the_cli(cli, frame, tmp_path):
+    for name in ("color", "albedo", "normal"):
+        kestrel.write_pfm(str(tmp_path / f"{name}.pfm"), frame[name])
+    for method in ("neural", "svgf", "atrous"):
+        cli("denoise", "--hdr", tmp_path / "color.pfm", "--alb", tmp_path / "albedo.pfm", "--nrm",
+            tmp_path / "normal.pfm", "-o", tmp_path / "out.pfm", "--method", method, "--quiet")
+        expected = kestrel.read_pfm(str(tmp_path / "out.pfm"))
+        got = kestrel.denoise(frame["color"], albedo=frame["albedo"], normal=frame["normal"], method=method)
+        assert got.shape == (RES[1], RES[0], 3)
+        assert np.array_equal(bits(got), bits(expected)), method
+
+
+def test_denoise_inputs_are_checked(frame, tmp_path):
+    color = frame["color"]
+    out = np.zeros_like(color)
+    result = kestrel.denoise(color, albedo=frame["albedo"], out=out)
+    assert np.shares_memory(result, out) and out.any()
+    with pytest.raises(ValueError, match="albedo: size 24x32 differs from color's 48x32"):
+        kestrel.denoise(color, albedo=np.ascontiguousarray(frame["albedo"][:, :24]))
+    with pytest.raises(ValueError, match="color: expected 3 channels"):
+        kestrel.denoise(frame["depth"])
+    with pytest.raises(TypeError, match="color: expected dtype float32"):
+        kestrel.denoise(color.astype(np.float16))
+    nan = color.copy()
+    nan[3, 4, 1] = np.nan
+    assert np.isfinite(kestrel.denoise(nan)).all()  # NaN read as 0 by default
+    with pytest.raises(ValueError, match=r"color: non-finite value at pixel \(4, 3\)"):
+        kestrel.denoise(nan, nan_policy="raise")
+    with pytest.raises(ValueError, match="method"):
+        kestrel.denoise(color, method="oidn")
+    (tmp_path / "bad.kdw").write_bytes(b"KDW1 definitely not weights")
+    with pytest.raises(ValueError, match="bad.kdw"):
+        kestrel.denoise(color, weights=str(tmp_path / "bad.kdw"))
+    with pytest.raises(OSError, match="missing.kdw"):
+        kestrel.Denoiser(weights=str(tmp_path / "missing.kdw"))
+    with pytest.raises(ValueError, match="out: expected shape"):
+        kestrel.denoise(color, out=np.zeros((2, 2, 3), np.float32))
+
+
+def test_denoiser_sequence_carries_state(cornell):
+    r = kestrel.Renderer(cornell)
+    cam = kestrel.view(cornell)
+    d = kestrel.Denoiser("neural")
+    outs = []
+    for i in range(3):
+        f = r.render(cam, spp=1, res=RES, seed=0, frame=i)
+        outs.append(d.denoise(f["color"], albedo=f["albedo"], normal=f["normal"], depth=f["depth"],
+                              roughness=f["roughness"], motion=f["motion"]))
+    fresh = kestrel.Denoiser("neural").denoise(f["color"], albedo=f["albedo"], normal=f["normal"], depth=f["depth"],
+                                               roughness=f["roughness"], motion=f["motion"])
+    assert not np.array_equal(outs[-1], fresh)  # the history changed the third frame
+    assert d.parameter_count > 0
+
+
+def test_upscale(frame):
+    up = kestrel.upscale(frame["color"], factor=2, method="bicubic")
+    assert up.shape == (2 * RES[1], 2 * RES[0], 3)
+    u = kestrel.Upscaler("neural", factor=4)
+    big = u.upscale(frame["color"], depth=frame["depth"], motion=frame["motion"], jitter=(0.5, 0.5))
+    assert big.shape == (4 * RES[1], 4 * RES[0], 3) and np.isfinite(big).all()
+    with pytest.raises(ValueError, match="factor: must be 2 or 4"):
+        kestrel.upscale(frame["color"], factor=3)
+    with pytest.raises(ValueError, match="depth: size"):
+        kestrel.upscale(frame["color"], depth=np.zeros((4, 4), np.float32))
+
+
+def test_pipeline_steps_frame_by_frame(cornell):
+    p = kestrel.Pipeline("builtin:cornell_box", res=(96, 64), factor=2)
+    cam = kestrel.view(cornell)
+    f0 = p.frame(cam, 0.0)
+    f1 = p.frame(cam, 1 / 30)
+    assert f1["index"] == f0["index"] + 1
+    assert f1["noisy"].shape == (32, 48, 3) and f1["upscaled"].shape == (64, 96, 3)
+    assert f1["rgb8"].dtype == np.uint8 and f1["rgb8"].shape == (64, 96, 3) and f1["rgb8"].any()
+    assert set(f1["times"]) >= {"render", "denoise", "upscale", "tonemap", "total"}
+    with pytest.raises(ValueError, match="denoiser"):
+        kestrel.Pipeline("builtin:cornell_box", denoiser="magic")
+    with pytest.raises(FileNotFoundError):
+        kestrel.Pipeline("/no/such/scene.obj")
+
+
+def test_image_files_round_trip(tmp_path):
+    rng = np.random.default_rng(1)
+    img = rng.random((5, 7, 3), dtype=np.float32)
+    kestrel.write_pfm(str(tmp_path / "a.pfm"), img)
+    assert np.array_equal(kestrel.read_pfm(str(tmp_path / "a.pfm")), img)
+    depth = rng.random((5, 7), dtype=np.float32)
+    kestrel.write_exr(str(tmp_path / "a.exr"), {"color": img, "depth": depth})
+    layers = kestrel.read_exr(str(tmp_path / "a.exr"))
+    assert np.array_equal(layers["color"], img) and np.array_equal(layers["depth"][..., 0], depth)
+    with pytest.raises(ValueError, match="differs"):
+        kestrel.write_exr(str(tmp_path / "b.exr"), {"color": img, "depth": depth[:4]})
+    with pytest.raises(OSError):
+        kestrel.write_pfm(str(tmp_path / "no" / "such" / "dir" / "a.pfm"), img)
+    rgb = kestrel.tonemap(img)
+    assert rgb.dtype == np.uint8 and rgb.shape == (5, 7, 3)
+    kestrel.write_png(str(tmp_path / "a.png"), rgb)
+    back = kestrel.read_image(str(tmp_path / "a.png"))
+    assert back.shape == (5, 7, 3)
+    with pytest.raises(ValueError, match="a.pfm|truncated|PFM"):
+        (tmp_path / "t.pfm").write_bytes(b"PF\n7 5\n-1\n" + b"\0" * 10)
+        kestrel.read_pfm(str(tmp_path / "t.pfm"))
