@@ -10,6 +10,7 @@
 #include <map>
 #include <memory>
 #include <optional>
+#include <span>
 #include <string>
 #include <vector>
 
@@ -99,6 +100,11 @@ struct RenderSettings {
   bool progress = false;      ///< a progress bar on stderr
 };
 
+/// Edge of the square tiles a render is split into, pixels; tiles are numbered row-major.
+int render_tile_size();
+/// Tiles of a width x height image.
+size_t render_tile_count(int width, int height);
+
 /// The Halton (2, 3) sub-pixel position of sample `index` (pass 0 of frame `index` at 1 spp,
 /// every pass of it with fixed_jitter): radical inverses of index + 1, in [0, 1).
 void frame_jitter(uint32_t index, float& jx, float& jy);
@@ -183,6 +189,13 @@ class Renderer {
   /// Renders one frame. prev_camera: the previous frame's camera (for motion vectors;
   /// nullopt = this camera). Throws Error for bad settings or a bad camera.
   Frame render(const Camera& camera, const RenderSettings& settings, std::optional<Camera> prev_camera = std::nullopt);
+  /// Renders only the listed tiles (render_tile_size() pixels square, row-major over the
+  /// image; every pass of each) into `frame`, which is sized (and zeroed) when its size
+  /// differs from the settings'; other pixels are left as they are. Every rendered pixel
+  /// equals render()'s bit for bit, so tiles can be spread over processes (distributed
+  /// rendering). frame.stats adds this call's rays and times. No time limit.
+  void render_tiles(const Camera& camera, const RenderSettings& settings, std::span<const uint32_t> tiles, Frame& frame,
+                    std::optional<Camera> prev_camera = std::nullopt);
   /// Bounds of the scene as rendered.
   Bounds3 bounds() const;
   size_t light_count() const;

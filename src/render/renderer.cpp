@@ -179,6 +179,9 @@ struct Renderer::Impl {
   float p_env = 0;  // probability NEE samples the environment
   Bounds3 bounds;
   RayCapture* capture = nullptr;
+  std::unique_ptr<Accumulator> tile_acc;  // render_tiles: sums kept between calls of one size
+  void render_passes(const Camera& camera, const RenderSettings& s, const std::optional<Camera>& prev_camera,
+                     const std::vector<uint32_t>* only, Accumulator& acc, Frame& frame);
 
   const Material& material_of(const TriangleMesh& m, uint32_t prim) const {
     const uint32_t id = prim < m.material_ids.size() ? m.material_ids[prim] : uint32_t(materials.size() - 1);
@@ -824,7 +827,9 @@ void frame_jitter(uint32_t index, float& jx, float& jy) {
   jx = radical_inverse(2, index + 1), jy = radical_inverse(3, index + 1);
 }
 
-Frame Renderer::render(const Camera& camera, const RenderSettings& s, std::optional<Camera> prev_camera) {
+namespace {
+
+void check_render_settings(const Camera& camera, const RenderSettings& s, const std::optional<Camera>& prev_camera) {
   check_camera(camera);
   if (prev_camera) check_camera(*prev_camera);
   if (s.width <= 0 || s.height <= 0 || s.width > 32768 || s.height > 32768)
@@ -832,16 +837,44 @@ Frame Renderer::render(const Camera& camera, const RenderSettings& s, std::optio
   if (s.spp <= 0) throw Error(ErrorCode::invalid_argument, fmt::format("render: spp must be positive, got {}", s.spp));
   if (s.max_depth <= 0) throw Error(ErrorCode::invalid_argument, fmt::format("render: max depth must be positive, got {}", s.max_depth));
   if (!(s.time_limit_s >= 0) || !(s.clamp >= 0)) throw Error(ErrorCode::invalid_argument, "render: time limit and clamp must be >= 0");
+}
+
+// The frame's AOVs at pixel p: the means of the accumulated sums.
+void finish_pixel(const Accumulator& acc, Frame& frame, size_t p) {
+  const float inv = acc.n[p] > 0 ? 1.0f / float(acc.n[p]) : 0.0f;
+  for (int c = 0; c < 3; ++c) {
+    frame.aov[int(Aov::color)].pixels[3 * p + size_t(c)] = acc.color[3 * p + size_t(c)] * inv;
+    frame.aov[int(Aov::albedo)].pixels[3 * p + size_t(c)] = acc.albedo[3 * p + size_t(c)] * inv;
+    frame.aov[int(Aov::normal)].pixels[3 * p + size_t(c)] = acc.normal[3 * p + size_t(c)] * inv;
+  }
+  frame.aov[int(Aov::depth)].pixels[p] = acc.depth[p] * inv;
+  frame.aov[int(Aov::roughness)].pixels[p] = acc.rough[p] * inv;
+  frame.aov[int(Aov::motion)].pixels[2 * p] = acc.motion[2 * p] * inv;
+  frame.aov[int(Aov::motion)].pixels[2 * p + 1] = acc.motion[2 * p + 1] * inv;
+  frame.aov[int(Aov::spp)].pixels[p] = float(acc.n[p]);
+  frame.aov[int(Aov::variance)].pixels[p] = acc.n[p] > 1 ? float(acc.lum_m2[p] / (acc.n[p] - 1) / acc.n[p]) : 0.0f;
+}
+
+}  // namespace
+
+int render_tile_size() { return tile_size; }
+
+size_t render_tile_count(int width, int height) {
+  return size_t((width + tile_size - 1) / tile_size) * size_t((height + tile_size - 1) / tile_size);
+}
+
+// One render over a list of tiles (every tile when `only` is null): passes outside, tiles
+// inside, so each pixel sums its samples in pass order whichever tiles run together.
+void Renderer::Impl::render_passes(const Camera& camera, const RenderSettings& s, const std::optional<Camera>& prev_camera,
+                                   const std::vector<uint32_t>* only, Accumulator& acc, Frame& frame) {
   std::optional<ThreadLimit> limit;
-  if (s.threads > 0 || impl_->capture) limit.emplace(impl_->capture ? 1 : s.threads);
+  if (s.threads > 0 || capture) limit.emplace(capture ? 1 : s.threads);
   const CameraModel cam(camera, s.width, s.height);
   const CameraModel prev(prev_camera ? *prev_camera : camera, s.width, s.height);
-  Accumulator acc(s.width, s.height);
-  const int tiles_x = (s.width + tile_size - 1) / tile_size, tiles_y = (s.height + tile_size - 1) / tile_size;
-  const size_t tiles = size_t(tiles_x) * size_t(tiles_y);
+  const int tiles_x = (s.width + tile_size - 1) / tile_size;
+  const size_t tiles = only ? only->size() : render_tile_count(s.width, s.height);
   std::vector<double> tile_trace(tiles), tile_total(tiles);
   std::vector<std::array<uint64_t, 3>> tile_rays(tiles);
-  Frame frame;
   const double start = now_ms();
   int passes = 0;
   std::atomic<size_t> tiles_done{0};
@@ -850,14 +883,15 @@ Frame Renderer::render(const Camera& camera, const RenderSettings& s, std::optio
     if (s.jitter) frame_jitter(s.fixed_jitter ? s.frame : s.frame * uint32_t(s.spp) + uint32_t(pass), jx, jy);
     if (pass == 0) frame.jitter_x = jx, frame.jitter_y = jy;
     parallel_for(0, tiles, 1, [&](size_t b, size_t e) {
-      for (size_t t = b; t < e; ++t) {
+      for (size_t i = b; i < e; ++i) {
+        const size_t t = only ? size_t((*only)[i]) : i;
         const double t0 = now_ms();
         uint64_t counts[3] = {0, 0, 0};
         double tms = 0;
-        impl_->render_tile(cam, prev, s, int(t % size_t(tiles_x)), int(t / size_t(tiles_x)), pass, jx, jy, acc, tms, counts);
-        tile_trace[t] += tms;
-        tile_total[t] += now_ms() - t0;
-        for (int k = 0; k < 3; ++k) tile_rays[t][size_t(k)] += counts[k];
+        render_tile(cam, prev, s, int(t % size_t(tiles_x)), int(t / size_t(tiles_x)), pass, jx, jy, acc, tms, counts);
+        tile_trace[i] += tms;
+        tile_total[i] += now_ms() - t0;
+        for (int k = 0; k < 3; ++k) tile_rays[i][size_t(k)] += counts[k];
         const size_t done = ++tiles_done;
         if (s.progress && (done % 16 == 0 || done == tiles * size_t(s.spp))) {
           const double f = double(done) / double(tiles * size_t(s.spp));
@@ -871,7 +905,7 @@ Frame Renderer::render(const Camera& camera, const RenderSettings& s, std::optio
     if (s.time_limit_s > 0 && now_ms() - start >= s.time_limit_s * 1000) break;
   }
   if (s.progress) std::fprintf(stderr, "\n");
-  frame.stats.ms = now_ms() - start;
+  frame.stats.ms += now_ms() - start;
   frame.stats.passes = passes;
   for (size_t t = 0; t < tiles; ++t) {
     frame.stats.trace_ms += tile_trace[t];
@@ -880,24 +914,52 @@ Frame Renderer::render(const Camera& camera, const RenderSettings& s, std::optio
     frame.stats.bounce_rays += tile_rays[t][1];
     frame.stats.shadow_rays += tile_rays[t][2];
   }
+}
+
+Frame Renderer::render(const Camera& camera, const RenderSettings& s, std::optional<Camera> prev_camera) {
+  check_render_settings(camera, s, prev_camera);
+  Accumulator acc(s.width, s.height);
+  Frame frame;
+  impl_->render_passes(camera, s, prev_camera, nullptr, acc, frame);
   // Means of the sums.
   frame.width = s.width, frame.height = s.height;
   for (int a = 0; a < aov_count; ++a) frame.aov[a] = FloatImage(s.width, s.height, aov_channels(Aov(a)));
-  for (size_t p = 0; p < size_t(s.width) * size_t(s.height); ++p) {
-    const float inv = acc.n[p] > 0 ? 1.0f / float(acc.n[p]) : 0.0f;
-    for (int c = 0; c < 3; ++c) {
-      frame.aov[int(Aov::color)].pixels[3 * p + size_t(c)] = acc.color[3 * p + size_t(c)] * inv;
-      frame.aov[int(Aov::albedo)].pixels[3 * p + size_t(c)] = acc.albedo[3 * p + size_t(c)] * inv;
-      frame.aov[int(Aov::normal)].pixels[3 * p + size_t(c)] = acc.normal[3 * p + size_t(c)] * inv;
-    }
-    frame.aov[int(Aov::depth)].pixels[p] = acc.depth[p] * inv;
-    frame.aov[int(Aov::roughness)].pixels[p] = acc.rough[p] * inv;
-    frame.aov[int(Aov::motion)].pixels[2 * p] = acc.motion[2 * p] * inv;
-    frame.aov[int(Aov::motion)].pixels[2 * p + 1] = acc.motion[2 * p + 1] * inv;
-    frame.aov[int(Aov::spp)].pixels[p] = float(acc.n[p]);
-    frame.aov[int(Aov::variance)].pixels[p] = acc.n[p] > 1 ? float(acc.lum_m2[p] / (acc.n[p] - 1) / acc.n[p]) : 0.0f;
-  }
+  for (size_t p = 0; p < size_t(s.width) * size_t(s.height); ++p) finish_pixel(acc, frame, p);
   return frame;
+}
+
+void Renderer::render_tiles(const Camera& camera, const RenderSettings& s, std::span<const uint32_t> tiles, Frame& frame,
+                            std::optional<Camera> prev_camera) {
+  check_render_settings(camera, s, prev_camera);
+  if (s.time_limit_s > 0)
+    throw Error(ErrorCode::invalid_argument, "render: a time limit cannot be split into tiles (every tile needs every pass)");
+  const size_t count = render_tile_count(s.width, s.height);
+  for (uint32_t t : tiles)
+    if (t >= count) throw Error(ErrorCode::invalid_argument, fmt::format("render: tile {} of {}", t, count));
+  if (frame.width != s.width || frame.height != s.height) {
+    frame = Frame{};
+    frame.width = s.width, frame.height = s.height;
+    for (int a = 0; a < aov_count; ++a) frame.aov[a] = FloatImage(s.width, s.height, aov_channels(Aov(a)));
+  }
+  auto& acc = impl_->tile_acc;
+  if (!acc || acc->width != s.width || acc->height != s.height) acc = std::make_unique<Accumulator>(s.width, s.height);
+  const int tiles_x = (s.width + tile_size - 1) / tile_size;
+  auto for_pixels = [&](uint32_t t, auto&& f) {
+    const int x0 = int(t % uint32_t(tiles_x)) * tile_size, y0 = int(t / uint32_t(tiles_x)) * tile_size;
+    for (int y = y0; y < std::min(y0 + tile_size, s.height); ++y)
+      for (int x = x0; x < std::min(x0 + tile_size, s.width); ++x) f(size_t(y) * size_t(s.width) + size_t(x));
+  };
+  for (uint32_t t : tiles)  // this render's sums start from zero, as render()'s
+    for_pixels(t, [&](size_t p) {
+      for (int c = 0; c < 3; ++c)
+        acc->color[3 * p + size_t(c)] = acc->albedo[3 * p + size_t(c)] = acc->normal[3 * p + size_t(c)] = 0;
+      acc->depth[p] = acc->rough[p] = acc->motion[2 * p] = acc->motion[2 * p + 1] = 0;
+      acc->lum_mean[p] = acc->lum_m2[p] = 0;
+      acc->n[p] = 0;
+    });
+  const std::vector<uint32_t> list(tiles.begin(), tiles.end());
+  impl_->render_passes(camera, s, prev_camera, &list, *acc, frame);
+  for (uint32_t t : tiles) for_pixels(t, [&](size_t p) { finish_pixel(*acc, frame, p); });
 }
 
 }  // namespace kestrel
