@@ -9,6 +9,7 @@
 #include <memory>
 
 #include "commands.h"
+#include "distributed/distributed.h"
 #include "kestrel/error.h"
 #include "kestrel/io.h"
 #include "kestrel/denoise.h"
@@ -101,6 +102,35 @@ std::unique_ptr<Denoiser> denoiser_of(const RenderArgs& a) {
   return std::make_unique<Denoiser>(o);
 }
 
+// Files of one command written as a set: each to a temporary name beside its destination,
+// then all renamed at the end, so a failed or killed run never leaves a half-written file in
+// place of an existing one. Temporaries not committed are removed.
+class FileSet {
+ public:
+  ~FileSet() {
+    for (const auto& [tmp, final_path] : files_) std::remove(tmp.c_str());
+  }
+  /// A temporary path for `final_path` (same folder, same extension).
+  std::string add(const std::string& final_path) {
+    const std::filesystem::path p(final_path);
+    const std::string tmp =
+        (p.parent_path() / fmt::format(".{}.partial-{}{}", p.filename().string(), getpid(), p.extension().string())).string();
+    files_.emplace_back(tmp, final_path);
+    return tmp;
+  }
+  void commit() {
+    for (const auto& [tmp, final_path] : files_) {
+      std::error_code ec;
+      std::filesystem::rename(tmp, final_path, ec);
+      if (ec) throw Error(ErrorCode::io_error, fmt::format("{}: cannot replace the file: {}", final_path, ec.message()));
+    }
+    files_.clear();
+  }
+
+ private:
+  std::vector<std::pair<std::string, std::string>> files_;
+};
+
 // With a denoised colour, the colour AOV becomes it and the noisy one is written beside it
 // (EXR layer "noisy", noisy.pfm).
 void write_outputs(const Frame& frame, const std::string& exr, const std::string& pfm, const std::string& png, float exposure,
@@ -112,22 +142,28 @@ void write_outputs(const Frame& frame, const std::string& exr, const std::string
   }
   const Frame& f = denoised ? copy : frame;
   const FloatImage& noisy = frame[Aov::color];
+  FileSet files;
   if (!exr.empty()) {
     const std::filesystem::path parent = std::filesystem::path(exr).parent_path();
     if (!parent.empty()) std::filesystem::create_directories(parent);
     if (denoised) {
       std::vector<ImageLayer> layers = f.layers();
       layers.push_back({"noisy", {"R", "G", "B"}, noisy});
-      write_exr(exr, layers);
+      write_exr(files.add(exr), layers);
     } else {
-      write_frame_exr(exr, f);
+      write_frame_exr(files.add(exr), f);
     }
   }
   if (!pfm.empty()) {
-    write_frame_pfms(pfm, f);
-    if (denoised) write_pfm((std::filesystem::path(pfm) / "noisy.pfm").string(), noisy);
+    std::error_code ec;
+    std::filesystem::create_directories(pfm, ec);
+    if (ec) throw Error(ErrorCode::io_error, fmt::format("{}: cannot create directory: {}", pfm, ec.message()));
+    for (int a = 0; a < aov_count; ++a)
+      write_pfm(files.add((std::filesystem::path(pfm) / (std::string(aov_name(Aov(a))) + ".pfm")).string()), f.aov[a]);
+    if (denoised) write_pfm(files.add((std::filesystem::path(pfm) / "noisy.pfm").string()), noisy);
   }
-  if (!png.empty()) write_png(png, f.width, f.height, tonemap_srgb8(f[Aov::color], exposure));
+  if (!png.empty()) write_png(files.add(png), f.width, f.height, tonemap_srgb8(f[Aov::color], exposure));
+  files.commit();
 }
 
 FloatImage denoise_frame(Denoiser& d, const Frame& f) {
@@ -149,6 +185,18 @@ void print_stats(const RenderStats& st) {
              "{:.0f}% of thread time in trace/occluded\n",
              st.passes, st.ms, st.camera_rays, st.bounce_rays, st.shadow_rays, mrays,
              st.total_thread_ms > 0 ? 100.0 * st.trace_ms / st.total_thread_ms : 0.0);
+}
+
+// Per-rank busy time under mpirun: how evenly the dynamic tiles spread.
+void print_ranks(const std::vector<distributed::RankStats>& ranks, double frame_ms) {
+  if (ranks.size() < 2) return;
+  double busy = 0;
+  for (const auto& r : ranks) busy += r.busy_ms;
+  for (size_t r = 0; r < ranks.size(); ++r)
+    fmt::print("rank {:<3} {:5} tiles, busy {:.1f} ms ({:.0f}% of the frame)\n", r, ranks[r].tiles, ranks[r].busy_ms,
+               frame_ms > 0 ? 100.0 * ranks[r].busy_ms / frame_ms : 0.0);
+  fmt::print("ranks    {}: parallel efficiency {:.3f} (busy time / (ranks x frame time))\n", ranks.size(),
+             frame_ms > 0 ? busy / (double(ranks.size()) * frame_ms) : 0.0);
 }
 
 void run_render(const RenderArgs& a) {
@@ -175,9 +223,12 @@ void run_render(const RenderArgs& a) {
   RenderSettings rs = s;
   rs.frame = uint32_t(a.frame);
   const std::unique_ptr<Denoiser> denoiser = denoiser_of(a);
-  const Frame f = renderer.render(camera, rs);
+  std::vector<distributed::RankStats> ranks;
+  const Frame f = distributed::render(renderer, camera, rs, std::nullopt, &ranks);
+  if (distributed::rank() != 0) return;  // rank 0 holds the frame and writes the files
   fmt::print("scene    {} ({} triangles, {} light triangles)\n", source, triangles, renderer.light_count());
   print_stats(f.stats);
+  print_ranks(ranks, f.stats.ms);
   const FloatImage denoised = denoiser ? denoise_frame(*denoiser, f) : FloatImage{};
   write_outputs(f, a.out, a.pfm, a.png, a.exposure, denoiser ? &denoised : nullptr);
   for (const std::string& o : {a.out, a.pfm, a.png})
@@ -224,8 +275,9 @@ void run_sequence(const RenderArgs& a) {
     }
     const Camera cam = path.at(t);
     s.frame = uint32_t(i);
-    const Frame f = renderer->render(cam, s, prev);
+    const Frame f = distributed::render(*renderer, cam, s, prev);
     prev = cam;
+    if (distributed::rank() != 0) continue;  // rank 0 holds the frames and writes the files
     const std::string name = fmt::format("frame_{:04d}", i);
     const std::string stem = (std::filesystem::path(a.out) / name).string();
     const std::string pfm_dir = a.pfm.empty() ? "" : (std::filesystem::path(a.pfm) / name).string();
@@ -244,7 +296,7 @@ void run_sequence(const RenderArgs& a) {
       fmt::print("frame {:4d}/{}  t = {:.3f} s  {:.1f} ms  {:.2f} Mrays/s\n", i + 1, a.frames, t, f.stats.ms,
                  double(f.stats.rays()) / (f.stats.ms * 1e3));
   }
-  fmt::print("wrote    {} frames to {}\n", a.frames, a.out);
+  if (distributed::rank() == 0) fmt::print("wrote    {} frames to {}\n", a.frames, a.out);
 }
 
 }  // namespace

@@ -1,10 +1,13 @@
 // kestrel: the command-line tool. Library errors become a one-line message and exit 1.
 #include <cstdio>
+#include <string>
 
 #include "commands.h"
+#include "distributed/distributed.h"
 #include "kestrel/error.h"
 
 int main(int argc, char** argv) {
+  kestrel::distributed::init(&argc, &argv);  // under mpirun: one rank of many (docs/distributed.md)
   CLI::App app{"kestrel: CPU ray tracing engine (BVH builders, traversal, tools)"};
   app.require_subcommand(1);
   std::vector<std::pair<CLI::App*, kestrel::cli::Action>> commands;
@@ -25,17 +28,25 @@ int main(int argc, char** argv) {
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
-    return app.exit(e);
+    const int code = app.exit(e);
+    kestrel::distributed::finalize();
+    return code;
   }
   try {
-    for (auto& [sub, action] : commands)
-      if (sub->parsed()) action();
-  } catch (const kestrel::Error& e) {
-    std::fprintf(stderr, "kestrel: error: %s\n", e.what());
-    return 1;
+    for (auto& [sub, action] : commands) {
+      if (!sub->parsed()) continue;
+      const std::string name = sub->get_name();
+      if (kestrel::distributed::size() > 1 && name != "render" && name != "render-sequence")
+        throw kestrel::Error(kestrel::ErrorCode::unsupported,
+                             "only render and render-sequence run distributed; run `kestrel " + name + "` without mpirun");
+      action();
+    }
   } catch (const std::exception& e) {
+    // Under mpirun one rank's error ends every rank (mpirun then exits non-zero).
+    if (kestrel::distributed::size() > 1) kestrel::distributed::abort_all(std::string("error: ") + e.what());
     std::fprintf(stderr, "kestrel: error: %s\n", e.what());
     return 1;
   }
+  kestrel::distributed::finalize();
   return 0;
 }

@@ -17,6 +17,9 @@ import subprocess
 import sys
 import time
 
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), ".."))
+import kestrel_mpi  # noqa: E402
+
 HERE = os.path.dirname(os.path.abspath(__file__))
 ROOT = os.path.normpath(os.path.join(HERE, "..", ".."))
 SCENES = os.path.normpath(os.path.join(ROOT, "..", "shared", "scenes"))
@@ -60,6 +63,7 @@ def main():
     ap.add_argument("--frames", type=int, default=6)
     ap.add_argument("--test-frames", type=int, default=8)
     ap.add_argument("--rooms", type=int, default=10)
+    kestrel_mpi.add_arguments(ap)
     args = ap.parse_args()
     os.makedirs(args.out, exist_ok=True)
     manifest_path = os.path.join(args.out, "manifest.json")
@@ -79,7 +83,7 @@ def main():
             env = open(os.path.join(rd, "env.txt")).read().strip()
         test = clip["split"] == "test"
         frames = args.test_frames if test else args.frames
-        base = [args.kestrel, "render-sequence", scene, "--path", path, "--frames", str(frames), "--res", args.res,
+        base = kestrel_mpi.prefix(args) + [args.kestrel, "render-sequence", scene, "--path", path, "--frames", str(frames), "--res", args.res,
                 "--quiet"]
         if env and env != "none":
             base += ["--env", env]

@@ -22,6 +22,9 @@ import subprocess
 import sys
 import time
 
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), ".."))
+import kestrel_mpi  # noqa: E402
+
 HERE = os.path.dirname(os.path.abspath(__file__))
 ROOT = os.path.normpath(os.path.join(HERE, "..", ".."))
 SCENES = os.path.normpath(os.path.join(ROOT, "..", "shared", "scenes"))
@@ -67,6 +70,7 @@ def main():
     ap.add_argument("--rooms", type=int, default=8)
     ap.add_argument("--max-depth", type=int, default=3, help="path vertices (fewer: less noise, what matters here is detail)")
     ap.add_argument("--clamp", type=float, default=8.0, help="sample radiance clamp (no fireflies in the targets)")
+    kestrel_mpi.add_arguments(ap)
     args = ap.parse_args()
     w, h = (int(v) for v in args.res.split("x"))
     if w % 4 or h % 4:
@@ -90,7 +94,7 @@ def main():
             env = open(os.path.join(rd, "env.txt")).read().strip()
         test = clip["split"] == "test"
         frames = args.test_frames if test else args.frames
-        base = [args.kestrel, "render-sequence", scene, "--path", path, "--frames", str(frames), "--quiet",
+        base = kestrel_mpi.prefix(args) + [args.kestrel, "render-sequence", scene, "--path", path, "--frames", str(frames), "--quiet",
                 "--max-depth", str(args.max_depth), "--clamp", str(args.clamp)]
         if env and env != "none":
             base += ["--env", env]
