@@ -8,9 +8,9 @@ under mpirun, and three ratios:
   every rank busy (1.0 = no rank waits);
 - ranks vs threads = time(1 rank x 2 threads) / time(2 ranks x 1 thread): what MPI costs
   against threads on the same cores;
-- strong-scaling efficiency = time(1 x 1) / (ranks x time(ranks x 1)). On a machine whose two
-  vCPUs deliver about one core this is bounded near 0.5-0.6 by the hardware, for ranks and
-  threads alike, so it is printed for threads too.
+- strong-scaling efficiency = time(1 x 1) / (ranks x time(ranks x 1)), printed for 2 threads
+  too: what the machine's two vCPUs allow (they deliver between one and two cores here,
+  depending on the day).
 
     python3 bench/distributed_bench.py [--scene S] [--view V] [--res WxH] [--spp N] [--ranks 2]
         [--rounds 3] [--json out.json]

@@ -16,6 +16,7 @@
 
 #include <fmt/format.h>
 
+#include <algorithm>
 #include <atomic>
 #include <chrono>
 #include <cstdio>
@@ -86,10 +87,12 @@ void tile_pixels(uint32_t t, int width, int height, F&& f) {
     }
 }
 
-// Tiles a rank takes at a time: enough for its threads, few enough to balance at the end.
+// Tiles a rank takes at a time: two per thread, so its threads stay busy, but at most an
+// eighth of a fair share, so the last chunks (the frame's tail) are short.
 [[maybe_unused]] int chunk_tiles(const RenderSettings& s) {
   const int threads = s.threads > 0 ? s.threads : hardware_thread_count();
-  return std::max(1, 2 * threads);
+  const size_t share = render_tile_count(s.width, s.height) / (8 * size_t(std::max(1, world_size)));
+  return int(std::clamp<size_t>(share, 1, size_t(2 * threads)));
 }
 
 }  // namespace
