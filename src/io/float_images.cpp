@@ -18,6 +18,7 @@
 #include <map>
 #include <memory>
 
+#include "core/file_io.h"
 #include "io/loaders.h"
 #include "kestrel/error.h"
 #include "kestrel/io.h"
@@ -33,6 +34,19 @@ void check_image(const std::string& path, const FloatImage& image) {
                                                          image.width, image.height, image.channels));
 }
 
+}  // namespace
+
+void check_decoded_size(const std::string& path, uint64_t decoded_bytes, uint64_t file_bytes) {
+  // Deflate (PNG, EXR ZIP) cannot expand more than ~1032:1; anything claiming more is hostile.
+  const uint64_t limit = std::max<uint64_t>(uint64_t(64) << 20, file_bytes * 1100);
+  if (decoded_bytes > limit)
+    throw Error(ErrorCode::parse_error,
+                fmt::format("{}: the image would decode to {} MiB from a {}-byte file (limit {} MiB): corrupt or hostile",
+                            path, decoded_bytes >> 20, file_bytes, limit >> 20));
+}
+
+namespace {
+
 std::string lower_extension(const std::string& path) {
   std::string ext = std::filesystem::path(path).extension().string();
   for (char& c : ext) c = char(std::tolower(static_cast<unsigned char>(c)));
@@ -46,20 +60,19 @@ void write_pfm(const std::string& path, const FloatImage& image) {
   if (image.channels > 3)
     throw Error(ErrorCode::invalid_argument, fmt::format("{}: PFM holds 1 or 3 channels, not {}", path, image.channels));
   const int out_channels = image.channels == 1 ? 1 : 3;
-  std::ofstream f(path, std::ios::binary);
-  if (!f) throw Error(ErrorCode::io_error, fmt::format("{}: cannot open for writing", path));
-  f << (out_channels == 1 ? "Pf" : "PF") << "\n" << image.width << " " << image.height << "\n-1.0\n";
+  AtomicFile f(path);
+  f.write(fmt::format("{}\n{} {}\n-1.0\n", out_channels == 1 ? "Pf" : "PF", image.width, image.height));
   std::vector<float> row(size_t(image.width) * size_t(out_channels), 0.0f);
   for (int y = image.height - 1; y >= 0; --y) {
     for (int x = 0; x < image.width; ++x)
       for (int c = 0; c < image.channels; ++c) row[size_t(x) * size_t(out_channels) + size_t(c)] = image.at(x, y)[c];
-    f.write(reinterpret_cast<const char*>(row.data()), std::streamsize(row.size() * sizeof(float)));
+    f.write(row.data(), row.size() * sizeof(float));
   }
-  if (!f) throw Error(ErrorCode::io_error, fmt::format("{}: write failed", path));
+  f.commit();
 }
 
 FloatImage read_pfm(const std::string& path) {
-  require_readable_file(path);
+  const uint64_t file_bytes = regular_file_size(path, "PFM image");
   std::ifstream f(path, std::ios::binary);
   std::string magic;
   long long w = 0, h = 0;
@@ -70,6 +83,10 @@ FloatImage read_pfm(const std::string& path) {
   if (w <= 0 || h <= 0 || w > (1 << 16) || h > (1 << 16) || scale == 0 || !std::isfinite(scale))
     throw Error(ErrorCode::parse_error, fmt::format("{}: bad PFM header ({} x {}, scale {})", path, w, h, scale));
   f.get();  // the single whitespace after the scale
+  const uint64_t pixel_bytes = uint64_t(w) * uint64_t(h) * (magic == "PF" ? 3u : 1u) * sizeof(float);
+  if (uint64_t(f.tellg()) + pixel_bytes > file_bytes)  // before allocating what the header claims
+    throw Error(ErrorCode::parse_error, fmt::format("{}: truncated PFM: the header says {} x {} ({} bytes of pixels), the file has {} bytes",
+                                                    path, w, h, pixel_bytes, file_bytes));
   FloatImage image(int(w), int(h), magic == "PF" ? 3 : 1);
   const size_t row_floats = size_t(w) * size_t(image.channels);
   std::vector<float> row(row_floats);
@@ -110,23 +127,39 @@ void write_exr(const std::string& path, std::span<const ImageLayer> layers) {
         fb.insert(name, Imf::Slice(Imf::FLOAT, (char*)(l.image.pixels.data() + c), xs, xs * size_t(w)));
       }
     }
-    Imf::OutputFile file(path.c_str(), header);
-    file.setFrameBuffer(fb);
-    file.writePixels(h);
+    AtomicFile out(path);
+    {
+      Imf::OutputFile file(out.temp_path().c_str(), header);
+      file.setFrameBuffer(fb);
+      file.writePixels(h);
+    }  // closed here: OpenEXR throws on a failed write (full disk)
+    out.commit();
+  } catch (const Error&) {
+    throw;
   } catch (const std::exception& e) {
     throw Error(ErrorCode::io_error, fmt::format("{}: cannot write EXR: {}", path, e.what()));
   }
 }
 
 std::vector<ImageLayer> read_exr(const std::string& path) {
-  require_readable_file(path);
+  const uint64_t file_bytes = regular_file_size(path, "EXR image");
+  // OpenEXR rejects headers past these sizes while it reads them, before it allocates.
+  static const bool limits_set = [] {
+    Imf::Header::setMaxImageSize(max_image_side, max_image_side);
+    Imf::Header::setMaxTileSize(4096, 4096);
+    return true;
+  }();
+  (void)limits_set;
   std::vector<ImageLayer> layers;
   try {
     Imf::InputFile file(path.c_str());
     const Imath::Box2i dw = file.header().dataWindow();
-    const int w = dw.max.x - dw.min.x + 1, h = dw.max.y - dw.min.y + 1;
-    if (w <= 0 || h <= 0 || w > (1 << 16) || h > (1 << 16))
+    const int64_t w = int64_t(dw.max.x) - dw.min.x + 1, h = int64_t(dw.max.y) - dw.min.y + 1;
+    if (w <= 0 || h <= 0 || w > max_image_side || h > max_image_side)
       throw Error(ErrorCode::parse_error, fmt::format("{}: bad EXR data window {}x{}", path, w, h));
+    size_t channel_count = 0;
+    for (auto it = file.header().channels().begin(); it != file.header().channels().end(); ++it) ++channel_count;
+    check_decoded_size(path, uint64_t(w) * uint64_t(h) * channel_count * sizeof(float), file_bytes);
     std::map<std::string, size_t> layer_of;
     std::vector<std::vector<std::string>> full_names;
     for (auto it = file.header().channels().begin(); it != file.header().channels().end(); ++it) {

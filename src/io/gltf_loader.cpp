@@ -12,6 +12,9 @@
 #include <cmath>
 #include <filesystem>
 
+#include <sys/stat.h>
+
+#include "core/file_io.h"
 #include "io/loaders.h"
 #include "kestrel/error.h"
 
@@ -87,6 +90,37 @@ Scene load_gltf(const std::string& path) {
 }
 
 namespace gltf {
+
+void check_node_tree(const std::string& path, const tinygltf::Model& model) {
+  // Every child exists, no node has two parents (shared children would make a DAG whose
+  // flattening grows exponentially), no node is its own ancestor, scene roots have no parent.
+  const size_t n = model.nodes.size();
+  std::vector<int> parent(n, -1);
+  for (size_t i = 0; i < n; ++i)
+    for (int c : model.nodes[i].children) {
+      if (c < 0 || size_t(c) >= n) throw Error(ErrorCode::parse_error, fmt::format("{}: node {}: child {} does not exist", path, i, c));
+      if (parent[size_t(c)] >= 0)
+        throw Error(ErrorCode::parse_error, fmt::format("{}: node {} is a child of both node {} and node {} (the node graph "
+                                                        "must be a tree)", path, c, parent[size_t(c)], i));
+      parent[size_t(c)] = int(i);
+    }
+  for (size_t i = 0; i < n; ++i) {  // walk up: a chain longer than n is a cycle
+    size_t steps = 0;
+    for (int p = parent[i]; p >= 0; p = parent[size_t(p)])
+      if (++steps > n || size_t(p) == i)
+        throw Error(ErrorCode::parse_error, fmt::format("{}: node {} is its own ancestor (a cycle)", path, i));
+  }
+  for (size_t s = 0; s < model.scenes.size(); ++s) {
+    std::vector<char> listed(n, 0);
+    for (int r : model.scenes[s].nodes) {
+      if (r < 0 || size_t(r) >= n) throw Error(ErrorCode::parse_error, fmt::format("{}: scene {}: node {} does not exist", path, s, r));
+      if (parent[size_t(r)] >= 0 || listed[size_t(r)]++)
+        throw Error(ErrorCode::parse_error, fmt::format("{}: scene {}: node {} is listed as a root twice or also has a parent",
+                                                        path, s, r));
+    }
+  }
+}
+
 Material convert_material(const tinygltf::Material& m, const tinygltf::Model& model) {
   Material out;
   out.name = m.name;
@@ -134,18 +168,64 @@ Texture convert_texture(const tinygltf::Texture& t, const tinygltf::Model& model
   return out;
 }
 
+namespace {
+
+constexpr uint64_t max_gltf_file_bytes = uint64_t(4) << 30;
+
+// tinygltf's file access, replaced: only regular files, bounded, and paths taken literally
+// (its default expands them like a shell would).
+bool file_exists(const std::string& path, void*) {
+  struct stat st {};
+  return ::stat(path.c_str(), &st) == 0;
+}
+std::string expand_path(const std::string& path, void*) { return path; }
+bool read_whole_file(std::vector<unsigned char>* out, std::string* err, const std::string& path, void*) {
+  try {
+    const std::string data = read_bounded_file(path, max_gltf_file_bytes, "glTF file, buffer or image");
+    out->assign(data.begin(), data.end());
+    return true;
+  } catch (const Error& e) {
+    if (err) *err += std::string(e.what()) + "\n";
+    return false;
+  }
+}
+
+// Embedded and external images, decoded by kestrel's checked decoder (dimensions and the
+// decoded size bounded before anything is allocated).
+bool load_image(tinygltf::Image* image, const int index, std::string* err, std::string*, int, int,
+                const unsigned char* bytes, int size, void*) {
+  std::string problem;
+  int w = 0, h = 0;
+  std::vector<unsigned char> rgba;
+  if (size <= 0 || !decode_rgba8(bytes, size_t(size), w, h, rgba, problem)) {
+    if (err) *err += fmt::format("image {}: {}\n", index, problem.empty() ? "empty" : problem);
+    return false;
+  }
+  image->width = w, image->height = h, image->component = 4, image->bits = 8;
+  image->pixel_type = TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE;
+  image->image = std::move(rgba);
+  return true;
+}
+
+}  // namespace
+
 tinygltf::Model load_model(const std::string& path) {
   require_readable_file(path);
   tinygltf::TinyGLTF loader;
+  loader.SetFsCallbacks(tinygltf::FsCallbacks{&file_exists, &expand_path, &read_whole_file, &tinygltf::WriteWholeFile, nullptr});
+  loader.SetImageLoader(&load_image, nullptr);
   tinygltf::Model model;
   std::string err, warn;
-  const bool binary = std::filesystem::path(path).extension() == ".glb";
+  std::string ext = std::filesystem::path(path).extension().string();
+  for (char& c : ext) c = char(std::tolower(static_cast<unsigned char>(c)));
+  const bool binary = ext == ".glb";
   const bool ok = binary ? loader.LoadBinaryFromFile(&model, &err, &warn, path)
                          : loader.LoadASCIIFromFile(&model, &err, &warn, path);
   if (!ok) {
     while (!err.empty() && (err.back() == '\n' || err.back() == '\r')) err.pop_back();
     throw Error(ErrorCode::parse_error, fmt::format("{}: {}", path, err.empty() ? "not a valid glTF file" : err));
   }
+  check_node_tree(path, model);
   return model;
 }
 }  // namespace gltf

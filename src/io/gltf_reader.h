@@ -11,14 +11,19 @@
 #include <string>
 #include <vector>
 
+#include "core/file_io.h"
 #include "kestrel/error.h"
 #include "kestrel/scene.h"
 #include "kestrel/types.h"
 
 namespace kestrel::gltf {
 
-/// Loads a .gltf or .glb file; Error naming the file when it is not valid glTF.
+/// Loads a .gltf or .glb file (by its extension, any case); Error naming the file when it is
+/// not valid glTF or its node graph is not a tree (check_node_tree).
 tinygltf::Model load_model(const std::string& path);
+/// Error naming the file unless the nodes form a forest: children exist, one parent each,
+/// no cycles, scene roots without parents and listed once.
+void check_node_tree(const std::string& path, const tinygltf::Model& model);
 /// A glTF material / texture as kestrel's (gltf_loader.cpp).
 Material convert_material(const tinygltf::Material& m, const tinygltf::Model& model);
 Texture convert_texture(const tinygltf::Texture& t, const tinygltf::Model& model);
@@ -115,11 +120,14 @@ struct GltfReader {
     const size_t element = size_t(components) * size_t(component_size);
     stride = bv.byteStride ? bv.byteStride : element;
     count = acc.count;
-    const size_t begin = bv.byteOffset + acc.byteOffset;
-    const size_t need = count ? begin + (count - 1) * stride + element : begin;
-    if (bv.byteOffset + bv.byteLength > buf.data.size() || need > bv.byteOffset + bv.byteLength)
-      fail(fmt::format("accessor {} reads past the end of buffer {} ({} bytes; file truncated?)", accessor_index,
-                       bv.buffer, buf.data.size()));
+    // Every sum and product checked: offsets and counts near 2^64 must not wrap past the test.
+    uint64_t view_end = 0, begin = 0, span = 0, need = 0;
+    const bool fits = add_fits(bv.byteOffset, bv.byteLength, view_end) && add_fits(bv.byteOffset, acc.byteOffset, begin) &&
+                      (count == 0 || (mul_fits(count - 1, stride, span) && add_fits(span, element, span))) &&
+                      add_fits(begin, count ? span : 0, need);
+    if (!fits || view_end > buf.data.size() || need > view_end)
+      fail(fmt::format("accessor {} ({} elements at byte {} of buffer view {}) reads past the end of buffer {} ({} bytes; "
+                       "file truncated?)", accessor_index, count, acc.byteOffset, acc.bufferView, bv.buffer, buf.data.size()));
     component_type = acc.componentType;
     return buf.data.data() + begin;
   }
@@ -130,7 +138,7 @@ struct GltfReader {
     int type;
     const unsigned char* p = view(accessor_index, components, count, stride, type);
     if (type != TINYGLTF_COMPONENT_TYPE_FLOAT) fail(fmt::format("accessor {} must hold floats", accessor_index));
-    std::vector<float> out(count * size_t(components));
+    std::vector<float> out(count * size_t(components));  // view() bounded count by the buffer
     for (size_t i = 0; i < count; ++i) std::memcpy(&out[i * components], p + i * stride, sizeof(float) * size_t(components));
     return out;
   }

@@ -19,12 +19,17 @@
 #include <sstream>
 #include <unordered_map>
 
+#include <sys/stat.h>
+
+#include "core/file_io.h"
 #include "io/loaders.h"
 #include "kestrel/error.h"
 
 namespace kestrel {
 
 namespace {
+
+constexpr uint64_t max_obj_bytes = uint64_t(8) << 30;
 
 [[noreturn]] void malformed(const std::string& path, size_t line, const std::string& what) {
   throw Error(ErrorCode::parse_error, fmt::format("{}:{}: {}", path, line, what));
@@ -40,11 +45,21 @@ bool parse_float(const char*& p, const char* end, float& v) {
   return true;
 }
 
-// Checks `v x y z [w]` and `f a b c ...` (each a, a/b, a//c or a/b/c, non-zero integers).
-// Returns the (0-based) ids of vertices with a NaN or Inf coordinate: tinyobjloader reads
-// those as 0, which would turn a corrupt vertex into a plausible one.
-std::vector<size_t> check_obj_lines(const std::string& path, const std::string& text) {
-  std::vector<size_t> nonfinite;
+// tinyobjloader keeps a face's corner count in a byte: longer faces are split here (below).
+constexpr int max_face_corners = 255;
+
+struct ObjCheck {
+  std::vector<size_t> nonfinite;  // vertex ids with a NaN or Inf coordinate
+  std::vector<std::pair<size_t, size_t>> long_faces;  // [begin, end) byte ranges of faces over max_face_corners
+};
+
+// Checks `v x y z [w]` and `f a b c ...` (each a, a/b, a//c or a/b/c, non-zero integers that
+// fit tinyobjloader's int: a larger one would wrap to a plausible small index). Finds the
+// (0-based) ids of vertices with a NaN or Inf coordinate (tinyobjloader reads those as 0,
+// which would turn a corrupt vertex into a plausible one) and faces too long for it.
+ObjCheck check_obj_lines(const std::string& path, const std::string& text) {
+  ObjCheck result;
+  std::vector<size_t>& nonfinite = result.nonfinite;
   size_t vertex_id = 0;
   size_t line = 0;
   const char* p = text.data();
@@ -78,6 +93,12 @@ std::vector<size_t> check_obj_lines(const std::string& path, const std::string& 
           }
           long long v = 0;
           auto [next, ec] = std::from_chars(q, eol, v);
+          if (ec == std::errc::result_out_of_range || (ec == std::errc() && (v > INT32_MAX || v < -INT32_MAX)))
+            malformed(path, line, fmt::format("face index '{}' is out of range (at most {})",
+                                              std::string(q, size_t(std::find_if(q, eol, [](char c) {
+                                                                      return c == ' ' || c == '/' || c == '\t' || c == '\r';
+                                                                    }) - q)),
+                                              INT32_MAX));
           if (ec != std::errc() || v == 0) malformed(path, line, "face index must be a non-zero integer");
           q = next;
           if (q < eol && *q == '/') ++q;
@@ -87,10 +108,69 @@ std::vector<size_t> check_obj_lines(const std::string& path, const std::string& 
         ++corners;
       }
       if (corners < 3) malformed(path, line, fmt::format("face has {} corners, needs at least 3", corners));
+      if (corners > max_face_corners) result.long_faces.emplace_back(size_t(p - text.data()), size_t(eol - text.data()));
     }
     p = eol + 1;
   }
-  return nonfinite;
+  return result;
+}
+
+// The OBJ with every face of more than 255 corners written as several faces that continue
+// its fan: (v0, v1 .. v254), (v0, v254 .. v508), ... give the triangles (v0, vi, vi+1) in the
+// same order, so prim ids are those of the one long face.
+std::string split_long_faces(const std::string& text, const std::vector<std::pair<size_t, size_t>>& faces) {
+  std::string out;
+  out.reserve(text.size() + faces.size() * 64);
+  size_t at = 0;
+  for (const auto& [begin, end] : faces) {
+    out.append(text, at, begin - at);
+    std::vector<std::string> corners;
+    std::istringstream line(text.substr(begin, end - begin));
+    std::string token;
+    line >> token;  // "f"
+    while (line >> token) corners.push_back(token);
+    for (size_t first = 1; first + 1 < corners.size(); first += max_face_corners - 2) {
+      out += "f " + corners[0];
+      for (size_t k = first; k < std::min(corners.size(), first + max_face_corners - 1); ++k) out += " " + corners[k];
+      out += "\n";
+    }
+    at = end;
+    if (at < text.size() && text[at] == '\n') ++at;
+  }
+  out.append(text, at, std::string::npos);
+  return out;
+}
+
+// tinyobjloader reads a bad number in a material as 0: the numeric statements of each MTL are
+// checked first, so `Kd abc` is an error naming the file and line.
+void check_mtl_lines(const std::string& path, const std::string& text) {
+  static const std::map<std::string, int> numbers = {
+      {"Ka", 3}, {"Kd", 3}, {"Ks", 3}, {"Ke", 3}, {"Kt", 3}, {"Tf", 3}, {"Ns", 1}, {"Ni", 1}, {"d", 1},
+      {"Tr", 1}, {"illum", 1}, {"Pr", 1}, {"Pm", 1}, {"Ps", 1}, {"Pc", 1}, {"Pcr", 1}, {"aniso", 1}, {"anisor", 1}};
+  std::istringstream in(text);
+  std::string line_text;
+  size_t line = 0;
+  while (std::getline(in, line_text)) {
+    ++line;
+    std::istringstream words(line_text);
+    std::string key;
+    if (!(words >> key)) continue;
+    auto it = numbers.find(key);
+    if (it == numbers.end()) continue;
+    int given = 0;
+    std::string word;
+    while (words >> word) {
+      float v;
+      const char* b = word.data();
+      if (given == 0 && (word == "spectral" || word == "xyz")) break;  // other forms of colours: left to the library
+      if (!parse_float(b, word.data() + word.size(), v))
+        malformed(path, line, fmt::format("'{}' needs numbers, got '{}'", key, word));
+      ++given;
+    }
+    if (given != 0 && given != 1 && given != it->second)
+      malformed(path, line, fmt::format("'{}' takes {} numbers, got {}", key, it->second, given));
+    if (given == 0 && word != "spectral" && word != "xyz") malformed(path, line, fmt::format("'{}' needs a value", key));
+  }
 }
 
 struct CornerKey {
@@ -125,18 +205,18 @@ Material convert_material(const tinyobj::material_t& m) {
 }  // namespace
 
 Scene load_obj(const std::string& path) {
-  require_readable_file(path);
-  std::string text;
-  {
-    std::ifstream f(path, std::ios::binary);
-    text.assign(std::istreambuf_iterator<char>(f), std::istreambuf_iterator<char>());
-  }
-  const std::vector<size_t> nonfinite_vertices = check_obj_lines(path, text);
+  std::string text = read_bounded_file(path, max_obj_bytes, "OBJ scene");
+  const ObjCheck check = check_obj_lines(path, text);
+  const std::vector<size_t>& nonfinite_vertices = check.nonfinite;
+  if (!check.long_faces.empty()) text = split_long_faces(text, check.long_faces);
 
   // The MTL files named by `mtllib` are read here and handed over as text, so a missing
   // .mtl is not fatal (its materials fall back to the default).
   const std::filesystem::path dir = std::filesystem::path(path).parent_path();
+  // A missing .mtl is a warning; one that names a folder, a FIFO or a device, or is too large
+  // or malformed, is an error naming it.
   std::string mtl_text;
+  std::vector<std::string> warnings;
   {
     std::istringstream obj_stream(text);
     std::string line_text;
@@ -145,8 +225,15 @@ Scene load_obj(const std::string& path) {
       std::string name = line_text.substr(6);
       name.erase(0, name.find_first_not_of(" \t"));
       while (!name.empty() && (name.back() == '\r' || name.back() == ' ')) name.pop_back();
-      std::ifstream mtl(dir / name, std::ios::binary);
-      if (mtl) mtl_text.append(std::istreambuf_iterator<char>(mtl), std::istreambuf_iterator<char>()).append("\n");
+      const std::string mtl_path = (dir / name).string();
+      struct stat st {};
+      if (name.empty() || ::stat(mtl_path.c_str(), &st) != 0) {
+        warnings.push_back(fmt::format("{}: material library '{}' not found; its materials use the default", path, name));
+        continue;
+      }
+      const std::string mtl = read_bounded_file(mtl_path, max_obj_bytes, "material library (mtllib)");
+      check_mtl_lines(mtl_path, mtl);
+      mtl_text.append(mtl).append("\n");
     }
   }
   tinyobj::ObjReaderConfig config;
@@ -167,6 +254,10 @@ Scene load_obj(const std::string& path) {
   const std::vector<float>& vertices = nonfinite_vertices.empty() ? attrib.vertices : patched;
   Scene scene;
   scene.source = path;
+  scene.warnings = std::move(warnings);
+  if (!check.long_faces.empty())
+    scene.warnings.push_back(fmt::format("{}: {} faces of more than {} corners fan-triangulated in pieces (same triangles)",
+                                         path, check.long_faces.size(), max_face_corners));
   // Texture maps named by the MTL (map_Kd, map_Ke), each file decoded once. A missing or
   // undecodable image leaves the material untextured and a warning naming the file and the
   // problem in Scene::warnings; it does not fail the scene.

@@ -6,6 +6,7 @@
 #include <fstream>
 #include <limits>
 
+#include "core/file_io.h"
 #include "io/loaders.h"
 #include "kestrel/error.h"
 #include "kestrel/io.h"
@@ -50,14 +51,14 @@ std::vector<Record> read_records(const std::string& path, const char (&magic)[5]
 }
 
 void write_bytes(const std::string& path, const char (&magic)[5], uint64_t count, const void* data, size_t bytes) {
-  std::ofstream f(path, std::ios::binary | std::ios::trunc);
+  AtomicFile f(path);
   Header h{};
   std::memcpy(h.magic, magic, 4);
   h.version = 1;
   h.count = count;
-  if (!f || !f.write(reinterpret_cast<const char*>(&h), sizeof(h)) ||
-      !f.write(static_cast<const char*>(data), std::streamsize(bytes)))
-    throw Error(ErrorCode::io_error, fmt::format("{}: cannot write", path));
+  f.write(&h, sizeof(h));
+  f.write(data, bytes);
+  f.commit();
 }
 
 }  // namespace

@@ -1,6 +1,10 @@
-// Image files -> Texture (RGBA8) through stb_image, for OBJ/MTL texture maps.
+// Image files -> Texture (RGBA8) or float RGB through stb_image, for texture maps and
+// environments. The file is read whole (bounded), its header checked -- dimensions and the
+// size it would decode to against what a file of its length can hold -- before stb_image
+// allocates anything.
 #define STB_IMAGE_IMPLEMENTATION
 #define STB_IMAGE_STATIC
+#define STBI_MAX_DIMENSIONS 32768
 #include <fmt/format.h>
 #include <stb_image.h>
 
@@ -8,15 +12,76 @@
 #include <cstring>
 #include <memory>
 
+#include "core/file_io.h"
 #include "io/loaders.h"
 #include "kestrel/error.h"
 
 namespace kestrel {
 
+namespace {
+
+constexpr uint64_t max_image_file_bytes = uint64_t(1) << 30;
+
+struct Encoded {
+  std::string bytes;
+  int width = 0, height = 0;
+  bool hdr = false;
+  const stbi_uc* data() const { return reinterpret_cast<const stbi_uc*>(bytes.data()); }
+  int size() const { return int(bytes.size()); }
+};
+
+// The file, checked to be an image stb_image decodes to at most `bytes_per_pixel` x pixels
+// within the limits.
+Encoded read_image_file(const std::string& path, int bytes_per_pixel) {
+  Encoded e;
+  e.bytes = read_bounded_file(path, max_image_file_bytes, "image");
+  int channels = 0;
+  if (!stbi_info_from_memory(e.data(), e.size(), &e.width, &e.height, &channels))
+    throw Error(ErrorCode::parse_error, fmt::format("{}: not an image kestrel can decode ({})", path, stbi_failure_reason()));
+  if (e.width <= 0 || e.height <= 0 || e.width > max_image_side || e.height > max_image_side)
+    throw Error(ErrorCode::parse_error, fmt::format("{}: image size {}x{} is out of range", path, e.width, e.height));
+  check_decoded_size(path, uint64_t(e.width) * uint64_t(e.height) * uint64_t(bytes_per_pixel), e.bytes.size());
+  e.hdr = stbi_is_hdr_from_memory(e.data(), e.size()) != 0;
+  return e;
+}
+
+}  // namespace
+
+bool decode_rgba8(const unsigned char* bytes, size_t size, int& width, int& height, std::vector<unsigned char>& rgba,
+                  std::string& problem) {
+  if (size > size_t(max_image_file_bytes)) {
+    problem = "larger than 1 GiB";
+    return false;
+  }
+  int channels = 0;
+  const auto* data = reinterpret_cast<const stbi_uc*>(bytes);
+  if (!stbi_info_from_memory(data, int(size), &width, &height, &channels)) {
+    problem = fmt::format("not an image kestrel can decode ({})", stbi_failure_reason());
+    return false;
+  }
+  try {
+    if (width <= 0 || height <= 0 || width > max_image_side || height > max_image_side)
+      throw Error(ErrorCode::parse_error, fmt::format("image size {}x{} is out of range", width, height));
+    check_decoded_size("image", uint64_t(width) * uint64_t(height) * 4, size);
+  } catch (const Error& e) {
+    problem = e.what();
+    return false;
+  }
+  std::unique_ptr<stbi_uc, void (*)(void*)> px(stbi_load_from_memory(data, int(size), &width, &height, &channels, 4),
+                                               stbi_image_free);
+  if (!px) {
+    problem = fmt::format("cannot decode image ({})", stbi_failure_reason());
+    return false;
+  }
+  rgba.assign(px.get(), px.get() + size_t(width) * size_t(height) * 4);
+  return true;
+}
+
 Texture load_texture(const std::string& path) {
-  require_readable_file(path);
+  const Encoded e = read_image_file(path, 4);
   int w = 0, h = 0, channels = 0;
-  std::unique_ptr<stbi_uc, void (*)(void*)> pixels(stbi_load(path.c_str(), &w, &h, &channels, 4), stbi_image_free);
+  std::unique_ptr<stbi_uc, void (*)(void*)> pixels(stbi_load_from_memory(e.data(), e.size(), &w, &h, &channels, 4),
+                                                   stbi_image_free);
   if (!pixels)
     throw Error(ErrorCode::parse_error, fmt::format("{}: cannot decode image ({})", path, stbi_failure_reason()));
   Texture t;
@@ -27,23 +92,18 @@ Texture load_texture(const std::string& path) {
   return t;
 }
 
-}  // namespace kestrel
-
-namespace kestrel {
-
 FloatImage load_float_image_stb(const std::string& path) {
-  require_readable_file(path);
+  const Encoded e = read_image_file(path, 3 * sizeof(float));
   int w = 0, h = 0, n = 0;
-  const bool hdr = stbi_is_hdr(path.c_str()) != 0;
   FloatImage image;
-  if (hdr) {
-    std::unique_ptr<float, void (*)(void*)> px(stbi_loadf(path.c_str(), &w, &h, &n, 3), stbi_image_free);
+  if (e.hdr) {
+    std::unique_ptr<float, void (*)(void*)> px(stbi_loadf_from_memory(e.data(), e.size(), &w, &h, &n, 3), stbi_image_free);
     if (!px) throw Error(ErrorCode::parse_error, fmt::format("{}: cannot decode image ({})", path, stbi_failure_reason()));
     image = FloatImage(w, h, 3);
     std::memcpy(image.pixels.data(), px.get(), image.pixels.size() * sizeof(float));
     return image;
   }
-  std::unique_ptr<stbi_uc, void (*)(void*)> px(stbi_load(path.c_str(), &w, &h, &n, 3), stbi_image_free);
+  std::unique_ptr<stbi_uc, void (*)(void*)> px(stbi_load_from_memory(e.data(), e.size(), &w, &h, &n, 3), stbi_image_free);
   if (!px) throw Error(ErrorCode::parse_error, fmt::format("{}: cannot decode image ({})", path, stbi_failure_reason()));
   image = FloatImage(w, h, 3);
   for (size_t i = 0; i < image.pixels.size(); ++i) {
