@@ -1,7 +1,9 @@
 // `kestrel bvh`: build time (median of repeated builds) and every quality metric.
 #include <fmt/format.h>
 
+#include <algorithm>
 #include <memory>
+#include <string_view>
 
 #include "commands.h"
 #include "core/timer.h"
@@ -49,9 +51,18 @@ BuildConfig BuildOptions::config() const {
 }
 
 void parse_resolution(const std::string& text, int& width, int& height) {
-  if (std::sscanf(text.c_str(), "%dx%d", &width, &height) != 2 || width <= 0 || height <= 0 || width > 65536 ||
-      height > 65536)
-    throw Error(ErrorCode::invalid_argument, fmt::format("resolution '{}' is not WxH with positive sizes", text));
+  // Strictly WxH: digits, 'x', digits, nothing else ("16x16junk" and "+16x-4" are errors).
+  const size_t x = text.find('x');
+  auto number = [](std::string_view s, int& v) {
+    if (s.empty() || s.size() > 6 || !std::all_of(s.begin(), s.end(), [](char c) { return c >= '0' && c <= '9'; }))
+      return false;
+    v = std::stoi(std::string(s));
+    return true;
+  };
+  if (x == std::string::npos || !number(std::string_view(text).substr(0, x), width) ||
+      !number(std::string_view(text).substr(x + 1), height) || width <= 0 || height <= 0 || width > 32768 || height > 32768)
+    throw Error(ErrorCode::invalid_argument,
+                fmt::format("resolution '{}' is not WxH with sizes from 1 to 32768 (e.g. 1280x720)", text));
 }
 
 namespace {

@@ -9,6 +9,7 @@
 #include <memory>
 
 #include "commands.h"
+#include "core/file_io.h"
 #include "distributed/distributed.h"
 #include "kestrel/error.h"
 #include "kestrel/io.h"
@@ -32,10 +33,10 @@ struct RenderArgs {
 void add_common(CLI::App& cmd, RenderArgs& a) {
   cmd.add_option("scene", a.scene, "Scene file (OBJ, glTF, GLB) or builtin:NAME")->required();
   cmd.add_option("--res", a.res, "Resolution WxH")->capture_default_str();
-  cmd.add_option("--spp", a.spp, "Samples per pixel")->capture_default_str();
+  cmd.add_option("--spp", a.spp, "Samples per pixel")->capture_default_str()->check(CLI::Range(1, 1 << 20));
   cmd.add_option("--seed", a.seed, "Random seed (same seed: same image for any thread count)")->capture_default_str();
-  cmd.add_option("--max-depth", a.max_depth, "Path vertices after the camera (1 = direct light)")->capture_default_str();
-  cmd.add_option("--threads", a.threads, "Worker threads (0 = all)")->capture_default_str();
+  cmd.add_option("--max-depth", a.max_depth, "Path vertices after the camera (1 = direct light)")->capture_default_str()->check(CLI::Range(1, 1024));
+  cmd.add_option("--threads", a.threads, "Worker threads (0 = all)")->capture_default_str()->check(CLI::Range(0, 1024));
   cmd.add_option("--env", a.env, "Environment: none | sky | constant:R,G,B | image file (.hdr .exr .pfm .png)");
   cmd.add_option("--pfm", a.pfm, "Also write one PFM per AOV into this directory");
   cmd.add_option("--png", a.png, "Also write the tone-mapped colour as PNG");
@@ -199,9 +200,27 @@ void print_ranks(const std::vector<distributed::RankStats>& ranks, double frame_
              frame_ms > 0 ? busy / (double(ranks.size()) * frame_ms) : 0.0);
 }
 
+// Every destination checked before the work starts: a bad --png must not cost a render, nor
+// leave -o replaced and --png missing.
+void check_destinations(const std::string& exr, const std::string& pfm, const std::string& png) {
+  if (!exr.empty()) {
+    const std::filesystem::path parent = std::filesystem::path(exr).parent_path();
+    if (!parent.empty()) std::filesystem::create_directories(parent);
+    check_writable_destination(exr);
+  }
+  if (!pfm.empty()) {
+    std::error_code ec;
+    std::filesystem::create_directories(pfm, ec);
+    if (ec) throw Error(ErrorCode::io_error, fmt::format("{}: cannot create directory: {}", pfm, ec.message()));
+    check_writable_destination((std::filesystem::path(pfm) / "color.pfm").string());
+  }
+  if (!png.empty()) check_writable_destination(png);
+}
+
 void run_render(const RenderArgs& a) {
   if (a.out.empty() && a.pfm.empty() && a.png.empty())
     throw Error(ErrorCode::invalid_argument, "render: nothing to write (give -o out.exr, --pfm DIR or --png out.png)");
+  if (distributed::rank() == 0) check_destinations(a.out, a.pfm, a.png);
   if (!a.view.empty() && !a.camera.empty()) throw Error(ErrorCode::invalid_argument, "render: give --view or --camera, not both");
   const RenderSettings s = settings_of(a);
   Scene scene = load_scene(a.scene);
@@ -317,7 +336,7 @@ Action add_render_sequence_command(CLI::App& cmd) {
   add_common(cmd, *a);
   cmd.add_option("--path", a->path, "Camera path JSON (keyframes), or orbit[:DEGREES] about --view")->required();
   cmd.add_option("--view", a->view, "Start view of --path orbit (default: front, else framing)");
-  cmd.add_option("--frames", a->frames, "Frames, evenly spread over the path's time span")->required();
+  cmd.add_option("--frames", a->frames, "Frames, evenly spread over the path's time span")->required()->check(CLI::Range(1, 1000000));
   cmd.add_option("--upscale", a->upscale,
                  "Render at --res / --factor (fixed jitter), then upsample: neural | taau | bicubic | bilinear "
                  "(frame_NNNN.exr: the upsampled colour; low/: the low-resolution frames)");

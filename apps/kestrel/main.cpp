@@ -1,5 +1,7 @@
 // kestrel: the command-line tool. Library errors become a one-line message and exit 1.
 #include <cstdio>
+#include <new>
+#include <stdexcept>
 #include <string>
 
 #include "commands.h"
@@ -42,9 +44,16 @@ int main(int argc, char** argv) {
       action();
     }
   } catch (const std::exception& e) {
+    // kestrel::Error says what went wrong with which file; anything else is named plainly
+    // (no std:: text: "std::bad_alloc" tells a user nothing).
+    std::string message = e.what();
+    if (dynamic_cast<const std::bad_alloc*>(&e) || dynamic_cast<const std::length_error*>(&e))
+      message = "out of memory: the input asks for more memory than this machine has";
+    else if (!dynamic_cast<const kestrel::Error*>(&e))
+      message = "internal error (" + message + "); please report it with the command line";
     // Under mpirun one rank's error ends every rank (mpirun then exits non-zero).
-    if (kestrel::distributed::size() > 1) kestrel::distributed::abort_all(std::string("error: ") + e.what());
-    std::fprintf(stderr, "kestrel: error: %s\n", e.what());
+    if (kestrel::distributed::size() > 1) kestrel::distributed::abort_all("error: " + message);
+    std::fprintf(stderr, "kestrel: error: %s\n", message.c_str());
     return 1;
   }
   kestrel::distributed::finalize();

@@ -28,14 +28,14 @@ struct PipelineArgs {
     cmd.add_option("--factor", factor, "Output / internal resolution: 1, 2 or 4")->capture_default_str();
     cmd.add_option("--denoise", denoise, "neural | svgf | atrous | none")->capture_default_str();
     cmd.add_option("--upscale", upscale, "neural | taau | bicubic | bilinear")->capture_default_str();
-    cmd.add_option("--spp", spp, "Samples per pixel per frame")->capture_default_str();
-    cmd.add_option("--max-depth", max_depth, "Path vertices after the camera")->capture_default_str();
+    cmd.add_option("--spp", spp, "Samples per pixel per frame")->capture_default_str()->check(CLI::Range(1, 1 << 16));
+    cmd.add_option("--max-depth", max_depth, "Path vertices after the camera")->capture_default_str()->check(CLI::Range(1, 1024));
     cmd.add_option("--clamp", clamp, "Sample radiance clamp (0 = off)")->capture_default_str();
     cmd.add_option("--env", env, "Environment: none | sky | constant:R,G,B | image file");
     cmd.add_option("--exposure", exposure, "Tone-map exposure, stops")->capture_default_str();
     cmd.add_option("--target-ms", target_ms, "Adapt the factor (1, 2, 4) to hold this frame time (0 = fixed)");
     cmd.add_option("--seed", seed, "Random seed")->capture_default_str();
-    cmd.add_option("--threads", threads, "Worker threads (0 = all)")->capture_default_str();
+    cmd.add_option("--threads", threads, "Worker threads (0 = all)")->capture_default_str()->check(CLI::Range(0, 1024));
   }
 
   PipelineSettings settings() {

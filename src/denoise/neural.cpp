@@ -10,6 +10,7 @@
 #include <iterator>
 
 #include "denoise/kernels.h"
+#include "core/file_io.h"
 #include "kestrel/error.h"
 
 namespace kestrel::denoise {
@@ -89,9 +90,9 @@ ConvLayer read_layer(Reader& r, const std::string& name, int cout, int cin, int 
 
 std::vector<ConvLayer> load_layers(const std::string& path, const char (&magic)[9], uint32_t architecture,
                                    const std::vector<LayerSpec>& specs, const char* what) {
-  std::ifstream f(path, std::ios::binary);
-  if (!f) throw Error(ErrorCode::io_error, fmt::format("{}: cannot open the {} weights", path, what));
-  const std::vector<uint8_t> bytes((std::istreambuf_iterator<char>(f)), std::istreambuf_iterator<char>());
+  // Only a regular file of sane size: a FIFO would block, /dev/zero would never end.
+  const std::string text = read_bounded_file(path, uint64_t(256) << 20, fmt::format("{} weights file", what));
+  const std::vector<uint8_t> bytes(text.begin(), text.end());
   if (bytes.size() < 8 + 12 + 8 || std::memcmp(bytes.data(), magic, 8) != 0)
     throw Error(ErrorCode::parse_error, fmt::format("{}: not a kestrel {} weights file (bad magic)", path, what));
   Reader r{path, bytes, 8, bytes.size() - 8};

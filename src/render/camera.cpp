@@ -9,6 +9,7 @@
 
 #include "core/vec.h"
 #include "io/loaders.h"
+#include "core/file_io.h"
 #include "kestrel/error.h"
 #include "kestrel/render.h"
 
@@ -23,10 +24,9 @@ namespace {
 using nlohmann::json;
 
 json read_json(const std::string& path) {
-  require_readable_file(path);
-  std::ifstream f(path);
+  const std::string text = read_bounded_file(path, uint64_t(64) << 20, "JSON file");
   try {
-    return json::parse(f);
+    return json::parse(text);
   } catch (const json::exception& e) {
     throw Error(ErrorCode::parse_error, fmt::format("{}: malformed JSON: {}", path, e.what()));
   }
@@ -37,6 +37,11 @@ Vec3 vec3_field(const std::string& path, const std::string& where, const json& o
   const json& v = obj[key];
   if (!v.is_array() || v.size() != 3 || !v[0].is_number() || !v[1].is_number() || !v[2].is_number())
     throw Error(ErrorCode::parse_error, fmt::format("{}: {}: \"{}\" must be an array of 3 numbers", path, where, key));
+  // Bounded so the spline through the keys (squared distances, in float) stays finite.
+  for (int k = 0; k < 3; ++k)
+    if (!(std::fabs(v[k].get<double>()) <= 1e18))
+      throw Error(ErrorCode::parse_error, fmt::format("{}: {}: \"{}\" has a coordinate beyond 1e18 ({})", path, where, key,
+                                                      v[k].dump()));
   return {v[0].get<float>(), v[1].get<float>(), v[2].get<float>()};
 }
 
@@ -143,8 +148,10 @@ CameraPath CameraPath::load(const std::string& path) {
     if (!k.contains("time") || !k["time"].is_number())
       throw Error(ErrorCode::parse_error, fmt::format("{}: {} has no numeric \"time\"", path, where));
     key.time = k["time"].get<double>();
-    if (!std::isfinite(key.time) || (!out.keys.empty() && !(key.time > out.keys.back().time)))
-      throw Error(ErrorCode::parse_error, fmt::format("{}: {}: times must be finite and increasing", path, where));
+    if (!(std::fabs(key.time) <= 1e9) || (!out.keys.empty() && !(key.time >= out.keys.back().time + 1e-6)))
+      throw Error(ErrorCode::parse_error,
+                  fmt::format("{}: {}: time {}: times must be increasing (by at least 1e-6 s) and within +-1e9 s", path, where,
+                              k["time"].dump()));
     out.keys.push_back(key);
   }
   return out;

@@ -203,12 +203,15 @@ struct Renderer::Impl {
   }
 
   // A trailing "default" material (what out-of-range ids fall back to), every one checked.
-  void check_materials() {
+  void check_materials(const std::string& source) {
     if (materials.empty() || materials.back().name != "default") materials.push_back(Material{.name = "default"});
-    for (const Material& m : materials)
+    for (size_t i = 0; i < materials.size(); ++i) {
+      const Material& m = materials[i];
       if (!is_finite(m.base_color) || !is_finite(m.emission) || !std::isfinite(m.metallic) || !std::isfinite(m.roughness) ||
           !std::isfinite(m.specular) || m.emission.x < 0 || m.emission.y < 0 || m.emission.z < 0)
-        throw Error(ErrorCode::invalid_argument, fmt::format("material '{}': non-finite or negative parameter", m.name));
+        throw Error(ErrorCode::invalid_argument,
+                    fmt::format("{}: material {} '{}': a non-finite or negative parameter", source, i, m.name));
+    }
   }
 
   // After the lights are known: the given environment, else the sky when nothing emits.
@@ -729,7 +732,7 @@ Renderer::Renderer(Scene scene, std::optional<Environment> environment) : impl_(
                                                          r.accel.validation.report.summary()));
   r.materials = r.scene.materials;
   r.textures = r.scene.textures;
-  r.check_materials();
+  r.check_materials(r.scene.source);
   size_t offset = 0;
   for (const TriangleMesh& m : r.scene.meshes) {
     r.prim_offset.push_back(offset);
@@ -759,7 +762,7 @@ Renderer::Renderer(const InstancedScene& scene, std::vector<Material> materials,
   r.instanced = &scene;
   r.materials = std::move(materials);
   r.textures = std::move(textures);
-  r.check_materials();
+  r.check_materials("the instanced scene's materials");
   sync();
   for (auto& is : r.instances) is.prev_xf = is.xf;
   r.choose_environment(std::move(environment));

@@ -10,6 +10,7 @@
 #include "core/parallel.h"
 #include "core/timer.h"
 #include "geometry/triangle_intersect.h"
+#include "core/file_io.h"
 #include "kestrel/error.h"
 #include "kestrel/instances.h"
 #include "traverse/batches.h"
@@ -118,8 +119,7 @@ Affine3 inverse(const Affine3& a) {
 }
 
 std::vector<Affine3> load_instance_transforms(const std::string& path) {
-  std::ifstream in(path);
-  if (!in) throw Error(ErrorCode::file_not_found, fmt::format("{}: cannot open", path));
+  std::istringstream in(read_bounded_file(path, uint64_t(1) << 30, "instances file"));
   std::vector<Affine3> out;
   std::string line;
   for (int number = 1; std::getline(in, line); ++number) {

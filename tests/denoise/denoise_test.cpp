@@ -83,7 +83,7 @@ void expect_error(const std::string& weights, const std::string& fragment) {
 }
 
 TEST(Denoise, CorruptOrMismatchedWeightsAreClearErrors) {
-  expect_error("/nonexistent/denoiser.kdw", "cannot open");
+  expect_error("/nonexistent/denoiser.kdw", "no such");
   const std::string flipped = copy_weights("kestrel_flipped.kdw");
   {
     std::fstream f(flipped, std::ios::in | std::ios::out | std::ios::binary);
