@@ -1,0 +1,242 @@
+#!/usr/bin/env python3
+"""Hostile inputs against the kestrel CLI, as a user with bad files would feed them.
+
+Every case runs the CLI under a 2 GiB address-space limit and a time limit and must end with a
+non-zero exit (not a signal, not a time-out), a message on stderr naming the file (or flag),
+no `std::` text, and any existing output file unchanged. Cases that must succeed say so.
+
+    hostile_inputs.py KESTREL_CLI WORK_DIR
+"""
+import json
+import os
+import resource
+import shutil
+import signal
+import stat
+import struct
+import subprocess
+import sys
+import zlib
+
+K, WORK = os.path.abspath(sys.argv[1]), os.path.abspath(sys.argv[2])
+LIMIT = 2 << 30
+failures = []
+passed = 0
+
+
+def limits():
+    resource.setrlimit(resource.RLIMIT_AS, (LIMIT, LIMIT))
+
+
+def run(args, timeout=60, preexec=limits):
+    try:
+        r = subprocess.run([K, *map(str, args)], capture_output=True, text=True, timeout=timeout, preexec_fn=preexec,
+                           cwd=WORK)
+        return r.returncode, r.stdout + r.stderr
+    except subprocess.TimeoutExpired:
+        return "timeout", ""
+
+
+def expect_error(name, args, needles, keep=(), timeout=60, preexec=limits):
+    global passed
+    before = {p: open(p, "rb").read() for p in keep}
+    code, out = run(args, timeout, preexec)
+    problems = []
+    if code == "timeout":
+        problems.append(f"hung (no exit within {timeout} s)")
+    elif code == 0:
+        problems.append("exit 0")
+    elif code < 0 or code >= 128:
+        problems.append(f"died with signal/exit {code}")
+    for n in needles:
+        if n not in out:
+            problems.append(f"message lacks {n!r}")
+    if "std::" in out or "basic_filebuf" in out:
+        problems.append("std:: text reached the user")
+    for p, data in before.items():
+        if not os.path.exists(p) or open(p, "rb").read() != data:
+            problems.append(f"{p} was damaged")
+    leftovers = [f for f in os.listdir(WORK) if ".partial-" in f]
+    if leftovers:
+        problems.append(f"left temporaries {leftovers}")
+    if problems:
+        failures.append(f"{name}: {'; '.join(problems)}\n    {' '.join(map(str, args))}\n    output: {out.strip()[:400]}")
+    else:
+        passed += 1
+
+
+def expect_ok(name, args, needles=()):
+    global passed
+    code, out = run(args)
+    missing = [n for n in needles if n not in out]
+    if code != 0 or missing:
+        failures.append(f"{name}: exit {code}, missing {missing}\n    output: {out.strip()[:400]}")
+    else:
+        passed += 1
+
+
+def write(name, data):
+    path = os.path.join(WORK, name)
+    with open(path, "wb" if isinstance(data, bytes) else "w") as f:
+        f.write(data)
+    return path
+
+
+def gltf_with(accessors, buffer_views, buffer_bytes, extra=None, name="bad.gltf"):
+    import base64
+    doc = {
+        "asset": {"version": "2.0"},
+        "buffers": [{"byteLength": len(buffer_bytes),
+                     "uri": "data:application/octet-stream;base64," + base64.b64encode(buffer_bytes).decode()}],
+        "bufferViews": buffer_views, "accessors": accessors,
+        "meshes": [{"primitives": [{"attributes": {"POSITION": 0}}]}],
+        "nodes": [{"mesh": 0}], "scenes": [{"nodes": [0]}], "scene": 0,
+    }
+    doc.update(extra or {})
+    return write(name, json.dumps(doc))
+
+
+def png_chunk(kind, data):
+    return struct.pack(">I", len(data)) + kind + data + struct.pack(">I", zlib.crc32(kind + data) & 0xFFFFFFFF)
+
+
+def main():
+    global passed
+    shutil.rmtree(WORK, ignore_errors=True)
+    os.makedirs(WORK)
+    tri = struct.pack("<9f", 0, 0, 0, 1, 0, 0, 0, 1, 0)
+
+    # --- glTF: overflowing accessors and samplers, offsets near 2^64, DAG node graphs.
+    views = [{"buffer": 0, "byteOffset": 0, "byteLength": len(tri)}]
+    ok_acc = {"bufferView": 0, "componentType": 5126, "count": 3, "type": "VEC3"}
+    anim = {"animations": [{"channels": [{"sampler": 0, "target": {"node": 0, "path": "rotation"}}],
+                            "samplers": [{"input": 1, "output": 2}]}]}
+    path = gltf_with([ok_acc, {"bufferView": 0, "componentType": 5126, "count": 2, "type": "SCALAR"},
+                      {"bufferView": 0, "componentType": 5126, "count": 4611686018427387904, "type": "VEC4"}],
+                     views, tri, anim, "sampler_overflow.gltf")
+    expect_error("glTF sampler count x components overflow", ["render-sequence", path, "--path", "orbit", "--frames", 1,
+                                                              "--res", "8x8", "-o", "seq_out", "--quiet"],
+                 ["sampler_overflow.gltf", "reads past the end"])
+    path = gltf_with([dict(ok_acc, byteOffset=18446744073709551600)], views, tri, None, "offset_wrap.gltf")
+    expect_error("glTF accessor byteOffset near 2^64", ["bvh", path], ["offset_wrap.gltf"])
+    path = gltf_with([dict(ok_acc, count=6148914691236517206)], views, tri, None, "count_wrap.gltf")
+    expect_error("glTF accessor count x stride wraps", ["bvh", path], ["count_wrap.gltf", "reads past the end"])
+    nodes = [{"children": [i + 1, i + 1]} if i < 40 else {"mesh": 0} for i in range(41)]
+    path = gltf_with([ok_acc], views, tri, {"nodes": nodes}, "dag.gltf")
+    expect_error("glTF nodes sharing children (DAG)", ["bvh", path], ["dag.gltf", "tree"], timeout=20)
+    nodes = [{"children": [1]}, {"children": [0], "mesh": 0}]
+    path = gltf_with([ok_acc], views, tri, {"nodes": nodes}, "cycle.gltf")
+    expect_error("glTF node cycle", ["bvh", path], ["cycle.gltf"])
+
+    # --- Images whose headers claim far more than the file holds.
+    path = write("huge.pfm", b"PF\n16000 16000\n-1.0\n" + b"\0" * 64)
+    expect_error("84-byte PFM claiming 16k x 16k", ["render", "builtin:cornell_box", "--env", path, "--res", "8x8",
+                                                    "--png", "x.png", "--quiet"], ["huge.pfm", "truncated"])
+    raw = b"".join(b"\0" + b"\0" * (30000 * 3) for _ in range(4))
+    png = (b"\x89PNG\r\n\x1a\n" + png_chunk(b"IHDR", struct.pack(">IIBBBBB", 30000, 30000, 8, 2, 0, 0, 0)) +
+           png_chunk(b"IDAT", zlib.compress(raw, 9)) + png_chunk(b"IEND", b""))
+    path = write("huge.png", png)
+    expect_error("small PNG environment claiming 30000 x 30000", ["render", "builtin:cornell_box", "--env", path, "--res",
+                                                                  "8x8", "--png", "x.png", "--quiet"], ["huge.png"])
+    # An EXR made by kestrel, its data window then widened in place.
+    expect_ok("write a small EXR", ["render", "builtin:cornell_box", "--res", "8x8", "-o", "small.exr", "--quiet"])
+    data = bytearray(open(os.path.join(WORK, "small.exr"), "rb").read())
+    at = data.find(b"dataWindow\0box2i\0")
+    if at < 0:
+        failures.append("could not find the EXR data window to patch")
+    else:
+        at += len(b"dataWindow\0box2i\0") + 4
+        data[at:at + 16] = struct.pack("<4i", 0, 0, 29999, 29999)
+        path = write("window.exr", bytes(data))
+        expect_error("EXR with a 30000 x 30000 data window", ["render", "builtin:cornell_box", "--env", path, "--res",
+                                                              "8x8", "--png", "x.png", "--quiet"], ["window.exr"])
+
+    # --- Devices, FIFOs and folders where files are expected: no hang, no endless read.
+    fifo = os.path.join(WORK, "fifo")
+    os.mkfifo(fifo)
+    os.mkdir(os.path.join(WORK, "folder.mtl"))
+    for target, label in (("/dev/zero", "a character device"), (fifo, "a FIFO"), ("folder.mtl", "a folder")):
+        obj = write(f"mtl_{os.path.basename(target)}.obj", f"mtllib {target}\nv 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n")
+        expect_error(f"mtllib naming {label}", ["bvh", obj], [label], timeout=20)
+        expect_error(f"--weights naming {label}", ["denoise", "--hdr", "x.pfm", "-o", "y.pfm", "--weights", target],
+                     [label, os.path.basename(target)], timeout=20)
+    doc = {"asset": {"version": "2.0"}, "buffers": [{"byteLength": 36, "uri": "fifo"}],
+           "bufferViews": views, "accessors": [ok_acc], "meshes": [{"primitives": [{"attributes": {"POSITION": 0}}]}],
+           "nodes": [{"mesh": 0}], "scenes": [{"nodes": [0]}]}
+    path = write("fifo_buffer.gltf", json.dumps(doc))
+    expect_error("glTF buffer URI naming a FIFO", ["bvh", path], ["fifo"], timeout=20)
+    expect_error("scene naming a folder", ["bvh", WORK + "/folder.mtl"], ["folder.mtl"])
+
+    # --- Outputs: devices refused, full disks reported, existing files never damaged.
+    expect_ok("an old output", ["render", "builtin:cornell_box", "--res", "8x8", "-o", "old.exr", "--quiet"])
+    old = os.path.join(WORK, "old.exr")
+    expect_error("PNG to /dev/full", ["render", "builtin:cornell_box", "--res", "8x8", "--png", "/dev/full", "--quiet"],
+                 ["/dev/full"])
+    expect_ok("rays to trace", ["rays", "builtin:cornell_box", "--res", "8x8", "-o", "r.rays"])
+    expect_error(".hits to /dev/full", ["trace", "builtin:cornell_box", "--rays", "r.rays", "--hits", "/dev/full"],
+                 ["/dev/full"])
+    expect_error("-o old.exr with --png into a missing folder", ["render", "builtin:cornell_box", "--res", "8x8", "-o",
+                                                                 "old.exr", "--png", "missing_dir/x.png", "--quiet"],
+                 ["missing_dir"], keep=[old])
+
+    def small_disk():  # writes past 64 KiB fail (EFBIG) as on a full disk; the signal is ignored
+        limits()
+        resource.setrlimit(resource.RLIMIT_FSIZE, (65536, 65536))
+        signal.signal(signal.SIGXFSZ, signal.SIG_IGN)
+
+    expect_error("EXR cut short by a full disk", ["render", "builtin:cornell_box", "--res", "160x120", "-o", "old.exr",
+                                                  "--quiet"], ["old.exr"], keep=[old], preexec=small_disk)
+    os.makedirs(os.path.join(WORK, "pfm_old"), exist_ok=True)
+    pfm_old = write("pfm_old/color.pfm", b"the old colour")
+    expect_error("PFM cut short by a full disk", ["render", "builtin:cornell_box", "--res", "160x120", "--pfm", "pfm_old",
+                                                  "--quiet"], ["pfm_old"], keep=[pfm_old], preexec=small_disk)
+    expect_error("rays file cut short by a full disk", ["rays", "builtin:cornell_box", "--res", "200x200", "-o", "r.rays"],
+                 ["r.rays"], keep=[os.path.join(WORK, "r.rays")], preexec=small_disk)
+
+    # --- OBJ limits: long faces, huge indices, NaN vertices, MTL garbage.
+    ring = "".join(f"v {1 + 0.5 * __import__('math').cos(i / 300 * 6.283):.6f} "
+                   f"{0.5 * __import__('math').sin(i / 300 * 6.283):.6f} 0\n" for i in range(300))
+    path = write("long_face.obj", ring + "f " + " ".join(str(i + 1) for i in range(300)) + "\n")
+    code, out = run(["bvh", path, "--json"])
+    try:
+        got = json.loads(out[out.index("{"):]) if code == 0 else {}
+    except ValueError:
+        got = {}
+    if got.get("triangles") != 298:
+        failures.append(f"300-corner face: expected 298 triangles, got {got.get('triangles')} (exit {code}) {out[:200]}")
+    else:
+        passed += 1
+    path = write("big_index.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 1 1 0\nv 2 2 0\nf 1 2 4294967300\n")
+    expect_error("face index 2^32 + 4", ["bvh", path], ["big_index.obj:6", "out of range"])
+    path = write("nan.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nv nan 1 0\nf 1 2 3\nf 2 3 4\n")
+    expect_ok("NaN vertices render with a warning", ["render", path, "--res", "8x8", "--png", "nan.png", "--quiet"],
+              ["warning", "1 of 2 triangles skipped", "NaN"])
+    write("garbage.mtl", "newmtl m\nKd abc 0.5 0.5\n")
+    path = write("garbage.obj", "mtllib garbage.mtl\nusemtl m\nv 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n")
+    expect_error("MTL 'Kd abc'", ["bvh", path], ["garbage.mtl:2", "Kd"])
+
+    # --- Messages and strict flags.
+    path = write("far_path.json", json.dumps({"keyframes": [
+        {"time": 0, "eye": [0, 0, 5], "target": [0, 0, 0]}, {"time": 1e300, "eye": [0, 0, 6], "target": [0, 0, 0]}]}))
+    expect_error("camera path with a huge time", ["render-sequence", "builtin:cornell_box", "--path", path, "--frames", 2,
+                                                  "--res", "8x8", "-o", "seq", "--quiet"], ["far_path.json", "keyframe 1"])
+    expect_error("--res 16x16junk", ["render", "builtin:cornell_box", "--res", "16x16junk", "--png", "x.png"], ["16x16junk"])
+    expect_error("--threads -5", ["render", "builtin:cornell_box", "--threads", "-5", "--png", "x.png"], ["--threads"])
+    json_part = json.dumps({"asset": {"version": "2.0"}, "buffers": [{"byteLength": 36}],
+                            "bufferViews": views, "accessors": [ok_acc],
+                            "meshes": [{"primitives": [{"attributes": {"POSITION": 0}}]}],
+                            "nodes": [{"mesh": 0}], "scenes": [{"nodes": [0]}]}).encode()
+    json_part += b" " * (-len(json_part) % 4)
+    glb = (struct.pack("<III", 0x46546C67, 2, 12 + 8 + len(json_part) + 8 + len(tri)) +
+           struct.pack("<II", len(json_part), 0x4E4F534A) + json_part + struct.pack("<II", len(tri), 0x004E4942) + tri)
+    path = write("UPPER.GLB", glb)
+    expect_ok("a valid .GLB with an upper-case extension", ["bvh", path], ["1 triangles: 1 valid"])
+
+    print(f"{passed} passed, {len(failures)} failed")
+    for f in failures:
+        print("FAIL", f)
+    return 1 if failures else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
