@@ -219,8 +219,17 @@ tinygltf::Model load_model(const std::string& path) {
   std::string ext = std::filesystem::path(path).extension().string();
   for (char& c : ext) c = char(std::tolower(static_cast<unsigned char>(c)));
   const bool binary = ext == ".glb";
-  const bool ok = binary ? loader.LoadBinaryFromFile(&model, &err, &warn, path)
-                         : loader.LoadASCIIFromFile(&model, &err, &warn, path);
+  if (binary && regular_file_size(path, "glTF file") < 20)
+    throw Error(ErrorCode::parse_error, fmt::format("{}: too short for a GLB file (header and one chunk take 20 bytes)", path));
+  bool ok = false;
+  try {  // tinygltf throws (e.g. std::out_of_range) on some malformed files
+    ok = binary ? loader.LoadBinaryFromFile(&model, &err, &warn, path) : loader.LoadASCIIFromFile(&model, &err, &warn, path);
+  } catch (const Error&) {
+    throw;
+  } catch (const std::exception&) {
+    throw Error(ErrorCode::parse_error, fmt::format("{}: not a valid {} file (its reader stopped on malformed data)", path,
+                                                    binary ? "GLB" : "glTF"));
+  }
   if (!ok) {
     while (!err.empty() && (err.back() == '\n' || err.back() == '\r')) err.pop_back();
     throw Error(ErrorCode::parse_error, fmt::format("{}: {}", path, err.empty() ? "not a valid glTF file" : err));

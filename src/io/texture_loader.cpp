@@ -8,6 +8,7 @@
 #include <fmt/format.h>
 #include <stb_image.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstring>
 #include <memory>
@@ -21,6 +22,43 @@ namespace kestrel {
 namespace {
 
 constexpr uint64_t max_image_file_bytes = uint64_t(1) << 30;
+
+// stb_image 2.27 (Debian 12) writes past a Huffman table when a JPEG's DHT segment declares
+// more than 256 codes (found by fuzz_image). Its segments are checked here first.
+bool jpeg_huffman_tables_ok(const unsigned char* p, size_t n) {
+  // stb_image takes any number of 0xFF fill bytes before a marker, the first one included.
+  size_t at = 0;
+  while (at < n && p[at] == 0xFF) ++at;
+  if (at == 0 || at >= n || p[at] != 0xD8) return true;  // not a JPEG: nothing to check
+  ++at;
+  while (at + 4 <= n) {
+    if (p[at] != 0xFF) {  // entropy-coded data: skip to the next marker
+      ++at;
+      continue;
+    }
+    const unsigned char marker = p[at + 1];
+    if (marker == 0xFF || marker == 0x00 || (marker >= 0xD0 && marker <= 0xD8) || marker == 0x01) {
+      at += marker == 0xFF ? 1 : 2;
+      continue;
+    }
+    if (marker == 0xD9) return true;  // end of image
+    const size_t length = (size_t(p[at + 2]) << 8) | p[at + 3];
+    if (length < 2) return false;
+    const size_t end = std::min(n, at + 2 + length);
+    if (marker == 0xC4) {  // DHT: tables of (class/id, 16 counts, the codes)
+      size_t q = at + 4;
+      while (q < end) {
+        if (q + 17 > end) return false;
+        size_t codes = 0;
+        for (int i = 1; i <= 16; ++i) codes += p[q + size_t(i)];
+        if (codes > 256 || q + 17 + codes > end) return false;
+        q += 17 + codes;
+      }
+    }
+    at = end;
+  }
+  return true;
+}
 
 struct Encoded {
   std::string bytes;
@@ -36,6 +74,8 @@ Encoded read_image_file(const std::string& path, int bytes_per_pixel) {
   Encoded e;
   e.bytes = read_bounded_file(path, max_image_file_bytes, "image");
   int channels = 0;
+  if (!jpeg_huffman_tables_ok(e.data(), e.bytes.size()))
+    throw Error(ErrorCode::parse_error, fmt::format("{}: corrupt JPEG (a Huffman table declares more than 256 codes)", path));
   if (!stbi_info_from_memory(e.data(), e.size(), &e.width, &e.height, &channels))
     throw Error(ErrorCode::parse_error, fmt::format("{}: not an image kestrel can decode ({})", path, stbi_failure_reason()));
   if (e.width <= 0 || e.height <= 0 || e.width > max_image_side || e.height > max_image_side)
@@ -55,6 +95,10 @@ bool decode_rgba8(const unsigned char* bytes, size_t size, int& width, int& heig
   }
   int channels = 0;
   const auto* data = reinterpret_cast<const stbi_uc*>(bytes);
+  if (!jpeg_huffman_tables_ok(data, size)) {
+    problem = "corrupt JPEG (a Huffman table declares more than 256 codes)";
+    return false;
+  }
   if (!stbi_info_from_memory(data, int(size), &width, &height, &channels)) {
     problem = fmt::format("not an image kestrel can decode ({})", stbi_failure_reason());
     return false;

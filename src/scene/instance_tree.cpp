@@ -95,9 +95,11 @@ void build(std::span<const PrimRef> refs, Buffer<Node>& nodes, InstanceTreeScrat
   if (order.size() != n) order.resize(n);
   for (size_t i = 0; i < n; ++i) {
     const PrimRef& r = refs[i];
-    const float qx = std::clamp((r.lo.x + r.hi.x - cb.lo.x) * scale.x, 0.0f, top);
-    const float qy = std::clamp((r.lo.y + r.hi.y - cb.lo.y) * scale.y, 0.0f, top);
-    const float qz = std::clamp((r.lo.z + r.hi.z - cb.lo.z) * scale.z, 0.0f, top);
+    // fmax/fmin, not clamp: an instance whose world box overflowed to inf has a NaN centre,
+    // which fmax maps to 0 (converting NaN to an integer is undefined).
+    const float qx = std::fmin(std::fmax((r.lo.x + r.hi.x - cb.lo.x) * scale.x, 0.0f), top);
+    const float qy = std::fmin(std::fmax((r.lo.y + r.hi.y - cb.lo.y) * scale.y, 0.0f), top);
+    const float qz = std::fmin(std::fmax((r.lo.z + r.hi.z - cb.lo.z) * scale.z, 0.0f), top);
     keys[i] = morton30(uint32_t(qx), uint32_t(qy), uint32_t(qz));
     order[i] = uint32_t(i);
   }
