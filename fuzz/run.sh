@@ -28,6 +28,7 @@ report="$build/report.md"
   echo "|---|---:|---:|---:|---:|---:|---:|---|"
 } > "$report"
 status=0
+ok_count=0
 for name in "${names[@]}"; do
   work="$build/corpus/$name"
   mkdir -p "$work" "$here/fuzz/regressions/$name"
@@ -51,7 +52,9 @@ for name in "${names[@]}"; do
     echo "== fuzz_$name found a problem:"
     grep -E "ERROR|SUMMARY|fuzz:|==[0-9]+==|Test unit written" "$log" | head -20
   fi
+  [ "$result" = ok ] && ok_count=$((ok_count + 1))
   echo "| $name | $seconds | ${execs:-?} | ${rate:-?} | ${cov:-?} | ${ft:-?} | ${corp:-?} | $result |" >> "$report"
 done
 cat "$report"
+echo "fuzz: $ok_count passed, $(( ${#names[@]} - ok_count )) failed"
 exit $status

@@ -10,6 +10,24 @@
 
 #include "kestrel/parallel.h"
 
+// ThreadSanitizer cannot see the synchronisation inside libtbb (it is not instrumented), so
+// under KESTREL_TSAN the fork and the join are told to it: what the caller wrote before a
+// parallel_for happens before every task, and every task before the caller continues.
+#if defined(__has_feature)
+#if __has_feature(thread_sanitizer)
+#define KESTREL_UNDER_TSAN 1
+#endif
+#endif
+#if defined(__SANITIZE_THREAD__) || defined(KESTREL_UNDER_TSAN)
+extern "C" void __tsan_acquire(void* address);
+extern "C" void __tsan_release(void* address);
+#define KESTREL_TSAN_ACQUIRE(a) __tsan_acquire(a)
+#define KESTREL_TSAN_RELEASE(a) __tsan_release(a)
+#else
+#define KESTREL_TSAN_ACQUIRE(a) ((void)(a))
+#define KESTREL_TSAN_RELEASE(a) ((void)(a))
+#endif
+
 namespace kestrel {
 
 void parallel_for(size_t begin, size_t end, size_t grain, FunctionRef<void(size_t, size_t)> body) {
@@ -19,12 +37,31 @@ void parallel_for(size_t begin, size_t end, size_t grain, FunctionRef<void(size_
     body(begin, end);
     return;
   }
-  tbb::parallel_for(tbb::blocked_range<size_t>(begin, end, grain),
-                    [&](const tbb::blocked_range<size_t>& r) { body(r.begin(), r.end()); });
+  [[maybe_unused]] char fork = 0, join = 0;
+  KESTREL_TSAN_RELEASE(&fork);
+  tbb::parallel_for(tbb::blocked_range<size_t>(begin, end, grain), [&](const tbb::blocked_range<size_t>& r) {
+    KESTREL_TSAN_ACQUIRE(&fork);
+    body(r.begin(), r.end());
+    KESTREL_TSAN_RELEASE(&join);
+  });
+  KESTREL_TSAN_ACQUIRE(&join);
 }
 
 void parallel_invoke(FunctionRef<void()> a, FunctionRef<void()> b) {
-  tbb::parallel_invoke([&] { a(); }, [&] { b(); });
+  [[maybe_unused]] char fork = 0, join = 0;
+  KESTREL_TSAN_RELEASE(&fork);
+  tbb::parallel_invoke(
+      [&] {
+        KESTREL_TSAN_ACQUIRE(&fork);
+        a();
+        KESTREL_TSAN_RELEASE(&join);
+      },
+      [&] {
+        KESTREL_TSAN_ACQUIRE(&fork);
+        b();
+        KESTREL_TSAN_RELEASE(&join);
+      });
+  KESTREL_TSAN_ACQUIRE(&join);
 }
 
 int current_thread_count() {

@@ -3,7 +3,6 @@
 #include "kestrel/denoise.h"
 
 #include <fmt/format.h>
-#include <tbb/parallel_for.h>
 
 #include <algorithm>
 #include <cmath>
@@ -11,6 +10,7 @@
 #include <cstring>
 #include <filesystem>
 
+#include "core/parallel.h"
 #include "denoise/kernels.h"
 #include "denoise/neural.h"
 #include "kestrel/error.h"
@@ -61,7 +61,7 @@ namespace {
 
 template <class F>
 void rows(int h, F&& f) {
-  tbb::parallel_for(tbb::blocked_range<int>(0, h, 4), [&](const tbb::blocked_range<int>& r) { f(r.begin(), r.end()); });
+  parallel_for(0, size_t(h), 4, [&](size_t begin, size_t end) { f(int(begin), int(end)); });
 }
 
 // Fills every plane of `p` outside its top-left width x height region by edge replication

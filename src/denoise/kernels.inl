@@ -67,8 +67,8 @@ static void pad_for_conv(const float* in, int w, int h, int c, std::vector<float
   out.resize(row_floats * size_t(h + 2));
   std::fill(out.begin(), out.begin() + std::ptrdiff_t(row_floats), 0.0f);
   std::fill(out.end() - std::ptrdiff_t(row_floats), out.end(), 0.0f);
-  tbb::parallel_for(tbb::blocked_range<int>(0, h, 8), [&](const tbb::blocked_range<int>& r) {
-    for (int y = r.begin(); y < r.end(); ++y) {
+  parallel_for(0, size_t(h), 8, [&](size_t begin, size_t end) {
+    for (int y = int(begin); y < int(end); ++y) {
       float* dst = &out[size_t(y + 1) * row_floats];
       std::fill(dst, dst + c, 0.0f);
       std::memcpy(dst + c, in + size_t(y) * size_t(w) * size_t(c), sizeof(float) * size_t(w) * size_t(c));
@@ -266,9 +266,9 @@ struct FlushDenormals {
 
 template <class F>
 static void parallel_rows(int h, int grain, F&& f) {
-  tbb::parallel_for(tbb::blocked_range<int>(0, h, grain), [&](const tbb::blocked_range<int>& r) {
+  parallel_for(0, size_t(h), size_t(grain), [&](size_t begin, size_t end) {
     FlushDenormals ftz;
-    f(r.begin(), r.end());
+    f(int(begin), int(end));
   });
 }
 
@@ -450,15 +450,15 @@ static const Planes& network(const NeuralWeights& nw, const Planes& in, Planes& 
   const size_t Nq = size_t(Wq) * size_t(Hq);
   ws.act.resize(Nq * kOutputs);
   const size_t ostride = size_t(nw.head.cout);
-  tbb::parallel_for(tbb::blocked_range<size_t>(0, Nq, 4096), [&](const tbb::blocked_range<size_t>& range) {
+  parallel_for(0, Nq, 4096, [&](size_t range_begin, size_t range_end) {
     FlushDenormals ftz;
     for (int k = 0; k < kOutputs; ++k) {
       const float* v = ws.o.data() + size_t(k);
       float* out = ws.act.data() + size_t(k) * Nq;
       if (k == 0 || k % 4 == 0) {  // alpha and the betas: sigmoid
-        for (size_t p = range.begin(); p < range.end(); ++p) out[p] = 1.0f / (1.0f + exp_any(-v[p * ostride]));
+        for (size_t p = range_begin; p < range_end; ++p) out[p] = 1.0f / (1.0f + exp_any(-v[p * ostride]));
       } else {  // the edge-stopping strengths: softplus
-        for (size_t p = range.begin(); p < range.end(); ++p) {
+        for (size_t p = range_begin; p < range_end; ++p) {
           const float x = v[p * ostride];
           out[p] = x > 20.0f ? x : log1p_pos(exp_any(x));
         }

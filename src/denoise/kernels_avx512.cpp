@@ -1,5 +1,5 @@
 // The denoiser's kernels built for avx512 (flags in CMakeLists.txt).
-#include <tbb/parallel_for.h>
+#include "core/parallel.h"
 #include <xmmintrin.h>
 
 #include <algorithm>

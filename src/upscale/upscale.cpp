@@ -4,8 +4,6 @@
 #include "kestrel/upscale.h"
 
 #include <fmt/format.h>
-#include <tbb/blocked_range.h>
-#include <tbb/parallel_for.h>
 #include <xmmintrin.h>
 
 #include <algorithm>
@@ -14,6 +12,7 @@
 #include <cstdlib>
 #include <vector>
 
+#include "core/parallel.h"
 #include "core/timer.h"
 #include "denoise/kernels.h"
 #include "denoise/neural.h"
@@ -41,9 +40,9 @@ struct FlushDenormals {
 
 template <class F>
 void parallel_rows(int h, int grain, F&& f) {
-  tbb::parallel_for(tbb::blocked_range<int>(0, h, grain), [&](const tbb::blocked_range<int>& r) {
+  parallel_for(0, size_t(h), size_t(grain), [&](size_t begin, size_t end) {
     FlushDenormals ftz;
-    f(r.begin(), r.end());
+    f(int(begin), int(end));
   });
 }
 
@@ -189,7 +188,14 @@ struct Recon {
   bool history;
 };
 
-__attribute__((target_clones("avx512f", "arch=haswell", "default")))
+// ifunc resolvers run before ThreadSanitizer's runtime starts: the TSan build uses the
+// default clone only.
+#if defined(__SANITIZE_THREAD__)
+#define KESTREL_RECONSTRUCT_CLONES
+#else
+#define KESTREL_RECONSTRUCT_CLONES __attribute__((target_clones("avx512f", "arch=haswell", "default")))
+#endif
+KESTREL_RECONSTRUCT_CLONES
 void reconstruct_rows(const Recon& a, int r0, int r1) {
   std::vector<float> vert(3 * size_t(a.w) + 1, 0.0f), gv(3 * size_t(a.gw) + 1, 0.0f);
   for (int Y = r0; Y < r1; ++Y) {
