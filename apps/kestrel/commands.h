@@ -46,5 +46,7 @@ using tools::start_camera_for;
 
 /// Parses "WxH" into positive width and height; throws Error otherwise.
 void parse_resolution(const std::string& text, int& width, int& height);
+/// load_scene, with the scene's warnings (skipped triangles, missing textures) on stderr.
+Scene load_scene_reporting(const std::string& path);
 
 }  // namespace kestrel::cli

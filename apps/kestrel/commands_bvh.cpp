@@ -6,6 +6,7 @@
 #include <string_view>
 
 #include "commands.h"
+#include "distributed/distributed.h"
 #include "core/timer.h"
 #include "geometry/prim_ref.h"
 #include "kestrel/error.h"
@@ -50,6 +51,13 @@ BuildConfig BuildOptions::config() const {
   return c;
 }
 
+Scene load_scene_reporting(const std::string& path) {
+  Scene scene = load_scene(path);
+  if (distributed::rank() == 0)  // one copy under mpirun
+    for (const std::string& w : scene.warnings) fmt::print(stderr, "kestrel: warning: {}\n", w);
+  return scene;
+}
+
 void parse_resolution(const std::string& text, int& width, int& height) {
   // Strictly WxH: digits, 'x', digits, nothing else ("16x16junk" and "+16x-4" are errors).
   const size_t x = text.find('x');
@@ -79,7 +87,7 @@ void run_bvh(const BvhArgs& a) {
   std::unique_ptr<ThreadLimit> limit;
   if (a.build.threads > 0) limit = std::make_unique<ThreadLimit>(a.build.threads);
   Timer load_timer;
-  const Scene scene = load_scene(a.scene);
+  const Scene scene = load_scene_reporting(a.scene);
   const double load_ms = load_timer.ms();
   const SceneValidation validation = validate_scene(scene);
   if (validation.report.valid_triangle_count == 0)

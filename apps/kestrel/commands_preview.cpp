@@ -30,7 +30,7 @@ void run_preview(const PreviewArgs& a) {
   if (a.build.threads > 0) limit = std::make_unique<ThreadLimit>(a.build.threads);
   int w, h;
   parse_resolution(a.res, w, h);
-  const Scene scene = load_scene(a.scene);
+  const Scene scene = load_scene_reporting(a.scene);
   std::string view = a.view;
   if (view.empty()) view = scene.source == "builtin:cornell_box" ? "front" : "framing";
   auto cam = tools::named_view(scene, view);

@@ -223,8 +223,7 @@ void run_render(const RenderArgs& a) {
   if (distributed::rank() == 0) check_destinations(a.out, a.pfm, a.png);
   if (!a.view.empty() && !a.camera.empty()) throw Error(ErrorCode::invalid_argument, "render: give --view or --camera, not both");
   const RenderSettings s = settings_of(a);
-  Scene scene = load_scene(a.scene);
-  for (const std::string& w : scene.warnings) fmt::print(stderr, "kestrel: warning: {}\n", w);
+  Scene scene = load_scene_reporting(a.scene);
   Camera camera;
   if (!a.camera.empty()) {
     camera = parse_camera(a.camera);
@@ -273,7 +272,7 @@ void run_sequence(const RenderArgs& a) {
     instanced->commit();
     renderer = std::make_unique<Renderer>(*instanced, gltf->materials(), gltf->textures(), environment_of(a));
   } else {
-    renderer = std::make_unique<Renderer>(load_scene(a.scene), environment_of(a));
+    renderer = std::make_unique<Renderer>(load_scene_reporting(a.scene), environment_of(a));
   }
   const CameraPath path = camera_path_of(a);
   const double t0 = path.start(), t1 = path.end();

@@ -46,14 +46,13 @@ void run(RunArgs& a) {
   const double t0 = path.start(), t1 = path.end();
   std::vector<PipelineTimes> times;
   std::vector<double> mrays;
-  std::ofstream csv((std::filesystem::path(a.out) / "timings.csv").string());
-  csv << "frame,factor,update_ms,render_ms,denoise_ms,upscale_ms,tonemap_ms,total_ms,mrays_per_s\n";
+  std::string csv = "frame,factor,update_ms,render_ms,denoise_ms,upscale_ms,tonemap_ms,total_ms,mrays_per_s\n";
   for (int i = 0; i < a.frames; ++i) {
     const double t = a.frames > 1 ? t0 + (t1 - t0) * double(i) / double(a.frames - 1) : t0;
     const PipelineFrame& f = pipeline.frame(path.at(t), t);
     const double mr = double(f.stats.rays()) / (f.times.render * 1e3);
     times.push_back(f.times), mrays.push_back(mr);
-    csv << fmt::format("{},{},{:.3f},{:.3f},{:.3f},{:.3f},{:.3f},{:.3f},{:.2f}\n", i, f.factor, f.times.update, f.times.render,
+    csv += fmt::format("{},{},{:.3f},{:.3f},{:.3f},{:.3f},{:.3f},{:.3f},{:.2f}\n", i, f.factor, f.times.update, f.times.render,
                        f.times.denoise, f.times.upscale, f.times.tonemap, f.times.total, mr);
     const std::string stem = (std::filesystem::path(a.out) / fmt::format("frame_{:04d}", i)).string();
     if (!a.no_png) write_png(stem + ".png", f.width, f.height, f.rgb8);
@@ -87,7 +86,8 @@ void run(RunArgs& a) {
   std::vector<double> mr(mrays.begin() + std::ptrdiff_t(skip), mrays.end());
   md += fmt::format("\n{:.2f} frames per second (median frame), render {:.2f} Mrays/s (median).\n", 1000.0 / med,
                     percentile(mr, 0.5));
-  std::ofstream((std::filesystem::path(a.out) / "timings.md").string()) << md;
+  write_text_file((std::filesystem::path(a.out) / "timings.csv").string(), csv);
+  write_text_file((std::filesystem::path(a.out) / "timings.md").string(), md);
   fmt::print("\n{}", md);
   fmt::print("wrote    {} frames, timings.md and timings.csv to {}{}\n", a.frames, a.out,
              a.no_png ? "" : fmt::format(" (video: ffmpeg -framerate 30 -i {}/frame_%04d.png out.mp4)", a.out));

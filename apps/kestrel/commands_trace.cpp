@@ -23,7 +23,7 @@ struct TraceArgs {
 };
 
 Accel load_and_build(const std::string& path, const BuildConfig& config) {
-  const Scene scene = load_scene(path);
+  const Scene scene = load_scene_reporting(path);
   Accel accel = build_accel(scene, config);
   if (accel.validation.report.valid_triangle_count == 0)
     throw Error(ErrorCode::invalid_geometry,
@@ -84,7 +84,7 @@ void run_rays(const RaysArgs& a) {
   if (!kind) throw Error(ErrorCode::invalid_argument, fmt::format("unknown ray kind '{}' (primary, shadow, diffuse)", a.kind));
   int w, h;
   parse_resolution(a.res, w, h);
-  const Scene scene = load_scene(a.scene);
+  const Scene scene = load_scene_reporting(a.scene);
   auto cam = tools::named_view(scene, a.view);
   if (!cam) throw Error(ErrorCode::invalid_argument, fmt::format("{}: no view named '{}'", a.scene, a.view));
   const Accel accel = build_accel(scene, BuildConfig{});

@@ -3,6 +3,7 @@
 #include <cstdint>
 #include <span>
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include "kestrel/trace.h"
@@ -17,6 +18,10 @@ void write_rays(const std::string& path, std::span<const Ray> rays);
 std::vector<Hit> read_hits(const std::string& path);
 /// Writes a `.hits` file; a miss is t = +inf, prim_id = 0xFFFFFFFF.
 void write_hits(const std::string& path, std::span<const Hit> hits);
+
+/// Writes a text file atomically (a temporary beside it, renamed into place once every write
+/// succeeded; an existing file is kept on failure). Error(io_error) naming the file.
+void write_text_file(const std::string& path, std::string_view text);
 
 /// Writes 8-bit RGB pixels (rows top to bottom) as PNG.
 void write_png(const std::string& path, int width, int height, std::span<const uint8_t> rgb);

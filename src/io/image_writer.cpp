@@ -10,6 +10,12 @@
 
 namespace kestrel {
 
+void write_text_file(const std::string& path, std::string_view text) {
+  AtomicFile file(path);
+  file.write(text);
+  file.commit();
+}
+
 void write_png(const std::string& path, int width, int height, std::span<const uint8_t> rgb) {
   if (width <= 0 || height <= 0 || rgb.size() != size_t(width) * height * 3)
     throw Error(ErrorCode::invalid_argument,
