@@ -63,7 +63,10 @@ void run_trace(const TraceArgs& a) {
   for (const Hit& h : hits) hit_count += h.hit();
   const double med = median(ms);
   fmt::print("scene      {} ({})\n", a.scene, accel.validation.report.summary());
-  fmt::print("builder    {}\n", builder_name(resolve_builder(config, accel.prim_count)));
+  fmt::print("builder    {}{}\n", builder_name(accel.builder),
+             accel.depth_fallback ? fmt::format(" (the {} tree was deeper than traversal allows: rebuilt by median split)",
+                                                builder_name(resolve_builder(config, accel.prim_count)))
+                                  : std::string());
   fmt::print("layout     {} ({} bytes, {:.1f} bytes/prim), ISA {}, packets {}\n", layout_name(accel.layout), accel.memory_bytes(),
              accel.prim_count ? double(accel.memory_bytes()) / double(accel.prim_count) : 0.0,
              isa_name(options.isa.value_or(default_isa())), a.packets);

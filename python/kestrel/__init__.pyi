@@ -48,6 +48,8 @@ def builtin_scene_names() -> list[str]: ...
 
 class Accel:
     layout: str
+    builder: str
+    depth_fallback: bool
     prim_count: int
     build_ms: float
     memory_bytes: int

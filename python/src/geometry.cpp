@@ -356,6 +356,9 @@ void bind_geometry(py::module_& m) {
   py::class_<Accel, std::shared_ptr<Accel>>(m, "Accel", "A scene ready to trace: a BVH over its valid triangles.")
       .def_property_readonly("layout", [](const Accel& a) { return std::string(layout_name(a.layout)); })
       .def_readonly("prim_count", &Accel::prim_count)
+      .def_property_readonly("builder", [](const Accel& a) { return std::string(builder_name(a.builder)); },
+                             "The builder that made the tree (median when an SAH tree was too deep: depth_fallback).")
+      .def_readonly("depth_fallback", &Accel::depth_fallback)
       .def_readonly("build_ms", &Accel::build_ms)
       .def_property_readonly("memory_bytes", &Accel::memory_bytes)
       .def_property_readonly("bytes_per_prim",

@@ -64,7 +64,8 @@ Affine3 to_affine(const Mat4& m) {  // column-major 4x4 -> row-major 3x4
 }
 
 // Value of a channel at time t: keyframe interval by binary search, then LINEAR (slerp for
-// rotations), STEP, or the value part of CUBICSPLINE keyframes interpolated linearly.
+// rotations), STEP, or CUBICSPLINE: the glTF 2.0 cubic Hermite spline through the values
+// with each key's in- and out-tangents (scaled by the interval), rotations renormalised.
 void sample(const Channel& ch, double t, double* out) {
   const size_t n = ch.times.size();
   const int c = ch.components;
@@ -80,6 +81,21 @@ void sample(const Channel& ch, double t, double* out) {
   const size_t k = size_t(std::upper_bound(ch.times.begin(), ch.times.end(), float(t)) - ch.times.begin()) - 1;
   const double t0 = ch.times[k], t1 = ch.times[k + 1];
   const double u = ch.step || t1 <= t0 ? 0.0 : (t - t0) / (t1 - t0);
+  if (ch.cubic && !ch.step) {
+    // Keys are stored (in-tangent a, value v, out-tangent b): p = h00 v_k + h10 dt b_k +
+    // h01 v_k+1 + h11 dt a_k+1 (glTF 2.0, Appendix C).
+    const double dt = t1 - t0, u2 = u * u, u3 = u2 * u;
+    const double h00 = 2 * u3 - 3 * u2 + 1, h10 = u3 - 2 * u2 + u, h01 = -2 * u3 + 3 * u2, h11 = u3 - u2;
+    auto at = [&](size_t key, int part, int i) { return double(ch.values[(3 * key + size_t(part)) * size_t(c) + size_t(i)]); };
+    double len = 0;
+    for (int i = 0; i < c; ++i) {
+      out[i] = h00 * at(k, 1, i) + h10 * dt * at(k, 2, i) + h01 * at(k + 1, 1, i) + h11 * dt * at(k + 1, 0, i);
+      len += out[i] * out[i];
+    }
+    if (ch.path == Path::rotation && len > 0)
+      for (int i = 0; i < 4; ++i) out[i] /= std::sqrt(len);
+    return;
+  }
   if (ch.path == Path::rotation && !ch.step) {
     double a[4], b[4];
     for (int i = 0; i < 4; ++i) a[i] = value(k, i), b[i] = value(k + 1, i);

@@ -60,13 +60,16 @@ Accel build_accel(const Scene& scene, const BuildConfig& config) {
   // LBVH depth is bounded by its key bits (at most 3 x 21 + 32 levels) and the median split
   // by log2(n); the SAH-driven trees are checked.
   const Builder builder = resolve_builder(config, refs.size());
+  accel.builder = builder;
   const bool bounded_depth = builder == Builder::lbvh || builder == Builder::median;
   if (!bounded_depth && max_depth(bvh) > max_traversal_depth) {
     // Pathological primitive distributions can make SAH trees very deep; the median split
-    // bounds the depth by log2(n).
+    // bounds the depth by log2(n). Reported in the Accel, not silent.
     BuildConfig fallback = config;
     fallback.builder = Builder::median;
     bvh = build_bvh(refs, fallback);
+    accel.builder = Builder::median;
+    accel.depth_fallback = true;
   }
   accel.prim_count = bvh.prim_ids.size();
   if (!bvh.empty()) accel.bounds = {bvh.nodes[0].lo, bvh.nodes[0].hi};

@@ -1,6 +1,6 @@
 // Traversal kernels per instruction set. Each kernels_<isa>.cpp compiles wide_kernels.inl
-// with its own compiler flags into its own namespace; dispatch.cpp picks a table at run
-// time. Kernels take raw pointers only, so no template code is shared between the ISA
+// with its own compiler flags into its own namespace; trace.cpp picks a table at run time
+// (kernel_table, by the ISA a call asks for or default_isa()). Kernels take raw pointers only, so no template code is shared between the ISA
 // files (a shared inline function compiled with AVX-512 could otherwise be picked by the
 // linker for an SSE2 caller).
 #pragma once

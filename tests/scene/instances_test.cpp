@@ -400,6 +400,32 @@ TEST(GltfInstances, AnimationsMoveInstancesAndMorphMeshes) {
   expect_matches_flattened(c, {0}, "morph cube at 1 s");
 }
 
+TEST(GltfInstances, CubicSplineSamplersFollowTheHermiteSpline) {
+  // One translation channel, keys at t = 0 and 1 stored as (in-tangent, value, out-tangent):
+  // v0 = 0 with out-tangent 4, v1 = 1 with in-tangent 0. glTF 2.0 Appendix C: at u = 0.5 the
+  // x offset is h10 * 4 + h01 * 1 = 0.125 * 4 + 0.5 = 1 (a linear blend of the values: 0.5);
+  // at u = 0.25 it is 0.140625 * 4 + 0.15625 = 0.71875.
+  const std::string path = test::write_temp_file("cubic.gltf", R"({"asset": {"version": "2.0"},
+    "buffers": [{"byteLength": 116, "uri": "data:application/octet-stream;base64,AAAAAAAAAAAAAAAAAACAPwAAAAAAAAAAAAAAAAAAgD8AAAAAAAAAAAAAgD8AAAAAAAAAAAAAAAAAAAAAAAAAAAAAAAAAAIBAAAAAAAAAAAAAAAAAAAAAAAAAAAAAAIA/AAAAAAAAAAAAAAAAAAAAAAAAAAA="}],
+    "bufferViews": [{"buffer": 0, "byteOffset": 0, "byteLength": 36}, {"buffer": 0, "byteOffset": 36, "byteLength": 8},
+                    {"buffer": 0, "byteOffset": 44, "byteLength": 72}],
+    "accessors": [{"bufferView": 0, "componentType": 5126, "count": 3, "type": "VEC3"},
+                  {"bufferView": 1, "componentType": 5126, "count": 2, "type": "SCALAR", "min": [0], "max": [1]},
+                  {"bufferView": 2, "componentType": 5126, "count": 6, "type": "VEC3"}],
+    "meshes": [{"primitives": [{"attributes": {"POSITION": 0}}]}],
+    "nodes": [{"mesh": 0}], "scenes": [{"nodes": [0]}], "scene": 0,
+    "animations": [{"channels": [{"sampler": 0, "target": {"node": 0, "path": "translation"}}],
+                    "samplers": [{"input": 1, "output": 2, "interpolation": "CUBICSPLINE"}]}]})");
+  GltfInstances g = GltfInstances::load(path);
+  InstancedScene s;
+  g.add_to(s);
+  for (auto [t, x] : {std::pair{0.0, 0.0f}, {0.25, 0.71875f}, {0.5, 1.0f}, {0.999999, 1.0f}}) {
+    g.set_time(s, t);
+    s.commit();
+    EXPECT_NEAR(s.flatten().meshes[0].positions[0].x, x, 1e-5f) << "t = " << t;
+  }
+}
+
 TEST(GltfInstances, BadFilesAreClearErrors) {
   const std::string bad = test::write_temp_file("bad_anim.gltf", R"({"asset": {"version": "2.0"},
     "nodes": [{"mesh": 3}], "scenes": [{"nodes": [0]}], "scene": 0})");
