@@ -54,7 +54,8 @@ class Denoiser {
   /// Denoises one frame (3 channels, colour's size). Throws Error on missing colour or
   /// mismatched sizes / channel counts (naming the input).
   FloatImage denoise(const DenoiseInput& input);
-  /// The same into `out`, reusing its storage (no allocation per frame once warm).
+  /// The same into `out`, reusing its storage (neural: no allocation per frame once warm;
+  /// the SVGF-like and a-trous baselines still allocate their scratch images per frame).
   void denoise(const DenoiseInput& input, FloatImage& out);
   void reset();
   DenoiseMethod method() const;

@@ -23,15 +23,14 @@
 namespace kestrel {
 
 namespace denoise {
+// The table of the ISA in force now (default_isa(): --isa, KESTREL_ISA or set_default_isa),
+// looked up per call, not cached: a later set_default_isa takes effect, as in traversal.
 const KernelTable& host_kernels() {
-  static const KernelTable& table = [] () -> const KernelTable& {
-    switch (default_isa()) {
-      case Isa::avx512: return kernels_avx512();
-      case Isa::avx2: return kernels_avx2();
-      default: return kernels_sse2();
-    }
-  }();
-  return table;
+  switch (default_isa()) {
+    case Isa::avx512: return kernels_avx512();
+    case Isa::avx2: return kernels_avx2();
+    default: return kernels_sse2();
+  }
 }
 }  // namespace denoise
 

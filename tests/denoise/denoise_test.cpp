@@ -2,6 +2,8 @@
 // checks, and behaviour every method must have against analytic oracles (a constant image
 // is a fixed point; noise around a known mean shrinks; a static sequence improves over
 // time for the temporal methods; bad input is an error).
+#include "kestrel/denoise.h"
+
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -9,7 +11,6 @@
 #include <fstream>
 #include <random>
 
-#include "kestrel/denoise.h"
 #include "kestrel/error.h"
 #include "kestrel/io.h"
 
@@ -27,12 +28,17 @@ FloatImage constant(int w, int h, int c, float v) {
 struct Aux {
   FloatImage albedo, normal, depth, rough, motion;
   Aux(int w, int h, float albedo_value = 0.5f)
-      : albedo(constant(w, h, 3, albedo_value)), normal(w, h, 3), depth(constant(w, h, 1, 2.0f)),
-        rough(constant(w, h, 1, 1.0f)), motion(w, h, 2) {
+      : albedo(constant(w, h, 3, albedo_value)),
+        normal(w, h, 3),
+        depth(constant(w, h, 1, 2.0f)),
+        rough(constant(w, h, 1, 1.0f)),
+        motion(w, h, 2) {
     for (int y = 0; y < h; ++y)
       for (int x = 0; x < w; ++x) normal.at(x, y)[1] = 1.0f;
   }
-  DenoiseInput with(const FloatImage& color) const { return {&color, &albedo, &normal, &depth, &rough, &motion}; }
+  DenoiseInput with(const FloatImage& color) const {
+    return {&color, &albedo, &normal, &depth, &rough, &motion};
+  }
 };
 
 DenoiserOptions options(DenoiseMethod m) {
@@ -41,31 +47,43 @@ DenoiserOptions options(DenoiseMethod m) {
   return o;
 }
 
-const DenoiseMethod kMethods[] = {DenoiseMethod::neural, DenoiseMethod::svgf, DenoiseMethod::atrous};
+const DenoiseMethod kMethods[] = {DenoiseMethod::neural, DenoiseMethod::svgf,
+                                  DenoiseMethod::atrous};
 
 TEST(Denoise, NeuralMatchesPyTorchOnTheFixture) {
-  Denoiser d;  // the committed weights
-  for (int t = 0; t < 2; ++t) {
-    const std::string dir = kFixture + "/frame_" + std::to_string(t) + "/";
-    const FloatImage color = read_pfm(dir + "color.pfm"), albedo = read_pfm(dir + "albedo.pfm"),
-                     normal = read_pfm(dir + "normal.pfm"), depth = read_pfm(dir + "depth.pfm"),
-                     rough = read_pfm(dir + "roughness.pfm"), motion = read_pfm(dir + "motion.pfm"),
-                     expected = read_pfm(dir + "expected.pfm");
-    const FloatImage out = d.denoise({&color, &albedo, &normal, &depth, &rough, &motion});
-    ASSERT_EQ(out.width, expected.width);
-    ASSERT_EQ(out.height, expected.height);
-    double worst = 0;
-    for (size_t i = 0; i < out.pixels.size(); ++i)
-      worst = std::max(worst, std::abs(double(out.pixels[i]) - expected.pixels[i]) / (std::abs(expected.pixels[i]) + 1e-2));
-    EXPECT_LT(worst, 1e-4) << "frame " << t;
+  // Every ISA's kernels this CPU runs, against the training framework's output.
+  for (Isa isa : {Isa::sse2, Isa::avx2, Isa::avx512}) {
+    if (!isa_supported(isa)) continue;
+    SCOPED_TRACE(isa_name(isa));
+    const Isa before = default_isa();
+    set_default_isa(isa);
+    Denoiser d;  // the committed weights
+    for (int t = 0; t < 2; ++t) {
+      const std::string dir = kFixture + "/frame_" + std::to_string(t) + "/";
+      const FloatImage color = read_pfm(dir + "color.pfm"), albedo = read_pfm(dir + "albedo.pfm"),
+                       normal = read_pfm(dir + "normal.pfm"), depth = read_pfm(dir + "depth.pfm"),
+                       rough = read_pfm(dir + "roughness.pfm"),
+                       motion = read_pfm(dir + "motion.pfm"),
+                       expected = read_pfm(dir + "expected.pfm");
+      const FloatImage out = d.denoise({&color, &albedo, &normal, &depth, &rough, &motion});
+      ASSERT_EQ(out.width, expected.width);
+      ASSERT_EQ(out.height, expected.height);
+      double worst = 0;
+      for (size_t i = 0; i < out.pixels.size(); ++i)
+        worst = std::max(worst, std::abs(double(out.pixels[i]) - expected.pixels[i]) /
+                                    (std::abs(expected.pixels[i]) + 1e-2));
+      EXPECT_LT(worst, 1e-4) << "frame " << t;
+    }
+    EXPECT_LE(d.parameter_count(), 100000u);
+    EXPECT_GT(d.parameter_count(), 1000u);
+    set_default_isa(before);
   }
-  EXPECT_LE(d.parameter_count(), 100000u);
-  EXPECT_GT(d.parameter_count(), 1000u);
 }
 
 std::string copy_weights(const std::string& name) {
   const std::string path = (std::filesystem::temp_directory_path() / name).string();
-  std::filesystem::copy_file(default_denoiser_weights(), path, std::filesystem::copy_options::overwrite_existing);
+  std::filesystem::copy_file(default_denoiser_weights(), path,
+                             std::filesystem::copy_options::overwrite_existing);
   return path;
 }
 
@@ -101,7 +119,8 @@ TEST(Denoise, CorruptOrMismatchedWeightsAreClearErrors) {
     f.put('\x07');
   }
   expect_error(version, "version 7");
-  const std::string garbage = (std::filesystem::temp_directory_path() / "kestrel_garbage.kdw").string();
+  const std::string garbage =
+      (std::filesystem::temp_directory_path() / "kestrel_garbage.kdw").string();
   std::ofstream(garbage) << "this is not a weights file at all, just text";
   expect_error(garbage, "bad magic");
 }
@@ -114,7 +133,8 @@ TEST(Denoise, AConstantImageIsAFixedPoint) {
     Denoiser d(options(m));
     for (int t = 0; t < 3; ++t) {
       const FloatImage out = d.denoise(aux.with(color));
-      for (float v : out.pixels) ASSERT_NEAR(v, 0.3f, 2e-4f) << denoise_method_name(m) << " frame " << t;
+      for (float v : out.pixels)
+        ASSERT_NEAR(v, 0.3f, 2e-4f) << denoise_method_name(m) << " frame " << t;
     }
   }
 }

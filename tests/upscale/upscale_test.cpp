@@ -3,6 +3,8 @@
 // static or translating pattern point-sampled at the jitter converges towards its
 // pixel-averaged reference, better than the current frame alone, and only with the right
 // motion vectors; bad input is an error.
+#include "kestrel/upscale.h"
+
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -13,7 +15,6 @@
 #include "kestrel/error.h"
 #include "kestrel/io.h"
 #include "kestrel/render.h"
-#include "kestrel/upscale.h"
 
 namespace kestrel {
 namespace {
@@ -26,33 +27,45 @@ UpscalerOptions options(UpscaleMethod m, int factor) {
   return o;
 }
 
-const UpscaleMethod kMethods[] = {UpscaleMethod::neural, UpscaleMethod::taau, UpscaleMethod::bicubic,
-                                  UpscaleMethod::bilinear};
+const UpscaleMethod kMethods[] = {UpscaleMethod::neural, UpscaleMethod::taau,
+                                  UpscaleMethod::bicubic, UpscaleMethod::bilinear};
 
 TEST(Upscale, NeuralMatchesPyTorchOnTheFixture) {
   std::ifstream meta_file(kFixture + "/fixture.json");
   ASSERT_TRUE(meta_file) << kFixture;
   const nlohmann::json meta = nlohmann::json::parse(meta_file);
   const int frames = meta["frames"];
-  for (int f : {2, 4}) {
-    Upscaler up(options(UpscaleMethod::neural, f));
-    for (int t = 0; t < frames; ++t) {
-      const std::string p = kFixture + "/x" + std::to_string(f) + "_";
-      const FloatImage color = read_pfm(p + "color_" + std::to_string(t) + ".pfm");
-      FloatImage depth3 = read_pfm(p + "depth_" + std::to_string(t) + ".pfm");
-      const FloatImage motion = read_pfm(p + "motion_" + std::to_string(t) + ".pfm");
-      const FloatImage expected = read_pfm(p + "out_" + std::to_string(t) + ".pfm");
-      FloatImage depth(depth3.width, depth3.height, 1);
-      for (size_t i = 0; i < depth.pixels.size(); ++i) depth.pixels[i] = depth3.pixels[i * size_t(depth3.channels)];
-      UpscaleInput in{&color, &depth, &motion, meta["jitter"][size_t(t)][0], meta["jitter"][size_t(t)][1]};
-      const FloatImage out = up.upscale(in);
-      ASSERT_EQ(out.width, expected.width);
-      ASSERT_EQ(out.height, expected.height);
-      double worst = 0;
-      for (size_t i = 0; i < out.pixels.size(); ++i)
-        worst = std::max(worst, std::abs(double(out.pixels[i]) - expected.pixels[i]) / (std::abs(expected.pixels[i]) + 1e-2));
-      EXPECT_LT(worst, 2e-4) << "factor " << f << " frame " << t;
+  // Every ISA's convolution kernels this CPU runs (the reconstruction itself is chosen by the
+  // compiler's target_clones; see docs/architecture.md).
+  for (Isa isa : {Isa::sse2, Isa::avx2, Isa::avx512}) {
+    if (!isa_supported(isa)) continue;
+    SCOPED_TRACE(isa_name(isa));
+    const Isa before = default_isa();
+    set_default_isa(isa);
+    for (int f : {2, 4}) {
+      Upscaler up(options(UpscaleMethod::neural, f));
+      for (int t = 0; t < frames; ++t) {
+        const std::string p = kFixture + "/x" + std::to_string(f) + "_";
+        const FloatImage color = read_pfm(p + "color_" + std::to_string(t) + ".pfm");
+        FloatImage depth3 = read_pfm(p + "depth_" + std::to_string(t) + ".pfm");
+        const FloatImage motion = read_pfm(p + "motion_" + std::to_string(t) + ".pfm");
+        const FloatImage expected = read_pfm(p + "out_" + std::to_string(t) + ".pfm");
+        FloatImage depth(depth3.width, depth3.height, 1);
+        for (size_t i = 0; i < depth.pixels.size(); ++i)
+          depth.pixels[i] = depth3.pixels[i * size_t(depth3.channels)];
+        UpscaleInput in{&color, &depth, &motion, meta["jitter"][size_t(t)][0],
+                        meta["jitter"][size_t(t)][1]};
+        const FloatImage out = up.upscale(in);
+        ASSERT_EQ(out.width, expected.width);
+        ASSERT_EQ(out.height, expected.height);
+        double worst = 0;
+        for (size_t i = 0; i < out.pixels.size(); ++i)
+          worst = std::max(worst, std::abs(double(out.pixels[i]) - expected.pixels[i]) /
+                                      (std::abs(expected.pixels[i]) + 1e-2));
+        EXPECT_LT(worst, 2e-4) << "factor " << f << " frame " << t;
+      }
     }
+    set_default_isa(before);
   }
 }
 
@@ -68,10 +81,12 @@ TEST(Upscale, CorruptOrMismatchedWeightsAreErrorsNamingTheFile) {
   };
   std::vector<char> flipped = bytes;
   flipped[bytes.size() / 2] ^= 0x10;
-  const std::vector<char> truncated(bytes.begin(), bytes.begin() + std::ptrdiff_t(bytes.size() / 3));
+  const std::vector<char> truncated(bytes.begin(),
+                                    bytes.begin() + std::ptrdiff_t(bytes.size() / 3));
   const std::string denoiser = std::string(KESTREL_SOURCE_DIR) + "/weights/denoiser.kdw";
-  for (const std::string& path : {write("up_flipped.kdw", flipped), write("up_truncated.kdw", truncated), denoiser,
-                                  dir + "does_not_exist.kdw"}) {
+  for (const std::string& path :
+       {write("up_flipped.kdw", flipped), write("up_truncated.kdw", truncated), denoiser,
+        dir + "does_not_exist.kdw"}) {
     UpscalerOptions o;
     o.weights = path;
     try {
@@ -108,7 +123,8 @@ struct Moving {
   FloatImage motion(bool right) const {
     FloatImage m(w, h, 2);
     for (int p = 0; p < w * h; ++p)
-      m.pixels[2 * size_t(p)] = right ? float(-vx / f) : 0.0f, m.pixels[2 * size_t(p) + 1] = right ? float(-vy / f) : 0.0f;
+      m.pixels[2 * size_t(p)] = right ? float(-vx / f) : 0.0f,
+                   m.pixels[2 * size_t(p) + 1] = right ? float(-vy / f) : 0.0f;
     return m;
   }
   FloatImage reference(int t) const {
@@ -117,7 +133,8 @@ struct Moving {
       for (int X = 0; X < f * w; ++X) {
         double s = 0;
         for (int b = 0; b < 8; ++b)
-          for (int a = 0; a < 8; ++a) s += pattern(X + (a + 0.5) / 8 - vx * t, Y + (b + 0.5) / 8 - vy * t);
+          for (int a = 0; a < 8; ++a)
+            s += pattern(X + (a + 0.5) / 8 - vx * t, Y + (b + 0.5) / 8 - vy * t);
         for (int k = 0; k < 3; ++k) r.at(X, Y)[k] = float(s / 64) * (0.5f + 0.25f * float(k));
       }
     return r;
@@ -163,7 +180,8 @@ TEST(Upscale, StaticPatternConvergesBeyondTheCurrentFrame) {
     const double bicubic = sequence_error(UpscaleMethod::bicubic, scene, true);
     for (UpscaleMethod m : {UpscaleMethod::taau, UpscaleMethod::neural}) {
       const double e = sequence_error(m, scene, true);
-      EXPECT_LT(e, 0.9 * bicubic) << upscale_method_name(m) << " x" << f << " " << e << " vs bicubic " << bicubic;
+      EXPECT_LT(e, 0.9 * bicubic) << upscale_method_name(m) << " x" << f << " " << e
+                                  << " vs bicubic " << bicubic;
     }
   }
 }
@@ -175,7 +193,8 @@ TEST(Upscale, MovingPatternNeedsTheRightMotionVectors) {
     for (UpscaleMethod m : {UpscaleMethod::taau, UpscaleMethod::neural}) {
       const double right = sequence_error(m, scene, true), wrong = sequence_error(m, scene, false);
       EXPECT_LT(right, bicubic) << upscale_method_name(m) << " x" << f;
-      EXPECT_LT(right, 0.95 * wrong) << upscale_method_name(m) << " x" << f << " right " << right << " wrong " << wrong;
+      EXPECT_LT(right, 0.95 * wrong)
+          << upscale_method_name(m) << " x" << f << " right " << right << " wrong " << wrong;
     }
   }
 }
@@ -197,7 +216,8 @@ TEST(Upscale, ConstantSequenceIsAFixedPoint) {
         for (int y = 0; y < out.height; ++y)
           for (int x = 0; x < out.width; ++x)
             for (int k = 0; k < 3; ++k)
-              ASSERT_NEAR(out.at(x, y)[k], 0.3f + 0.2f * float(k), 2e-4) << upscale_method_name(m) << " x" << f;
+              ASSERT_NEAR(out.at(x, y)[k], 0.3f + 0.2f * float(k), 2e-4)
+                  << upscale_method_name(m) << " x" << f;
       }
     }
 }
@@ -221,7 +241,8 @@ TEST(Upscale, NonFiniteInputGivesFiniteOutputAndSizeChangesRestart) {
     Upscaler up(options(m, 4));
     for (int size : {9, 9, 12, 12}) {
       FloatImage c(size, size, 3), d(size, size, 1), mo(size, size, 2);
-      for (size_t p = 0; p < c.pixels.size(); ++p) c.pixels[p] = p % 7 == 0 ? NAN : (p % 11 == 0 ? INFINITY : 0.5f);
+      for (size_t p = 0; p < c.pixels.size(); ++p)
+        c.pixels[p] = p % 7 == 0 ? NAN : (p % 11 == 0 ? INFINITY : 0.5f);
       for (size_t p = 0; p < d.pixels.size(); ++p) d.pixels[p] = p % 5 == 0 ? NAN : 1.0f;
       for (size_t p = 0; p < mo.pixels.size(); ++p) mo.pixels[p] = p % 3 == 0 ? INFINITY : -1e30f;
       const FloatImage out = up.upscale({&c, &d, &mo, 0.3f, 0.7f});
