@@ -37,9 +37,6 @@ struct ViewArgs {
 
 #ifdef KESTREL_HAVE_SDL2
 
-Vec3 add(Vec3 a, Vec3 b) { return {a.x + b.x, a.y + b.y, a.z + b.z}; }
-Vec3 scaled(Vec3 a, float s) { return {a.x * s, a.y * s, a.z * s}; }
-
 // A camera as eye + yaw/pitch (radians; yaw 0 looks down -Z), for mouse look.
 struct FlyCamera {
   Vec3 eye{0, 0, 0};
@@ -47,7 +44,7 @@ struct FlyCamera {
   static FlyCamera from(const Camera& c) {
     FlyCamera f;
     f.eye = c.eye;
-    const Vec3 d = add(c.target, scaled(c.eye, -1));
+    const Vec3 d = c.target - c.eye;
     const float len = std::sqrt(d.x * d.x + d.y * d.y + d.z * d.z);
     f.yaw = std::atan2(d.x, -d.z);
     f.pitch = std::asin(std::clamp(d.y / len, -1.0f, 1.0f));
@@ -58,7 +55,7 @@ struct FlyCamera {
   Vec3 right() const { return {std::cos(yaw), 0, std::sin(yaw)}; }
   Camera camera() const {
     Camera c;
-    c.eye = eye, c.target = add(eye, forward()), c.vfov_degrees = vfov, c.aperture_radius = aperture, c.focus_distance = focus;
+    c.eye = eye, c.target = eye + forward(), c.vfov_degrees = vfov, c.aperture_radius = aperture, c.focus_distance = focus;
     return c;
   }
 };
@@ -98,7 +95,7 @@ void view(ViewArgs& a) {
   FlyCamera fly = FlyCamera::from(path ? path->at(path->start()) : start_camera_for(scene_path, a.view));
   auto speed_of = [](const Pipeline& p) {
     const Bounds3 b = p.bounds();
-    const Vec3 d = add(b.hi, scaled(b.lo, -1));
+    const Vec3 d = b.hi - b.lo;
     return 0.25f * std::sqrt(d.x * d.x + d.y * d.y + d.z * d.z);
   };
   float speed = speed_of(*pipeline);
@@ -177,10 +174,10 @@ void view(ViewArgs& a) {
     const Uint8* keys = SDL_GetKeyboardState(nullptr);
     const float step = speed * dt * (keys[SDL_SCANCODE_LSHIFT] ? 4.0f : 1.0f);
     const Vec3 fw = fly.forward(), rt = fly.right();
-    if (keys[SDL_SCANCODE_W]) fly.eye = add(fly.eye, scaled(fw, step));
-    if (keys[SDL_SCANCODE_S]) fly.eye = add(fly.eye, scaled(fw, -step));
-    if (keys[SDL_SCANCODE_D]) fly.eye = add(fly.eye, scaled(rt, step));
-    if (keys[SDL_SCANCODE_A]) fly.eye = add(fly.eye, scaled(rt, -step));
+    if (keys[SDL_SCANCODE_W]) fly.eye = fly.eye + fw * step;
+    if (keys[SDL_SCANCODE_S]) fly.eye = fly.eye + fw * -step;
+    if (keys[SDL_SCANCODE_D]) fly.eye = fly.eye + rt * step;
+    if (keys[SDL_SCANCODE_A]) fly.eye = fly.eye + rt * -step;
     if (keys[SDL_SCANCODE_E]) fly.eye.y += step;
     if (keys[SDL_SCANCODE_Q]) fly.eye.y -= step;
     Camera camera = fly.camera();

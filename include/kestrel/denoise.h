@@ -9,7 +9,7 @@
 #include <string>
 #include <string_view>
 
-#include "kestrel/io.h"
+#include "kestrel/image.h"
 
 namespace kestrel {
 

@@ -6,6 +6,7 @@
 #include <string_view>
 #include <vector>
 
+#include "kestrel/image.h"
 #include "kestrel/trace.h"
 
 namespace kestrel {
@@ -29,16 +30,6 @@ void write_png(const std::string& path, int width, int height, std::span<const u
 }  // namespace kestrel
 
 namespace kestrel {
-
-/// A float image: rows top to bottom, `channels` interleaved floats per pixel.
-struct FloatImage {
-  int width = 0, height = 0, channels = 0;
-  std::vector<float> pixels;
-  FloatImage() = default;
-  FloatImage(int w, int h, int c) : width(w), height(h), channels(c), pixels(size_t(w) * size_t(h) * size_t(c), 0.0f) {}
-  float* at(int x, int y) { return &pixels[(size_t(y) * size_t(width) + size_t(x)) * size_t(channels)]; }
-  const float* at(int x, int y) const { return &pixels[(size_t(y) * size_t(width) + size_t(x)) * size_t(channels)]; }
-};
 
 /// One named layer of a multi-layer EXR: `channel_names` (one per channel) are appended to
 /// the layer name with a dot ("albedo.R"); the layer named "" (or "color") writes bare

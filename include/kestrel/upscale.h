@@ -10,7 +10,7 @@
 #include <string>
 #include <string_view>
 
-#include "kestrel/io.h"
+#include "kestrel/image.h"
 
 namespace kestrel {
 
