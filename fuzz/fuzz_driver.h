@@ -20,6 +20,7 @@
 #include <vector>
 
 #include "kestrel/error.h"
+#include "kestrel/parallel.h"
 
 namespace kestrel::fuzz {
 
@@ -47,6 +48,8 @@ inline void write_file(const std::string& path, const std::string& bytes) {
 }
 
 inline int run_input(const uint8_t* data, size_t size) {
+  // One thread: coverage then depends on the input alone, so a seeded run is reproducible.
+  static const ThreadLimit one_thread(1);
   const std::string bytes(reinterpret_cast<const char*>(data), size);
   const std::string path = scratch_dir() + "/" + input_name;
   write_file(path, bytes);

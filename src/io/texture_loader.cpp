@@ -23,6 +23,29 @@ namespace {
 
 constexpr uint64_t max_image_file_bytes = uint64_t(1) << 30;
 
+// stb_image 2.27 passes a null buffer to memcpy when a PNG's first IDAT chunk is empty
+// (undefined behaviour; found by fuzz_image). Empty IDAT chunks carry no data: they are
+// dropped from a copy before stb_image sees the file. Returns false when nothing was dropped.
+bool drop_empty_png_idat(const unsigned char* p, size_t n, std::string& out) {
+  static const unsigned char signature[8] = {0x89, 'P', 'N', 'G', 0x0D, 0x0A, 0x1A, 0x0A};
+  if (n < 8 || std::memcmp(p, signature, 8) != 0) return false;
+  bool dropped = false;
+  size_t at = 8;
+  std::string kept(reinterpret_cast<const char*>(p), 8);
+  while (at + 12 <= n) {
+    const size_t length = (size_t(p[at]) << 24) | (size_t(p[at + 1]) << 16) | (size_t(p[at + 2]) << 8) | p[at + 3];
+    if (length > n - at - 12) break;  // malformed: the rest goes as it is and stb_image reports it
+    const bool empty_idat = length == 0 && std::memcmp(p + at + 4, "IDAT", 4) == 0;
+    if (empty_idat) dropped = true;
+    else kept.append(reinterpret_cast<const char*>(p + at), 12 + length);
+    at += 12 + length;
+  }
+  if (!dropped) return false;
+  kept.append(reinterpret_cast<const char*>(p + at), n - at);
+  out = std::move(kept);
+  return true;
+}
+
 // stb_image 2.27 (Debian 12) writes past a Huffman table when a JPEG's DHT segment declares
 // more than 256 codes (found by fuzz_image). Its segments are checked here first.
 bool jpeg_huffman_tables_ok(const unsigned char* p, size_t n) {
@@ -73,6 +96,7 @@ struct Encoded {
 Encoded read_image_file(const std::string& path, int bytes_per_pixel) {
   Encoded e;
   e.bytes = read_bounded_file(path, max_image_file_bytes, "image");
+  if (std::string cleaned; drop_empty_png_idat(e.data(), e.bytes.size(), cleaned)) e.bytes = std::move(cleaned);
   int channels = 0;
   if (!jpeg_huffman_tables_ok(e.data(), e.bytes.size()))
     throw Error(ErrorCode::parse_error, fmt::format("{}: corrupt JPEG (a Huffman table declares more than 256 codes)", path));
@@ -95,6 +119,11 @@ bool decode_rgba8(const unsigned char* bytes, size_t size, int& width, int& heig
   }
   int channels = 0;
   const auto* data = reinterpret_cast<const stbi_uc*>(bytes);
+  std::string cleaned;
+  if (drop_empty_png_idat(data, size, cleaned)) {
+    data = reinterpret_cast<const stbi_uc*>(cleaned.data());
+    size = cleaned.size();
+  }
   if (!jpeg_huffman_tables_ok(data, size)) {
     problem = "corrupt JPEG (a Huffman table declares more than 256 codes)";
     return false;
