@@ -33,7 +33,9 @@ inline std::string scratch_dir() {
   static const std::string dir = [] {
     struct stat st {};
     const std::string base = ::stat("/dev/shm", &st) == 0 ? "/dev/shm" : "/tmp";
-    std::string d = base + "/kestrel_fuzz_" + std::to_string(::getpid());
+    // Named by the harness, not the process: a seeded run then sees the same paths (they
+    // appear in error messages, whose comparisons steer the fuzzer) every time.
+    std::string d = base + "/kestrel_fuzz_" + std::string(input_name);
     ::mkdir(d.c_str(), 0700);
     return d;
   }();

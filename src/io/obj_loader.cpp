@@ -302,17 +302,18 @@ Scene load_obj(const std::string& path) {
     auto [it, fresh] = corner_of.try_emplace(CornerKey{c.vertex_index, c.texcoord_index, c.normal_index},
                                              uint32_t(mesh.positions.size()));
     if (fresh) {
-      const int v = c.vertex_index;
+      const size_t v = size_t(c.vertex_index);  // in range (checked above); size_t: no int overflow in 3 v
       mesh.positions.push_back({vertices[3 * v], vertices[3 * v + 1], vertices[3 * v + 2]});
       if (!attrib.normals.empty()) {
-        const int n = c.normal_index;
-        mesh.normals.push_back(n >= 0 && size_t(3 * n + 2) < attrib.normals.size()
+        // Indices in size_t: 3 * n overflows an int for n near 2^31 (found by fuzz_obj).
+        const size_t n = c.normal_index >= 0 ? size_t(c.normal_index) : SIZE_MAX / 4;
+        mesh.normals.push_back(3 * n + 2 < attrib.normals.size()
                                    ? Vec3{attrib.normals[3 * n], attrib.normals[3 * n + 1], attrib.normals[3 * n + 2]}
                                    : Vec3{0, 0, 0});
       }
       if (!attrib.texcoords.empty()) {
-        const int t = c.texcoord_index;
-        mesh.uvs.push_back(t >= 0 && size_t(2 * t + 1) < attrib.texcoords.size()
+        const size_t t = c.texcoord_index >= 0 ? size_t(c.texcoord_index) : SIZE_MAX / 4;
+        mesh.uvs.push_back(2 * t + 1 < attrib.texcoords.size()
                                ? Vec2{attrib.texcoords[2 * t], 1.0f - attrib.texcoords[2 * t + 1]}
                                : Vec2{0, 0});
       }

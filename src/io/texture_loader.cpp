@@ -5,6 +5,13 @@
 #define STB_IMAGE_IMPLEMENTATION
 #define STB_IMAGE_STATIC
 #define STBI_MAX_DIMENSIONS 32768
+// Only the formats textures and environments come in: less of stb_image for a hostile file
+// to reach (its GIF, PSD, PIC and PNM decoders are left out).
+#define STBI_ONLY_PNG
+#define STBI_ONLY_JPEG
+#define STBI_ONLY_HDR
+#define STBI_ONLY_BMP
+#define STBI_ONLY_TGA
 #include <fmt/format.h>
 #include <stb_image.h>
 
