@@ -81,6 +81,24 @@ py::array output_records(py::object out, const py::dtype& dtype, size_t n, const
   return a;
 }
 
+// One batch query from Python, written once for Accel and InstancedScene, closest and any
+// hit: the rays checked and read in place, the output records (out= or a new array) written
+// in place by query(rays, records, options) with the GIL released.
+template <class Record, class Query>
+py::array ray_query(py::handle rays, py::object out, const py::dtype& dtype, const char* what,
+                    const std::optional<std::string>& isa, std::optional<bool> packets, int threads, Query&& query) {
+  clear_inputs();
+  const auto r = input_array<float>(rays, "rays", {-1, 8});
+  const TraceOptions options = trace_options(isa, packets);
+  py::array records = output_records(out, dtype, size_t(r.shape(0)), what);
+  const std::span<Record> result(static_cast<Record*>(records.mutable_data()), size_t(r.shape(0)));
+  without_gil(threads, [&] {
+    query(ray_span(r), result, options);
+    return 0;
+  });
+  return records;
+}
+
 py::dict fields_of(const py::array& records) {
   py::dict d;
   for (py::handle name : records.dtype().attr("names")) d[name] = records[name];
@@ -439,16 +457,10 @@ void bind_geometry(py::module_& m) {
       "trace",
       [](std::shared_ptr<Accel> accel, py::handle rays, bool any_hit, std::optional<std::string> isa,
          std::optional<bool> packets, int threads, py::object out) {
-        clear_inputs();
-        const auto r = input_array<float>(rays, "rays", {-1, 8});
-        const TraceOptions options = trace_options(isa, packets);
-        py::array records = output_records(out, hit_dtype(), size_t(r.shape(0)), "kestrel.hit_dtype");
-        std::span<Hit> hits(reinterpret_cast<Hit*>(records.mutable_data()), size_t(r.shape(0)));
-        without_gil(threads, [&] {
-          trace(*accel, ray_span(r), hits, any_hit, options);
-          return 0;
-        });
-        return fields_of(records);
+        return fields_of(ray_query<Hit>(rays, out, hit_dtype(), "kestrel.hit_dtype", isa, packets, threads,
+                                        [&](std::span<const Ray> r, std::span<Hit> hits, const TraceOptions& o) {
+                                          trace(*accel, r, hits, any_hit, o);
+                                        }));
       },
       py::arg("accel"), py::arg("rays"), py::arg("any_hit") = false, py::arg("isa") = py::none(),
       py::arg("packets") = py::none(), py::arg("threads") = 0, py::arg("out") = py::none(),
@@ -459,16 +471,10 @@ void bind_geometry(py::module_& m) {
       "occluded",
       [](std::shared_ptr<Accel> accel, py::handle rays, std::optional<std::string> isa, std::optional<bool> packets,
          int threads, py::object out) {
-        clear_inputs();
-        const auto r = input_array<float>(rays, "rays", {-1, 8});
-        const TraceOptions options = trace_options(isa, packets);
-        py::array flags = output_records(out, py::dtype("?"), size_t(r.shape(0)), "bool");
-        std::span<uint8_t> result(static_cast<uint8_t*>(flags.mutable_data()), size_t(r.shape(0)));
-        without_gil(threads, [&] {
-          occluded(*accel, ray_span(r), result, options);
-          return 0;
-        });
-        return flags;
+        return ray_query<uint8_t>(rays, out, py::dtype("?"), "bool", isa, packets, threads,
+                                  [&](std::span<const Ray> r, std::span<uint8_t> flags, const TraceOptions& o) {
+                                    occluded(*accel, r, flags, o);
+                                  });
       },
       py::arg("accel"), py::arg("rays"), py::arg("isa") = py::none(), py::arg("packets") = py::none(),
       py::arg("threads") = 0, py::arg("out") = py::none(),
@@ -544,16 +550,11 @@ void bind_geometry(py::module_& m) {
           "trace",
           [](const PyInstancedScene& s, py::handle rays, uint32_t ray_mask, std::optional<std::string> isa,
              std::optional<bool> packets, int threads, py::object out) {
-            clear_inputs();
-            const auto r = input_array<float>(rays, "rays", {-1, 8});
-            const TraceOptions options = trace_options(isa, packets);
-            py::array records = output_records(out, instance_hit_dtype(), size_t(r.shape(0)), "kestrel.instance_hit_dtype");
-            std::span<InstanceHit> hits(reinterpret_cast<InstanceHit*>(records.mutable_data()), size_t(r.shape(0)));
-            without_gil(threads, [&] {
-              s.scene.trace(ray_span(r), hits, ray_mask, options);
-              return 0;
-            });
-            return fields_of(records);
+            return fields_of(ray_query<InstanceHit>(
+                rays, out, instance_hit_dtype(), "kestrel.instance_hit_dtype", isa, packets, threads,
+                [&](std::span<const Ray> r, std::span<InstanceHit> hits, const TraceOptions& o) {
+                  s.scene.trace(r, hits, ray_mask, o);
+                }));
           },
           py::arg("rays"), py::arg("ray_mask") = 0xFFFFFFFFu, py::arg("isa") = py::none(), py::arg("packets") = py::none(),
           py::arg("threads") = 0, py::arg("out") = py::none(),
@@ -562,16 +563,10 @@ void bind_geometry(py::module_& m) {
           "occluded",
           [](const PyInstancedScene& s, py::handle rays, uint32_t ray_mask, std::optional<std::string> isa,
              std::optional<bool> packets, int threads, py::object out) {
-            clear_inputs();
-            const auto r = input_array<float>(rays, "rays", {-1, 8});
-            const TraceOptions options = trace_options(isa, packets);
-            py::array flags = output_records(out, py::dtype("?"), size_t(r.shape(0)), "bool");
-            std::span<uint8_t> result(static_cast<uint8_t*>(flags.mutable_data()), size_t(r.shape(0)));
-            without_gil(threads, [&] {
-              s.scene.occluded(ray_span(r), result, ray_mask, options);
-              return 0;
-            });
-            return flags;
+            return ray_query<uint8_t>(rays, out, py::dtype("?"), "bool", isa, packets, threads,
+                                      [&](std::span<const Ray> r, std::span<uint8_t> flags, const TraceOptions& o) {
+                                        s.scene.occluded(r, flags, ray_mask, o);
+                                      });
           },
           py::arg("rays"), py::arg("ray_mask") = 0xFFFFFFFFu, py::arg("isa") = py::none(), py::arg("packets") = py::none(),
           py::arg("threads") = 0, py::arg("out") = py::none())
