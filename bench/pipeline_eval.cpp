@@ -87,7 +87,7 @@ int main(int argc, char** argv) {
     md += "| path depth | internal | factor | update | render | denoise | upscale | tone map | frame (median) | frame (p95) | fps | Mrays/s |\n"
           "|---:|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n";
     if (!quick || fs::exists(timing_scene) || timing_scene.rfind("builtin:", 0) == 0) {
-      const CameraPath path = tools::camera_path_for(timing_scene, timing_path, "");
+      const CameraPath path = tools::camera_path_for(Asset::load(timing_scene), timing_path, "");
       for (int max_depth : depths)
       for (int factor : {2, 4}) {
         PipelineSettings s;
@@ -129,7 +129,7 @@ int main(int argc, char** argv) {
       if (std::sscanf(std::string(c.at("res")).c_str(), "%dx%d", &w, &h) != 2) throw Error(ErrorCode::parse_error, clip + ": bad res");
       int frames = c.at("frames");
       if (quick) frames = std::min(frames, 3);
-      const CameraPath path = tools::camera_path_for(scene, path_spec, "");
+      const CameraPath path = tools::camera_path_for(Asset::load(scene), path_spec, "");
       std::vector<FloatImage> refs;
       std::vector<std::vector<float>> refs_tm;
       for (int t = 0; t < frames; ++t) {

@@ -41,10 +41,10 @@ int main(int argc, char** argv) {
   CLI11_PARSE(app, argc, argv);
   try {
     if (quick) scene_path = "builtin:cornell_box", view = "front", frames = 2;
-    Scene scene = load_scene(scene_path);
-    const auto camera = find_view(scene, view);
+    const Asset asset = Asset::load(scene_path);
+    const auto camera = find_view(asset, view);
     if (!camera) throw Error(ErrorCode::invalid_argument, fmt::format("{}: no view '{}'", scene_path, view));
-    Renderer renderer(std::move(scene));
+    Renderer renderer(asset.scene());
     std::vector<std::pair<int, int>> sizes = {{640, 360}, {1280, 720}};
     if (quick) sizes = {{64, 36}};
     std::vector<int> thread_counts = {1, hardware_thread_count()};

@@ -35,7 +35,7 @@ std::optional<PinholeCamera> named_view(const Scene& scene, const std::string& n
   return PinholeCamera{c->eye, c->target, c->vfov_degrees};
 }
 
-CameraPath camera_path_for(const std::string& scene_path, const std::string& path_spec, const std::string& view_name) {
+CameraPath camera_path_for(const Asset& asset, const std::string& path_spec, const std::string& view_name) {
   if (path_spec.rfind("orbit", 0) != 0) {
     if (!view_name.empty()) throw Error(ErrorCode::invalid_argument, "--view is only for --path orbit[:DEG]");
     return CameraPath::load(path_spec);
@@ -48,15 +48,14 @@ CameraPath camera_path_for(const std::string& scene_path, const std::string& pat
     if (arg.empty() || end != arg.c_str() + arg.size())
       throw Error(ErrorCode::invalid_argument, fmt::format("--path '{}': expected a JSON file or orbit[:DEGREES]", path_spec));
   }
-  return CameraPath::orbit(start_camera_for(scene_path, view_name), degrees);
+  return CameraPath::orbit(start_camera_for(asset, view_name), degrees);
 }
 
-Camera start_camera_for(const std::string& scene_path, const std::string& view_name) {
-  const Scene scene = load_scene(scene_path);
+Camera start_camera_for(const Asset& asset, const std::string& view_name) {
   std::string view = view_name;
-  if (view.empty()) view = find_view(scene, "front") ? "front" : "framing";
-  const auto c = find_view(scene, view);
-  if (!c) throw Error(ErrorCode::invalid_argument, fmt::format("{}: no view named '{}'", scene_path, view));
+  if (view.empty()) view = find_view(asset, "front") ? "front" : "framing";
+  const auto c = find_view(asset, view);
+  if (!c) throw Error(ErrorCode::invalid_argument, fmt::format("{}: no view named '{}'", asset.source(), view));
   return *c;
 }
 

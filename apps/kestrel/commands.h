@@ -4,6 +4,7 @@
 #include <functional>
 #include <string>
 
+#include "kestrel/asset.h"
 #include "kestrel/bvh.h"
 #include "kestrel/io.h"
 #include "common/views.h"
@@ -48,5 +49,7 @@ using tools::start_camera_for;
 void parse_resolution(const std::string& text, int& width, int& height);
 /// load_scene, with the scene's warnings (skipped triangles, missing textures) on stderr.
 Scene load_scene_reporting(const std::string& path);
+/// Asset::load, its warnings printed to stderr (rank 0 only under mpirun).
+Asset load_asset_reporting(const std::string& path);
 
 }  // namespace kestrel::cli

@@ -58,6 +58,13 @@ Scene load_scene_reporting(const std::string& path) {
   return scene;
 }
 
+Asset load_asset_reporting(const std::string& path) {
+  Asset asset = Asset::load(path);
+  if (distributed::rank() == 0)
+    for (const std::string& w : asset.warnings()) fmt::print(stderr, "kestrel: warning: {}\n", w);
+  return asset;
+}
+
 void parse_resolution(const std::string& text, int& width, int& height) {
   // Strictly WxH: digits, 'x', digits, nothing else ("16x16junk" and "+16x-4" are errors).
   const size_t x = text.find('x');

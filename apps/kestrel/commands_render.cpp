@@ -14,8 +14,9 @@
 #include "kestrel/error.h"
 #include "kestrel/io.h"
 #include "kestrel/denoise.h"
-#include "kestrel/upscale.h"
+#include "kestrel/pipeline.h"
 #include "kestrel/render.h"
+#include "kestrel/upscale.h"
 
 namespace kestrel::cli {
 
@@ -171,15 +172,6 @@ FloatImage denoise_frame(Denoiser& d, const Frame& f) {
   return d.denoise({&f[Aov::color], &f[Aov::albedo], &f[Aov::normal], &f[Aov::depth], &f[Aov::roughness], &f[Aov::motion]});
 }
 
-std::unique_ptr<Upscaler> upscaler_of(const RenderArgs& a) {
-  if (a.upscale.empty()) return nullptr;
-  const auto m = upscale_method_from_name(a.upscale);
-  if (!m) throw Error(ErrorCode::invalid_argument, fmt::format("--upscale '{}': expected neural, taau, bicubic or bilinear", a.upscale));
-  UpscalerOptions o;
-  o.method = *m, o.factor = a.factor;
-  return std::make_unique<Upscaler>(o);
-}
-
 void print_stats(const RenderStats& st) {
   const double mrays = double(st.rays()) / (st.ms * 1e3);
   fmt::print("render   {} spp in {:.1f} ms: {} camera + {} bounce + {} shadow rays, {:.2f} Mrays/s; "
@@ -223,21 +215,21 @@ void run_render(const RenderArgs& a) {
   if (distributed::rank() == 0) check_destinations(a.out, a.pfm, a.png);
   if (!a.view.empty() && !a.camera.empty()) throw Error(ErrorCode::invalid_argument, "render: give --view or --camera, not both");
   const RenderSettings s = settings_of(a);
-  Scene scene = load_scene_reporting(a.scene);
+  const Asset asset = load_asset_reporting(a.scene);
   Camera camera;
   if (!a.camera.empty()) {
     camera = parse_camera(a.camera);
   } else {
     std::string view = a.view;
-    if (view.empty()) view = find_view(scene, "front") ? "front" : "framing";
-    auto c = find_view(scene, view);
+    if (view.empty()) view = find_view(asset, "front") ? "front" : "framing";
+    auto c = find_view(asset, view);
     if (!c) throw Error(ErrorCode::invalid_argument, fmt::format("{}: no view named '{}' (looked in {})", a.scene, view,
-                                                                 fmt::join(view_files_for(scene.source), ", ")));
+                                                                 fmt::join(view_files_for(asset.source()), ", ")));
     camera = *c;
   }
-  const std::string source = scene.source;
-  const size_t triangles = scene.triangle_count();
-  Renderer renderer(std::move(scene), environment_of(a));
+  const std::string source = asset.source();
+  const size_t triangles = asset.triangle_count();
+  Renderer renderer(asset.scene(), environment_of(a));
   RenderSettings rs = s;
   rs.frame = uint32_t(a.frame);
   const std::unique_ptr<Denoiser> denoiser = denoiser_of(a);
@@ -253,66 +245,59 @@ void run_render(const RenderArgs& a) {
     if (!o.empty()) fmt::print("wrote    {}\n", o);
 }
 
-CameraPath camera_path_of(const RenderArgs& a) { return camera_path_for(a.scene, a.path, a.view); }
-
+// The frames go through the Pipeline (the one frame loop): the scene posed at each frame's
+// time, rendered (distributed under mpirun), denoised and upsampled as asked.
 void run_sequence(const RenderArgs& a) {
   if (a.frames <= 0) throw Error(ErrorCode::invalid_argument, fmt::format("render-sequence: --frames must be positive, got {}", a.frames));
   if (a.out.empty()) throw Error(ErrorCode::invalid_argument, "render-sequence: -o DIR is required");
-  RenderSettings s = settings_of(a);
-  s.progress = false;
-  std::filesystem::create_directories(a.out);
-  // glTF files render as two-level scenes so their animations move; others are static.
-  std::unique_ptr<InstancedScene> instanced;
-  std::unique_ptr<GltfInstances> gltf;
-  std::unique_ptr<Renderer> renderer;
-  if (is_gltf_path(a.scene)) {
-    instanced = std::make_unique<InstancedScene>();
-    gltf = std::make_unique<GltfInstances>(GltfInstances::load(a.scene));
-    gltf->add_to(*instanced);
-    instanced->commit();
-    renderer = std::make_unique<Renderer>(*instanced, gltf->materials(), gltf->textures(), environment_of(a));
-  } else {
-    renderer = std::make_unique<Renderer>(load_scene_reporting(a.scene), environment_of(a));
+  const RenderSettings s = settings_of(a);
+  PipelineSettings ps;
+  ps.width = s.width, ps.height = s.height, ps.spp = s.spp, ps.max_depth = s.max_depth, ps.clamp = s.clamp;
+  ps.seed = s.seed, ps.threads = s.threads, ps.jitter = s.jitter, ps.fixed_jitter = s.fixed_jitter;
+  ps.exposure = a.exposure;
+  ps.factor = 1;
+  ps.denoise = !a.denoise.empty();
+  if (ps.denoise) {
+    const auto m = denoise_method_from_name(a.denoise);
+    if (!m) throw Error(ErrorCode::invalid_argument, fmt::format("--denoise '{}': expected neural, svgf or atrous", a.denoise));
+    ps.denoiser = *m;
   }
-  const CameraPath path = camera_path_of(a);
-  const double t0 = path.start(), t1 = path.end();
-  const std::unique_ptr<Denoiser> denoiser = denoiser_of(a);
-  const std::unique_ptr<Upscaler> upscaler = upscaler_of(a);
-  if (upscaler) {  // --res is the output; render at 1/factor, every sample at the frame's jitter
+  if (!a.upscale.empty()) {  // --res is the output; render at 1/factor, every sample at the frame's jitter
+    const auto m = upscale_method_from_name(a.upscale);
+    if (!m) throw Error(ErrorCode::invalid_argument, fmt::format("--upscale '{}': expected neural, taau, bicubic or bilinear", a.upscale));
+    if (a.factor != 2 && a.factor != 4)
+      throw Error(ErrorCode::invalid_argument, fmt::format("render-sequence: --factor must be 2 or 4, got {}", a.factor));
     if (s.width % a.factor || s.height % a.factor)
       throw Error(ErrorCode::invalid_argument, fmt::format("render-sequence: --res {} is not divisible by --factor {}", a.res, a.factor));
-    s.width /= a.factor, s.height /= a.factor, s.fixed_jitter = true;
+    ps.upscaler = *m, ps.factor = a.factor, ps.fixed_jitter = true;
   }
-  std::optional<Camera> prev;
+  std::filesystem::create_directories(a.out);
+  Pipeline pipeline(load_asset_reporting(a.scene), ps, a.env);
+  pipeline.set_render_function([](Renderer& r, const Camera& cam, const RenderSettings& rs, const std::optional<Camera>& prev) {
+    return distributed::render(r, cam, rs, prev);
+  });
+  const CameraPath path = camera_path_for(pipeline.asset(), a.path, a.view);
+  const double t0 = path.start(), t1 = path.end();
   for (int i = 0; i < a.frames; ++i) {
     const double t = a.frames > 1 ? t0 + (t1 - t0) * double(i) / double(a.frames - 1) : t0;
-    if (gltf) {
-      gltf->set_time(*instanced, t);
-      instanced->commit();
-      renderer->sync();
-    }
-    const Camera cam = path.at(t);
-    s.frame = uint32_t(i);
-    const Frame f = distributed::render(*renderer, cam, s, prev);
-    prev = cam;
+    const PipelineFrame& o = pipeline.frame(path.at(t), t);
     if (distributed::rank() != 0) continue;  // rank 0 holds the frames and writes the files
+    Frame f = o.render;
+    f.aov[int(Aov::color)] = o.noisy;
     const std::string name = fmt::format("frame_{:04d}", i);
     const std::string stem = (std::filesystem::path(a.out) / name).string();
     const std::string pfm_dir = a.pfm.empty() ? "" : (std::filesystem::path(a.pfm) / name).string();
-    const FloatImage denoised = denoiser ? denoise_frame(*denoiser, f) : FloatImage{};
-    if (upscaler) {  // the low-resolution frame under low/, the upsampled colour as the frame
-      const FloatImage& color = denoiser ? denoised : f[Aov::color];
-      const FloatImage up = upscaler->upscale({&color, &f[Aov::depth], &f[Aov::motion], f.jitter_x, f.jitter_y});
-      write_outputs(f, (std::filesystem::path(a.out) / "low" / (name + ".exr")).string(), pfm_dir, "", a.exposure,
-                    denoiser ? &denoised : nullptr);
-      write_image(stem + ".exr", up);
-      if (!a.png.empty()) write_png(stem + ".png", up.width, up.height, tonemap_srgb8(up, a.exposure));
+    const FloatImage* denoised = ps.denoise ? &o.denoised : nullptr;
+    if (ps.factor > 1) {  // the low-resolution frame under low/, the upsampled colour as the frame
+      write_outputs(f, (std::filesystem::path(a.out) / "low" / (name + ".exr")).string(), pfm_dir, "", a.exposure, denoised);
+      write_image(stem + ".exr", o.upscaled);
+      if (!a.png.empty()) write_png(stem + ".png", o.width, o.height, o.rgb8);
     } else {
-      write_outputs(f, stem + ".exr", pfm_dir, a.png.empty() ? "" : stem + ".png", a.exposure, denoiser ? &denoised : nullptr);
+      write_outputs(f, stem + ".exr", pfm_dir, a.png.empty() ? "" : stem + ".png", a.exposure, denoised);
     }
     if (!a.quiet)
-      fmt::print("frame {:4d}/{}  t = {:.3f} s  {:.1f} ms  {:.2f} Mrays/s\n", i + 1, a.frames, t, f.stats.ms,
-                 double(f.stats.rays()) / (f.stats.ms * 1e3));
+      fmt::print("frame {:4d}/{}  t = {:.3f} s  {:.1f} ms  {:.2f} Mrays/s\n", i + 1, a.frames, t, o.stats.ms,
+                 double(o.stats.rays()) / (o.stats.ms * 1e3));
   }
   if (distributed::rank() == 0) fmt::print("wrote    {} frames to {}\n", a.frames, a.out);
 }

@@ -35,8 +35,8 @@ void run(RunArgs& a) {
   if (a.frames <= 0) throw Error(ErrorCode::invalid_argument, fmt::format("run: --frames must be positive, got {}", a.frames));
   if (a.out.empty()) throw Error(ErrorCode::invalid_argument, "run: -o DIR is required");
   const PipelineSettings settings = a.p.settings();
-  const CameraPath path = camera_path_for(a.p.scene, a.path.empty() ? "orbit:30" : a.path, a.view);
   Pipeline pipeline(a.p.scene, settings, a.p.env);
+  const CameraPath path = camera_path_for(pipeline.asset(), a.path.empty() ? "orbit:30" : a.path, a.view);
   std::filesystem::create_directories(a.out);
   fmt::print("scene    {} ({} triangles)\n", pipeline.source(), pipeline.triangle_count());
   fmt::print("pipeline {}x{} output, internal {}x{} (x{}), denoise {}, upscale {}, {} spp, max depth {}\n", settings.width,

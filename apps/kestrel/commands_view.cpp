@@ -91,8 +91,8 @@ void view(ViewArgs& a) {
   std::string scene_path = a.p.scene;
   std::unique_ptr<Pipeline> pipeline = std::make_unique<Pipeline>(scene_path, settings, a.p.env);
   std::optional<CameraPath> path;
-  if (!a.path.empty()) path = camera_path_for(scene_path, a.path, a.view);
-  FlyCamera fly = FlyCamera::from(path ? path->at(path->start()) : start_camera_for(scene_path, a.view));
+  if (!a.path.empty()) path = camera_path_for(pipeline->asset(), a.path, a.view);
+  FlyCamera fly = FlyCamera::from(path ? path->at(path->start()) : start_camera_for(pipeline->asset(), a.view));
   auto speed_of = [](const Pipeline& p) {
     const Bounds3 b = p.bounds();
     const Vec3 d = b.hi - b.lo;
@@ -162,7 +162,7 @@ void view(ViewArgs& a) {
           auto next = std::make_unique<Pipeline>(file, settings, a.p.env);
           pipeline = std::move(next);
           scene_path = file, path.reset();
-          fly = FlyCamera::from(start_camera_for(scene_path, ""));
+          fly = FlyCamera::from(start_camera_for(pipeline->asset(), ""));
           speed = speed_of(*pipeline);
           message = "loaded " + file;
         } catch (const Error& err) {

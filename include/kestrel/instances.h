@@ -9,6 +9,7 @@
 #include <string>
 #include <vector>
 
+#include "kestrel/scene.h"
 #include "kestrel/trace.h"
 
 namespace kestrel {
@@ -63,6 +64,11 @@ struct CommitStats {
   size_t blas_builds = 0, blas_refits = 0, instances = 0;
 };
 
+/// The scene kestrel renders: meshes (each its own BLAS) placed by instances (the TLAS), with
+/// the materials and textures the meshes' material_ids index. A file becomes one through
+/// Asset::load (kestrel/asset.h): an OBJ as one identity instance per mesh, a glTF as its node
+/// instances. A scene of one identity instance is traced through its BLAS directly (the same
+/// hits and speed as the single-level Accel).
 class InstancedScene {
  public:
   explicit InstancedScene(SceneConfig config = {});
@@ -83,8 +89,20 @@ class InstancedScene {
   /// Throws Error while an instance still uses the mesh.
   void remove_mesh(MeshId mesh);
 
+  /// What the meshes' material_ids index, and the textures the materials name. Take effect
+  /// at the next commit().
+  void set_materials(std::vector<Material> materials, std::vector<Texture> textures = {});
+  const std::vector<Material>& materials() const;
+  const std::vector<Texture>& textures() const;
+  /// Where the scene came from (a file, "builtin:NAME"): errors of the renderer name it.
+  void set_source(std::string source);
+  const std::string& source() const;
   /// Builds what changed; queries see the scene as of the last commit().
   CommitStats commit();
+  /// Commits so far: what a Renderer compares to see that the scene moved.
+  uint64_t generation() const;
+  /// Triangle validation summed over the committed meshes (each counted once).
+  ValidationReport validation() const;
 
   /// Closest hits of a batch (threads, chunks; instance masks AND ray_mask must be non-zero).
   void trace(std::span<const Ray> rays, std::span<InstanceHit> hits, uint32_t ray_mask = 0xFFFFFFFFu,

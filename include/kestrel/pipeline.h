@@ -3,11 +3,13 @@
 // and tone-map; every stage timed, all on the caller's TBB arena. See docs/pipeline.md.
 #pragma once
 #include <cstdint>
+#include <functional>
 #include <memory>
 #include <optional>
 #include <string>
 #include <vector>
 
+#include "kestrel/asset.h"
 #include "kestrel/denoise.h"
 #include "kestrel/render.h"
 #include "kestrel/upscale.h"
@@ -21,6 +23,9 @@ struct PipelineSettings {
   DenoiseMethod denoiser = DenoiseMethod::neural;
   UpscaleMethod upscaler = UpscaleMethod::neural;  ///< unused at factor 1
   int spp = 1, max_depth = 4;
+  bool jitter = true;          ///< sub-pixel Halton jitter by frame (false: pixel centres)
+  bool fixed_jitter = true;    ///< every sample of a frame at its jitter (what upsamplers expect)
+  int threads = 0;             ///< the render's threads (RenderSettings::threads; 0 = all)
   float clamp = 16.0f;         ///< sample radiance clamp (0 = off): fireflies hurt a 1-spp loop
   float exposure = 0.0f;       ///< stops, for the tone map
   double target_ms = 0;        ///< > 0: change the factor (1, 2, 4) to hold this frame time
@@ -35,6 +40,7 @@ struct PipelineTimes {
 /// What the loop shows. The images are reused from frame to frame.
 struct PipelineFrame {
   FloatImage noisy;      ///< the internal-resolution render (colour)
+  Frame render;          ///< that render's other AOVs and stats (its colour slot is moved into noisy)
   FloatImage denoised;   ///< after the denoiser (= noisy without one)
   FloatImage upscaled;   ///< the output resolution, linear
   std::vector<uint8_t> rgb8;  ///< upscaled, tone-mapped sRGB, width x height x 3
@@ -44,12 +50,22 @@ struct PipelineFrame {
   RenderStats stats;
 };
 
+/// How a frame is rendered (default: Renderer::render). A distributed render returns the
+/// frame on one process and an empty Frame (width 0) on the others, whose pipelines then
+/// skip the stages after the render.
+using PipelineRenderFn =
+    std::function<Frame(Renderer&, const Camera&, const RenderSettings&, const std::optional<Camera>& prev_camera)>;
+
+/// The one frame loop of kestrel: `run`, `view`, `render-sequence` and the evaluation
+/// programs all go through it.
 class Pipeline {
  public:
-  /// Loads a scene (OBJ, glTF/GLB with its animation, builtin:NAME; see load_scene) and
-  /// builds its acceleration structures. environment: as Environment::parse ("" = the
-  /// scene's default). Throws Error naming the file or the bad setting.
+  /// Loads a scene (Asset::load: OBJ, glTF/GLB with its animation, builtin:NAME) and builds
+  /// its acceleration structures. environment: as Environment::parse ("" = the scene's
+  /// default). Throws Error naming the file or the bad setting.
   Pipeline(const std::string& scene, const PipelineSettings& settings, const std::string& environment = "");
+  /// A loaded asset, owned from now on.
+  Pipeline(Asset asset, const PipelineSettings& settings, const std::string& environment = "");
   ~Pipeline();
   Pipeline(Pipeline&&) noexcept;
   Pipeline& operator=(Pipeline&&) noexcept;
@@ -68,6 +84,10 @@ class Pipeline {
   const PipelineSettings& settings() const;
   /// Forgets the history (denoiser, upsampler, previous camera).
   void reset();
+  /// Replaces how frames are rendered (see PipelineRenderFn).
+  void set_render_function(PipelineRenderFn render);
+  const Asset& asset() const;
+  const Renderer& renderer() const;
   /// Bounds of the scene, the source's name, whether it animates (glTF animation).
   Bounds3 bounds() const;
   const std::string& source() const;

@@ -1,6 +1,6 @@
 // kestrel public API: the path tracer. Cameras (pinhole, thin lens, named views, keyframed
 // paths), environments, render settings, the frame with every auxiliary buffer (AOV)
-// reconstruction needs, and the Renderer over a static Scene or an animated InstancedScene.
+// reconstruction needs, and the Renderer over an InstancedScene (kestrel/asset.h loads one).
 // Conventions (docs/renderer.md): images rows top to bottom; +Y up; world-space normals;
 // depth along the camera's forward axis; motion vectors in pixels pointing from a pixel of
 // this frame to where the same surface point was in the previous frame.
@@ -14,6 +14,7 @@
 #include <string>
 #include <vector>
 
+#include "kestrel/asset.h"
 #include "kestrel/instances.h"
 #include "kestrel/io.h"
 #include "kestrel/scene.h"
@@ -37,6 +38,8 @@ void check_camera(const Camera& camera);
 /// The framing view of a scene: target the centre of its bounds, eye = target +
 /// normalize(0.3, 0.35, -1) * r / sin(vfov / 2), r = half the diagonal, vfov 45.
 Camera framing_camera(const Scene& scene);
+/// The same for a box (empty: looking at the origin from distance r = 1).
+Camera framing_camera(const Bounds3& bounds);
 
 /// Named views: a JSON object {"views": {"NAME": {"eye": [x,y,z], "target": [x,y,z],
 /// "vfov": deg, "aperture": r, "focus_distance": d}}}. Errors name the file and the view.
@@ -47,6 +50,8 @@ std::vector<std::string> view_files_for(const std::string& scene_path);
 /// A named view of the scene ("framing" always exists, computed from the scene); nullopt
 /// when no views file names it.
 std::optional<Camera> find_view(const Scene& scene, const std::string& name);
+/// The same for a loaded asset (its source's views files, its bounds for "framing").
+std::optional<Camera> find_view(const Asset& asset, const std::string& name);
 
 /// A keyframed camera path: {"keyframes": [{"time": s, "eye": [...], "target": [...],
 /// "vfov": deg}, ...]} with increasing times; eye and target follow a centripetal
@@ -172,20 +177,14 @@ struct RayCapture {
 /// Emissive triangles are area lights (two-sided) sampled by power.
 class Renderer {
  public:
-  /// A static scene: builds its BVH now. `environment`: nullopt = "sky" when the scene has
-  /// no emissive triangle, else none.
-  explicit Renderer(Scene scene, std::optional<Environment> environment = std::nullopt);
-  /// An animated scene, referenced (it must outlive the renderer): call sync() after each
-  /// InstancedScene::commit(); the transforms seen at the previous sync() drive the motion
-  /// vectors. materials / textures: what the meshes' material_ids index.
-  Renderer(const InstancedScene& scene, std::vector<Material> materials, std::vector<Texture> textures,
-           std::optional<Environment> environment = std::nullopt);
+  /// Renders a committed scene, referenced (it must outlive the renderer). Each render sees
+  /// the scene as of its last commit(); the transforms of the commit before drive the motion
+  /// vectors. `environment`: nullopt = "sky" when the scene has no emissive triangle, else
+  /// none. Throws Error naming the scene's source for bad materials or no valid triangle.
+  explicit Renderer(const InstancedScene& scene, std::optional<Environment> environment = std::nullopt);
   ~Renderer();
   Renderer(Renderer&&) noexcept;
   Renderer& operator=(Renderer&&) noexcept;
-
-  /// Takes the scene's transforms and vertices as of its last commit (instanced scenes).
-  void sync();
   /// Renders one frame. prev_camera: the previous frame's camera (for motion vectors;
   /// nullopt = this camera). Throws Error for bad settings or a bad camera.
   Frame render(const Camera& camera, const RenderSettings& settings, std::optional<Camera> prev_camera = std::nullopt);

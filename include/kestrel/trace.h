@@ -5,6 +5,7 @@
 #include <span>
 
 #include "kestrel/bvh.h"
+#include "kestrel/isa.h"
 #include "kestrel/scene.h"
 
 namespace kestrel {
@@ -66,21 +67,6 @@ Accel build_accel(const Scene& scene, const BuildConfig& config);
 /// NaN/Inf vertex or a bad index (bvh2 layout: also a degenerate one); the Accel is then
 /// partly refitted and must be rebuilt.
 void refit_accel(Accel& accel, const Scene& scene);
-
-/// Instruction sets with a traversal kernel. sse2 is the x86-64 baseline (always there);
-/// avx2 needs AVX2+FMA+BMI; avx512 needs AVX-512 F/VL/BW/DQ.
-enum class Isa { sse2, avx2, avx512 };
-const char* isa_name(Isa isa);
-/// Parses "sse2", "avx2", "avx512".
-std::optional<Isa> isa_from_name(const std::string& name);
-/// Whether this CPU (and OS) runs the ISA.
-bool isa_supported(Isa isa);
-/// The best ISA of this CPU.
-Isa host_isa();
-/// The ISA used when TraceOptions leaves it open: host_isa(), or the KESTREL_ISA
-/// environment variable, or what set_default_isa chose. Throws if unsupported.
-Isa default_isa();
-void set_default_isa(Isa isa);
 
 /// Per-call choices; empty means the default (the fastest for the machine and ray kind).
 struct TraceOptions {

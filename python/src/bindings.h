@@ -7,6 +7,7 @@
 #include <string>
 
 #include "kestrel/bvh.h"
+#include "kestrel/instances.h"
 #include "kestrel/scene.h"
 #include "kestrel/trace.h"
 
@@ -17,6 +18,13 @@ namespace py = pybind11;
 void bind_geometry(py::module_& m);  // Scene, Accel, trace, occluded, BVH metrics, InstancedScene
 void bind_render(py::module_& m);    // Camera, Renderer, Denoiser, Upscaler, Pipeline
 void bind_images(py::module_& m);    // EXR, PFM, PNG, rays/hits files, tone map
+
+/// A two-level scene, optionally with the glTF animation that poses it (shared with the
+/// renderers that reference it).
+struct PyInstancedScene {
+  InstancedScene scene;
+  std::optional<GltfInstances> gltf;
+};
 
 /// Runs `body` with the GIL released and the library limited to `threads` workers (0 = all).
 template <class F>

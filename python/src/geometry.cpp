@@ -235,12 +235,6 @@ py::array_t<float> affine_array(const Affine3& t) {
   return a;
 }
 
-// A two-level scene, optionally with the glTF animation that poses it.
-struct PyInstancedScene {
-  InstancedScene scene;
-  std::optional<GltfInstances> gltf;
-};
-
 py::dict commit_dict(const CommitStats& s) {
   py::dict d;
   d["total_ms"] = s.total_ms;
@@ -491,6 +485,8 @@ void bind_geometry(py::module_& m) {
             py::gil_scoped_release release;
             s->gltf.emplace(GltfInstances::load(path, clip));
             s->gltf->add_to(s->scene);
+            s->scene.set_materials(s->gltf->materials(), s->gltf->textures());
+            s->scene.set_source(path);
             return s;
           },
           py::arg("path"), py::arg("clip") = 0, "A glTF/GLB file as instances, posed at t = 0 (commit() before tracing).")
@@ -506,6 +502,11 @@ void bind_geometry(py::module_& m) {
           "add_scene_mesh",
           [](PyInstancedScene& s, const Scene& scene, size_t mesh) { return s.scene.add_mesh(mesh_at(scene, mesh)); },
           py::arg("scene"), py::arg("mesh") = 0, "Adds a copy of one of a Scene's meshes; returns its id.")
+      .def(
+          "set_materials_from",
+          [](PyInstancedScene& s, const Scene& scene) { s.scene.set_materials(scene.materials, scene.textures); },
+          py::arg("scene"),
+          "Takes a Scene's materials and textures (what meshes added with add_scene_mesh index); next commit().")
       .def(
           "add_instance",
           [](PyInstancedScene& s, MeshId mesh, py::handle transform, uint32_t mask) {

@@ -11,6 +11,7 @@
 
 #include "arrays.h"
 #include "bindings.h"
+#include "kestrel/asset.h"
 #include "kestrel/denoise.h"
 #include "kestrel/error.h"
 #include "kestrel/pipeline.h"
@@ -54,6 +55,8 @@ py::dict frame_dict(Frame&& frame) {
 }
 
 struct PyRenderer {
+  std::optional<Asset> asset;                    // a Scene given: its copy as the one scene model
+  std::shared_ptr<PyInstancedScene> instanced;   // an InstancedScene given: kept alive, referenced
   std::unique_ptr<Renderer> renderer;
   RenderStats last_stats;
   float jitter_x = 0.5f, jitter_y = 0.5f;
@@ -231,19 +234,32 @@ void bind_render(py::module_& m) {
       .def_property_readonly("end", &CameraPath::end)
       .def("at", &CameraPath::at, py::arg("time"));
 
-  py::class_<PyRenderer>(m, "Renderer", "The path tracer over a static Scene (NEE + MIS, every AOV).")
+  py::class_<PyRenderer>(m, "Renderer",
+                         "The path tracer (NEE + MIS, every AOV) over a Scene (copied: each mesh one identity "
+                         "instance) or a committed InstancedScene (referenced: each render sees its last commit).")
       .def(py::init([](std::shared_ptr<Scene> scene, std::optional<std::string> environment) {
              std::optional<Environment> env;
              if (environment) env = Environment::parse(*environment);
              auto r = std::make_unique<PyRenderer>();
              Scene copy = *scene;
              py::gil_scoped_release release;
-             r->renderer = std::make_unique<Renderer>(std::move(copy), std::move(env));
+             r->asset.emplace(Asset::from_scene(std::move(copy)));
+             r->renderer = std::make_unique<Renderer>(r->asset->scene(), std::move(env));
              return r;
            }),
            py::arg("scene"), py::arg("environment") = py::none(),
            "environment: None = the scene's default (a sky without emitters), 'none', 'sky', 'constant:R,G,B' or an "
            "image file.")
+      .def(py::init([](std::shared_ptr<PyInstancedScene> scene, std::optional<std::string> environment) {
+             std::optional<Environment> env;
+             if (environment) env = Environment::parse(*environment);
+             auto r = std::make_unique<PyRenderer>();
+             r->instanced = scene;
+             py::gil_scoped_release release;
+             r->renderer = std::make_unique<Renderer>(scene->scene, std::move(env));
+             return r;
+           }),
+           py::arg("scene"), py::arg("environment") = py::none())
       .def(
           "render",
           [](PyRenderer& r, const Camera& camera, int spp, py::handle res, uint64_t seed, int max_depth, int rr_depth,

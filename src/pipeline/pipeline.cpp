@@ -10,8 +10,6 @@
 
 #include "core/timer.h"
 #include "kestrel/error.h"
-#include "kestrel/instances.h"
-#include "kestrel/scene.h"
 
 namespace kestrel {
 
@@ -33,11 +31,9 @@ void check(const PipelineSettings& s) {
 
 struct Pipeline::Impl {
   PipelineSettings settings;
-  std::string source;
-  size_t triangles = 0;
-  std::unique_ptr<InstancedScene> instanced;
-  std::unique_ptr<GltfInstances> gltf;
+  Asset asset;
   std::unique_ptr<Renderer> renderer;
+  PipelineRenderFn render_fn;
   std::unique_ptr<Denoiser> denoiser;
   std::unique_ptr<Upscaler> upscaler;
   std::optional<Camera> prev_camera;
@@ -64,47 +60,36 @@ struct Pipeline::Impl {
     prev_camera.reset();
   }
 
-  // Poses an animated scene at `time`: commit (BLAS refits / rebuilds, TLAS) and sync.
+  explicit Impl(Asset a) : asset(std::move(a)) {}
+
+  // Poses the scene at `time` (BLAS refits / rebuilds, TLAS); the renderer sees the commit.
   void update(double time) {
-    if (!gltf || time == last_time) return;
-    gltf->set_time(*instanced, time);
-    instanced->commit();
-    renderer->sync();
+    if (time == last_time) return;
+    asset.update(time);
     last_time = time;
   }
 
   RenderSettings render_settings(int w, int h, uint32_t frame) const {
     RenderSettings rs;
     rs.width = w, rs.height = h, rs.spp = settings.spp, rs.seed = settings.seed, rs.frame = frame;
-    rs.max_depth = settings.max_depth, rs.clamp = settings.clamp, rs.fixed_jitter = true;
+    rs.max_depth = settings.max_depth, rs.clamp = settings.clamp, rs.fixed_jitter = settings.fixed_jitter;
+    rs.jitter = settings.jitter, rs.threads = settings.threads;
     return rs;
   }
 };
 
 Pipeline::Pipeline(const std::string& scene, const PipelineSettings& settings, const std::string& environment)
-    : impl_(std::make_unique<Impl>()) {
+    : Pipeline((check(settings), Asset::load(scene)), settings, environment) {}
+
+Pipeline::Pipeline(Asset asset, const PipelineSettings& settings, const std::string& environment)
+    : impl_(std::make_unique<Impl>(std::move(asset))) {
   check(settings);
   Impl& m = *impl_;
   m.settings = settings;
   std::optional<Environment> env;
   if (!environment.empty()) env = Environment::parse(environment);
-  if (is_gltf_path(scene)) {
-    m.instanced = std::make_unique<InstancedScene>();
-    m.gltf = std::make_unique<GltfInstances>(GltfInstances::load(scene));
-    m.gltf->add_to(*m.instanced);
-    m.instanced->commit();
-    m.renderer = std::make_unique<Renderer>(*m.instanced, m.gltf->materials(), m.gltf->textures(), env);
-    m.last_time = 0;
-    m.source = scene;
-    for (size_t i = 0; i < m.instanced->instance_capacity(); ++i)
-      if (m.instanced->has_instance(InstanceId(i)))
-        m.triangles += m.instanced->mesh(m.instanced->instance_mesh(InstanceId(i))).triangle_count();
-  } else {
-    Scene s = load_scene(scene);
-    m.source = s.source;
-    m.triangles = s.triangle_count();
-    m.renderer = std::make_unique<Renderer>(std::move(s), env);
-  }
+  m.renderer = std::make_unique<Renderer>(m.asset.scene(), env);
+  m.last_time = 0;  // loaded (posed) at t = 0
   m.make_filters();
 }
 
@@ -129,9 +114,12 @@ void Pipeline::reset() {
   impl_->samples = 0;
 }
 Bounds3 Pipeline::bounds() const { return impl_->renderer->bounds(); }
-const std::string& Pipeline::source() const { return impl_->source; }
-double Pipeline::animation_duration() const { return impl_->gltf ? impl_->gltf->duration() : 0.0; }
-size_t Pipeline::triangle_count() const { return impl_->triangles; }
+const std::string& Pipeline::source() const { return impl_->asset.source(); }
+double Pipeline::animation_duration() const { return impl_->asset.duration(); }
+size_t Pipeline::triangle_count() const { return impl_->asset.triangle_count(); }
+void Pipeline::set_render_function(PipelineRenderFn render) { impl_->render_fn = std::move(render); }
+const Asset& Pipeline::asset() const { return impl_->asset; }
+const Renderer& Pipeline::renderer() const { return *impl_->renderer; }
 int Pipeline::accumulated() const { return impl_->samples; }
 
 const PipelineFrame& Pipeline::frame(const Camera& camera, double time) {
@@ -142,9 +130,16 @@ const PipelineFrame& Pipeline::frame(const Camera& camera, double time) {
   m.update(time);
   const double t1 = clock.ms();
   const int iw = s.width / s.factor, ih = s.height / s.factor;
-  Frame f = m.renderer->render(camera, m.render_settings(iw, ih, o.index), m.prev_camera);
+  const RenderSettings rs = m.render_settings(iw, ih, o.index);
+  Frame f = m.render_fn ? m.render_fn(*m.renderer, camera, rs, m.prev_camera) : m.renderer->render(camera, rs, m.prev_camera);
   m.prev_camera = camera;
   const double t2 = clock.ms();
+  if (f.width == 0) {  // a worker of a distributed render: the frame is elsewhere
+    o.render = std::move(f);
+    o.times = {t1, t2 - t1, 0, 0, 0, t2};
+    ++o.index;
+    return o;
+  }
   o.noisy = std::move(f.aov[int(Aov::color)]);
   if (m.denoiser)
     m.denoiser->denoise({&o.noisy, &f[Aov::albedo], &f[Aov::normal], &f[Aov::depth], &f[Aov::roughness], &f[Aov::motion]},
@@ -160,6 +155,7 @@ const PipelineFrame& Pipeline::frame(const Camera& camera, double time) {
   o.width = s.width, o.height = s.height, o.internal_width = iw, o.internal_height = ih, o.factor = s.factor;
   o.times = {t1 - t0, t2 - t1, t3 - t2, t4 - t3, t5 - t4, t5 - t0};
   o.stats = f.stats;
+  o.render = std::move(f);
   ++o.index;
   // Hold the target frame time: a coarser factor when slow, a finer one when well under.
   if (s.target_ms > 0) {

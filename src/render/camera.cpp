@@ -95,8 +95,9 @@ void check_camera(const Camera& c) {
     throw Error(ErrorCode::invalid_argument, "camera: aperture and focus distance must be finite and >= 0");
 }
 
-Camera framing_camera(const Scene& scene) {
-  const Bounds3 b = scene_bounds(scene);
+Camera framing_camera(const Scene& scene) { return framing_camera(scene_bounds(scene)); }
+
+Camera framing_camera(const Bounds3& b) {
   Camera cam;
   cam.vfov_degrees = 45.0f;
   cam.target = is_empty(b) ? Vec3{0, 0, 0} : center(b);
@@ -125,14 +126,25 @@ std::vector<std::string> view_files_for(const std::string& scene_path) {
   return files;
 }
 
-std::optional<Camera> find_view(const Scene& scene, const std::string& name) {
-  if (name.empty() || name == "framing") return framing_camera(scene);
-  for (const std::string& file : view_files_for(scene.source)) {
+namespace {
+std::optional<Camera> find_view(const std::string& source, const Bounds3& bounds, const std::string& name) {
+  if (name.empty() || name == "framing") return framing_camera(bounds);
+  for (const std::string& file : view_files_for(source)) {
     if (!std::filesystem::is_regular_file(file)) continue;
     const auto views = load_views(file);
     if (auto it = views.find(name); it != views.end()) return it->second;
   }
   return std::nullopt;
+}
+}  // namespace
+
+std::optional<Camera> find_view(const Scene& scene, const std::string& name) {
+  if (name.empty() || name == "framing") return framing_camera(scene);
+  return find_view(scene.source, Bounds3{}, name);
+}
+
+std::optional<Camera> find_view(const Asset& asset, const std::string& name) {
+  return find_view(asset.source(), asset.bounds(), name);
 }
 
 CameraPath CameraPath::load(const std::string& path) {

@@ -161,13 +161,9 @@ struct Renderer::Impl {
     float area;
   };
 
-  // Static scenes own their geometry; instanced ones reference it.
-  Scene scene;
-  Accel accel;
-  std::vector<size_t> prim_offset;  // static: first global prim id of each mesh (+ total)
-  const InstancedScene* instanced = nullptr;
-  std::vector<Material> materials;
-  std::vector<Texture> textures;
+  const InstancedScene* scene = nullptr;  // referenced: it outlives the renderer
+  uint64_t generation = 0;                 // the scene's commit the shading data are of
+  std::vector<Material> materials;         // the scene's, plus a trailing "default"
   std::vector<InstanceShade> instances;
   std::vector<std::vector<int32_t>> emissive_rank;  // per mesh key, per triangle: rank or -1
   std::vector<LightTri> lights;
@@ -188,6 +184,7 @@ struct Renderer::Impl {
     return materials[std::min<size_t>(id, materials.size() - 1)];
   }
   const Texture* texture(int index) const {
+    const std::vector<Texture>& textures = scene->textures();
     if (index < 0 || size_t(index) >= textures.size()) return nullptr;
     const Texture& t = textures[size_t(index)];
     return t.width > 0 && t.height > 0 && t.rgba.size() == size_t(t.width) * size_t(t.height) * 4 ? &t : nullptr;
@@ -365,6 +362,8 @@ struct Renderer::Impl {
     return (1 - p_env) * light_dist.pmf(li) / l.area * dist2 / cos_light;
   }
 
+  std::string source() const;
+  void sync();
   void trace(std::span<const Ray> rays, std::span<SurfaceHit> hits) const;
   void occluded(std::span<const Ray> rays, std::span<uint8_t> out) const;
   void render_tile(const CameraModel& cam, const CameraModel& prev_cam, const RenderSettings& s, int tx, int ty, int pass,
@@ -372,30 +371,13 @@ struct Renderer::Impl {
 };
 
 void Renderer::Impl::trace(std::span<const Ray> rays, std::span<SurfaceHit> hits) const {
-  if (instanced) {
-    thread_local std::vector<InstanceHit> h;  // scratch, reused by every batch of this thread
-    h.resize(rays.size());
-    instanced->trace(rays, std::span<InstanceHit>(h.data(), rays.size()));
-    for (size_t i = 0; i < rays.size(); ++i) hits[i] = {h[i].t, h[i].instance_id, h[i].prim_id, h[i].u, h[i].v};
-    return;
-  }
-  thread_local std::vector<Hit> h;
+  thread_local std::vector<InstanceHit> h;  // scratch, reused by every batch of this thread
   h.resize(rays.size());
-  kestrel::trace(accel, rays, std::span<Hit>(h.data(), rays.size()));
-  for (size_t i = 0; i < rays.size(); ++i) {
-    if (!h[i].hit()) {
-      hits[i] = SurfaceHit{};
-      continue;
-    }
-    const size_t mesh = size_t(std::upper_bound(prim_offset.begin(), prim_offset.end(), size_t(h[i].prim_id)) - prim_offset.begin()) - 1;
-    hits[i] = {h[i].t, uint32_t(mesh), uint32_t(h[i].prim_id - prim_offset[mesh]), h[i].u, h[i].v};
-  }
+  scene->trace(rays, std::span<InstanceHit>(h.data(), rays.size()));
+  for (size_t i = 0; i < rays.size(); ++i) hits[i] = {h[i].t, h[i].instance_id, h[i].prim_id, h[i].u, h[i].v};
 }
 
-void Renderer::Impl::occluded(std::span<const Ray> rays, std::span<uint8_t> out) const {
-  if (instanced) instanced->occluded(rays, out);
-  else kestrel::occluded(accel, rays, out);
-}
+void Renderer::Impl::occluded(std::span<const Ray> rays, std::span<uint8_t> out) const { scene->occluded(rays, out); }
 
 // ---- per-pixel accumulation ----------------------------------------------------------------
 
@@ -722,49 +704,13 @@ void Renderer::Impl::render_tile(const CameraModel& cam, const CameraModel& prev
 
 // ---- the renderer ------------------------------------------------------------------------------
 
-Renderer::Renderer(Scene scene, std::optional<Environment> environment) : impl_(new Impl) {
+Renderer::Renderer(const InstancedScene& scene, std::optional<Environment> environment) : impl_(new Impl) {
   Impl& r = *impl_;
-  r.scene = std::move(scene);
-  BuildConfig config;
-  r.accel = build_accel(r.scene, config);
-  if (r.accel.validation.report.valid_triangle_count == 0)
-    throw Error(ErrorCode::invalid_geometry, fmt::format("{}: no valid triangle to render ({})", r.scene.source,
-                                                         r.accel.validation.report.summary()));
-  r.materials = r.scene.materials;
-  r.textures = r.scene.textures;
-  r.check_materials(r.scene.source);
-  size_t offset = 0;
-  for (const TriangleMesh& m : r.scene.meshes) {
-    r.prim_offset.push_back(offset);
-    offset += m.triangle_count();
-    Impl::InstanceShade is;
-    is.mesh = &m;
-    r.instances.push_back(is);
-  }
-  r.prim_offset.push_back(offset);
-  for (const TriangleMesh& m : r.scene.meshes) {
-    if (!m.material_ids.empty() && m.material_ids.size() != m.triangle_count())
-      throw Error(ErrorCode::invalid_argument, fmt::format("{}: mesh '{}' has {} material ids for {} triangles", r.scene.source,
-                                                           m.name, m.material_ids.size(), m.triangle_count()));
-    for (uint32_t id : m.material_ids)
-      if (id >= r.scene.materials.size())
-        throw Error(ErrorCode::invalid_argument,
-                    fmt::format("{}: mesh '{}' names material {} of {}", r.scene.source, m.name, id, r.scene.materials.size()));
-  }
-  r.sync_lights();
-  r.choose_environment(std::move(environment));
-}
-
-Renderer::Renderer(const InstancedScene& scene, std::vector<Material> materials, std::vector<Texture> textures,
-                   std::optional<Environment> environment)
-    : impl_(new Impl) {
-  Impl& r = *impl_;
-  r.instanced = &scene;
-  r.materials = std::move(materials);
-  r.textures = std::move(textures);
-  r.check_materials("the instanced scene's materials");
-  sync();
-  for (auto& is : r.instances) is.prev_xf = is.xf;
+  r.scene = &scene;
+  const ValidationReport report = scene.validation();
+  if (report.valid_triangle_count == 0)
+    throw Error(ErrorCode::invalid_geometry, fmt::format("{}: no valid triangle to render ({})", r.source(), report.summary()));
+  r.sync();  // the first sync: every previous transform is the current one
   r.choose_environment(std::move(environment));
 }
 
@@ -772,16 +718,29 @@ Renderer::~Renderer() = default;
 Renderer::Renderer(Renderer&&) noexcept = default;
 Renderer& Renderer::operator=(Renderer&&) noexcept = default;
 
-void Renderer::sync() {
-  Impl& r = *impl_;
-  if (!r.instanced) return;
-  const InstancedScene& s = *r.instanced;
-  std::vector<Impl::InstanceShade> old = std::move(r.instances);
-  r.instances.assign(s.instance_capacity(), Impl::InstanceShade{});
+std::string Renderer::Impl::source() const { return scene->source().empty() ? "the scene" : scene->source(); }
+
+// The scene's materials, transforms and lights as of its last commit; the transforms seen at
+// the previous sync become the previous frame's (motion vectors).
+void Renderer::Impl::sync() {
+  const InstancedScene& s = *scene;
+  generation = s.generation();
+  materials = s.materials();
+  const size_t given = materials.size();
+  check_materials(source());
+  std::vector<InstanceShade> old = std::move(instances);
+  instances.assign(s.instance_capacity(), InstanceShade{});
   for (InstanceId i = 0; i < s.instance_capacity(); ++i) {
     if (!s.has_instance(i)) continue;
-    Impl::InstanceShade& is = r.instances[i];
+    InstanceShade& is = instances[i];
     is.mesh = &s.mesh(s.instance_mesh(i));
+    const TriangleMesh& m = *is.mesh;
+    if (!m.material_ids.empty() && m.material_ids.size() != m.triangle_count())
+      throw Error(ErrorCode::invalid_argument, fmt::format("{}: mesh '{}' has {} material ids for {} triangles", source(),
+                                                           m.name, m.material_ids.size(), m.triangle_count()));
+    for (uint32_t id : m.material_ids)
+      if (id >= given)
+        throw Error(ErrorCode::invalid_argument, fmt::format("{}: mesh '{}' names material {} of {}", source(), m.name, id, given));
     is.xf = s.transform(i);
     is.prev_xf = i < old.size() && old[i].mesh ? old[i].xf : is.xf;
     const Affine3 identity;
@@ -792,7 +751,7 @@ void Renderer::sync() {
     for (int row = 0; row < 3; ++row)
       for (int col = 0; col < 3; ++col) is.nrm[row * 3 + col] = inv.m[col * 4 + row];
   }
-  r.sync_lights();
+  sync_lights();
 }
 
 Bounds3 Renderer::bounds() const { return impl_->bounds; }
@@ -921,6 +880,7 @@ void Renderer::Impl::render_passes(const Camera& camera, const RenderSettings& s
 
 Frame Renderer::render(const Camera& camera, const RenderSettings& s, std::optional<Camera> prev_camera) {
   check_render_settings(camera, s, prev_camera);
+  if (impl_->scene->generation() != impl_->generation) impl_->sync();
   Accumulator acc(s.width, s.height);
   Frame frame;
   impl_->render_passes(camera, s, prev_camera, nullptr, acc, frame);
@@ -939,6 +899,7 @@ void Renderer::render_tiles(const Camera& camera, const RenderSettings& s, std::
   const size_t count = render_tile_count(s.width, s.height);
   for (uint32_t t : tiles)
     if (t >= count) throw Error(ErrorCode::invalid_argument, fmt::format("render: tile {} of {}", t, count));
+  if (impl_->scene->generation() != impl_->generation) impl_->sync();
   if (frame.width != s.width || frame.height != s.height) {
     frame = Frame{};
     frame.width = s.width, frame.height = s.height;

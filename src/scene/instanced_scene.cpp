@@ -159,6 +159,16 @@ struct InstancedScene::Impl {
   };
   SceneConfig config;
   Layout layout = Layout::bvh8;
+  std::vector<Material> materials;
+  std::vector<Texture> textures;
+  std::string source;
+  uint64_t generation = 0;
+  // As of the last commit(): the BLAS of the only instance when it is the identity with every
+  // mask bit set (traced as a single-level Accel), else null.
+  uint32_t direct_mesh = invalid_id, direct_id = invalid_id;
+  const Accel* direct() const {
+    return direct_mesh < meshes.size() && meshes[direct_mesh].built ? &meshes[direct_mesh].blas : nullptr;
+  }
   std::vector<MeshSlot> meshes;
   std::vector<InstanceSlot> instances;
   // As of the last commit().
@@ -356,6 +366,17 @@ CommitStats InstancedScene::commit() {
   }
   stats.tlas_ms = tt.ms();
   stats.instances = s.data.size();
+  s.direct_mesh = invalid_id, s.direct_id = invalid_id;
+  if (s.data.size() == 1) {
+    const Impl::InstanceSlot& inst = s.instances[s.data[0].id];
+    const Affine3 identity;
+    if (std::equal(std::begin(inst.transform.m), std::end(inst.transform.m), std::begin(identity.m)) &&
+        inst.mask == 0xFFFFFFFFu) {
+      s.direct_mesh = inst.mesh;
+      s.direct_id = s.data[0].id;
+    }
+  }
+  ++s.generation;
   stats.total_ms = total.ms();
   return stats;
 }
@@ -390,6 +411,16 @@ void InstancedScene::trace(std::span<const Ray> rays, std::span<InstanceHit> hit
     for (InstanceHit& h : hits) h = InstanceHit{};
     return;
   }
+  if (const Accel* direct = s.direct(); direct && ray_mask != 0) {  // one identity instance: its BLAS alone
+    thread_local std::vector<Hit> scratch;
+    scratch.resize(rays.size());
+    kestrel::trace(*direct, rays, std::span<Hit>(scratch.data(), rays.size()), options);
+    for (size_t i = 0; i < rays.size(); ++i) {
+      const Hit& h = scratch[i];
+      hits[i] = h.hit() ? InstanceHit{h.t, h.prim_id, s.direct_id, h.u, h.v} : InstanceHit{};
+    }
+    return;
+  }
   parallel_for(0, rays.size(), 1024, [&](size_t b, size_t e) {
     kernels::for_each_traceable_run(rays.subspan(b, e - b), hits.data() + b,
                                     [&](const Ray* r, InstanceHit* h, size_t n) { q.fn(q.tlas, s.data.data(), r, h, n, ray_mask); });
@@ -405,6 +436,10 @@ void InstancedScene::occluded(std::span<const Ray> rays, std::span<uint8_t> out,
     std::fill(out.begin(), out.end(), uint8_t(0));
     return;
   }
+  if (const Accel* direct = s.direct(); direct && ray_mask != 0) {
+    kestrel::occluded(*direct, rays, out, options);
+    return;
+  }
   parallel_for(0, rays.size(), 1024, [&](size_t b, size_t e) {
     InstanceHit local[256];
     for (size_t i = b; i < e; i += 256) {
@@ -414,6 +449,31 @@ void InstancedScene::occluded(std::span<const Ray> rays, std::span<uint8_t> out,
       for (size_t j = 0; j < n; ++j) out[i + j] = local[j].hit();
     }
   });
+}
+
+void InstancedScene::set_materials(std::vector<Material> materials, std::vector<Texture> textures) {
+  impl_->materials = std::move(materials);
+  impl_->textures = std::move(textures);
+}
+const std::vector<Material>& InstancedScene::materials() const { return impl_->materials; }
+const std::vector<Texture>& InstancedScene::textures() const { return impl_->textures; }
+void InstancedScene::set_source(std::string source) { impl_->source = std::move(source); }
+const std::string& InstancedScene::source() const { return impl_->source; }
+uint64_t InstancedScene::generation() const { return impl_->generation; }
+
+ValidationReport InstancedScene::validation() const {
+  ValidationReport r;
+  for (const auto& m : impl_->meshes) {
+    if (!m.live || !m.built) continue;
+    const ValidationReport& v = m.blas.validation.report;
+    r.triangle_count += v.triangle_count;
+    r.valid_triangle_count += v.valid_triangle_count;
+    r.nonfinite_triangle_count += v.nonfinite_triangle_count;
+    r.bad_index_triangle_count += v.bad_index_triangle_count;
+    r.degenerate_triangle_count += v.degenerate_triangle_count;
+    r.empty_mesh_count += v.empty_mesh_count;
+  }
+  return r;
 }
 
 size_t InstancedScene::instance_count() const {

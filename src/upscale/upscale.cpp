@@ -16,9 +16,15 @@
 #include "core/timer.h"
 #include "denoise/kernels.h"
 #include "denoise/neural.h"
+#include "upscale/reconstruct.h"
 #include "kestrel/error.h"
 
 namespace kestrel {
+
+using upscale::Axis;
+using upscale::GridAxis;
+using upscale::Recon;
+
 
 namespace {
 
@@ -46,77 +52,7 @@ void parallel_rows(int h, int grain, F&& f) {
   });
 }
 
-inline float luma(const float* c) { return kLuma[0] * c[0] + kLuma[1] * c[1] + kLuma[2] * c[2]; }
-inline float finite_or_zero(float v) { return std::isfinite(v) ? v : 0.0f; }
-inline int clampi(int v, int lo, int hi) { return v < lo ? lo : (v > hi ? hi : v); }
-// floor as an int without libm (baseline x86-64 has no roundss); |x| < 2^31.
-inline int floor_int(float x) {
-  const int i = int(x);
-  return i - (float(i) > x);
-}
-inline float sigmoid(float x) { return 1.0f / (1.0f + std::exp(-x)); }
-inline float softplus(float x) { return x > 20.0f ? x : std::log1p(std::exp(x)); }
-
-// Catmull-Rom weights of the four taps around t in [0, 1).
-inline void catmull_rom(float t, float w[4]) {
-  const float t2 = t * t, t3 = t2 * t;
-  w[0] = -0.5f * t3 + t2 - 0.5f * t;
-  w[1] = 1.5f * t3 - 2.5f * t2 + 1.0f;
-  w[2] = -1.5f * t3 + 2.0f * t2 + 0.5f * t;
-  w[3] = 0.5f * t3 - 0.5f * t2;
-}
-
-// Samples a channels-last image (c channels) at continuous coordinates, pixel centres at
-// k + 0.5, edges clamped: bilinear or Catmull-Rom.
-template <int C>
-inline void sample_bilinear(const float* img, int w, int h, float x, float y, float* out) {
-  const float xf = x - 0.5f, yf = y - 0.5f;
-  const int x0 = floor_int(xf), y0 = floor_int(yf);
-  const float tx = xf - float(x0), ty = yf - float(y0);
-  const int ix0 = clampi(x0, 0, w - 1), ix1 = clampi(x0 + 1, 0, w - 1);
-  const int iy0 = clampi(y0, 0, h - 1), iy1 = clampi(y0 + 1, 0, h - 1);
-  const float* p00 = img + (size_t(iy0) * size_t(w) + size_t(ix0)) * C;
-  const float* p01 = img + (size_t(iy0) * size_t(w) + size_t(ix1)) * C;
-  const float* p10 = img + (size_t(iy1) * size_t(w) + size_t(ix0)) * C;
-  const float* p11 = img + (size_t(iy1) * size_t(w) + size_t(ix1)) * C;
-  for (int c = 0; c < C; ++c)
-    out[c] = (1 - ty) * ((1 - tx) * p00[c] + tx * p01[c]) + ty * ((1 - tx) * p10[c] + tx * p11[c]);
-}
-
-// Catmull-Rom of an RGB image (interleaved, one float of padding after the last pixel: each
-// tap is one 4-float load, the fourth lane is junk).
-inline __m128 sample_catmull_rom3(const float* img, int w, int h, float x, float y) {
-  const float xf = x - 0.5f, yf = y - 0.5f;
-  const int x1 = floor_int(xf), y1 = floor_int(yf);
-  float wx[4], wy[4];
-  catmull_rom(xf - float(x1), wx);
-  catmull_rom(yf - float(y1), wy);
-  int ix[4], iy[4];
-  if (x1 >= 1 && x1 + 2 < w) {
-    for (int i = 0; i < 4; ++i) ix[i] = x1 + i - 1;
-  } else {
-    for (int i = 0; i < 4; ++i) ix[i] = clampi(x1 + i - 1, 0, w - 1);
-  }
-  if (y1 >= 1 && y1 + 2 < h) {
-    for (int i = 0; i < 4; ++i) iy[i] = y1 + i - 1;
-  } else {
-    for (int i = 0; i < 4; ++i) iy[i] = clampi(y1 + i - 1, 0, h - 1);
-  }
-  __m128 acc = _mm_setzero_ps();
-  for (int j = 0; j < 4; ++j) {
-    const float* row = img + size_t(iy[j]) * size_t(w) * 3;
-    __m128 r = _mm_mul_ps(_mm_set1_ps(wx[0]), _mm_loadu_ps(row + size_t(ix[0]) * 3));
-    for (int i = 1; i < 4; ++i) r = _mm_add_ps(r, _mm_mul_ps(_mm_set1_ps(wx[i]), _mm_loadu_ps(row + size_t(ix[i]) * 3)));
-    acc = _mm_add_ps(acc, _mm_mul_ps(_mm_set1_ps(wy[j]), r));
-  }
-  return acc;
-}
-
-inline void store3(float* dst, __m128 v) {
-  alignas(16) float t[4];
-  _mm_store_ps(t, v);
-  dst[0] = t[0], dst[1] = t[1], dst[2] = t[2];
-}
+#include "upscale/sampling.inl"
 
 void check_input(const UpscaleInput& in) {
   if (!in.color) throw Error(ErrorCode::invalid_argument, "upscale: the colour image is required");
@@ -142,114 +78,43 @@ void check_input(const UpscaleInput& in) {
                                                          in.jitter_x, in.jitter_y));
 }
 
-// Per output column (or row): the nearest sample's index, its three Gaussian weights
-// (offsets -1, 0, +1) and the offset to the nearest sample, in low-resolution pixels.
-struct Axis {
-  std::vector<int> i0;
-  std::vector<float> w;  // 3 per entry
-  std::vector<float> d0;
-  void build(int out, int in, int f, float jitter) {
-    i0.resize(size_t(out)), w.resize(3 * size_t(out)), d0.resize(size_t(out));
-    for (int X = 0; X < out; ++X) {
-      const float u = (float(X) + 0.5f) / float(f) - jitter;
-      const int i = clampi(floor_int(u + 0.5f), 0, in - 1);
-      i0[size_t(X)] = i;
-      d0[size_t(X)] = u - float(i);
-      for (int k = 0; k < 3; ++k) {
-        const float d = u - float(i + k - 1);
-        w[3 * size_t(X) + size_t(k)] = std::exp(-kCurrentSharpness * d * d);
-      }
-    }
+}  // namespace
+
+namespace upscale {
+ReconstructFn reconstruct_for(Isa isa) {
+  require_supported(isa);
+  switch (isa) {
+    case Isa::avx512: return reconstruct_avx512();
+    case Isa::avx2: return reconstruct_avx2();
+    default: return reconstruct_sse2();
   }
-};
+}
 
-// Bilinear taps of the parameter grid (pixel centres at 4k + 2 in output pixels).
-struct GridAxis {
-  std::vector<int> a, b;
-  std::vector<float> t;
-  void build(int out, int grid) {
-    a.resize(size_t(out)), b.resize(size_t(out)), t.resize(size_t(out));
-    for (int X = 0; X < out; ++X) {
-      const float xf = (float(X) + 0.5f) / 4.0f - 0.5f;
-      const int x0 = floor_int(xf);
-      a[size_t(X)] = clampi(x0, 0, grid - 1), b[size_t(X)] = clampi(x0 + 1, 0, grid - 1);
-      t[size_t(X)] = xf - float(x0);
-    }
-  }
-};
-
-// The per-output-pixel reconstruction (model.step), rows [r0, r1); cloned per instruction set.
-struct Recon {
-  const float *y, *mdil, *mu, *sigma, *grid, *hist;
-  float *next, *out;
-  const Axis *ax, *ay;
-  const GridAxis *gx, *gy;
-  int w, h, W, H, gw, f;
-  bool history;
-};
-
-// ifunc resolvers run before ThreadSanitizer's runtime starts: the TSan build uses the
-// default clone only.
-#if defined(__SANITIZE_THREAD__)
-#define KESTREL_RECONSTRUCT_CLONES
-#else
-#define KESTREL_RECONSTRUCT_CLONES __attribute__((target_clones("avx512f", "arch=haswell", "default")))
-#endif
-KESTREL_RECONSTRUCT_CLONES
-void reconstruct_rows(const Recon& a, int r0, int r1) {
-  std::vector<float> vert(3 * size_t(a.w) + 1, 0.0f), gv(3 * size_t(a.gw) + 1, 0.0f);
-  for (int Y = r0; Y < r1; ++Y) {
-    const int j0 = a.ay->i0[size_t(Y)];
-    const float* wy = &a.ay->w[3 * size_t(Y)];
-    const float dy0 = a.ay->d0[size_t(Y)];
-    const int rows[3] = {clampi(j0 - 1, 0, a.h - 1), j0, clampi(j0 + 1, 0, a.h - 1)};
-    const float ty = a.gy->t[size_t(Y)];
-    const float* ga = &a.grid[size_t(a.gy->a[size_t(Y)]) * size_t(a.gw) * 3];
-    const float* gb = &a.grid[size_t(a.gy->b[size_t(Y)]) * size_t(a.gw) * 3];
-    // The current frame's three rows, weighted for this output row: vert[i] = sum_b wy_b y(i, row_b).
-    const float* y0 = &a.y[size_t(rows[0]) * size_t(a.w) * 3];
-    const float* y1 = &a.y[size_t(rows[1]) * size_t(a.w) * 3];
-    const float* y2 = &a.y[size_t(rows[2]) * size_t(a.w) * 3];
-    for (size_t q = 0; q < 3 * size_t(a.w); ++q) vert[q] = wy[0] * y0[q] + wy[1] * y1[q] + wy[2] * y2[q];
-    for (size_t q = 0; q < 3 * size_t(a.gw); ++q) gv[q] = (1 - ty) * ga[q] + ty * gb[q];
-    for (int X = 0; X < a.W; ++X) {
-      const int i0 = a.ax->i0[size_t(X)];
-      const float* wx = &a.ax->w[3 * size_t(X)];
-      const int cols[3] = {clampi(i0 - 1, 0, a.w - 1), i0, clampi(i0 + 1, 0, a.w - 1)};
-      __m128 cur = _mm_mul_ps(_mm_set1_ps(wx[0]), _mm_loadu_ps(&vert[size_t(cols[0]) * 3]));
-      cur = _mm_add_ps(cur, _mm_mul_ps(_mm_set1_ps(wx[1]), _mm_loadu_ps(&vert[size_t(cols[1]) * 3])));
-      cur = _mm_add_ps(cur, _mm_mul_ps(_mm_set1_ps(wx[2]), _mm_loadu_ps(&vert[size_t(cols[2]) * 3])));
-      cur = _mm_mul_ps(cur, _mm_set1_ps(1.0f / ((wx[0] + wx[1] + wx[2]) * (wy[0] + wy[1] + wy[2]))));
-      const size_t P = size_t(Y) * size_t(a.W) + size_t(X);
-      float* o = &a.next[3 * P];
-      if (!a.history) {
-        store3(o, cur);
-      } else {
-        const size_t pl = size_t(j0) * size_t(a.w) + size_t(i0);
-        const float hx = float(X) + 0.5f + float(a.f) * a.mdil[2 * pl], hy = float(Y) + 0.5f + float(a.f) * a.mdil[2 * pl + 1];
-        const bool valid = hx >= 0 && hx < float(a.W) && hy >= 0 && hy < float(a.H);
-        // Parameters: bilinear from the grid (the rows already blended into gv).
-        const float tx = a.gx->t[size_t(X)];
-        alignas(16) float prm[4];
-        _mm_store_ps(prm, _mm_add_ps(_mm_mul_ps(_mm_set1_ps(1 - tx), _mm_loadu_ps(&gv[3 * size_t(a.gx->a[size_t(X)])])),
-                                     _mm_mul_ps(_mm_set1_ps(tx), _mm_loadu_ps(&gv[3 * size_t(a.gx->b[size_t(X)])]))));
-        const float dx0 = a.ax->d0[size_t(X)];
-        const float conf = std::exp(-prm[2] * float(a.f * a.f) * (dx0 * dx0 + dy0 * dy0));
-        const float alpha = valid ? prm[0] * conf : 1.0f;
-        const __m128 hc = sample_catmull_rom3(a.hist, a.W, a.H, hx, hy);
-        const __m128 m = _mm_loadu_ps(&a.mu[3 * pl]), sg = _mm_mul_ps(_mm_set1_ps(prm[1]), _mm_loadu_ps(&a.sigma[3 * pl]));
-        const __m128 v = _mm_min_ps(_mm_max_ps(hc, _mm_sub_ps(m, sg)), _mm_add_ps(m, sg));
-        store3(o, _mm_add_ps(v, _mm_mul_ps(_mm_set1_ps(alpha), _mm_sub_ps(cur, v))));
-      }
-      float yc[3] = {std::max(o[0], 0.0f), std::max(o[1], 0.0f), std::max(o[2], 0.0f)};
-      const float s = 1.0f / std::max(1.0f - luma(yc), 1e-3f);
-      float* lin = a.out + 3 * P;
-      lin[0] = yc[0] * s, lin[1] = yc[1] * s, lin[2] = yc[2] * s;
+void Axis::build(int out, int in, int f, float jitter, float sharpness) {
+  i0.resize(size_t(out)), w.resize(3 * size_t(out)), d0.resize(size_t(out));
+  for (int X = 0; X < out; ++X) {
+    const float u = (float(X) + 0.5f) / float(f) - jitter;
+    const int i = clampi(floor_int(u + 0.5f), 0, in - 1);
+    i0[size_t(X)] = i;
+    d0[size_t(X)] = u - float(i);
+    for (int k = 0; k < 3; ++k) {
+      const float d = u - float(i + k - 1);
+      w[3 * size_t(X) + size_t(k)] = std::exp(-sharpness * d * d);
     }
   }
 }
 
-}  // namespace
+void GridAxis::build(int out, int grid) {
+  a.resize(size_t(out)), b.resize(size_t(out)), t.resize(size_t(out));
+  for (int X = 0; X < out; ++X) {
+    const float xf = (float(X) + 0.5f) / 4.0f - 0.5f;
+    const int x0 = floor_int(xf);
+    a[size_t(X)] = clampi(x0, 0, grid - 1), b[size_t(X)] = clampi(x0 + 1, 0, grid - 1);
+    t[size_t(X)] = xf - float(x0);
+  }
+}
+
+}  // namespace upscale
 
 const char* upscale_method_name(UpscaleMethod m) {
   switch (m) {
@@ -505,7 +370,7 @@ void Upscaler::Impl::temporal(const UpscaleInput& in, FloatImage& out) {
     timer = Timer();
   }
   // Reconstruction (model.step): per output pixel.
-  ax.build(W, w, f, in.jitter_x), ay.build(H, h, f, in.jitter_y);
+  ax.build(W, w, f, in.jitter_x, kCurrentSharpness), ay.build(H, h, f, in.jitter_y, kCurrentSharpness);
   gx.build(W, gw), gy.build(H, gh);
   next_hist.resize(size_t(W) * size_t(H) * 3 + 1);  // every pixel is written; + 1: padding
   next_hist.back() = 0.0f;
@@ -514,6 +379,7 @@ void Upscaler::Impl::temporal(const UpscaleInput& in, FloatImage& out) {
   r.hist = hist.data(), r.next = next_hist.data(), r.out = out.pixels.data();
   r.ax = &ax, r.ay = &ay, r.gx = &gx, r.gy = &gy;
   r.w = w, r.h = h, r.W = W, r.H = H, r.gw = gw, r.f = f, r.history = has_history;
+  const upscale::ReconstructFn reconstruct_rows = upscale::reconstruct_for(default_isa());
   parallel_rows(H, 4, [&](int r0, int r1) { reconstruct_rows(r, r0, r1); });
   hist.swap(next_hist);
   prev_depth.swap(depth);  // prepare() rewrites every pixel of depth next frame

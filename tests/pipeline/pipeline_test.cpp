@@ -39,6 +39,35 @@ TEST(Pipeline, StagesHaveTheirSizesAndFiniteValues) {
   }
 }
 
+// The one frame loop: the frame's render is Renderer::render's (same bits), its AOVs come
+// with it, and a render function (distributed rendering) replaces the render; an empty frame
+// (a worker process) skips the stages after it.
+TEST(Pipeline, RendersAsTheRendererAndTakesARenderFunction) {
+  PipelineSettings s = small(1);
+  s.denoise = false;
+  Pipeline p("builtin:cornell_box", s);
+  const PipelineFrame& f = p.frame(front(), 0.0);
+  const Asset asset = Asset::load("builtin:cornell_box");
+  Renderer r(asset.scene());
+  RenderSettings rs;
+  rs.width = 64, rs.height = 48, rs.max_depth = 3, rs.clamp = s.clamp, rs.fixed_jitter = true;
+  const Frame want = r.render(front(), rs);
+  EXPECT_EQ(f.noisy.pixels, want[Aov::color].pixels);
+  EXPECT_EQ(f.render[Aov::depth].pixels, want[Aov::depth].pixels);
+  EXPECT_EQ(f.upscaled.pixels, want[Aov::color].pixels);
+  int calls = 0;
+  p.set_render_function([&](Renderer&, const Camera&, const RenderSettings& settings, const std::optional<Camera>& prev) {
+    ++calls;
+    EXPECT_EQ(settings.frame, 1u);
+    EXPECT_TRUE(prev.has_value());
+    return Frame{};
+  });
+  const PipelineFrame& g = p.frame(front(), 0.0);
+  EXPECT_EQ(calls, 1);
+  EXPECT_EQ(g.render.width, 0);
+  EXPECT_EQ(g.index, 2u);
+}
+
 TEST(Pipeline, AdaptiveFactorFollowsTheTarget) {
   PipelineSettings s = small(2);
   s.target_ms = 1e-6;  // impossible: coarser

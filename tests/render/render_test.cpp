@@ -14,6 +14,15 @@
 namespace kestrel {
 namespace {
 
+// A renderer over a Scene made an Asset (each mesh one identity instance), kept beside it.
+struct AssetHolder {
+  Asset asset;
+};
+struct SceneRenderer : private AssetHolder, public Renderer {
+  explicit SceneRenderer(Scene scene, std::optional<Environment> env = std::nullopt)
+      : AssetHolder{Asset::from_scene(std::move(scene))}, Renderer(asset.scene(), std::move(env)) {}
+};
+
 constexpr float kPi = 3.14159265358979f;
 
 Vec3 sub(Vec3 a, Vec3 b) { return {a.x - b.x, a.y - b.y, a.z - b.z}; }
@@ -109,7 +118,7 @@ TEST(Furnace, ClosedEmittingBoxConvergesToLeOverOneMinusAlbedo) {
   s.materials = {Material{.name = "wall", .base_color = {0.5f, 0.5f, 0.5f}, .emission = {1, 1, 1}}};
   s.meshes.push_back(test::closed_box({-1, -1, -1}, {1, 1, 1}).meshes[0]);
   s.meshes[0].material_ids.assign(s.meshes[0].triangle_count(), 0);
-  Renderer r(std::move(s), Environment::parse("none"));
+  SceneRenderer r(std::move(s), Environment::parse("none"));
   RenderSettings rs;
   rs.width = 48, rs.height = 48, rs.spp = 32, rs.max_depth = 64;
   const Frame f = r.render(Camera{{0.2f, 0.1f, -0.3f}, {0.5f, 0.3f, 0.8f}, 80}, rs);
@@ -138,7 +147,7 @@ TEST(Furnace, WhiteSphereInConstantEnvironmentIsInvisible) {
     } else {
       e = Environment::parse(env);
     }
-    Renderer r(std::move(s), e);
+    SceneRenderer r(std::move(s), e);
     RenderSettings rs;
     rs.width = 48, rs.height = 48, rs.spp = 32;
     const Frame f = r.render(Camera{{0, 0, -3}, {0, 0, 0}, 50}, rs);
@@ -158,7 +167,7 @@ TEST(Furnace, WhiteSphereInConstantEnvironmentIsInvisible) {
 double white_plane_radiance(const Environment& env) {
   Scene s = plane_scene(0, Material{.name = "white", .base_color = {1, 1, 1}});
   for (Vec3& p : s.meshes[0].positions) std::swap(p.y, p.z);
-  Renderer r(std::move(s), env);
+  SceneRenderer r(std::move(s), env);
   RenderSettings rs;
   rs.width = 48, rs.height = 48, rs.spp = 32;
   const Frame f = r.render(Camera{{0, 1, 0.01f}, {0, 0, 0}, 60}, rs);
@@ -202,7 +211,7 @@ TEST(Cameras, ThinLensIsSharpOnlyAtItsFocusDistance) {
     for (int x = 0; x < 8; ++x)
       for (int c = 0; c < 4; ++c) tex.rgba.push_back((x + y) % 2 ? 255 : 0);
   base.textures = {tex};
-  Renderer r(base, Environment::parse("sky"));
+  SceneRenderer r(base, Environment::parse("sky"));
   RenderSettings rs;
   rs.width = 32, rs.height = 32, rs.spp = 4, rs.jitter = false;
   const Camera pinhole{{0, 0, 0}, {0, 0, -1}, 40};
@@ -222,7 +231,7 @@ TEST(Cameras, ThinLensIsSharpOnlyAtItsFocusDistance) {
 
 TEST(Aovs, ExactOnAPlane) {
   const Material mat{.name = "m", .base_color = {0.3f, 0.6f, 0.9f}, .roughness = 0.4f};
-  Renderer r(plane_scene(-5, mat), Environment::parse("sky"));
+  SceneRenderer r(plane_scene(-5, mat), Environment::parse("sky"));
   RenderSettings rs;
   rs.width = 40, rs.height = 30, rs.frame = 3;
   const Camera cam{{0, 0, 0}, {0, 0, -1}, 60};
@@ -249,7 +258,7 @@ TEST(Aovs, DepthAndNormalOnASphere) {
   s.source = "test:sphere";
   s.materials = {Material{.name = "m", .base_color = {0.5f, 0.5f, 0.5f}}};
   s.meshes.push_back(uv_sphere(c, radius, 256, 512, true));
-  Renderer r(std::move(s), Environment::parse("sky"));
+  SceneRenderer r(std::move(s), Environment::parse("sky"));
   RenderSettings rs;
   rs.width = 64, rs.height = 64, rs.frame = 7;
   const Camera cam{{0, 0, 0}, {0, 0, -1}, 40};
@@ -280,7 +289,7 @@ TEST(Aovs, DepthAndNormalOnASphere) {
 }
 
 TEST(MotionVectors, MovingCameraReprojectsExactly) {
-  Renderer r(plane_scene(-5, Material{.name = "m"}), Environment::parse("sky"));
+  SceneRenderer r(plane_scene(-5, Material{.name = "m"}), Environment::parse("sky"));
   RenderSettings rs;
   rs.width = 48, rs.height = 32, rs.jitter = false;
   const Camera prev{{0, 0, 0}, {0.05f, 0.02f, -1}, 60};
@@ -306,11 +315,12 @@ TEST(MotionVectors, MovingInstanceReprojectsExactly) {
   const MeshId mesh = scene.add_mesh(quad);
   const InstanceId inst = scene.add_instance(mesh, Affine3::translation({0, 0, -4}));
   scene.commit();
-  Renderer r(scene, {Material{.name = "m"}}, {}, Environment::parse("sky"));
+  scene.set_materials({Material{.name = "m"}});
+  scene.commit();
+  Renderer r(scene, Environment::parse("sky"));
   const Vec3 move{0.4f, -0.25f, 0.3f};
   scene.set_transform(inst, Affine3::translation({move.x, move.y, -4 + move.z}) * Affine3::rotation_y(0));
-  scene.commit();
-  r.sync();
+  scene.commit();  // the renderer sees the commit at its next render
   RenderSettings rs;
   rs.width = 40, rs.height = 40, rs.jitter = false;
   const Camera cam{{0, 0, 0}, {0, 0, -1}, 50};
@@ -336,7 +346,7 @@ TEST(MotionVectors, MovingInstanceReprojectsExactly) {
 }
 
 TEST(Determinism, SameBitsForOneAndTwoThreads) {
-  Renderer r(load_scene("builtin:cornell_box"));
+  SceneRenderer r(load_scene("builtin:cornell_box"));
   RenderSettings rs;
   rs.width = 72, rs.height = 56, rs.spp = 3, rs.seed = 42;
   const Camera cam = *find_view(load_scene("builtin:cornell_box"), "front");
@@ -353,7 +363,7 @@ TEST(Determinism, SameBitsForOneAndTwoThreads) {
 TEST(Determinism, TilesRenderedApartEqualOneRender) {
   // What distributed rendering relies on: any split of the tiles, in any order, over several
   // calls gives render()'s bits for every pixel (72x56: edge tiles of 8 and 24 pixels).
-  Renderer r(load_scene("builtin:cornell_box"));
+  SceneRenderer r(load_scene("builtin:cornell_box"));
   RenderSettings rs;
   rs.width = 72, rs.height = 56, rs.spp = 3, rs.seed = 7;
   const Camera cam = *find_view(load_scene("builtin:cornell_box"), "front");
@@ -386,7 +396,7 @@ TEST(Determinism, TilesRenderedApartEqualOneRender) {
 }
 
 TEST(Outputs, ExrAndPfmHoldEveryAov) {
-  Renderer r(load_scene("builtin:cornell_box"));
+  SceneRenderer r(load_scene("builtin:cornell_box"));
   RenderSettings rs;
   rs.width = 24, rs.height = 20, rs.spp = 4;
   const Frame f = r.render(*find_view(load_scene("builtin:cornell_box"), "front"), rs);
@@ -488,7 +498,7 @@ TEST(BadInput, ClearErrors) {
   const std::string bad_path = test::write_temp_file("bad_path.json",
       R"({"keyframes": [{"time": 1, "eye": [0,0,1], "target": [0,0,0]}, {"time": 0, "eye": [0,0,2], "target": [0,0,0]}]})");
   expect_error([&] { CameraPath::load(bad_path); }, "increasing");
-  Renderer r(load_scene("builtin:cornell_box"));
+  SceneRenderer r(load_scene("builtin:cornell_box"));
   RenderSettings rs;
   rs.spp = 0;
   expect_error([&] { r.render(Camera{{0, 0, 0}, {0, 0, 1}, 45}, rs); }, "spp");
@@ -498,12 +508,12 @@ TEST(BadInput, ClearErrors) {
   expect_error([&] { r.render(Camera{{1, 1, 1}, {1, 1, 1}, 45}, RenderSettings{}); }, "coincide");
   Scene s = plane_scene(-1, Material{.name = "m"});
   s.meshes[0].material_ids[1] = 7;
-  expect_error([&] { Renderer bad(std::move(s)); }, "material 7");
+  expect_error([&] { SceneRenderer bad(std::move(s)); }, "material 7");
   Scene empty;
   empty.source = "test:empty";
-  expect_error([&] { Renderer bad(std::move(empty)); }, "test:empty: no valid triangle");
+  expect_error([&] { SceneRenderer bad(std::move(empty)); }, "test:empty: no valid triangle");
   Scene nan_mat = plane_scene(-1, Material{.name = "glow", .emission = {NAN, 0, 0}});
-  expect_error([&] { Renderer bad(std::move(nan_mat)); }, "glow");
+  expect_error([&] { SceneRenderer bad(std::move(nan_mat)); }, "glow");
 }
 
 TEST(BadInput, CorruptTextureIsAWarningNamingTheFile) {
@@ -514,7 +524,7 @@ TEST(BadInput, CorruptTextureIsAWarningNamingTheFile) {
   const Scene s = load_scene(obj);
   ASSERT_EQ(s.warnings.size(), 1u);
   EXPECT_NE(s.warnings[0].find("corrupt_tex.png"), std::string::npos) << s.warnings[0];
-  Renderer r(s, Environment::parse("sky"));
+  SceneRenderer r(s, Environment::parse("sky"));
   RenderSettings rs;
   rs.width = 8, rs.height = 8;
   EXPECT_NO_THROW(r.render(Camera{{0.2f, 0.2f, 2}, {0.2f, 0.2f, 0}, 30}, rs));
@@ -525,7 +535,7 @@ TEST(Render, NanGeometryIsSkippedNotFatal) {
   TriangleMesh bad;
   add_quad(bad, {NAN, 0, 0}, {1, 0, 0}, {1, 1, 0}, {0, 1, 0}, 0);
   s.meshes.push_back(bad);
-  Renderer r(std::move(s), Environment::parse("sky"));
+  SceneRenderer r(std::move(s), Environment::parse("sky"));
   RenderSettings rs;
   rs.width = 16, rs.height = 16;
   const Frame f = r.render(Camera{{0, 0, 0}, {0, 0, -1}, 60}, rs);

@@ -441,3 +441,93 @@ TEST(GltfInstances, BadFilesAreClearErrors) {
 
 }  // namespace
 }  // namespace kestrel
+
+namespace kestrel {
+namespace {
+
+// The one scene model: a file becomes an Asset, an OBJ one identity instance per mesh, and a
+// scene of one identity instance is traced through its BLAS alone — the same hits, bit for
+// bit, as the single-level Accel over the same triangles (the oracle: brute force agrees).
+TEST(Asset, OneIdentityInstanceTracesExactlyAsItsAccel) {
+  Scene s = test::random_soup(1500, 0.15f, 11);
+  s.source = "test:soup";
+  const Scene copy = s;
+  const Asset asset = Asset::from_scene(std::move(s));
+  ASSERT_EQ(asset.scene().instance_count(), 1u);
+  EXPECT_EQ(asset.source(), "test:soup");
+  EXPECT_EQ(asset.triangle_count(), copy.triangle_count());
+  const Bounds3 want_bounds = scene_bounds(copy), got_bounds = asset.bounds();
+  EXPECT_EQ(want_bounds.lo, got_bounds.lo);
+  EXPECT_EQ(want_bounds.hi, got_bounds.hi);
+  const Accel accel = build_accel(copy, BuildConfig{});
+  const std::vector<Ray> rays = test::random_rays(4000, 5);
+  for (Isa isa : test::supported_isas()) {
+    SCOPED_TRACE(isa_name(isa));
+    TraceOptions o;
+    o.isa = isa;
+    std::vector<Hit> want(rays.size());
+    trace(accel, rays, want, o);
+    std::vector<InstanceHit> got(rays.size());
+    asset.scene().trace(rays, got, 0xFFFFFFFFu, o);
+    std::vector<uint8_t> want_occ(rays.size()), got_occ(rays.size());
+    occluded(accel, rays, want_occ, o);
+    asset.scene().occluded(rays, got_occ, 0xFFFFFFFFu, o);
+    size_t hits = 0;
+    for (size_t i = 0; i < rays.size(); ++i) {
+      ASSERT_EQ(want[i].hit(), got[i].hit()) << "ray " << i;
+      ASSERT_EQ(want_occ[i], got_occ[i]) << "ray " << i;
+      if (!want[i].hit()) continue;
+      ++hits;
+      ASSERT_EQ(got[i].instance_id, 0u);
+      ASSERT_EQ(want[i].prim_id, got[i].prim_id) << "ray " << i;
+      ASSERT_EQ(want[i].t, got[i].t) << "ray " << i;
+      ASSERT_EQ(want[i].u, got[i].u) << "ray " << i;
+      ASSERT_EQ(want[i].v, got[i].v) << "ray " << i;
+    }
+    EXPECT_GT(hits, rays.size() / 10);
+    // A ray mask with no bit of the instance's: nothing is hit.
+    std::vector<InstanceHit> none(rays.size());
+    asset.scene().trace(rays, none, 0u, o);
+    for (const InstanceHit& h : none) ASSERT_FALSE(h.hit());
+  }
+}
+
+// Off the direct path (the instance moved, or a second instance): the TLAS kernels, checked
+// against the flattened scene as every two-level test is.
+TEST(Asset, MovedOrSecondInstanceLeavesTheDirectPath) {
+  Asset asset = Asset::from_scene(test::random_soup(600, 0.2f, 4));
+  InstancedScene& s = asset.scene();
+  s.set_transform(0, Affine3::translation({0.5f, 0, 0}) * Affine3::rotation_y(20));
+  s.commit();
+  expect_matches_flattened(s, {0}, "moved");
+  const InstanceId second = s.add_instance(s.instance_mesh(0), Affine3{});
+  s.commit();
+  expect_matches_flattened(s, {0, second}, "two instances");
+}
+
+TEST(Asset, LoadersAndUpdates) {
+  Asset box = Asset::load("builtin:cornell_box");
+  const Scene flat = load_scene("builtin:cornell_box");
+  EXPECT_EQ(box.scene().instance_count(), flat.meshes.size());
+  EXPECT_EQ(box.scene().materials().size(), flat.materials.size());
+  EXPECT_FALSE(box.animated());
+  const uint64_t g = box.scene().generation();
+  box.update(1.0);  // static: nothing to pose, nothing committed
+  EXPECT_EQ(box.scene().generation(), g);
+  box.update(1.0, true);
+  EXPECT_EQ(box.scene().generation(), g + 1);
+  EXPECT_THROW(box.update(NAN), Error);
+  EXPECT_THROW(Asset::load("/nonexistent/scene.obj"), Error);
+  if (auto path = test::shared_scene("gltf_box_animated/BoxAnimated.gltf")) {
+    Asset a = Asset::load(*path);
+    EXPECT_TRUE(a.animated());
+    EXPECT_GT(a.duration(), 0);
+    const uint64_t before = a.scene().generation();
+    a.update(0.7);
+    EXPECT_EQ(a.scene().generation(), before + 1);
+    EXPECT_FALSE(a.scene().materials().empty());
+  }
+}
+
+}  // namespace
+}  // namespace kestrel

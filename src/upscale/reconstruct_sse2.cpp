@@ -1,0 +1,19 @@
+// The upsampler's reconstruction built for sse2 (the x86-64 baseline; flags in CMakeLists.txt).
+#include <xmmintrin.h>
+
+#include <algorithm>
+#include <cmath>
+#include <vector>
+
+#include "upscale/reconstruct.h"
+
+namespace kestrel::upscale {
+namespace sse2_ns {
+constexpr float kLuma[3] = {0.2126f, 0.7152f, 0.0722f};
+#include "upscale/sampling.inl"
+#include "upscale/reconstruct.inl"
+}  // namespace sse2_ns
+
+ReconstructFn reconstruct_sse2() { return sse2_ns::reconstruct_rows; }
+
+}  // namespace kestrel::upscale
