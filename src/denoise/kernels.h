@@ -8,17 +8,6 @@
 
 namespace kestrel::denoise {
 
-/// A 3x3 (or 1x1) convolution, zero padded, on channels-last images: in [h][w][cin],
-/// weights [ky][kx][cin][cout], out [h][w][cout], cout a multiple of 16.
-struct ConvArgs {
-  const float* in = nullptr;
-  const float* weights = nullptr;
-  const float* bias = nullptr;
-  float* out = nullptr;
-  int width = 0, height = 0, cin = 0, cout = 0, ksize = 3;
-  bool relu = true;
-};
-
 /// One a-trous level of the neural filter on planar images (width x height each):
 /// out_c = x_c + beta * (sum_q h_q w_q x_c(q) / sum_q h_q w_q - x_c), 3x3 taps at
 /// +-dilation, clamped at the borders, w_q = exp(-sc |g - g_q|^2 - sn max(0, n.n - n.n_q)
@@ -39,10 +28,6 @@ struct AtrousArgs {
 struct KernelTable {
   const Planes& (*network)(const NeuralWeights& w, const Planes& in, Planes& state, bool recurrent, Workspace& ws,
                            StageTimes* times);
-  /// One convolution on a channels-last image (w x h x l.cin) -> out (w x h x l.cout), on the
-  /// thread pool; scratch holds the zero-padded input.
-  void (*conv)(const ConvLayer& l, const std::vector<float>& in, int w, int h, std::vector<float>& out, bool relu,
-               std::vector<float>& scratch);
   const char* isa;
 };
 

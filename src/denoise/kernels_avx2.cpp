@@ -9,14 +9,16 @@
 #include <vector>
 
 #include "denoise/kernels.h"
+#include "nn/conv.h"
 
 namespace kestrel::denoise {
 namespace avx2_ns {
+constexpr Isa kThisIsa = Isa::avx2;
 #include "denoise/kernels.inl"
 }  // namespace avx2_ns
 
 const KernelTable& kernels_avx2() {
-  static const KernelTable table{avx2_ns::network, avx2_ns::conv_layer, "avx2"};
+  static const KernelTable table{avx2_ns::network, "avx2"};
   return table;
 }
 

@@ -9,14 +9,16 @@
 #include <vector>
 
 #include "denoise/kernels.h"
+#include "nn/conv.h"
 
 namespace kestrel::denoise {
 namespace avx512_ns {
+constexpr Isa kThisIsa = Isa::avx512;
 #include "denoise/kernels.inl"
 }  // namespace avx512_ns
 
 const KernelTable& kernels_avx512() {
-  static const KernelTable table{avx512_ns::network, avx512_ns::conv_layer, "avx512"};
+  static const KernelTable table{avx512_ns::network, "avx512"};
   return table;
 }
 

@@ -9,14 +9,16 @@
 #include <vector>
 
 #include "denoise/kernels.h"
+#include "nn/conv.h"
 
 namespace kestrel::denoise {
 namespace sse2_ns {
+constexpr Isa kThisIsa = Isa::sse2;
 #include "denoise/kernels.inl"
 }  // namespace sse2_ns
 
 const KernelTable& kernels_sse2() {
-  static const KernelTable table{sse2_ns::network, sse2_ns::conv_layer, "sse2"};
+  static const KernelTable table{sse2_ns::network, "sse2"};
   return table;
 }
 

@@ -14,8 +14,8 @@
 
 #include "core/parallel.h"
 #include "core/timer.h"
-#include "denoise/kernels.h"
-#include "denoise/neural.h"
+#include "nn/conv.h"
+#include "nn/weights.h"
 #include "upscale/reconstruct.h"
 #include "kestrel/error.h"
 
@@ -139,7 +139,7 @@ std::string default_upscaler_weights() {
 
 struct Upscaler::Impl {
   UpscalerOptions options;
-  std::vector<denoise::ConvLayer> layers;  // c1, c2, c3, head
+  std::vector<nn::ConvLayer> layers;  // c1, c2, c3, head
   size_t parameters = 0;
   Times times;
   // Sizes of the current sequence (0 = none yet).
@@ -161,7 +161,7 @@ Upscaler::Upscaler(const UpscalerOptions& options) : impl_(std::make_unique<Impl
   impl_->options = options;
   if (options.method == UpscaleMethod::neural) {
     const std::string path = options.weights.empty() ? default_upscaler_weights() : options.weights;
-    impl_->layers = denoise::load_layers(path, kMagic, kArchitecture,
+    impl_->layers = nn::load_layers(path, kMagic, kArchitecture,
                                          {{"c1", 16, kFeatures, 3}, {"c2", 16, 16, 3}, {"c3", 16, 16, 3},
                                           {"head", kOutputs, 16, 3}},
                                          "upsampler");
@@ -352,7 +352,7 @@ void Upscaler::Impl::temporal(const UpscaleInput& in, FloatImage& out) {
     });
     times.features = timer.ms();
     timer = Timer();
-    const denoise::KernelTable& k = denoise::host_kernels();
+    const nn::ConvKernels& k = nn::conv_kernels(default_isa());
     k.conv(layers[0], act0, gw, gh, act1, true, scratch);
     k.conv(layers[1], act1, gw, gh, act0, true, scratch);
     k.conv(layers[2], act0, gw, gh, act1, true, scratch);

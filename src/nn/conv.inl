@@ -1,0 +1,77 @@
+// Included by conv_<isa>.cpp inside namespace kestrel::nn::<isa>_ns (their own -m flags).
+
+// Denormals flushed to zero (FTZ + DAZ) for the duration of a task (see denoise/kernels.inl).
+struct FlushDenormals {
+  unsigned saved = _mm_getcsr();
+  FlushDenormals() { _mm_setcsr(saved | 0x8040u); }
+  ~FlushDenormals() { _mm_setcsr(saved); }
+};
+
+// Channels-last convolution for cout a multiple of 16, on an input zero-padded by one pixel
+// on every side and to a multiple of 8 columns: blocks of 8 output pixels x 16 output
+// channels held in registers (GCC vector extensions: one AVX-512 register, or two AVX /
+// four SSE registers, per block row), each weight vector feeding 8 FMAs.
+typedef float V16 __attribute__((vector_size(64)));
+
+static void conv_rows_padded(const ConvArgs& a, const float* padded, int row0, int row1) {
+  const int w = a.width, cin = a.cin, cout = a.cout, k = a.ksize, r = k / 2;
+  const int wp = (w + 7) / 8 * 8, pw = wp + 2;
+  for (int y = row0; y < row1; ++y)
+    for (int x0 = 0; x0 < wp; x0 += 8)
+      for (int cb = 0; cb < cout; cb += 16) {
+        V16 bias;
+        __builtin_memcpy(&bias, a.bias + cb, sizeof bias);
+        V16 acc[8];
+#pragma GCC unroll 8
+        for (int b = 0; b < 8; ++b) acc[b] = bias;
+        for (int ky = 0; ky < k; ++ky)
+          for (int kx = 0; kx < k; ++kx) {
+            const float* in = padded + (size_t(y + ky + 1 - r) * size_t(pw) + size_t(x0 + kx + 1 - r)) * size_t(cin);
+            const float* wk = a.weights + size_t(ky * k + kx) * size_t(cin) * size_t(cout) + size_t(cb);
+            for (int ci = 0; ci < cin; ++ci) {
+              V16 wv;
+              __builtin_memcpy(&wv, wk + size_t(ci) * size_t(cout), sizeof wv);
+#pragma GCC unroll 8
+              for (int b = 0; b < 8; ++b) acc[b] += in[size_t(b) * size_t(cin) + size_t(ci)] * wv;
+            }
+          }
+        const V16 zero = {};
+#pragma GCC unroll 8
+        for (int b = 0; b < 8; ++b) {
+          if (x0 + b >= w) break;
+          V16 v = a.relu ? (acc[b] > zero ? acc[b] : zero) : acc[b];
+          __builtin_memcpy(a.out + (size_t(y) * size_t(w) + size_t(x0 + b)) * size_t(cout) + size_t(cb), &v, sizeof v);
+        }
+      }
+}
+
+// Zero-pads a channels-last image by one pixel and to a multiple of 8 columns (rows in
+// parallel; only the border is cleared).
+static void pad_for_conv(const float* in, int w, int h, int c, std::vector<float>& out) {
+  const int wp = (w + 7) / 8 * 8, pw = wp + 2;
+  const size_t row_floats = size_t(pw) * size_t(c);
+  out.resize(row_floats * size_t(h + 2));
+  std::fill(out.begin(), out.begin() + std::ptrdiff_t(row_floats), 0.0f);
+  std::fill(out.end() - std::ptrdiff_t(row_floats), out.end(), 0.0f);
+  parallel_for(0, size_t(h), 8, [&](size_t begin, size_t end) {
+    for (int y = int(begin); y < int(end); ++y) {
+      float* dst = &out[size_t(y + 1) * row_floats];
+      std::fill(dst, dst + c, 0.0f);
+      std::memcpy(dst + c, in + size_t(y) * size_t(w) * size_t(c), sizeof(float) * size_t(w) * size_t(c));
+      std::fill(dst + size_t(w + 1) * size_t(c), dst + row_floats, 0.0f);
+    }
+  });
+}
+
+static void conv_layer(const ConvLayer& l, const std::vector<float>& in, int w, int h, std::vector<float>& out, bool relu,
+                       std::vector<float>& scratch) {
+  out.resize(size_t(w) * size_t(h) * size_t(l.cout));
+  ConvArgs a;
+  a.in = in.data(), a.weights = l.weights.data(), a.bias = l.bias.data(), a.out = out.data();
+  a.width = w, a.height = h, a.cin = l.cin, a.cout = l.cout, a.ksize = l.ksize, a.relu = relu;
+  pad_for_conv(in.data(), w, h, l.cin, scratch);  // l.cout is a multiple of 16 (NeuralWeights::load)
+  parallel_for(0, size_t(h), 2, [&](size_t r0, size_t r1) {
+    FlushDenormals ftz;
+    conv_rows_padded(a, scratch.data(), int(r0), int(r1));
+  });
+}
