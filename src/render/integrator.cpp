@@ -1,0 +1,333 @@
+// The path tracer, wavefront per tile: a tile's paths advance one bounce at a time, so each
+// bounce is one batch for trace() (camera rays as coherent packets) and one for occluded()
+// (the next-event shadow rays). Per-sample random streams are seeded from (seed, frame,
+// pixel, sample), tiles write disjoint pixels, so the image does not depend on threads.
+#include <algorithm>
+#include <cmath>
+
+#include "render/bsdf.h"
+#include "render/renderer_impl.h"
+
+namespace kestrel {
+
+using namespace render;
+
+void Renderer::Impl::trace(std::span<const Ray> rays, std::span<SurfaceHit> hits) const {
+  thread_local std::vector<InstanceHit> h;  // scratch, reused by every batch of this thread
+  h.resize(rays.size());
+  scene->trace(rays, std::span<InstanceHit>(h.data(), rays.size()));
+  for (size_t i = 0; i < rays.size(); ++i) hits[i] = {h[i].t, h[i].instance_id, h[i].prim_id, h[i].u, h[i].v};
+}
+
+void Renderer::Impl::occluded(std::span<const Ray> rays, std::span<uint8_t> out) const { scene->occluded(rays, out); }
+
+namespace {
+
+struct PathState {
+  Vec3 throughput{1, 1, 1}, radiance{0, 0, 0};
+  uint32_t pixel;      // index into the tile's pixel list
+  float bsdf_pdf = 0;  // pdf of the direction that led here (solid angle)
+  Vec3 prev_normal{0, 0, 1};  // shading normal where that direction was sampled
+  bool aov_pending = true;
+};
+
+struct PixelSample {
+  Vec3 albedo{0, 0, 0}, normal{0, 0, 0};
+  float depth = 0, roughness = 0, mx = 0, my = 0;
+};
+
+struct Shadow {
+  Vec3 contribution;
+  uint32_t path;
+};
+
+Vec3 offset_origin(Vec3 p, Vec3 n) {
+  const float scale = 1.0f + std::max({std::fabs(p.x), std::fabs(p.y), std::fabs(p.z)});
+  return p + n * (2e-5f * scale);
+}
+
+}  // namespace
+
+void Renderer::Impl::render_tile(const CameraModel& cam, const CameraModel& prev_cam, const RenderSettings& s, int tx,
+                                 int ty, int pass, float jx, float jy, Accumulator& acc, double& trace_ms,
+                                 uint64_t ray_counts[3]) const {
+  const int x0 = tx * tile_size, y0 = ty * tile_size;
+  const int x1 = std::min(x0 + tile_size, s.width), y1 = std::min(y0 + tile_size, s.height);
+  const size_t count = size_t(x1 - x0) * size_t(y1 - y0);
+  std::vector<Rng> rngs;
+  std::vector<PathState> paths(count);
+  std::vector<PixelSample> px(count);
+  std::vector<Ray> rays(count), next_rays;
+  std::vector<SurfaceHit> hits(count);
+  std::vector<uint32_t> active(count), next_active;
+  std::vector<Ray> shadow_rays;
+  std::vector<Shadow> shadows;
+  std::vector<uint8_t> blocked;
+  rngs.reserve(count);
+  for (size_t i = 0; i < count; ++i) {
+    const int x = x0 + int(i % size_t(x1 - x0)), y = y0 + int(i / size_t(x1 - x0));
+    const uint64_t pixel = uint64_t(y) * uint64_t(s.width) + uint64_t(x);
+    rngs.emplace_back(s.seed, s.frame, pixel, uint64_t(pass));
+    Rng& rng = rngs.back();
+    const float lu = rng.uniform(), lv = rng.uniform();
+    rays[i] = cam.ray(float(x) + jx, float(y) + jy, lu, lv);
+    paths[i].pixel = uint32_t(i);
+    active[i] = uint32_t(i);
+  }
+  auto timed = [&](auto&& fn, int kind, size_t n) {
+    const double t0 = now_ms();
+    fn();
+    trace_ms += now_ms() - t0;
+    ray_counts[kind] += n;
+  };
+  auto capture_batch = [&](int kind, std::span<const Ray> r) {
+    if (!capture) return;
+    std::vector<Ray>& dst = kind == 0 ? capture->camera : kind == 1 ? capture->bounce : capture->shadow;
+    dst.insert(dst.end(), r.begin(), r.end());
+    (kind == 0 ? capture->camera_batches : kind == 1 ? capture->bounce_batches : capture->shadow_batches).push_back(r.size());
+  };
+
+  for (int depth = 0; !active.empty(); ++depth) {
+    const size_t n = active.size();
+    hits.resize(n);
+    capture_batch(depth == 0 ? 0 : 1, std::span<const Ray>(rays.data(), n));
+    timed([&] { trace(std::span<const Ray>(rays.data(), n), hits); }, depth == 0 ? 0 : 1, n);
+    next_rays.clear();
+    next_active.clear();
+    shadow_rays.clear();
+    shadows.clear();
+    // Shading reads scattered vertex data: fetch it ahead, indices first, then the vertices
+    // they name (misses overlap instead of stalling one hit at a time).
+    auto prefetch_indices = [&](size_t k) {
+      const SurfaceHit& h = hits[k];
+      if (!h.hit()) return;
+      const TriangleMesh& m = *instances[h.instance].mesh;
+      __builtin_prefetch(&m.indices[3 * size_t(h.prim)]);
+      if (!m.material_ids.empty()) __builtin_prefetch(&m.material_ids[h.prim]);
+    };
+    auto prefetch_vertices = [&](size_t k) {
+      const SurfaceHit& h = hits[k];
+      if (!h.hit()) return;
+      const TriangleMesh& m = *instances[h.instance].mesh;
+      for (int c = 0; c < 3; ++c) {
+        const uint32_t i = m.indices[3 * size_t(h.prim) + size_t(c)];
+        __builtin_prefetch(&m.positions[i]);
+        if (!m.normals.empty()) __builtin_prefetch(&m.normals[i]);
+        if (!m.uvs.empty()) __builtin_prefetch(&m.uvs[i]);
+      }
+    };
+    auto prefetch_texels = [&](size_t k) {  // the base colour texels, once the uvs are near
+      const SurfaceHit& h = hits[k];
+      if (!h.hit()) return;
+      const TriangleMesh& m = *instances[h.instance].mesh;
+      if (m.uvs.empty()) return;
+      const Texture* t = texture(material_of(m, h.prim).base_color_texture);
+      if (!t) return;
+      const Vec2 uv = uv_at(m, h.prim, h.u, h.v);
+      const float u = uv.x, v = uv.y;
+      const float x = (u - std::floor(u)) * float(t->width), y = (v - std::floor(v)) * float(t->height);
+      if (!(x >= 0 && x < float(t->width) && y >= 0 && y < float(t->height))) return;
+      const size_t row = size_t(y) * size_t(t->width);
+      __builtin_prefetch(&t->rgba[(row + size_t(x)) * 4]);
+      if (size_t(y) + 1 < size_t(t->height)) __builtin_prefetch(&t->rgba[(row + size_t(t->width) + size_t(x)) * 4]);
+    };
+    constexpr size_t index_distance = 48, vertex_distance = 24, texel_distance = 12;
+    for (size_t k = 0; k < std::min(n, index_distance); ++k) prefetch_indices(k);
+    for (size_t k = 0; k < std::min(n, vertex_distance); ++k) prefetch_vertices(k);
+    for (size_t k = 0; k < std::min(n, texel_distance); ++k) prefetch_texels(k);
+    for (size_t k = 0; k < n; ++k) {
+      if (k + index_distance < n) prefetch_indices(k + index_distance);
+      if (k + vertex_distance < n) prefetch_vertices(k + vertex_distance);
+      if (k + texel_distance < n) prefetch_texels(k + texel_distance);
+      PathState& ps = paths[active[k]];
+      Rng& rng = rngs[active[k]];
+      PixelSample& out = px[ps.pixel];
+      const Ray& ray = rays[k];
+      const SurfaceHit& h = hits[k];
+      if (!h.hit()) {
+        const Vec3 le = env_radiance(ray.dir);
+        float w = 1;
+        if (depth > 0 && p_env > 0) {
+          const float lp = p_env * env_pdf(ray.dir, ps.prev_normal);
+          w = ps.bsdf_pdf * ps.bsdf_pdf / (ps.bsdf_pdf * ps.bsdf_pdf + lp * lp);
+        }
+        ps.radiance = ps.radiance + ps.throughput * le * w;
+        if (ps.aov_pending) {
+          out.albedo = min(le, Vec3{1, 1, 1});
+          out.normal = {0, 0, 0};
+          out.roughness = 0;
+        }
+        continue;
+      }
+      // Surface interaction.
+      const InstanceShade& is = instances[h.instance];
+      const TriangleMesh& mesh = *is.mesh;
+      const uint32_t i0 = mesh.indices[3 * h.prim], i1 = mesh.indices[3 * h.prim + 1], i2 = mesh.indices[3 * h.prim + 2];
+      const float b0 = 1 - h.u - h.v;
+      Vec3 p0 = mesh.positions[i0], p1 = mesh.positions[i1], p2 = mesh.positions[i2];
+      const Vec3 p_obj = p0 * b0 + p1 * h.u + p2 * h.v;
+      if (!is.identity) p0 = is.xf.point(p0), p1 = is.xf.point(p1), p2 = is.xf.point(p2);
+      const Vec3 p = p0 * b0 + p1 * h.u + p2 * h.v;
+      const Vec3 wo = -ray.dir;
+      Vec3 ng = cross(p1 - p0, p2 - p0);
+      const float ng_len = length(ng);
+      ng = ng_len > 0 ? ng * (1.0f / ng_len) : -wo;
+      const float cos_hit = dot(ng, wo);
+      if (cos_hit < 0) ng = -ng;
+      Vec3 ns = ng;
+      if (!mesh.normals.empty()) {
+        Vec3 nn = mesh.normals[i0] * b0 + mesh.normals[i1] * h.u + mesh.normals[i2] * h.v;
+        if (!is.identity) nn = normal_transform(is.nrm, nn);
+        const float len = length(nn);
+        if (len > 0 && std::isfinite(len)) {
+          nn = nn * (1.0f / len);
+          if (dot(nn, ng) < 0) nn = -nn;
+          if (dot(nn, wo) > 1e-4f) ns = nn;
+        }
+      }
+      const Vec2 uv = uv_at(mesh, h.prim, h.u, h.v);
+      const Material& mat = material_of(mesh, h.prim);
+      BsdfParams bp;
+      bp.base = mat.base_color;
+      float roughness = mat.roughness;
+      bp.metallic = mat.metallic;
+      if (const Texture* t = texture(mat.base_color_texture)) {
+        float c[4];
+        sample_texture(*t, uv, true, c);
+        bp.base = bp.base * Vec3{c[0], c[1], c[2]};
+      }
+      if (const Texture* t = texture(mat.metallic_roughness_texture)) {
+        float c[4];
+        sample_texture(*t, uv, false, c);
+        roughness *= c[1];
+        bp.metallic *= c[2];
+      }
+      bp.base = min(max(bp.base, Vec3{0, 0, 0}), Vec3{1, 1, 1});
+      bp.metallic = std::clamp(bp.metallic, 0.0f, 1.0f);
+      roughness = std::clamp(roughness, 0.0f, 1.0f);
+      bp.alpha = std::max(roughness * roughness, min_alpha);
+      bp.specular = std::clamp(mat.specular, 0.0f, 1.0f);
+
+      if (depth == 0) {
+        out.depth = dot(p - cam.eye, cam.forward);
+        const Vec3 p_prev = is.identity ? p : is.prev_xf.point(p_obj);
+        float fx, fy, gx, gy;
+        if (cam.project(p, fx, fy) && prev_cam.project(p_prev, gx, gy)) out.mx = gx - fx, out.my = gy - fy;
+      }
+      const bool specular_surface = bp.metallic >= 0.5f && bp.alpha < specular_alpha;
+      if (ps.aov_pending) {
+        out.albedo = bp.base;
+        out.normal = ns;
+        out.roughness = roughness;
+        if (!specular_surface || depth >= 3) ps.aov_pending = false;
+      }
+      // Emission (two-sided), weighted against light sampling.
+      if (luminance(mat.emission) > 0) {
+        const Vec3 le = emission_at(mat, uv);
+        float w = 1;
+        if (depth > 0) {
+          const float lp = light_pdf(h.instance, h.prim, h.t * h.t, std::fabs(cos_hit));
+          w = ps.bsdf_pdf * ps.bsdf_pdf / (ps.bsdf_pdf * ps.bsdf_pdf + lp * lp);
+        }
+        ps.radiance = ps.radiance + ps.throughput * le * w;
+      }
+      if (depth + 1 >= s.max_depth) continue;
+      const Basis frame(ns);
+      const Vec3 wo_l = frame.to_local(wo);
+      const Vec3 origin = offset_origin(p, ng);
+      // Next-event estimation: one light sample (an emissive triangle or the environment).
+      if (p_env > 0 || !lights.empty()) {
+        const float ul = rng.uniform(), u1 = rng.uniform(), u2 = rng.uniform();
+        Vec3 wi, le;
+        float pdf = 0, tmax = INFINITY;
+        Vec3 dir;
+        if (ul < p_env) {
+          float epdf;
+          wi = env_sample(u1, u2, ns, epdf);
+          pdf = p_env * epdf;
+          le = env_radiance(wi);
+          dir = wi;
+        } else {
+          const size_t li = light_dist.sample(lights.size() == 1 ? 0.5f : (ul - p_env) / (1 - p_env));
+          const LightTri& l = lights[li];
+          const float su = std::sqrt(u1);
+          const float lb1 = u2 * su, lb2 = 1 - su;  // weights of vertices 1 and 2
+          const Vec3 q = l.p0 + l.e1 * lb1 + l.e2 * lb2;
+          dir = q - origin;
+          const float dist2 = dot(dir, dir);
+          wi = dir * (1.0f / std::sqrt(dist2));
+          Vec3 nl = cross(l.e1, l.e2);
+          const float cos_l = std::fabs(dot(normalize(nl), wi));
+          const InstanceShade& lis = instances[l.instance];
+          const Material& lm = material_of(*lis.mesh, l.prim);
+          le = emission_at(lm, uv_at(*lis.mesh, l.prim, lb1, lb2));
+          pdf = light_pdf_of(li, dist2, cos_l);
+          tmax = 1.0f - 1e-3f;
+        }
+        if (pdf > 0 && dot(wi, ng) > 0 && luminance(le) > 0) {
+          const Vec3 wi_l = frame.to_local(wi);
+          const Vec3 f = bsdf_eval(bp, wo_l, wi_l);
+          if (luminance(f) > 0) {
+            const float bpdf = bsdf_pdf(bp, wo_l, wi_l);
+            const float w = pdf * pdf / (pdf * pdf + bpdf * bpdf);
+            shadow_rays.push_back(Ray{origin, dir, 0.0f, tmax});
+            shadows.push_back({ps.throughput * f * le * (w / pdf), active[k]});
+          }
+        }
+      }
+      // Continue the path by sampling the BSDF.
+      const float u0 = rng.uniform(), u1 = rng.uniform(), u2 = rng.uniform();
+      BsdfSample bs;
+      if (!bsdf_sample(bp, wo_l, u0, u1, u2, bs)) continue;
+      const Vec3 wi = frame.to_world(bs.wi);
+      if (dot(wi, ng) <= 0) continue;
+      ps.throughput = ps.throughput * bs.weight;
+      ps.bsdf_pdf = bs.pdf;
+      ps.prev_normal = ns;
+      if (depth + 1 >= s.rr_depth) {
+        const float q = std::min(0.95f, std::max({ps.throughput.x, ps.throughput.y, ps.throughput.z}));
+        if (!(rng.uniform() < q)) continue;
+        ps.throughput = ps.throughput * (1.0f / q);
+      }
+      next_rays.push_back(Ray{origin, wi, 0.0f, INFINITY});
+      next_active.push_back(active[k]);
+    }
+    if (!shadow_rays.empty()) {
+      blocked.resize(shadow_rays.size());
+      capture_batch(2, shadow_rays);
+      timed([&] { occluded(shadow_rays, blocked); }, 2, shadow_rays.size());
+      for (size_t i = 0; i < shadows.size(); ++i)
+        if (!blocked[i]) paths[shadows[i].path].radiance = paths[shadows[i].path].radiance + shadows[i].contribution;
+    }
+    rays.swap(next_rays);
+    active.swap(next_active);
+  }
+
+  for (size_t i = 0; i < count; ++i) {
+    const int x = x0 + int(i % size_t(x1 - x0)), y = y0 + int(i / size_t(x1 - x0));
+    const size_t p = size_t(y) * size_t(s.width) + size_t(x);
+    Vec3 L = paths[i].radiance;
+    if (!is_finite(L)) L = {0, 0, 0};  // a NaN/Inf sample is dropped, not smeared
+    if (s.clamp > 0) {
+      const float m = std::max({L.x, L.y, L.z});
+      if (m > s.clamp) L = L * (s.clamp / m);
+    }
+    const PixelSample& o = px[i];
+    for (int c = 0; c < 3; ++c) {
+      acc.color[3 * p + size_t(c)] += L[c];
+      acc.albedo[3 * p + size_t(c)] += o.albedo[c];
+      acc.normal[3 * p + size_t(c)] += o.normal[c];
+    }
+    acc.depth[p] += o.depth;
+    acc.rough[p] += o.roughness;
+    acc.motion[2 * p] += o.mx;
+    acc.motion[2 * p + 1] += o.my;
+    const double lum = luminance(L);
+    const int n = ++acc.n[p];
+    const double delta = lum - acc.lum_mean[p];
+    acc.lum_mean[p] += delta / n;
+    acc.lum_m2[p] += delta * (lum - acc.lum_mean[p]);
+  }
+}
+
+}  // namespace kestrel

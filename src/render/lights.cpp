@@ -1,0 +1,70 @@
+// Materials and area lights: the trailing default material and its checks, the emissive
+// triangles of every instance in world space, sampled by power (NEE), and the scene bounds.
+#include <fmt/format.h>
+
+#include <cmath>
+#include <unordered_map>
+
+#include "kestrel/error.h"
+#include "render/renderer_impl.h"
+
+namespace kestrel {
+
+using namespace render;
+
+// A trailing "default" material (what out-of-range ids fall back to), every one checked.
+void Renderer::Impl::check_materials(const std::string& source) {
+  if (materials.empty() || materials.back().name != "default") materials.push_back(Material{.name = "default"});
+  for (size_t i = 0; i < materials.size(); ++i) {
+    const Material& m = materials[i];
+    if (!is_finite(m.base_color) || !is_finite(m.emission) || !std::isfinite(m.metallic) || !std::isfinite(m.roughness) ||
+        !std::isfinite(m.specular) || m.emission.x < 0 || m.emission.y < 0 || m.emission.z < 0)
+      throw Error(ErrorCode::invalid_argument,
+                  fmt::format("{}: material {} '{}': a non-finite or negative parameter", source, i, m.name));
+  }
+}
+
+void Renderer::Impl::sync_lights() {
+  // Emissive triangles by mesh, then world-space light triangles for every instance.
+  std::unordered_map<const TriangleMesh*, uint32_t> key_of;
+  emissive_rank.clear();
+  lights.clear();
+  std::vector<float> power;
+  bounds = Bounds3{};
+  for (uint32_t i = 0; i < instances.size(); ++i) {
+    InstanceShade& is = instances[i];
+    if (!is.mesh) continue;
+    auto [it, fresh] = key_of.try_emplace(is.mesh, uint32_t(emissive_rank.size()));
+    if (fresh) {
+      std::vector<int32_t> rank(is.mesh->triangle_count(), -1);
+      int32_t n = 0;
+      for (uint32_t p = 0; p < rank.size(); ++p) {
+        const Material& m = material_of(*is.mesh, p);
+        if ((luminance(m.emission) > 0) && valid_triangle(*is.mesh, p)) rank[p] = n++;
+      }
+      emissive_rank.push_back(std::move(rank));
+    }
+    is.mesh_key = it->second;
+    is.light_base = uint32_t(lights.size());
+    const std::vector<int32_t>& rank = emissive_rank[is.mesh_key];
+    for (uint32_t p = 0; p < rank.size(); ++p) {
+      if (rank[p] < 0) continue;
+      Vec3 p0, p1, p2;
+      world_triangle(is, p, p0, p1, p2);
+      const float area = 0.5f * length(cross(p1 - p0, p2 - p0));
+      lights.push_back({i, p, p0, p1 - p0, p2 - p0, area});
+      power.push_back(area > 0 ? luminance(material_of(*is.mesh, p).emission) * area * 2 * pi : 0.0f);
+    }
+    const TriangleMesh& m = *is.mesh;
+    for (uint32_t t = 0; t < m.triangle_count(); ++t) {
+      if (!valid_triangle(m, t)) continue;
+      Vec3 p0, p1, p2;
+      world_triangle(is, t, p0, p1, p2);
+      extend(bounds, p0), extend(bounds, p1), extend(bounds, p2);
+    }
+  }
+  light_dist = Distribution1D(power);
+  if (light_dist.total() <= 0) lights.clear();
+}
+
+}  // namespace kestrel

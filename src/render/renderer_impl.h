@@ -1,0 +1,232 @@
+// The renderer's private state, shared by its files: renderer.cpp (the Renderer, passes and
+// tiles, scene sync), integrator.cpp (the wavefront path tracer of one tile), lights.cpp
+// (materials, area lights), environment.cpp (environment light), texture.cpp (texel fetches).
+#pragma once
+#include <chrono>
+#include <cmath>
+#include <memory>
+#include <optional>
+#include <span>
+#include <string>
+#include <vector>
+
+#include "core/vec.h"
+#include "kestrel/render.h"
+#include "render/bsdf.h"
+#include "render/sampling.h"
+
+namespace kestrel {
+
+namespace render {
+
+constexpr int tile_size = 32;
+constexpr float specular_alpha = 0.01f;  // surfaces below this alpha (and metallic) are "specular" for the AOVs
+
+/// Bilinear, repeat-wrapped texture fetch; sRGB-decoded per texel when `srgb` (texture.cpp).
+void sample_texture(const Texture& tex, Vec2 uv, bool srgb, float out[4]);
+/// Texture coordinates at barycentrics (1 - b1 - b2, b1, b2) of a triangle; (0, 0) without uvs.
+Vec2 uv_at(const TriangleMesh& m, uint32_t prim, float b1, float b2);
+
+inline Vec3 normal_transform(const float n[9], Vec3 v) {
+  return {n[0] * v.x + n[1] * v.y + n[2] * v.z, n[3] * v.x + n[4] * v.y + n[5] * v.z, n[6] * v.x + n[7] * v.y + n[8] * v.z};
+}
+
+// Camera basis and projection, shared by ray generation and motion vectors.
+struct CameraModel {
+  Vec3 eye, forward, right, up;
+  float tan_half, aspect, focus, aperture;
+  int width, height;
+  CameraModel(const Camera& c, int w, int h) : width(w), height(h) {
+    eye = c.eye;
+    forward = normalize(c.target - c.eye);
+    right = cross(forward, Vec3{0, 1, 0});
+    if (length(right) < 1e-6f) right = Vec3{1, 0, 0};
+    right = normalize(right);
+    up = cross(right, forward);
+    tan_half = std::tan(c.vfov_degrees * 0.5f * pi / 180.0f);
+    aspect = float(w) / float(h);
+    focus = c.focus_distance > 0 ? c.focus_distance : length(c.target - c.eye);
+    aperture = c.aperture_radius;
+  }
+  // Film position (fx, fy) in pixels (pixel centres at +0.5); lens sample in [0,1)^2.
+  Ray ray(float fx, float fy, float lu, float lv) const {
+    const float sx = (2.0f * fx / float(width) - 1.0f) * tan_half * aspect;
+    const float sy = (1.0f - 2.0f * fy / float(height)) * tan_half;
+    const Vec3 d = forward + right * sx + up * sy;
+    if (aperture <= 0) return Ray{eye, normalize(d), 0.0f, INFINITY};
+    // Concentric disk (Shirley-Chiu) on the lens, aimed at the focus plane.
+    const float a = 2 * lu - 1, b = 2 * lv - 1;
+    float r = 0, phi = 0;
+    if (a != 0 || b != 0) {
+      if (std::fabs(a) > std::fabs(b)) r = a, phi = (pi / 4) * (b / a);
+      else r = b, phi = pi / 2 - (pi / 4) * (a / b);
+    }
+    const Vec3 o = eye + right * (aperture * r * std::cos(phi)) + up * (aperture * r * std::sin(phi));
+    const Vec3 focus_point = eye + d * focus;
+    return Ray{o, normalize(focus_point - o), 0.0f, INFINITY};
+  }
+  // Film position of a world point; false when it is not in front of the camera.
+  bool project(Vec3 p, float& fx, float& fy) const {
+    const Vec3 d = p - eye;
+    const float z = dot(d, forward);
+    if (!(z > 1e-6f)) return false;
+    const float sx = dot(d, right) / (z * tan_half * aspect);
+    const float sy = dot(d, up) / (z * tan_half);
+    fx = (sx + 1.0f) * 0.5f * float(width);
+    fy = (1.0f - sy) * 0.5f * float(height);
+    return true;
+  }
+};
+
+inline double now_ms() {
+  return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now().time_since_epoch()).count();
+}
+
+}  // namespace render
+
+using namespace render;  // this private header's users are the renderer's own files
+
+struct Accumulator {
+  int width, height;
+  std::vector<float> color, albedo, normal, depth, rough, motion;  // sums
+  std::vector<double> lum_mean, lum_m2;                             // Welford on luminance
+  std::vector<int> n;
+  Accumulator(int w, int h) : width(w), height(h) {
+    const size_t p = size_t(w) * size_t(h);
+    color.assign(3 * p, 0), albedo.assign(3 * p, 0), normal.assign(3 * p, 0), depth.assign(p, 0), rough.assign(p, 0);
+    motion.assign(2 * p, 0), lum_mean.assign(p, 0), lum_m2.assign(p, 0), n.assign(p, 0);
+  }
+};
+
+/// A hit as the shading code sees it: the instance (static scenes: the mesh) and the
+/// triangle's index in that instance's mesh.
+struct SurfaceHit {
+  float t = INFINITY;
+  uint32_t instance = invalid_id, prim = invalid_id;
+  float u = 0, v = 0;
+  bool hit() const { return instance != invalid_id; }
+};
+
+struct Renderer::Impl {
+  struct InstanceShade {
+    const TriangleMesh* mesh = nullptr;
+    uint32_t mesh_key = 0;  // index into emissive_rank
+    bool identity = true;
+    Affine3 xf, prev_xf;
+    float nrm[9] = {1, 0, 0, 0, 1, 0, 0, 0, 1};  // inverse transpose of xf's linear part
+    uint32_t light_base = 0;
+  };
+  struct LightTri {
+    uint32_t instance, prim;
+    Vec3 p0, e1, e2;
+    float area;
+  };
+
+  const InstancedScene* scene = nullptr;  // referenced: it outlives the renderer
+  uint64_t generation = 0;                 // the scene's commit the shading data are of
+  std::vector<Material> materials;         // the scene's, plus a trailing "default"
+  std::vector<InstanceShade> instances;
+  std::vector<std::vector<int32_t>> emissive_rank;  // per mesh key, per triangle: rank or -1
+  std::vector<LightTri> lights;
+  Distribution1D light_dist;
+  Environment env;
+  bool env_on = false;
+  Distribution1D env_rows;
+  std::vector<Distribution1D> env_cols;
+  float p_env = 0;  // probability NEE samples the environment
+  Bounds3 bounds;
+  RayCapture* capture = nullptr;
+  std::unique_ptr<Accumulator> tile_acc;  // render_tiles: sums kept between calls of one size
+  void render_passes(const Camera& camera, const RenderSettings& s, const std::optional<Camera>& prev_camera,
+                     const std::vector<uint32_t>* only, Accumulator& acc, Frame& frame);
+
+  const Material& material_of(const TriangleMesh& m, uint32_t prim) const {
+    const uint32_t id = prim < m.material_ids.size() ? m.material_ids[prim] : uint32_t(materials.size() - 1);
+    return materials[std::min<size_t>(id, materials.size() - 1)];
+  }
+  const Texture* texture(int index) const {
+    const std::vector<Texture>& textures = scene->textures();
+    if (index < 0 || size_t(index) >= textures.size()) return nullptr;
+    const Texture& t = textures[size_t(index)];
+    return t.width > 0 && t.height > 0 && t.rgba.size() == size_t(t.width) * size_t(t.height) * 4 ? &t : nullptr;
+  }
+  Vec3 emission_at(const Material& m, Vec2 uv) const {
+    Vec3 e = m.emission;
+    if (const Texture* t = texture(m.emission_texture)) {
+      float px[4];
+      sample_texture(*t, uv, true, px);
+      e = e * Vec3{px[0], px[1], px[2]};
+    }
+    return e;
+  }
+
+
+
+
+  Vec3 env_radiance(Vec3 d) const {
+    if (!env_on) return {0, 0, 0};
+    if (env.image.pixels.empty()) {
+      if (!env.overcast) return env.color * env.scale;
+      const float cos_theta = d.y / std::sqrt(dot(d, d));
+      return env.color * (env.scale * (cos_theta > 0 ? (1.0f + 2.0f * cos_theta) * (1.0f / 3.0f) : 0.1f));
+    }
+    const float u = 0.5f + std::atan2(d.x, -d.z) / (2 * pi);
+    const float v = std::acos(std::clamp(d.y, -1.0f, 1.0f)) / pi;
+    const int x = std::clamp(int(u * float(env.image.width)), 0, env.image.width - 1);
+    const int y = std::clamp(int(v * float(env.image.height)), 0, env.image.height - 1);
+    const float* p = env.image.at(x, y);
+    return Vec3{p[0], p[1], p[2]} * env.scale;
+  }
+
+  // World-space triangle of (instance, prim).
+  void world_triangle(const InstanceShade& is, uint32_t prim, Vec3& p0, Vec3& p1, Vec3& p2) const {
+    const TriangleMesh& m = *is.mesh;
+    p0 = m.positions[m.indices[3 * prim]];
+    p1 = m.positions[m.indices[3 * prim + 1]];
+    p2 = m.positions[m.indices[3 * prim + 2]];
+    if (!is.identity) p0 = is.xf.point(p0), p1 = is.xf.point(p1), p2 = is.xf.point(p2);
+  }
+
+  bool valid_triangle(const TriangleMesh& m, uint32_t prim) const {
+    for (int k = 0; k < 3; ++k) {
+      const uint32_t i = m.indices[3 * prim + k];
+      if (i >= m.positions.size() || !is_finite(m.positions[i])) return false;
+    }
+    return true;
+  }
+
+
+  // Probability (solid angle) that NEE picked this point on light triangle (instance, prim).
+  float light_pdf(uint32_t instance, uint32_t prim, float dist2, float cos_light) const {
+    if (lights.empty() || cos_light <= 0) return 0;
+    const InstanceShade& is = instances[instance];
+    const int32_t r = emissive_rank[is.mesh_key][prim];
+    if (r < 0) return 0;
+    return light_pdf_of(is.light_base + size_t(r), dist2, cos_light);
+  }
+  // The same for light li (solid angle: pick probability / area * distance^2 / cos).
+  float light_pdf_of(size_t li, float dist2, float cos_light) const {
+    const LightTri& l = lights[li];
+    if (cos_light <= 0 || l.area <= 0) return 0;
+    return (1 - p_env) * light_dist.pmf(li) / l.area * dist2 / cos_light;
+  }
+
+  // environment.cpp
+  void choose_environment(std::optional<Environment> environment);
+  void setup_environment();
+  float env_pdf(Vec3 d, Vec3 n) const;
+  Vec3 env_sample(float u1, float u2, Vec3 n, float& pdf) const;
+  // lights.cpp
+  void check_materials(const std::string& source);
+  void sync_lights();
+  // renderer.cpp
+  std::string source() const;
+  void sync();
+  void trace(std::span<const Ray> rays, std::span<SurfaceHit> hits) const;
+  void occluded(std::span<const Ray> rays, std::span<uint8_t> out) const;
+  // integrator.cpp
+  void render_tile(const CameraModel& cam, const CameraModel& prev_cam, const RenderSettings& s, int tx, int ty, int pass,
+                   float jx, float jy, Accumulator& acc, double& trace_ms, uint64_t ray_counts[3]) const;
+};
+
+}  // namespace kestrel

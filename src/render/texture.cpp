@@ -1,0 +1,58 @@
+// Texel fetches: bilinear, repeat-wrapped, sRGB decoded through a table.
+#include <cmath>
+
+#include "render/renderer_impl.h"
+
+namespace kestrel::render {
+
+namespace {
+float srgb_to_linear(float c) { return c <= 0.04045f ? c / 12.92f : std::pow((c + 0.055f) / 1.055f, 2.4f); }
+
+struct SrgbTable {
+  float v[256];
+  SrgbTable() {
+    for (int i = 0; i < 256; ++i) v[i] = srgb_to_linear(float(i) / 255.0f);
+  }
+};
+const SrgbTable srgb_table;
+
+}  // namespace
+
+void sample_texture(const Texture& tex, Vec2 uv, bool srgb, float out[4]) {
+  float x = (uv.x - std::floor(uv.x)) * float(tex.width) - 0.5f;
+  float y = (uv.y - std::floor(uv.y)) * float(tex.height) - 0.5f;
+  if (!(x >= -1.0f && x < float(tex.width)) || !(y >= -1.0f && y < float(tex.height))) x = 0, y = 0;  // NaN uv
+  const float fx = std::floor(x), fy = std::floor(y);
+  const float wx = x - fx, wy = y - fy;
+  // x in [-0.5, w - 0.5): the left texel is -1 (wraps to w - 1) .. w - 1, the right one 0 .. w.
+  int x0 = int(fx), y0 = int(fy);
+  int x1 = x0 + 1, y1 = y0 + 1;
+  if (x0 < 0) x0 = tex.width - 1;
+  if (x1 >= tex.width) x1 = 0;
+  if (y0 < 0) y0 = tex.height - 1;
+  if (y1 >= tex.height) y1 = 0;
+  const uint8_t* row0 = &tex.rgba[size_t(y0) * size_t(tex.width) * 4];
+  const uint8_t* row1 = &tex.rgba[size_t(y1) * size_t(tex.width) * 4];
+  const uint8_t* t00 = row0 + size_t(x0) * 4;
+  const uint8_t* t10 = row0 + size_t(x1) * 4;
+  const uint8_t* t01 = row1 + size_t(x0) * 4;
+  const uint8_t* t11 = row1 + size_t(x1) * 4;
+  const float w00 = (1 - wx) * (1 - wy), w10 = wx * (1 - wy), w01 = (1 - wx) * wy, w11 = wx * wy;
+  if (srgb) {
+    const float* lut = srgb_table.v;
+    for (int c = 0; c < 3; ++c) out[c] = lut[t00[c]] * w00 + lut[t10[c]] * w10 + lut[t01[c]] * w01 + lut[t11[c]] * w11;
+  } else {
+    for (int c = 0; c < 3; ++c) out[c] = (float(t00[c]) * w00 + float(t10[c]) * w10 + float(t01[c]) * w01 + float(t11[c]) * w11) * (1.0f / 255.0f);
+  }
+  out[3] = (float(t00[3]) * w00 + float(t10[3]) * w10 + float(t01[3]) * w01 + float(t11[3]) * w11) * (1.0f / 255.0f);
+}
+
+Vec2 uv_at(const TriangleMesh& m, uint32_t prim, float b1, float b2) {
+  if (m.uvs.empty()) return {0, 0};
+  const size_t tri = 3 * size_t(prim);
+  const Vec2 a = m.uvs[m.indices[tri]], b = m.uvs[m.indices[tri + 1]], c = m.uvs[m.indices[tri + 2]];
+  const float b0 = 1 - b1 - b2;
+  return {a.x * b0 + b.x * b1 + c.x * b2, a.y * b0 + b.y * b1 + c.y * b2};
+}
+
+}  // namespace kestrel::render
