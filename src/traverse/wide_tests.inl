@@ -1,0 +1,195 @@
+// SIMD types and the tests of one ray: W boxes at once (slabs, as SlabRay) and a block of
+// four triangles (watertight, as watertight_hit, with its double-precision retry).
+// Part of wide_kernels.inl: included inside namespace kestrel::kernels::KESTREL_ISA_NS (an
+// anonymous namespace within it), once per instruction set.
+typedef float vf4 __attribute__((vector_size(16)));
+typedef int32_t vi4 __attribute__((vector_size(16)));
+typedef float vf8 __attribute__((vector_size(32)));
+typedef int32_t vi8 __attribute__((vector_size(32)));
+// Unaligned views for loads (nodes and blocks are aligned, but a plain load costs nothing).
+typedef float vf4u __attribute__((vector_size(16), aligned(4)));
+typedef float vf8u __attribute__((vector_size(32), aligned(4)));
+
+template <int W> struct Simd;
+template <> struct Simd<4> {
+  using F = vf4;
+  using I = vi4;
+  static F load(const float* p) { return *reinterpret_cast<const vf4u*>(p); }
+  static F splat(float x) { return F{x, x, x, x}; }
+  static unsigned mask(I m) { return unsigned(_mm_movemask_ps(reinterpret_cast<__m128>(m))); }
+};
+template <> struct Simd<8> {
+  using F = vf8;
+  using I = vi8;
+  static F load(const float* p) { return *reinterpret_cast<const vf8u*>(p); }
+  static F splat(float x) { return F{x, x, x, x, x, x, x, x}; }
+  static unsigned mask(I m) {
+#ifdef __AVX__
+    return unsigned(_mm256_movemask_ps(reinterpret_cast<__m256>(m)));
+#else
+    const vi4 lo = {m[0], m[1], m[2], m[3]}, hi = {m[4], m[5], m[6], m[7]};
+    return Simd<4>::mask(lo) | Simd<4>::mask(hi) << 4;
+#endif
+  }
+};
+
+typedef float vf16 __attribute__((vector_size(64)));
+typedef int32_t vi16 __attribute__((vector_size(64)));
+typedef float vf16u __attribute__((vector_size(64), aligned(4)));
+template <> struct Simd<16> {
+  using F = vf16;
+  using I = vi16;
+  static F load(const float* p) { return *reinterpret_cast<const vf16u*>(p); }
+  static F splat(float x) { return F{} + x; }
+  static unsigned mask(I m) {
+#ifdef __AVX512F__
+    return unsigned(_mm512_cmplt_epi32_mask(reinterpret_cast<__m512i>(m), _mm512_setzero_si512()));
+#else
+    const vi8 lo = __builtin_shufflevector(m, m, 0, 1, 2, 3, 4, 5, 6, 7), hi = __builtin_shufflevector(m, m, 8, 9, 10, 11, 12, 13, 14, 15);
+    return Simd<8>::mask(lo) | Simd<8>::mask(hi) << 8;
+#endif
+  }
+};
+
+// Same semantics as SlabRay::max_keep / min_keep: a NaN candidate keeps the accumulator.
+template <class F> inline F vmax(F candidate, F acc) { return candidate > acc ? candidate : acc; }
+template <class F> inline F vmin(F candidate, F acc) { return candidate < acc ? candidate : acc; }
+
+inline unsigned ctz(unsigned m) { return unsigned(__builtin_ctz(m)); }
+
+// As cull_distance in traverse_bvh2.h.
+inline float cull_distance(float t) { return t + __builtin_fabsf(t) * 0x1p-12f; }
+
+inline bool closer(float t, uint32_t id, float best_t, uint32_t best_id) {
+  return t < best_t || (t == best_t && best_id != invalid_id && id < best_id);
+}
+
+// Per-ray constants of the watertight test (WatertightRay).
+struct TriRay {
+  float org[3], dir[3];
+  int kx, ky, kz;
+  float sx, sy, tmin;
+  TriRay() = default;
+  explicit TriRay(const Ray& r) { init(r); }
+  void init(const Ray& r) {
+    org[0] = r.org.x, org[1] = r.org.y, org[2] = r.org.z;
+    dir[0] = r.dir.x, dir[1] = r.dir.y, dir[2] = r.dir.z;
+    const float ax = __builtin_fabsf(dir[0]), ay = __builtin_fabsf(dir[1]), az = __builtin_fabsf(dir[2]);
+    kz = ax >= ay ? (ax >= az ? 0 : 2) : (ay >= az ? 1 : 2);
+    kx = kz == 2 ? 0 : kz + 1;
+    ky = kx == 2 ? 0 : kx + 1;
+    if (dir[kz] < 0.0f) {
+      const int k = kx;
+      kx = ky;
+      ky = k;
+    }
+    sx = dir[kx] / dir[kz];
+    sy = dir[ky] / dir[kz];
+    tmin = r.tmin;
+  }
+};
+
+// Candidate hits of one block: lanes with a hit at t > tmin, and the values the hit needs.
+struct BlockHits {
+  unsigned mask;
+  vf4 t, v, w, det;
+};
+
+// The watertight test (watertight_hit) on four triangles at once.
+inline BlockHits intersect_block(const TriRay& r, const TriangleBlock& blk) {
+  using S = Simd<4>;
+  BlockHits out;
+  const float* V0 = &blk.v[0][0][0];
+  const float* V1 = &blk.v[1][0][0];
+  const float* V2 = &blk.v[2][0][0];
+  const int kx = r.kx * 4, ky = r.ky * 4, kz = r.kz * 4;
+  const vf4 okx = S::splat(r.org[r.kx]), oky = S::splat(r.org[r.ky]), okz = S::splat(r.org[r.kz]);
+  const vf4 sx = S::splat(r.sx), sy = S::splat(r.sy);
+  // Vertices relative to the origin, in the permuted axes, then sheared.
+  const vf4 akx = S::load(V0 + kx) - okx, aky = S::load(V0 + ky) - oky, akz = S::load(V0 + kz) - okz;
+  const vf4 bkx = S::load(V1 + kx) - okx, bky = S::load(V1 + ky) - oky, bkz = S::load(V1 + kz) - okz;
+  const vf4 ckx = S::load(V2 + kx) - okx, cky = S::load(V2 + ky) - oky, ckz = S::load(V2 + kz) - okz;
+  const vf4 ax = akx - sx * akz, ay = aky - sy * akz;
+  const vf4 bx = bkx - sx * bkz, by = bky - sy * bkz;
+  const vf4 cx = ckx - sx * ckz, cy = cky - sy * ckz;
+  vf4 u = cx * by - cy * bx;
+  vf4 v = ax * cy - ay * cx;
+  vf4 w = bx * ay - by * ax;
+  const vf4 zero = {};
+  vf4 det = u + v + w;
+  // Exact zeros (the double retry) and NaN (from overflowing products) take the slow path.
+  const unsigned slow = S::mask((u == zero) | (v == zero) | (w == zero) | (det != det));
+  vi4 ok;
+  if (__builtin_expect(slow == 0, 1)) {
+    // No edge function is zero: the ray is inside when all three signs agree.
+    const vi4 ui = reinterpret_cast<vi4>(u), vi = reinterpret_cast<vi4>(v), wi = reinterpret_cast<vi4>(w);
+    ok = ((ui ^ vi) | (ui ^ wi)) >= vi4{};
+  } else {
+    unsigned retry = S::mask((u == zero) | (v == zero) | (w == zero));
+    while (retry) {  // rare: an edge function is exactly 0; redo this lane in double
+      const unsigned i = ctz(retry);
+      retry &= retry - 1;
+      u[i] = float(double(cx[i]) * by[i] - double(cy[i]) * bx[i]);
+      v[i] = float(double(ax[i]) * cy[i] - double(ay[i]) * cx[i]);
+      w[i] = float(double(bx[i]) * ay[i] - double(by[i]) * ax[i]);
+    }
+    const vi4 neg = (u < zero) | (v < zero) | (w < zero);
+    const vi4 pos = (u > zero) | (v > zero) | (w > zero);
+    ok = ~(neg & pos);
+    det = u + v + w;
+  }
+  ok &= det != zero;
+  out.mask = S::mask(ok);
+  if (!out.mask) return out;
+  // Distance from the plane equation in the permuted axes (as watertight_hit).
+  const vf4 e10 = bkx - akx, e11 = bky - aky, e12 = bkz - akz;
+  const vf4 e20 = ckx - akx, e21 = cky - aky, e22 = ckz - akz;
+  const vf4 n0 = e11 * e22 - e12 * e21;
+  const vf4 n1 = e12 * e20 - e10 * e22;
+  const vf4 n2 = e10 * e21 - e11 * e20;
+  const vf4 ndd = n0 * S::splat(r.dir[r.kx]) + n1 * S::splat(r.dir[r.ky]) + n2 * S::splat(r.dir[r.kz]);
+  const vf4 t = (n0 * akx + n1 * aky + n2 * akz) / ndd;
+  ok &= (ndd != zero) & (t > S::splat(r.tmin));
+  out.mask = S::mask(ok);
+  out.t = t;
+  out.v = v;
+  out.w = w;
+  out.det = det;
+  return out;
+}
+
+// Per-ray constants of the box test (SlabRay), splatted to W lanes.
+inline float far_scale(float inv) { return inv * 1.00000072f; }
+template <int W> struct BoxRay {
+  using F = typename Simd<W>::F;
+  F org[3], inv[3], inv_far[3];
+  mutable typename Simd<W>::I test_mask;  // lanes hit by the last test (all ones / zeros)
+  int near_row[3], far_row[3];  // rows of Bvh*Node::bounds holding the near / far planes
+  BoxRay() = default;
+  explicit BoxRay(const Ray& r) { init(r); }
+  void init(const Ray& r) {
+    const float d[3] = {r.dir.x, r.dir.y, r.dir.z}, o[3] = {r.org.x, r.org.y, r.org.z};
+    for (int a = 0; a < 3; ++a) {
+      org[a] = Simd<W>::splat(o[a]);
+      inv[a] = Simd<W>::splat(1.0f / d[a]);
+      inv_far[a] = Simd<W>::splat(far_scale(1.0f / d[a]));
+      const int hi_first = __builtin_signbit(d[a]) ? 1 : 0;
+      near_row[a] = 2 * a + hi_first;
+      far_row[a] = 2 * a + 1 - hi_first;
+    }
+  }
+  // Lanes whose box overlaps (tmin, tmax); entry distances in tnear.
+  unsigned test(const float (*bounds)[W], F tmin, F tmax, F& tnear) const {
+    using S = Simd<W>;
+    const F nx = (S::load(bounds[near_row[0]]) - org[0]) * inv[0];
+    const F ny = (S::load(bounds[near_row[1]]) - org[1]) * inv[1];
+    const F nz = (S::load(bounds[near_row[2]]) - org[2]) * inv[2];
+    const F fx = (S::load(bounds[far_row[0]]) - org[0]) * inv_far[0];
+    const F fy = (S::load(bounds[far_row[1]]) - org[1]) * inv_far[1];
+    const F fz = (S::load(bounds[far_row[2]]) - org[2]) * inv_far[2];
+    tnear = vmax(nz, vmax(ny, vmax(nx, tmin)));
+    const F tfar = vmin(fz, vmin(fy, vmin(fx, tmax)));
+    test_mask = tnear <= tfar;
+    return S::mask(test_mask);
+  }
+};
