@@ -13,6 +13,7 @@
 #include <fstream>
 
 #include "core/timer.h"
+#include "render/testing.h"
 #include "kestrel/kestrel.h"
 #include "kestrel/render.h"
 
@@ -69,13 +70,13 @@ int main(int argc, char** argv) {
           in_mrays.push_back(double(fr.stats.rays()) / (fr.stats.ms * 1e3));
           if (threads == 1) {
             RayCapture cap;
-            renderer.set_capture(&cap);
+            RendererTesting::set_capture(renderer, &cap);
             renderer.render(*camera, rs);
-            renderer.set_capture(nullptr);
+            RendererTesting::set_capture(renderer, nullptr);
             std::array<double, 3> t{};
             {
               ThreadLimit one(1);
-              t = renderer.retrace(cap);
+              t = RendererTesting::retrace(renderer, cap);
             }
             const double total = t[0] + t[1] + t[2];
             raw_ms.push_back(total);

@@ -25,6 +25,7 @@
 #include "kestrel/kestrel.h"
 #ifdef KESTREL_HAVE_EMBREE
 #include "embree_peer.h"
+#include "bvh/cost_model.h"
 #endif
 
 namespace {

@@ -83,50 +83,6 @@ struct Bvh2 {
   bool empty() const { return nodes.empty(); }
 };
 
-/// Wide-node child reference: an inner node's index, or wide_leaf_bit | the first
-/// TriangleBlock of a leaf (its blocks run to the one whose prim_id[0] has block_last_bit),
-/// or wide_empty for an unused slot (whose box is empty: lo = +inf, hi = -inf).
-inline constexpr uint32_t wide_leaf_bit = 0x80000000u;
-inline constexpr uint32_t wide_empty = 0xFFFFFFFFu;
-inline constexpr uint32_t block_last_bit = 0x80000000u;
-
-/// 4-wide node, structure of arrays, 112 bytes: bounds[0..5] = lo.x, hi.x, lo.y, hi.y,
-/// lo.z, hi.z of the four children (one 128-bit row each), then the child references.
-struct alignas(16) Bvh4Node {
-  float bounds[6][4];
-  uint32_t child[4];
-};
-static_assert(sizeof(Bvh4Node) == 112);
-
-/// 8-wide node, structure of arrays, 224 bytes: six 256-bit rows of child bounds (as in
-/// Bvh4Node) and eight child references.
-struct alignas(32) Bvh8Node {
-  float bounds[6][8];
-  uint32_t child[8];
-};
-static_assert(sizeof(Bvh8Node) == 224);
-
-/// Four triangles for one SIMD leaf test, 160 bytes: v[vertex][axis][lane] then the global
-/// prim ids (prim_id[0] also carries block_last_bit). A leaf of k triangles has ceil(k/4)
-/// blocks; unused lanes repeat the leaf's last triangle (same id, so never a different hit).
-struct alignas(16) TriangleBlock {
-  float v[3][3][4];
-  uint32_t prim_id[4];
-};
-static_assert(sizeof(TriangleBlock) == 160);
-
-/// Wide BVHs: nodes[0] is the root (always an inner node); leaves are runs of blocks.
-struct Bvh4 {
-  Buffer<Bvh4Node> nodes;
-  Buffer<TriangleBlock> blocks;
-  bool empty() const { return nodes.empty(); }
-};
-struct Bvh8 {
-  Buffer<Bvh8Node> nodes;
-  Buffer<TriangleBlock> blocks;
-  bool empty() const { return nodes.empty(); }
-};
-
 /// Parses "median", "sweep", "binned", "lbvh", "treelet"; nullopt otherwise.
 std::optional<Builder> builder_from_name(const std::string& name);
 /// The name of a builder, as builder_from_name accepts it.
@@ -137,13 +93,6 @@ std::optional<BuildQuality> quality_from_name(const std::string& name);
 /// needs the primitive count).
 Builder resolve_builder(const BuildConfig& config, size_t prim_count = 0);
 
-/// The cost model of BuildQuality::automatic: predicted seconds, one thread, to build over
-/// prim_count primitives with `builder` (build_accel, wide layout included) and then trace
-/// `rays` rays: n * build_ns[b] + rays * (a + c * log2 n) * ray_factor[b], constants fitted
-/// to the amortization benchmark (scripts/fit_cost_model.py, docs/benchmarks.md).
-double predicted_seconds(Builder builder, size_t prim_count, double rays);
-/// The builder (median, lbvh, binned or sweep) with the least predicted_seconds.
-Builder choose_builder(size_t prim_count, double rays);
 /// Throws Error(invalid_argument) naming the field if a config value is out of range.
 void check_build_config(const BuildConfig& config);
 

@@ -165,12 +165,6 @@ std::vector<uint8_t> tonemap_srgb8(const FloatImage& color, float exposure_stops
 /// One channel's tone map as above (for evaluation code).
 float tonemap_aces_srgb(float linear);
 
-/// Every ray batch a render traced, in order (for benchmarks: retrace them alone).
-struct RayCapture {
-  std::vector<Ray> camera, bounce, shadow;
-  std::vector<size_t> camera_batches, bounce_batches, shadow_batches;  ///< batch sizes
-};
-
 /// The path tracer: unidirectional, next-event estimation with multiple importance sampling
 /// (power heuristic), Russian roulette, on the metallic-roughness material model (Lambertian
 /// diffuse base, dielectric GGX coat, GGX conductor; Heitz 2018 visible-normal sampling).
@@ -199,14 +193,8 @@ class Renderer {
   Bounds3 bounds() const;
   size_t light_count() const;
   const Environment& environment() const;
-  /// For benchmarks: the next renders record every ray batch into `capture` (and run on
-  /// one thread); nullptr stops recording.
-  void set_capture(RayCapture* capture);
-  /// Traces captured batches again, alone, with the same batch sizes: ms for camera,
-  /// bounce and shadow rays.
-  std::array<double, 3> retrace(const RayCapture& capture) const;
-
  private:
+  friend struct RendererTesting;  // benchmark hooks (src/render/testing.h)
   struct Impl;
   std::unique_ptr<Impl> impl_;
 };

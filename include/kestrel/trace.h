@@ -2,6 +2,7 @@
 #pragma once
 #include <cstdint>
 #include <limits>
+#include <memory>
 #include <span>
 
 #include "kestrel/bvh.h"
@@ -36,15 +37,19 @@ struct Triangle {
   Vec3 v0, v1, v2;
 };
 
-/// A scene ready to trace: a BVH over its valid triangles in one layout.
-/// Layout bvh2 fills `bvh` and `triangles`; bvh4 / bvh8 fill `bvh4` / `bvh8` only (the
-/// binary tree they were collapsed from is released).
+namespace detail {
+struct AccelNodes;  // the nodes and triangles of one layout (internal: src/traverse/accel_nodes.h)
+}
+
+/// A scene ready to trace: a BVH over its valid triangles in one layout. What it reports is
+/// public; its nodes are not (their byte layouts are kestrel's to change).
 struct Accel {
+  Accel();
+  ~Accel();
+  Accel(Accel&&) noexcept;
+  Accel& operator=(Accel&&) noexcept;
+
   Layout layout = Layout::bvh2;
-  Bvh2 bvh;
-  Buffer<Triangle> triangles;       ///< bvh2: triangles[i] is primitive bvh.prim_ids[i]
-  Bvh4 bvh4;
-  Bvh8 bvh8;
   Bounds3 bounds;                   ///< of the valid triangles (empty box when none)
   size_t prim_count = 0;            ///< valid triangles in the BVH
   SceneValidation validation;
@@ -55,6 +60,7 @@ struct Accel {
   double build_ms = 0;              ///< prim refs + builder + collapse + triangle copy, wall
   /// Bytes of the traversal structure: nodes + triangles (+ prim ids for bvh2).
   size_t memory_bytes() const;
+  std::unique_ptr<detail::AccelNodes> nodes;  ///< never null
 };
 
 /// Builds an Accel over a scene's valid triangles (invalid ones are counted and skipped),
@@ -94,9 +100,5 @@ void occluded(const Accel& accel, std::span<const Ray> rays, std::span<uint8_t> 
 /// Batch closest or any hit into Hits (any hit: t of a hit found, not necessarily nearest).
 void trace(const Accel& accel, std::span<const Ray> rays, std::span<Hit> hits, bool any_hit,
            const TraceOptions& options = {});
-
-/// Reference: every valid triangle against the ray (the tests' oracle).
-Hit intersect_brute_force(std::span<const Triangle> triangles, std::span<const uint8_t> valid,
-                          const Ray& ray, bool any_hit);
 
 }  // namespace kestrel

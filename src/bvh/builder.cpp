@@ -3,6 +3,7 @@
 
 #include "bvh/builders.h"
 #include "kestrel/error.h"
+#include "bvh/cost_model.h"
 
 namespace kestrel {
 

@@ -6,6 +6,7 @@
 #include <cmath>
 
 #include "kestrel/bvh.h"
+#include "bvh/cost_model.h"
 
 namespace kestrel {
 

@@ -72,9 +72,10 @@ void Renderer::Impl::sync() {
 Bounds3 Renderer::bounds() const { return impl_->bounds; }
 size_t Renderer::light_count() const { return impl_->lights.size(); }
 const Environment& Renderer::environment() const { return impl_->env; }
-void Renderer::set_capture(RayCapture* capture) { impl_->capture = capture; }
+void RendererTesting::set_capture(Renderer& renderer, RayCapture* capture) { renderer.impl_->capture = capture; }
 
-std::array<double, 3> Renderer::retrace(const RayCapture& c) const {
+std::array<double, 3> RendererTesting::retrace(const Renderer& renderer, const RayCapture& c) {
+  const Renderer::Impl* impl_ = renderer.impl_.get();
   std::array<double, 3> ms{0, 0, 0};
   std::vector<SurfaceHit> hits;
   std::vector<uint8_t> blocked;

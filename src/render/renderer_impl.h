@@ -14,6 +14,7 @@
 #include "kestrel/render.h"
 #include "render/bsdf.h"
 #include "render/sampling.h"
+#include "render/testing.h"
 
 namespace kestrel {
 

@@ -5,6 +5,7 @@
 
 #include "core/raw_array.h"
 #include "kestrel/trace.h"
+#include "traverse/accel_nodes.h"
 
 namespace kestrel {
 

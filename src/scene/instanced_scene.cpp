@@ -195,7 +195,7 @@ struct InstancedScene::Impl {
     BuildConfig c = config.blas;
     c.layout = layout;
     m.blas = build_accel(m.scene, c);
-    m.sah_built = layout == Layout::bvh4 ? wide_sah_cost(m.blas.bvh4) : wide_sah_cost(m.blas.bvh8);
+    m.sah_built = layout == Layout::bvh4 ? wide_sah_cost(m.blas.nodes->bvh4) : wide_sah_cost(m.blas.nodes->bvh8);
     m.built = true;
     m.dirty = false;
   }
@@ -290,7 +290,7 @@ CommitStats InstancedScene::commit() {
     bool rebuild = false;
     try {
       refit_accel(m.blas, m.scene);
-      const double sah = s.layout == Layout::bvh4 ? wide_sah_cost(m.blas.bvh4) : wide_sah_cost(m.blas.bvh8);
+      const double sah = s.layout == Layout::bvh4 ? wide_sah_cost(m.blas.nodes->bvh4) : wide_sah_cost(m.blas.nodes->bvh8);
       rebuild = sah > double(s.config.refit_sah_factor) * m.sah_built;
     } catch (const Error&) {
       rebuild = true;  // a triangle became invalid (or valid): the tree must be rebuilt
@@ -342,11 +342,11 @@ CommitStats InstancedScene::commit() {
     d.mask = inst.mask;
     d.id = uint32_t(i);
     if (s.layout == Layout::bvh4) {
-      d.nodes = m.blas.bvh4.nodes.data();
-      d.blocks = m.blas.bvh4.blocks.data();
+      d.nodes = m.blas.nodes->bvh4.nodes.data();
+      d.blocks = m.blas.nodes->bvh4.blocks.data();
     } else {
-      d.nodes = m.blas.bvh8.nodes.data();
-      d.blocks = m.blas.bvh8.blocks.data();
+      d.nodes = m.blas.nodes->bvh8.nodes.data();
+      d.blocks = m.blas.nodes->bvh8.blocks.data();
     }
     s.data.push_back(d);
   }

@@ -40,13 +40,19 @@ Layout resolve_layout(Layout layout) {
   return default_isa() == Isa::sse2 ? Layout::bvh4 : Layout::bvh8;
 }
 
+Accel::Accel() : nodes(std::make_unique<detail::AccelNodes>()) {}
+Accel::~Accel() = default;
+Accel::Accel(Accel&&) noexcept = default;
+Accel& Accel::operator=(Accel&&) noexcept = default;
+
 size_t Accel::memory_bytes() const {
+  const detail::AccelNodes& n = *nodes;
   switch (layout) {
-    case Layout::bvh4: return bvh4.nodes.size() * sizeof(Bvh4Node) + bvh4.blocks.size() * sizeof(TriangleBlock);
-    case Layout::bvh8: return bvh8.nodes.size() * sizeof(Bvh8Node) + bvh8.blocks.size() * sizeof(TriangleBlock);
+    case Layout::bvh4: return n.bvh4.nodes.size() * sizeof(Bvh4Node) + n.bvh4.blocks.size() * sizeof(TriangleBlock);
+    case Layout::bvh8: return n.bvh8.nodes.size() * sizeof(Bvh8Node) + n.bvh8.blocks.size() * sizeof(TriangleBlock);
     default:
-      return bvh.nodes.size() * sizeof(Bvh2Node) + bvh.prim_ids.size() * sizeof(uint32_t) +
-             triangles.size() * sizeof(Triangle);
+      return n.bvh.nodes.size() * sizeof(Bvh2Node) + n.bvh.prim_ids.size() * sizeof(uint32_t) +
+             n.triangles.size() * sizeof(Triangle);
   }
 }
 
@@ -75,11 +81,11 @@ Accel build_accel(const Scene& scene, const BuildConfig& config) {
   if (!bvh.empty()) accel.bounds = {bvh.nodes[0].lo, bvh.nodes[0].hi};
   Buffer<Triangle> triangles = gather_triangles(scene, bvh.prim_ids);
   switch (accel.layout) {
-    case Layout::bvh4: accel.bvh4 = collapse_to_bvh4(bvh, triangles, config.max_leaf_size); break;
-    case Layout::bvh8: accel.bvh8 = collapse_to_bvh8(bvh, triangles, config.max_leaf_size); break;
+    case Layout::bvh4: accel.nodes->bvh4 = collapse_to_bvh4(bvh, triangles, config.max_leaf_size); break;
+    case Layout::bvh8: accel.nodes->bvh8 = collapse_to_bvh8(bvh, triangles, config.max_leaf_size); break;
     default:
-      accel.triangles = std::move(triangles);
-      accel.bvh = std::move(bvh);
+      accel.nodes->triangles = std::move(triangles);
+      accel.nodes->bvh = std::move(bvh);
   }
   accel.validation = std::move(validation);
   accel.build_ms = timer.ms();
@@ -136,8 +142,8 @@ void refit_accel(Accel& accel, const Scene& scene) {
                             accel.validation.valid.size()));
   Bounds3 box;
   switch (accel.layout) {
-    case Layout::bvh4: refit_wide(accel.bvh4, BlockRewriter(scene)); break;
-    case Layout::bvh8: refit_wide(accel.bvh8, BlockRewriter(scene)); break;
+    case Layout::bvh4: refit_wide(accel.nodes->bvh4, BlockRewriter(scene)); break;
+    case Layout::bvh8: refit_wide(accel.nodes->bvh8, BlockRewriter(scene)); break;
     default: {
       SceneValidation now = validate_scene(scene);
       for (size_t i = 0; i < now.valid.size(); ++i)
@@ -145,17 +151,17 @@ void refit_accel(Accel& accel, const Scene& scene) {
           throw Error(ErrorCode::invalid_argument,
                       fmt::format("refit: triangle {} is no longer valid (NaN/Inf, bad index or degenerate); rebuild", i));
       const Buffer<Triangle> global = gather_triangles(scene, now);
-      for (size_t i = 0; i < accel.triangles.size(); ++i) accel.triangles[i] = global[accel.bvh.prim_ids[i]];
-      refit_bvh2(accel.bvh, accel.triangles);
+      for (size_t i = 0; i < accel.nodes->triangles.size(); ++i) accel.nodes->triangles[i] = global[accel.nodes->bvh.prim_ids[i]];
+      refit_bvh2(accel.nodes->bvh, accel.nodes->triangles);
     }
   }
   // Scene bounds from the refitted root.
   if (accel.layout == Layout::bvh4) {
-    box = wide_bounds(accel.bvh4);
+    box = wide_bounds(accel.nodes->bvh4);
   } else if (accel.layout == Layout::bvh8) {
-    box = wide_bounds(accel.bvh8);
-  } else if (!accel.bvh.empty()) {
-    box = {accel.bvh.nodes[0].lo, accel.bvh.nodes[0].hi};
+    box = wide_bounds(accel.nodes->bvh8);
+  } else if (!accel.nodes->bvh.empty()) {
+    box = {accel.nodes->bvh.nodes[0].lo, accel.nodes->bvh.nodes[0].hi};
   }
   accel.bounds = box;
 }

@@ -8,6 +8,7 @@
 
 #include "kestrel/instances.h"
 #include "kestrel/trace.h"
+#include "traverse/accel_nodes.h"
 
 namespace kestrel::kernels {
 

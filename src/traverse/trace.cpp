@@ -12,6 +12,7 @@
 #include "traverse/batches.h"
 #include "traverse/kernels.h"
 #include "traverse/traverse_bvh2.h"
+#include "traverse/accel_nodes.h"
 
 namespace kestrel {
 
@@ -35,10 +36,10 @@ Hit intersect_bvh2(const Accel& accel, const Ray& ray) {
   if (!is_traceable(ray)) return hit;
   const WatertightRay wr(ray);
   float tmax = ray.tmax;
-  const Triangle* tris = accel.triangles.data();
-  const uint32_t* ids = accel.bvh.prim_ids.data();
+  const Triangle* tris = accel.nodes->triangles.data();
+  const uint32_t* ids = accel.nodes->bvh.prim_ids.data();
   uint32_t best = invalid_id;
-  traverse_bvh2<AnyHit>(accel.bvh, ray, tmax, [&](uint32_t first, uint32_t count, float& t) {
+  traverse_bvh2<AnyHit>(accel.nodes->bvh, ray, tmax, [&](uint32_t first, uint32_t count, float& t) {
     for (uint32_t i = first; i < first + count; ++i) {
       float tc, uc, vc;
       if (!watertight_hit(wr, tris[i], ray.tmin, tc, uc, vc)) continue;
@@ -65,15 +66,15 @@ void trace_range(const Accel& accel, std::span<const Ray> rays, std::span<Hit> h
                  const kernels::Table& k, bool packets) {
   switch (accel.layout) {
     case Layout::bvh4:
-      if (accel.bvh4.empty()) break;
+      if (accel.nodes->bvh4.empty()) break;
       kernels::for_each_traceable_run(rays, hits.data(), [&](const Ray* r, Hit* h, size_t n) {
-        (any_hit ? (packets ? k.any_packet4 : k.any4) : packets ? k.packet4 : k.closest4)(accel.bvh4.nodes.data(), accel.bvh4.blocks.data(), r, h, n);
+        (any_hit ? (packets ? k.any_packet4 : k.any4) : packets ? k.packet4 : k.closest4)(accel.nodes->bvh4.nodes.data(), accel.nodes->bvh4.blocks.data(), r, h, n);
       });
       return;
     case Layout::bvh8:
-      if (accel.bvh8.empty()) break;
+      if (accel.nodes->bvh8.empty()) break;
       kernels::for_each_traceable_run(rays, hits.data(), [&](const Ray* r, Hit* h, size_t n) {
-        (any_hit ? (packets ? k.any_packet8 : k.any8) : packets ? k.packet8 : k.closest8)(accel.bvh8.nodes.data(), accel.bvh8.blocks.data(), r, h, n);
+        (any_hit ? (packets ? k.any_packet8 : k.any8) : packets ? k.packet8 : k.closest8)(accel.nodes->bvh8.nodes.data(), accel.nodes->bvh8.blocks.data(), r, h, n);
       });
       return;
     default:

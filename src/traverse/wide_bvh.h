@@ -4,6 +4,7 @@
 #include <span>
 
 #include "kestrel/trace.h"
+#include "traverse/accel_nodes.h"
 
 namespace kestrel {
 

@@ -8,6 +8,8 @@
 #include "geometry/prim_ref.h"
 #include "kestrel/kestrel.h"
 #include "support/oracles.h"
+#include "bvh/cost_model.h"
+#include "traverse/accel_nodes.h"
 
 namespace kestrel {
 namespace {

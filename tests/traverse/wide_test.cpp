@@ -12,6 +12,7 @@
 #include "kestrel/error.h"
 #include "kestrel/kestrel.h"
 #include "support/oracles.h"
+#include "traverse/accel_nodes.h"
 
 namespace kestrel {
 namespace {
@@ -165,13 +166,13 @@ TEST(WideLayout, EveryPrimitiveInExactlyOneLeafAndBoxesEnclose) {
     const Accel a = build(scene, Builder::binned, layout);
     const int W = layout == Layout::bvh4 ? 4 : 8;
     std::vector<int> seen(soup.triangles.size(), 0);
-    const size_t node_count = W == 4 ? a.bvh4.nodes.size() : a.bvh8.nodes.size();
-    const auto& blocks = W == 4 ? a.bvh4.blocks : a.bvh8.blocks;
+    const size_t node_count = W == 4 ? a.nodes->bvh4.nodes.size() : a.nodes->bvh8.nodes.size();
+    const auto& blocks = W == 4 ? a.nodes->bvh4.blocks : a.nodes->bvh8.blocks;
     size_t children = 0;
     for (size_t i = 0; i < node_count; ++i) {
       for (int j = 0; j < W; ++j) {
-        const uint32_t ref = W == 4 ? a.bvh4.nodes[i].child[j] : a.bvh8.nodes[i].child[j];
-        auto bound = [&](int row) { return W == 4 ? a.bvh4.nodes[i].bounds[row][j] : a.bvh8.nodes[i].bounds[row][j]; };
+        const uint32_t ref = W == 4 ? a.nodes->bvh4.nodes[i].child[j] : a.nodes->bvh8.nodes[i].child[j];
+        auto bound = [&](int row) { return W == 4 ? a.nodes->bvh4.nodes[i].bounds[row][j] : a.nodes->bvh8.nodes[i].bounds[row][j]; };
         if (ref == wide_empty) continue;
         ++children;
         if (!(ref & wide_leaf_bit)) {
@@ -198,7 +199,7 @@ TEST(WideLayout, EveryPrimitiveInExactlyOneLeafAndBoxesEnclose) {
       size_t leaves = 0;
       for (size_t i = 0; i < node_count; ++i)
         for (int j = 0; j < W; ++j) {
-          const uint32_t ref = W == 4 ? a.bvh4.nodes[i].child[j] : a.bvh8.nodes[i].child[j];
+          const uint32_t ref = W == 4 ? a.nodes->bvh4.nodes[i].child[j] : a.nodes->bvh8.nodes[i].child[j];
           leaves += ref != wide_empty && (ref & wide_leaf_bit);
         }
       return leaves;

@@ -1,0 +1,27 @@
+// Benchmark hooks of the renderer (internal): record every ray batch a render traces, and
+// trace them again alone (bench/render_bench.cpp: in-render against raw ray throughput).
+#pragma once
+#include <array>
+#include <cstddef>
+#include <vector>
+
+#include "kestrel/render.h"
+
+namespace kestrel {
+
+/// Every ray batch a render traced, in order.
+struct RayCapture {
+  std::vector<Ray> camera, bounce, shadow;
+  std::vector<size_t> camera_batches, bounce_batches, shadow_batches;  ///< batch sizes
+};
+
+struct RendererTesting {
+  /// The next renders record every ray batch into `capture` (and run on one thread);
+  /// nullptr stops recording.
+  static void set_capture(Renderer& renderer, RayCapture* capture);
+  /// Traces captured batches again, alone, with the same batch sizes: ms for camera,
+  /// bounce and shadow rays.
+  static std::array<double, 3> retrace(const Renderer& renderer, const RayCapture& capture);
+};
+
+}  // namespace kestrel
