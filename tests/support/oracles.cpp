@@ -1,5 +1,8 @@
 #include "support/oracles.h"
 
+#include <fmt/format.h>
+
+#include <algorithm>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
@@ -134,6 +137,74 @@ std::string write_temp_file(const std::string& name, const std::string& contents
   const std::string path = (dir / name).string();
   std::ofstream(path, std::ios::binary) << contents;
   return path;
+}
+
+namespace {
+std::string base64(const std::string& bytes) {
+  static const char* t = "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
+  std::string out;
+  size_t i = 0;
+  for (; i + 2 < bytes.size(); i += 3) {
+    const uint32_t v = uint32_t(uint8_t(bytes[i])) << 16 | uint32_t(uint8_t(bytes[i + 1])) << 8 | uint8_t(bytes[i + 2]);
+    out += {t[v >> 18], t[(v >> 12) & 63], t[(v >> 6) & 63], t[v & 63]};
+  }
+  if (i + 1 == bytes.size()) {
+    const uint32_t v = uint32_t(uint8_t(bytes[i])) << 16;
+    out += {t[v >> 18], t[(v >> 12) & 63], '=', '='};
+  } else if (i + 2 == bytes.size()) {
+    const uint32_t v = uint32_t(uint8_t(bytes[i])) << 16 | uint32_t(uint8_t(bytes[i + 1])) << 8;
+    out += {t[v >> 18], t[(v >> 12) & 63], t[(v >> 6) & 63], '='};
+  }
+  return out;
+}
+}  // namespace
+
+std::string write_animated_gltf(const std::string& name) {
+  const TriangleMesh box = closed_box({-0.5f, -0.5f, -0.5f}, {0.5f, 0.5f, 0.5f}).meshes[0];
+  const TriangleMesh soup = random_soup(60, 0.3f, 5).meshes[0];
+  std::string bin;
+  std::string views, accessors;
+  auto add = [&](const void* data, size_t bytes, size_t count, const char* type, int component, const std::string& extra) {
+    const size_t offset = bin.size();
+    bin.append(static_cast<const char*>(data), bytes);
+    while (bin.size() % 4) bin.push_back('\0');
+    const size_t index = std::count(views.begin(), views.end(), '{');
+    views += fmt::format("{}{{\"buffer\": 0, \"byteOffset\": {}, \"byteLength\": {}}}", views.empty() ? "" : ", ", offset, bytes);
+    accessors += fmt::format("{}{{\"bufferView\": {}, \"componentType\": {}, \"count\": {}, \"type\": \"{}\"{}}}",
+                             accessors.empty() ? "" : ", ", index, component, count, type, extra);
+    return index;
+  };
+  auto bounds = [](const std::vector<Vec3>& p) {
+    Bounds3 b;
+    for (const Vec3& v : p) extend(b, v);
+    return fmt::format(", \"min\": [{}, {}, {}], \"max\": [{}, {}, {}]", b.lo.x, b.lo.y, b.lo.z, b.hi.x, b.hi.y, b.hi.z);
+  };
+  const size_t box_pos = add(box.positions.data(), box.positions.size() * 12, box.positions.size(), "VEC3", 5126, bounds(box.positions));
+  const size_t box_idx = add(box.indices.data(), box.indices.size() * 4, box.indices.size(), "SCALAR", 5125, "");
+  const size_t soup_pos = add(soup.positions.data(), soup.positions.size() * 12, soup.positions.size(), "VEC3", 5126, bounds(soup.positions));
+  const size_t soup_idx = add(soup.indices.data(), soup.indices.size() * 4, soup.indices.size(), "SCALAR", 5125, "");
+  const std::vector<Vec3> delta(soup.positions.size(), Vec3{0, 0.3f, 0});
+  const size_t soup_target = add(delta.data(), delta.size() * 12, delta.size(), "VEC3", 5126, bounds(delta));
+  const float times[2] = {0, 2}, moves[6] = {0, 0, 0, 0, 1, 0}, weights[2] = {0, 1};
+  const size_t t_acc = add(times, 8, 2, "SCALAR", 5126, ", \"min\": [0], \"max\": [2]");
+  const size_t move_acc = add(moves, 24, 2, "VEC3", 5126, "");
+  const size_t weight_acc = add(weights, 8, 2, "SCALAR", 5126, "");
+  const std::string json = fmt::format(
+      R"({{"asset": {{"version": "2.0"}},
+  "buffers": [{{"byteLength": {}, "uri": "data:application/octet-stream;base64,{}"}}],
+  "bufferViews": [{}], "accessors": [{}],
+  "materials": [{{"name": "red", "pbrMetallicRoughness": {{"baseColorFactor": [0.8, 0.1, 0.1, 1]}}}}],
+  "meshes": [{{"name": "box", "primitives": [{{"attributes": {{"POSITION": {}}}, "indices": {}, "material": 0}}]}},
+             {{"name": "soup", "primitives": [{{"attributes": {{"POSITION": {}}}, "indices": {}, "targets": [{{"POSITION": {}}}]}}],
+              "weights": [0]}}],
+  "nodes": [{{"mesh": 0, "children": [1]}}, {{"mesh": 0, "translation": [3, 0, 0]}}, {{"mesh": 1, "translation": [0, 0, 2]}}],
+  "scenes": [{{"nodes": [0, 2]}}], "scene": 0,
+  "animations": [{{"channels": [{{"sampler": 0, "target": {{"node": 0, "path": "translation"}}}},
+                               {{"sampler": 1, "target": {{"node": 2, "path": "weights"}}}}],
+                  "samplers": [{{"input": {}, "output": {}}}, {{"input": {}, "output": {}}}]}}]}})",
+      bin.size(), base64(bin), views, accessors, box_pos, box_idx, soup_pos, soup_idx, soup_target, t_acc, move_acc, t_acc,
+      weight_acc);
+  return write_temp_file(name, json);
 }
 
 std::vector<Isa> supported_isas() {

@@ -49,6 +49,13 @@ std::vector<Isa> supported_isas();
 /// Every builder, for parameterised tests.
 std::vector<Builder> all_builders();
 
+/// A synthetic animated glTF (written under the test temp dir; its path returned), so the
+/// two-level tests never depend on ../shared/scenes: mesh 0 a closed box placed by node 0
+/// and by its child node 1 (translated by +3 x), mesh 1 a 60-triangle soup with one morph
+/// target (every vertex +0.3 y) placed by node 2; one clip of 2 s: node 0 translates
+/// LINEARly from (0, 0, 0) to (0, 1, 0), node 2's morph weight goes from 0 to 1.
+std::string write_animated_gltf(const std::string& name);
+
 /// Writes text to a fresh file under the test temp dir and returns its path.
 std::string write_temp_file(const std::string& name, const std::string& contents);
 

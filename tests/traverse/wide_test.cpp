@@ -131,13 +131,22 @@ TEST(WideKernels, EmptySceneAndSingleTriangle) {
   }
 }
 
-TEST(WideKernels, SharedScenesPrimaryShadowDiffuse) {
-  for (const char* rel : {"teapot/teapot.obj", "cornell_box/cornell_box.obj", "dabrovic_sponza/sponza.obj"}) {
-    auto path = test::shared_scene(rel);
-    if (!path) GTEST_SKIP() << "shared scenes absent";
-    const Scene scene = load_scene(*path);
-    const std::string view = std::string(rel).find("sponza") != std::string::npos ? "inside" : "framing";
-    auto cam = tools::named_view(scene, view);
+// The shared scenes when present; always the built-in Cornell box and a synthetic room (a
+// closed box around a sphere and a soup: rays bounce inside, as in an interior).
+TEST(WideKernels, ScenesPrimaryShadowDiffuse) {
+  std::vector<std::pair<std::string, Scene>> scenes;
+  for (const char* rel : {"teapot/teapot.obj", "cornell_box/cornell_box.obj", "dabrovic_sponza/sponza.obj"})
+    if (auto path = test::shared_scene(rel)) scenes.emplace_back(rel, load_scene(*path));
+  scenes.emplace_back("builtin:cornell_box", load_scene("builtin:cornell_box"));
+  Scene room = test::closed_box({-2, -1, -2}, {2, 2, 2});
+  room.meshes.push_back(test::closed_sphere(3, {0.3f, 0, 0.2f}, 0.6f).meshes[0]);
+  room.meshes.push_back(test::random_soup(400, 0.15f, 9).meshes[0]);
+  room.source = "synthetic room";
+  scenes.emplace_back("synthetic room", std::move(room));
+  for (const auto& [rel, scene] : scenes) {
+    const std::string view = rel.find("sponza") != std::string::npos ? "inside" : "framing";
+    auto cam = rel == "synthetic room" ? std::optional(tools::PinholeCamera{{-1.5f, 0.5f, -1.5f}, {0.3f, 0, 0.2f}, 70})
+                                       : tools::named_view(scene, view);
     ASSERT_TRUE(cam.has_value());
     BuildConfig c;
     c.layout = Layout::bvh2;
