@@ -4,9 +4,9 @@
 // error tErr = mean |(o_t - o_{t-1}) - (r_t - r_{t-1})| (tone-mapped), and ms per 1280x720
 // frame (median after warm-up, the machine's threads). Writes a Markdown table, a JSON file
 // and side-by-side crops (PNG).
-#include <CLI/CLI.hpp>
 #include <fmt/format.h>
 #include <tbb/global_control.h>
+#include <CLI/CLI.hpp>
 
 #include <algorithm>
 #include <chrono>
@@ -19,11 +19,11 @@
 #include <thread>
 #include <vector>
 
+#include "image_metrics.h"
 #include "kestrel/denoise.h"
 #include "kestrel/error.h"
 #include "kestrel/io.h"
 #include "kestrel/render.h"
-#include "image_metrics.h"
 
 using namespace kestrel;
 using namespace kestrel::bench;
@@ -67,14 +67,17 @@ int main(int argc, char** argv) {
   int threads = int(std::thread::hardware_concurrency()), repeat = 9;
   bool quick = false;
   CLI::App app{"kestrel_denoise_eval: the denoisers on the held-out clips"};
-  app.add_option("--dataset", dataset, "The dataset of scripts/denoise/make_dataset.py")->capture_default_str();
-  app.add_option("--out", out_dir, "Where eval.md, eval.json and the crops go")->capture_default_str();
+  app.add_option("--dataset", dataset, "The dataset of scripts/denoise/make_dataset.py")
+      ->capture_default_str();
+  app.add_option("--out", out_dir, "Where eval.md, eval.json and the crops go")
+      ->capture_default_str();
   app.add_option("--weights", weights, "Neural weights (default: weights/denoiser.kdw)");
   app.add_option("--threads", threads, "Worker threads")->capture_default_str();
   app.add_option("--repeat", repeat, "Timed frames (median)")->capture_default_str();
   app.add_flag("--quick", quick, "Three frames per clip, 1 spp only (smoke test)");
   CLI11_PARSE(app, argc, argv);
-  tbb::global_control threads_limit(tbb::global_control::max_allowed_parallelism, size_t(std::max(threads, 1)));
+  tbb::global_control threads_limit(tbb::global_control::max_allowed_parallelism,
+                                    size_t(std::max(threads, 1)));
   try {
     std::vector<Method> methods = {{"input (noisy)", {}, true}};
     DenoiserOptions o;
@@ -92,19 +95,28 @@ int main(int argc, char** argv) {
 
     // Test clips from the manifest.
     std::ifstream mf(fs::path(dataset) / "manifest.json");
-    if (!mf) throw Error(ErrorCode::io_error, fmt::format("{}/manifest.json: not found (run scripts/denoise/make_dataset.py)", dataset));
+    if (!mf)
+      throw Error(ErrorCode::io_error,
+                  fmt::format("{}/manifest.json: not found (run scripts/denoise/make_dataset.py)",
+                              dataset));
     std::stringstream ss;
     ss << mf.rdbuf();
     const std::string manifest = ss.str();
     std::vector<std::string> clips;
-    for (size_t at = manifest.find("\"test_"); at != std::string::npos; at = manifest.find("\"test_", at + 1)) {
+    for (size_t at = manifest.find("\"test_"); at != std::string::npos;
+         at = manifest.find("\"test_", at + 1)) {
       const size_t end = manifest.find('"', at + 1);
       const std::string name = manifest.substr(at + 1, end - at - 1);
-      if (manifest.compare(end + 1, 1, ":") == 0 && std::find(clips.begin(), clips.end(), name) == clips.end()) clips.push_back(name);
+      if (manifest.compare(end + 1, 1, ":") == 0 &&
+          std::find(clips.begin(), clips.end(), name) == clips.end())
+        clips.push_back(name);
     }
-    if (clips.empty()) throw Error(ErrorCode::parse_error, fmt::format("{}: no test clips in the manifest", dataset));
+    if (clips.empty())
+      throw Error(ErrorCode::parse_error,
+                  fmt::format("{}: no test clips in the manifest", dataset));
     fs::create_directories(out_dir);
-    std::map<std::string, std::map<int, Scores>> total;  // method -> spp -> scores (summed over clips)
+    std::map<std::string, std::map<int, Scores>>
+        total;  // method -> spp -> scores (summed over clips)
     std::string per_clip;
     const std::vector<int> spps = quick ? std::vector<int>{1} : std::vector<int>{1, 2, 4};
     for (const std::string& clip : clips) {
@@ -113,14 +125,19 @@ int main(int argc, char** argv) {
       while (fs::exists(root / "ref" / "pfm" / fmt::format("frame_{:04d}", frames))) ++frames;
       if (quick) frames = std::min(frames, 3);
       std::vector<FloatImage> refs;
-      for (int t = 0; t < frames; ++t) refs.push_back(read_pfm((root / "ref" / "pfm" / fmt::format("frame_{:04d}", t) / "color.pfm").string()));
+      for (int t = 0; t < frames; ++t)
+        refs.push_back(read_pfm(
+            (root / "ref" / "pfm" / fmt::format("frame_{:04d}", t) / "color.pfm").string()));
       for (int spp : spps) {
         if (!fs::exists(root / fmt::format("spp{}", spp))) continue;
         std::vector<InputFrame> inputs;
-        for (int t = 0; t < frames; ++t) inputs.push_back(load_frame(root / fmt::format("spp{}", spp) / "pfm" / fmt::format("frame_{:04d}", t)));
+        for (int t = 0; t < frames; ++t)
+          inputs.push_back(load_frame(root / fmt::format("spp{}", spp) / "pfm" /
+                                      fmt::format("frame_{:04d}", t)));
         std::vector<FloatImage> last;  // per method, the last frame (crops)
         for (const Method& m : methods) {
-          std::unique_ptr<Denoiser> d = m.identity ? nullptr : std::make_unique<Denoiser>(m.options);
+          std::unique_ptr<Denoiser> d =
+              m.identity ? nullptr : std::make_unique<Denoiser>(m.options);
           Scores s;
           std::vector<float> prev_o, prev_r;
           FloatImage out;
@@ -132,7 +149,8 @@ int main(int argc, char** argv) {
             s.relmse += relmse(out, refs[size_t(t)]);
             if (t > 0) {
               double e = 0;
-              for (size_t i = 0; i < to.size(); ++i) e += std::abs((to[i] - prev_o[i]) - (tr[i] - prev_r[i]));
+              for (size_t i = 0; i < to.size(); ++i)
+                e += std::abs((to[i] - prev_o[i]) - (tr[i] - prev_r[i]));
               s.terr += e / double(to.size());
             }
             prev_o = to, prev_r = tr;
@@ -140,21 +158,22 @@ int main(int argc, char** argv) {
           s.psnr /= frames, s.ssim /= frames, s.relmse /= frames;
           s.terr /= std::max(frames - 1, 1);
           s.frames = frames;
-          per_clip += fmt::format("| {} | {} | {} | {:.2f} | {:.4f} | {:.4f} | {:.5f} |\n", clip, spp, m.name, s.psnr, s.ssim, s.relmse, s.terr);
-          fmt::print("{:20s} {} spp  {:26s} PSNR {:6.2f}  SSIM {:.4f}  relMSE {:.4f}  tErr {:.5f}\n", clip, spp, m.name, s.psnr,
-                     s.ssim, s.relmse, s.terr);
+          per_clip += fmt::format("| {} | {} | {} | {:.2f} | {:.4f} | {:.4f} | {:.5f} |\n", clip,
+                                  spp, m.name, s.psnr, s.ssim, s.relmse, s.terr);
+          fmt::print(
+              "{:20s} {} spp  {:26s} PSNR {:6.2f}  SSIM {:.4f}  relMSE {:.4f}  tErr {:.5f}\n", clip,
+              spp, m.name, s.psnr, s.ssim, s.relmse, s.terr);
           Scores& t = total[m.name][spp];
           t.psnr += s.psnr, t.ssim += s.ssim, t.relmse += s.relmse, t.terr += s.terr, t.frames += 1;
           last.push_back(out);
         }
         if (spp == 1) {
           std::vector<const FloatImage*> imgs;
-          for (const FloatImage& f : last)
-            imgs.push_back(&f);
+          for (const FloatImage& f : last) imgs.push_back(&f);
           imgs.push_back(&refs.back());
           const int cw = std::min(128, refs.back().width), ch = std::min(96, refs.back().height);
-          write_crop_png((fs::path(out_dir) / (clip + "_crops.png")).string(), imgs, (refs.back().width - cw) / 2,
-                         (refs.back().height - ch) / 2, cw, ch);
+          write_crop_png((fs::path(out_dir) / (clip + "_crops.png")).string(), imgs,
+                         (refs.back().width - cw) / 2, (refs.back().height - ch) / 2, cw, ch);
         }
       }
     }
@@ -170,7 +189,9 @@ int main(int argc, char** argv) {
       return b;
     };
     std::vector<InputFrame> big;
-    for (const InputFrame& f : small) big.push_back({tile(f.color), tile(f.albedo), tile(f.normal), tile(f.depth), tile(f.rough), tile(f.motion)});
+    for (const InputFrame& f : small)
+      big.push_back({tile(f.color), tile(f.albedo), tile(f.normal), tile(f.depth), tile(f.rough),
+                     tile(f.motion)});
     std::map<std::string, double> ms;
     for (const Method& m : methods) {
       if (m.identity) continue;
@@ -180,23 +201,33 @@ int main(int argc, char** argv) {
       for (int r = 0; r < repeat + 2; ++r) {
         const auto t0 = std::chrono::steady_clock::now();
         d.denoise(big[size_t(r % 2)].input(), out);
-        const double t = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+        const double t =
+            std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0)
+                .count();
         if (r >= 2) times.push_back(t);
       }
       ms[m.name] = median(times);
-      fmt::print("{:26s} {:.1f} ms per 1280x720 frame ({} threads, median of {})\n", m.name, ms[m.name], threads, repeat);
+      fmt::print("{:26s} {:.1f} ms per 1280x720 frame ({} threads, median of {})\n", m.name,
+                 ms[m.name], threads, repeat);
     }
     // Table.
     std::string md = fmt::format(
-        "# Denoiser evaluation\n\nWritten by `kestrel_denoise_eval` (bench/denoise_eval.cpp) on the test clips of `{}`: {}. "
-        "Means over clips of per-clip means over frames. PSNR / SSIM on tone-mapped sRGB (ACES fit, exposure 0), relMSE on "
-        "linear HDR ((o-r)^2/(r^2+0.01)), tErr = mean |(o_t - o_t-1) - (r_t - r_t-1)| on tone-mapped values; ms per "
-        "1280x720 frame with {} threads (median of {} after 2 warm-up frames). Neural parameters: {}.\n\n"
-        "| method | spp | PSNR dB | SSIM | relMSE | tErr | ms @1280x720 |\n|---|---:|---:|---:|---:|---:|---:|\n",
+        "# Denoiser evaluation\n\nWritten by `kestrel_denoise_eval` (bench/denoise_eval.cpp) on "
+        "the test clips of `{}`: {}. "
+        "Means over clips of per-clip means over frames. PSNR / SSIM on tone-mapped sRGB (ACES "
+        "fit, exposure 0), relMSE on "
+        "linear HDR ((o-r)^2/(r^2+0.01)), tErr = mean |(o_t - o_t-1) - (r_t - r_t-1)| on "
+        "tone-mapped values; ms per "
+        "1280x720 frame with {} threads (median of {} after 2 warm-up frames). Neural parameters: "
+        "{}.\n\n"
+        "| method | spp | PSNR dB | SSIM | relMSE | tErr | ms @1280x720 "
+        "|\n|---|---:|---:|---:|---:|---:|---:|\n",
         fs::path(dataset).filename().string(), fmt::join(clips, ", "), threads, repeat, params);
     std::string json = "{\n  \"clips\": [";
-    for (size_t i = 0; i < clips.size(); ++i) json += fmt::format("{}\"{}\"", i ? ", " : "", clips[i]);
-    json += fmt::format("],\n  \"threads\": {},\n  \"parameters\": {},\n  \"results\": [\n", threads, params);
+    for (size_t i = 0; i < clips.size(); ++i)
+      json += fmt::format("{}\"{}\"", i ? ", " : "", clips[i]);
+    json += fmt::format("],\n  \"threads\": {},\n  \"parameters\": {},\n  \"results\": [\n",
+                        threads, params);
     bool first = true;
     for (int spp : spps)
       for (const Method& m : methods) {
@@ -205,18 +236,25 @@ int main(int argc, char** argv) {
         const Scores& s = it->second;
         const double n = s.frames;
         const std::string t = ms.count(m.name) ? fmt::format("{:.1f}", ms[m.name]) : "";
-        md += fmt::format("| {} | {} | {:.2f} | {:.4f} | {:.4f} | {:.5f} | {} |\n", m.name, spp, s.psnr / n, s.ssim / n, s.relmse / n,
-                          s.terr / n, t);
-        json += fmt::format("{}    {{\"method\": \"{}\", \"spp\": {}, \"psnr\": {:.3f}, \"ssim\": {:.4f}, \"relmse\": {:.5f}, "
-                            "\"terr\": {:.5f}, \"ms\": {}}}",
-                            first ? "" : ",\n", m.name, spp, s.psnr / n, s.ssim / n, s.relmse / n, s.terr / n,
-                            ms.count(m.name) ? fmt::format("{:.2f}", ms[m.name]) : "null");
+        md += fmt::format("| {} | {} | {:.2f} | {:.4f} | {:.4f} | {:.5f} | {} |\n", m.name, spp,
+                          s.psnr / n, s.ssim / n, s.relmse / n, s.terr / n, t);
+        json += fmt::format(
+            "{}    {{\"method\": \"{}\", \"spp\": {}, \"psnr\": {:.3f}, \"ssim\": {:.4f}, "
+            "\"relmse\": {:.5f}, "
+            "\"terr\": {:.5f}, \"ms\": {}}}",
+            first ? "" : ",\n", m.name, spp, s.psnr / n, s.ssim / n, s.relmse / n, s.terr / n,
+            ms.count(m.name) ? fmt::format("{:.2f}", ms[m.name]) : "null");
         first = false;
       }
     json += "\n  ]\n}\n";
-    md += "\nPer clip:\n\n| clip | spp | method | PSNR dB | SSIM | relMSE | tErr |\n|---|---:|---|---:|---:|---:|---:|\n" + per_clip;
-    md += "\nCrops (last frame, 1 spp; left to right: input, a-trous, SVGF-like, neural frame by frame, neural, reference): "
-          "`<clip>_crops.png`.\n";
+    md +=
+        "\nPer clip:\n\n| clip | spp | method | PSNR dB | SSIM | relMSE | tErr "
+        "|\n|---|---:|---|---:|---:|---:|---:|\n" +
+        per_clip;
+    md +=
+        "\nCrops (last frame, 1 spp; left to right: input, a-trous, SVGF-like, neural frame by "
+        "frame, neural, reference): "
+        "`<clip>_crops.png`.\n";
     std::ofstream(fs::path(out_dir) / "eval.md") << md;
     std::ofstream(fs::path(out_dir) / "eval.json") << json;
     fmt::print("wrote {}/eval.md, eval.json and crops\n", out_dir);

@@ -15,9 +15,12 @@ namespace kestrel::peer {
 
 const char* embree_quality_name(EmbreeQuality q) {
   switch (q) {
-    case EmbreeQuality::low: return "LOW";
-    case EmbreeQuality::medium: return "MEDIUM";
-    case EmbreeQuality::high: return "HIGH";
+    case EmbreeQuality::low:
+      return "LOW";
+    case EmbreeQuality::medium:
+      return "MEDIUM";
+    case EmbreeQuality::high:
+      return "HIGH";
   }
   return "?";
 }
@@ -33,8 +36,8 @@ struct EmbreeScene::Impl {
   RTCDevice device = nullptr;
   RTCScene scene = nullptr;
   RTCBuildQuality quality;
-  std::vector<float> vertices;     // x y z, padded by one float at the end (Embree reads 16 B)
-  std::vector<uint32_t> indices;   // 3 per triangle, global prim order
+  std::vector<float> vertices;    // x y z, padded by one float at the end (Embree reads 16 B)
+  std::vector<uint32_t> indices;  // 3 per triangle, global prim order
   double build_ms = 0;
   std::atomic<ssize_t> memory{0};
   ssize_t memory_before_build = 0;
@@ -52,8 +55,8 @@ struct EmbreeScene::Impl {
     rtcSetSceneFlags(scene, RTC_SCENE_FLAG_NONE);
     RTCGeometry geom = rtcNewGeometry(device, RTC_GEOMETRY_TYPE_TRIANGLE);
     rtcSetGeometryBuildQuality(geom, quality);
-    rtcSetSharedGeometryBuffer(geom, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3, vertices.data(), 0,
-                               3 * sizeof(float), (vertices.size() - 1) / 3);
+    rtcSetSharedGeometryBuffer(geom, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3, vertices.data(),
+                               0, 3 * sizeof(float), (vertices.size() - 1) / 3);
     rtcSetSharedGeometryBuffer(geom, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3, indices.data(), 0,
                                3 * sizeof(uint32_t), indices.size() / 3);
     rtcCommitGeometry(geom);
@@ -68,11 +71,12 @@ struct EmbreeScene::Impl {
 
 EmbreeScene::EmbreeScene(const Scene& scene, EmbreeQuality quality, int threads) : impl_(new Impl) {
   Impl& m = *impl_;
-  const std::string config = threads > 0 ? "threads=" + std::to_string(threads) + ",set_affinity=0" : "";
+  const std::string config =
+      threads > 0 ? "threads=" + std::to_string(threads) + ",set_affinity=0" : "";
   m.device = rtcNewDevice(config.empty() ? nullptr : config.c_str());
   if (!m.device) throw std::runtime_error("Embree: rtcNewDevice failed");
   rtcSetDeviceMemoryMonitorFunction(m.device, memory_monitor, &m.memory);
-  m.quality = quality == EmbreeQuality::low ? RTC_BUILD_QUALITY_LOW
+  m.quality = quality == EmbreeQuality::low      ? RTC_BUILD_QUALITY_LOW
               : quality == EmbreeQuality::medium ? RTC_BUILD_QUALITY_MEDIUM
                                                  : RTC_BUILD_QUALITY_HIGH;
   const SceneValidation validation = validate_scene(scene);
@@ -85,7 +89,8 @@ EmbreeScene::EmbreeScene(const Scene& scene, EmbreeQuality quality, int threads)
       m.vertices.push_back(std::isfinite(p.z) ? p.z : 0.0f);
     }
     for (size_t t = 0; t < mesh.triangle_count(); ++t, ++gid)
-      for (int k = 0; k < 3; ++k) m.indices.push_back(validation.valid[gid] ? base + mesh.indices[3 * t + k] : 0u);
+      for (int k = 0; k < 3; ++k)
+        m.indices.push_back(validation.valid[gid] ? base + mesh.indices[3 * t + k] : 0u);
   }
   m.vertices.push_back(0.0f);
   if (m.vertices.size() < 4) m.vertices.assign(4, 0.0f);
@@ -97,15 +102,22 @@ EmbreeScene::~EmbreeScene() {
   if (impl_->device) rtcReleaseDevice(impl_->device);
 }
 
-double EmbreeScene::rebuild() { return impl_->build(); }
-double EmbreeScene::last_build_ms() const { return impl_->build_ms; }
-size_t EmbreeScene::memory_bytes() const { return size_t(impl_->memory.load() - impl_->memory_before_build); }
+double EmbreeScene::rebuild() {
+  return impl_->build();
+}
+double EmbreeScene::last_build_ms() const {
+  return impl_->build_ms;
+}
+size_t EmbreeScene::memory_bytes() const {
+  return size_t(impl_->memory.load() - impl_->memory_before_build);
+}
 
 Hit EmbreeScene::intersect(const Ray& ray) const {
   RTCIntersectContext ctx;
   rtcInitIntersectContext(&ctx);
   RTCRayHit rh;
-  rh.ray = {ray.org.x, ray.org.y, ray.org.z, ray.tmin, ray.dir.x, ray.dir.y, ray.dir.z, 0.0f, ray.tmax, 0xFFFFFFFFu, 0, 0};
+  rh.ray = {ray.org.x, ray.org.y, ray.org.z, ray.tmin,    ray.dir.x, ray.dir.y,
+            ray.dir.z, 0.0f,      ray.tmax,  0xFFFFFFFFu, 0,         0};
   rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
   rh.hit.primID = RTC_INVALID_GEOMETRY_ID;
   rtcIntersect1(impl_->scene, &ctx, &rh);
@@ -122,7 +134,8 @@ Hit EmbreeScene::intersect(const Ray& ray) const {
 bool EmbreeScene::occluded(const Ray& ray) const {
   RTCIntersectContext ctx;
   rtcInitIntersectContext(&ctx);
-  RTCRay r{ray.org.x, ray.org.y, ray.org.z, ray.tmin, ray.dir.x, ray.dir.y, ray.dir.z, 0.0f, ray.tmax, 0xFFFFFFFFu, 0, 0};
+  RTCRay r{ray.org.x, ray.org.y, ray.org.z, ray.tmin,    ray.dir.x, ray.dir.y,
+           ray.dir.z, 0.0f,      ray.tmax,  0xFFFFFFFFu, 0,         0};
   rtcOccluded1(impl_->scene, &ctx, &r);
   return r.tfar == -std::numeric_limits<float>::infinity();
 }
@@ -133,7 +146,8 @@ void EmbreeScene::intersect(std::span<const Ray> rays, std::span<Hit> hits) cons
   for (size_t i = 0; i < rays.size(); ++i) {
     const Ray& ray = rays[i];
     RTCRayHit rh;
-    rh.ray = {ray.org.x, ray.org.y, ray.org.z, ray.tmin, ray.dir.x, ray.dir.y, ray.dir.z, 0.0f, ray.tmax, 0xFFFFFFFFu, 0, 0};
+    rh.ray = {ray.org.x, ray.org.y, ray.org.z, ray.tmin,    ray.dir.x, ray.dir.y,
+              ray.dir.z, 0.0f,      ray.tmax,  0xFFFFFFFFu, 0,         0};
     rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
     rh.hit.primID = RTC_INVALID_GEOMETRY_ID;
     rtcIntersect1(impl_->scene, &ctx, &rh);
@@ -151,7 +165,8 @@ void EmbreeScene::occluded(std::span<const Ray> rays, std::span<uint8_t> out) co
   rtcInitIntersectContext(&ctx);
   for (size_t i = 0; i < rays.size(); ++i) {
     const Ray& ray = rays[i];
-    RTCRay r{ray.org.x, ray.org.y, ray.org.z, ray.tmin, ray.dir.x, ray.dir.y, ray.dir.z, 0.0f, ray.tmax, 0xFFFFFFFFu, 0, 0};
+    RTCRay r{ray.org.x, ray.org.y, ray.org.z, ray.tmin,    ray.dir.x, ray.dir.y,
+             ray.dir.z, 0.0f,      ray.tmax,  0xFFFFFFFFu, 0,         0};
     rtcOccluded1(impl_->scene, &ctx, &r);
     out[i] = r.tfar == -std::numeric_limits<float>::infinity();
   }
@@ -186,6 +201,8 @@ void EmbreeScene::intersect16(std::span<const Ray> rays, std::span<Hit> hits) co
   }
 }
 
-std::string embree_version() { return RTC_VERSION_STRING; }
+std::string embree_version() {
+  return RTC_VERSION_STRING;
+}
 
 }  // namespace kestrel::peer

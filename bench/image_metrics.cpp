@@ -11,7 +11,8 @@ namespace kestrel::bench {
 std::vector<float> tonemapped(const FloatImage& img) {
   std::vector<float> out(size_t(img.width) * size_t(img.height) * 3);
   for (size_t p = 0; p < size_t(img.width) * size_t(img.height); ++p)
-    for (int c = 0; c < 3; ++c) out[p * 3 + size_t(c)] = tonemap_aces_srgb(img.pixels[p * size_t(img.channels) + size_t(c)]);
+    for (int c = 0; c < 3; ++c)
+      out[p * 3 + size_t(c)] = tonemap_aces_srgb(img.pixels[p * size_t(img.channels) + size_t(c)]);
   return out;
 }
 
@@ -42,13 +43,15 @@ double ssim(const std::vector<float>& a, const std::vector<float>& b, int w, int
       for (int y = 0; y < h; ++y)
         for (int x = 0; x < w; ++x) {
           float s = 0;
-          for (int i = -r; i <= r; ++i) s += g[i + r] * val(k, size_t(y) * size_t(w) + size_t(std::clamp(x + i, 0, w - 1)));
+          for (int i = -r; i <= r; ++i)
+            s += g[i + r] * val(k, size_t(y) * size_t(w) + size_t(std::clamp(x + i, 0, w - 1)));
           tmp[size_t(y) * size_t(w) + size_t(x)] = s;
         }
       for (int y = 0; y < h; ++y)
         for (int x = 0; x < w; ++x) {
           float s = 0;
-          for (int i = -r; i <= r; ++i) s += g[i + r] * tmp[size_t(std::clamp(y + i, 0, h - 1)) * size_t(w) + size_t(x)];
+          for (int i = -r; i <= r; ++i)
+            s += g[i + r] * tmp[size_t(std::clamp(y + i, 0, h - 1)) * size_t(w) + size_t(x)];
           maps[k][size_t(y) * size_t(w) + size_t(x)] = s;
         }
     }
@@ -68,7 +71,8 @@ double relmse(const FloatImage& o, const FloatImage& r) {
   size_t n = 0;
   for (size_t p = 0; p < size_t(o.width) * size_t(o.height); ++p)
     for (int c = 0; c < 3; ++c) {
-      const double a = o.pixels[p * 3 + size_t(c)], b = r.pixels[p * size_t(r.channels) + size_t(c)];
+      const double a = o.pixels[p * 3 + size_t(c)],
+                   b = r.pixels[p * size_t(r.channels) + size_t(c)];
       s += (a - b) * (a - b) / (b * b + 1e-2);
       ++n;
     }
@@ -80,14 +84,17 @@ double median(std::vector<double> v) {
   return v[v.size() / 2];
 }
 
-void write_crop_png(const std::string& path, const std::vector<const FloatImage*>& images, int x0, int y0, int cw, int ch) {
-  const int scale = 2, W = cw * scale * int(images.size()) + 4 * int(images.size() - 1), H = ch * scale;
+void write_crop_png(const std::string& path, const std::vector<const FloatImage*>& images, int x0,
+                    int y0, int cw, int ch) {
+  const int scale = 2, W = cw * scale * int(images.size()) + 4 * int(images.size() - 1),
+            H = ch * scale;
   std::vector<uint8_t> rgb(size_t(W) * size_t(H) * 3, 255);
   for (size_t k = 0; k < images.size(); ++k)
     for (int y = 0; y < H; ++y)
       for (int x = 0; x < cw * scale; ++x) {
         const FloatImage& img = *images[k];
-        const float* px = img.at(std::min(x0 + x / scale, img.width - 1), std::min(y0 + y / scale, img.height - 1));
+        const float* px = img.at(std::min(x0 + x / scale, img.width - 1),
+                                 std::min(y0 + y / scale, img.height - 1));
         uint8_t* o = &rgb[(size_t(y) * size_t(W) + size_t(int(k) * (cw * scale + 4) + x)) * 3];
         for (int c = 0; c < 3; ++c) o[c] = uint8_t(std::lround(255.0f * tonemap_aces_srgb(px[c])));
       }

@@ -18,6 +18,7 @@ double ssim(const std::vector<float>& a, const std::vector<float>& b, int w, int
 double relmse(const FloatImage& o, const FloatImage& r);
 double median(std::vector<double> v);
 /// The same crop of each image side by side, 2x nearest-neighbour, tone-mapped, as PNG.
-void write_crop_png(const std::string& path, const std::vector<const FloatImage*>& images, int x0, int y0, int cw, int ch);
+void write_crop_png(const std::string& path, const std::vector<const FloatImage*>& images, int x0,
+                    int y0, int cw, int ch);
 
 }  // namespace kestrel::bench

@@ -13,9 +13,9 @@
 #include <fstream>
 
 #include "core/timer.h"
-#include "render/testing.h"
 #include "kestrel/kestrel.h"
 #include "kestrel/render.h"
+#include "render/testing.h"
 
 namespace {
 
@@ -31,7 +31,8 @@ struct Row {
 
 int main(int argc, char** argv) {
   CLI::App app{"kestrel_render_bench: path tracer ms/frame and in-render vs raw ray throughput"};
-  std::string scene_path = std::string(KESTREL_SCENE_ROOT) + "/dabrovic_sponza/sponza.obj", view = "inside", json;
+  std::string scene_path = std::string(KESTREL_SCENE_ROOT) + "/dabrovic_sponza/sponza.obj",
+              view = "inside", json;
   int frames = 7;
   bool quick = false;
   app.add_option("--scene", scene_path, "Scene");
@@ -44,15 +45,19 @@ int main(int argc, char** argv) {
     if (quick) scene_path = "builtin:cornell_box", view = "front", frames = 2;
     const Asset asset = Asset::load(scene_path);
     const auto camera = find_view(asset, view);
-    if (!camera) throw Error(ErrorCode::invalid_argument, fmt::format("{}: no view '{}'", scene_path, view));
+    if (!camera)
+      throw Error(ErrorCode::invalid_argument, fmt::format("{}: no view '{}'", scene_path, view));
     Renderer renderer(asset.scene());
     std::vector<std::pair<int, int>> sizes = {{640, 360}, {1280, 720}};
     if (quick) sizes = {{64, 36}};
     std::vector<int> thread_counts = {1, hardware_thread_count()};
     if (thread_counts[1] == 1) thread_counts.pop_back();
     std::vector<Row> rows;
-    fmt::print("scene {} view '{}', 1 spp, max depth 8, median of {} frames\n\n", scene_path, view, frames);
-    fmt::print("| resolution | threads | ms/frame | rays/frame | in-render Mrays/s | raw Mrays/s (same rays) | in-render / raw | trace share | raw camera / bounce / shadow Mrays/s |\n");
+    fmt::print("scene {} view '{}', 1 spp, max depth 8, median of {} frames\n\n", scene_path, view,
+               frames);
+    fmt::print(
+        "| resolution | threads | ms/frame | rays/frame | in-render Mrays/s | raw Mrays/s (same "
+        "rays) | in-render / raw | trace share | raw camera / bounce / shadow Mrays/s |\n");
     fmt::print("|---|---:|---:|---:|---:|---:|---:|---:|---|\n");
     for (auto [w, h] : sizes)
       for (int threads : thread_counts) {
@@ -80,24 +85,30 @@ int main(int argc, char** argv) {
             }
             const double total = t[0] + t[1] + t[2];
             raw_ms.push_back(total);
-            ratios.push_back(total / fr.stats.ms);  // same rays: (rays / render ms) / (rays / raw ms)
-            raw_mrays.push_back(double(cap.camera.size() + cap.bounce.size() + cap.shadow.size()) / (total * 1e3));
+            ratios.push_back(total /
+                             fr.stats.ms);  // same rays: (rays / render ms) / (rays / raw ms)
+            raw_mrays.push_back(double(cap.camera.size() + cap.bounce.size() + cap.shadow.size()) /
+                                (total * 1e3));
             kind_mrays[0].push_back(double(cap.camera.size()) / (t[0] * 1e3));
             kind_mrays[1].push_back(double(cap.bounce.size()) / (t[1] * 1e3));
             kind_mrays[2].push_back(double(cap.shadow.size()) / (t[2] * 1e3));
           }
         }
-        Row r{w, h, threads, median(ms), median(share), median(rays), median(in_mrays), 0, 0, 0, 0, 0};
+        Row r{w, h, threads, median(ms), median(share), median(rays), median(in_mrays), 0,
+              0, 0, 0,       0};
         if (threads == 1) {
           r.raw_mrays = median(raw_mrays);
           r.ratio = median(ratios);  // per frame, render and retrace back to back
-          r.raw_camera = median(kind_mrays[0]), r.raw_bounce = median(kind_mrays[1]), r.raw_shadow = median(kind_mrays[2]);
-          fmt::print("| {}x{} | {} | {:.1f} | {:.0f} | {:.2f} | {:.2f} | **{:.2f}** | {:.0f}% | {:.2f} / {:.2f} / {:.2f} |\n", w, h,
-                     threads, r.frame_ms, r.rays_per_frame, r.in_render_mrays, r.raw_mrays, r.ratio, 100 * r.trace_share,
-                     r.raw_camera, r.raw_bounce, r.raw_shadow);
+          r.raw_camera = median(kind_mrays[0]), r.raw_bounce = median(kind_mrays[1]),
+          r.raw_shadow = median(kind_mrays[2]);
+          fmt::print(
+              "| {}x{} | {} | {:.1f} | {:.0f} | {:.2f} | {:.2f} | **{:.2f}** | {:.0f}% | {:.2f} / "
+              "{:.2f} / {:.2f} |\n",
+              w, h, threads, r.frame_ms, r.rays_per_frame, r.in_render_mrays, r.raw_mrays, r.ratio,
+              100 * r.trace_share, r.raw_camera, r.raw_bounce, r.raw_shadow);
         } else {
-          fmt::print("| {}x{} | {} | {:.1f} | {:.0f} | {:.2f} | | | {:.0f}% | |\n", w, h, threads, r.frame_ms, r.rays_per_frame,
-                     r.in_render_mrays, 100 * r.trace_share);
+          fmt::print("| {}x{} | {} | {:.1f} | {:.0f} | {:.2f} | | | {:.0f}% | |\n", w, h, threads,
+                     r.frame_ms, r.rays_per_frame, r.in_render_mrays, 100 * r.trace_share);
         }
         rows.push_back(r);
       }
@@ -107,10 +118,12 @@ int main(int argc, char** argv) {
       for (size_t i = 0; i < rows.size(); ++i) {
         const Row& r = rows[i];
         out << fmt::format(
-            "  {{\"width\": {}, \"height\": {}, \"threads\": {}, \"frame_ms\": {:.3f}, \"trace_share\": {:.4f}, "
-            "\"rays_per_frame\": {:.0f}, \"in_render_mrays\": {:.4f}, \"raw_mrays\": {:.4f}, \"ratio\": {:.4f}}}{}\n",
-            r.width, r.height, r.threads, r.frame_ms, r.trace_share, r.rays_per_frame, r.in_render_mrays, r.raw_mrays,
-            r.ratio, i + 1 < rows.size() ? "," : "");
+            "  {{\"width\": {}, \"height\": {}, \"threads\": {}, \"frame_ms\": {:.3f}, "
+            "\"trace_share\": {:.4f}, "
+            "\"rays_per_frame\": {:.0f}, \"in_render_mrays\": {:.4f}, \"raw_mrays\": {:.4f}, "
+            "\"ratio\": {:.4f}}}{}\n",
+            r.width, r.height, r.threads, r.frame_ms, r.trace_share, r.rays_per_frame,
+            r.in_render_mrays, r.raw_mrays, r.ratio, i + 1 < rows.size() ? "," : "");
       }
       out << "]\n";
     }

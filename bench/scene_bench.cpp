@@ -45,12 +45,15 @@ TriangleMesh sphere_mesh(int rings, int segments, float r) {
   TriangleMesh m;
   for (int i = 0; i <= rings; ++i)
     for (int j = 0; j < segments; ++j) {
-      const float th = 3.14159265f * float(i) / float(rings), ph = 6.2831853f * float(j) / float(segments);
-      m.positions.push_back({r * std::sin(th) * std::cos(ph), r * std::cos(th), r * std::sin(th) * std::sin(ph)});
+      const float th = 3.14159265f * float(i) / float(rings),
+                  ph = 6.2831853f * float(j) / float(segments);
+      m.positions.push_back(
+          {r * std::sin(th) * std::cos(ph), r * std::cos(th), r * std::sin(th) * std::sin(ph)});
     }
   for (int i = 0; i < rings; ++i)
     for (int j = 0; j < segments; ++j) {
-      const uint32_t a = uint32_t(i * segments + j), b = uint32_t(i * segments + (j + 1) % segments);
+      const uint32_t a = uint32_t(i * segments + j),
+                     b = uint32_t(i * segments + (j + 1) % segments);
       const uint32_t c = a + uint32_t(segments), d = b + uint32_t(segments);
       m.indices.insert(m.indices.end(), {a, c, b, b, c, d});
     }
@@ -59,8 +62,10 @@ TriangleMesh sphere_mesh(int rings, int segments, float r) {
 
 TriangleMesh box_mesh(float h) {
   TriangleMesh m;
-  for (int i = 0; i < 8; ++i) m.positions.push_back({i & 1 ? h : -h, i & 2 ? h : -h, i & 4 ? h : -h});
-  m.indices = {0, 2, 1, 1, 2, 3, 4, 5, 6, 5, 7, 6, 0, 1, 4, 1, 5, 4, 2, 6, 3, 3, 6, 7, 0, 4, 2, 2, 4, 6, 1, 3, 5, 3, 7, 5};
+  for (int i = 0; i < 8; ++i)
+    m.positions.push_back({i & 1 ? h : -h, i & 2 ? h : -h, i & 4 ? h : -h});
+  m.indices = {0, 2, 1, 1, 2, 3, 4, 5, 6, 5, 7, 6, 0, 1, 4, 1, 5, 4,
+               2, 6, 3, 3, 6, 7, 0, 4, 2, 2, 4, 6, 1, 3, 5, 3, 7, 5};
   return m;
 }
 
@@ -73,12 +78,15 @@ struct Json {
 
 int main(int argc, char** argv) {
   CLI::App app{"kestrel two-level scene benchmark: per-frame updates and the instancing penalty"};
-  std::string scene_root = KESTREL_SCENE_ROOT, counts = "10000,100000,1000000", json_path = "scene_bench.json", res = "640x360";
+  std::string scene_root = KESTREL_SCENE_ROOT, counts = "10000,100000,1000000",
+              json_path = "scene_bench.json", res = "640x360";
   int frames = 10;
   bool quick = false;
   app.add_option("--scene-root", scene_root, "folder of the shared scenes");
-  app.add_option("--frames", frames, "animated frames per scene (median reported)")->check(CLI::Range(1, 1000));
-  app.add_option("--instances", counts, "comma-separated instance counts of the moving-instances scene");
+  app.add_option("--frames", frames, "animated frames per scene (median reported)")
+      ->check(CLI::Range(1, 1000));
+  app.add_option("--instances", counts,
+                 "comma-separated instance counts of the moving-instances scene");
   app.add_option("--res", res, "primary ray resolution WxH");
   app.add_option("--json", json_path, "JSON output file");
   app.add_flag("--quick", quick, "tiny sizes, one frame (smoke test)");
@@ -100,7 +108,8 @@ int main(int argc, char** argv) {
     const std::string bunny = scene_root + "/stanford_bunny/stanford_bunny.obj";
     const std::string grid = scene_root + "/bunny_grid/bunny_grid.obj";
     const std::string inst_file = scene_root + "/bunny_grid/bunny_grid.instances.txt";
-    if (!quick && std::filesystem::exists(bunny) && std::filesystem::exists(grid) && std::filesystem::exists(inst_file)) {
+    if (!quick && std::filesystem::exists(bunny) && std::filesystem::exists(grid) &&
+        std::filesystem::exists(inst_file)) {
       const Scene flat_scene = load_scene(grid);
       InstancedScene two;
       const MeshId b = two.add_mesh(merge(load_scene(bunny)));
@@ -118,9 +127,12 @@ int main(int argc, char** argv) {
       const auto cam = tools::named_view(flat_scene, "framing");
       const std::vector<Ray> primary = tools::primary_rays(*cam, width, height);
       const Vec3 light = tools::default_light(tools::scene_bounds(flat_scene));
-      const std::vector<Ray> diffuse = tools::secondary_rays(flat, flat_scene, primary, tools::RayKind::diffuse, light, 3);
-      fmt::print("bunny grid: 16 bunny instances + ground; BLAS build {:.1f} ms, TLAS {:.3f} ms; {:.1f} MB two-level vs {:.1f} MB flat\n",
-                 cs.blas_build_ms, cs.tlas_ms, two.memory_bytes() / 1e6, flat.memory_bytes() / 1e6);
+      const std::vector<Ray> diffuse =
+          tools::secondary_rays(flat, flat_scene, primary, tools::RayKind::diffuse, light, 3);
+      fmt::print(
+          "bunny grid: 16 bunny instances + ground; BLAS build {:.1f} ms, TLAS {:.3f} ms; {:.1f} "
+          "MB two-level vs {:.1f} MB flat\n",
+          cs.blas_build_ms, cs.tlas_ms, two.memory_bytes() / 1e6, flat.memory_bytes() / 1e6);
       for (auto [kind, rays] : {std::pair{"primary", &primary}, std::pair{"diffuse", &diffuse}}) {
         std::vector<InstanceHit> ih(rays->size());
         std::vector<Hit> fh(rays->size());
@@ -135,13 +147,19 @@ int main(int argc, char** argv) {
         }
         size_t same = 0;
         for (size_t i = 0; i < rays->size(); ++i) same += ih[i].hit() == fh[i].hit();
-        const double two_mr = rays->size() / (median(a_ms) * 1e3), flat_mr = rays->size() / (median(b_ms) * 1e3);
-        fmt::print("  {:<8} {:8} rays: two-level {:6.2f} Mrays/s, flattened {:6.2f} Mrays/s, two-level cost {:.2f}x flat; "
-                   "hit/miss agree {:.3f}%\n",
-                   kind, rays->size(), two_mr, flat_mr, flat_mr / two_mr, 100.0 * double(same) / double(rays->size()));
-        json.add(fmt::format("{{\"scene\": \"bunny_grid\", \"rays\": \"{}\", \"two_level_mrays\": {:.3f}, \"flat_mrays\": {:.3f}, "
-                             "\"penalty\": {:.3f}}}",
-                             kind, two_mr, flat_mr, flat_mr / two_mr));
+        const double two_mr = rays->size() / (median(a_ms) * 1e3),
+                     flat_mr = rays->size() / (median(b_ms) * 1e3);
+        fmt::print(
+            "  {:<8} {:8} rays: two-level {:6.2f} Mrays/s, flattened {:6.2f} Mrays/s, two-level "
+            "cost {:.2f}x flat; "
+            "hit/miss agree {:.3f}%\n",
+            kind, rays->size(), two_mr, flat_mr, flat_mr / two_mr,
+            100.0 * double(same) / double(rays->size()));
+        json.add(
+            fmt::format("{{\"scene\": \"bunny_grid\", \"rays\": \"{}\", \"two_level_mrays\": "
+                        "{:.3f}, \"flat_mrays\": {:.3f}, "
+                        "\"penalty\": {:.3f}}}",
+                        kind, two_mr, flat_mr, flat_mr / two_mr));
       }
     }
 
@@ -150,7 +168,8 @@ int main(int argc, char** argv) {
     for (std::string c; std::getline(ss, c, ',');) {
       const size_t n = std::stoull(c);
       InstancedScene scene;
-      const MeshId meshes[3] = {scene.add_mesh(sphere_mesh(12, 24, 0.4f)), scene.add_mesh(box_mesh(0.35f)),
+      const MeshId meshes[3] = {scene.add_mesh(sphere_mesh(12, 24, 0.4f)),
+                                scene.add_mesh(box_mesh(0.35f)),
                                 scene.add_mesh(sphere_mesh(4, 6, 0.45f))};
       const int side = int(std::ceil(std::sqrt(double(n))));
       std::vector<InstanceId> ids;
@@ -162,7 +181,8 @@ int main(int argc, char** argv) {
       for (size_t i = 0; i < n; ++i) ids.push_back(scene.add_instance(meshes[i % 3], place(i, 0)));
       scene.commit();
       const float half = 0.5f * float(side);
-      tools::PinholeCamera cam{{half, 0.6f * float(side) + 3, -0.3f * float(side) - 3}, {half, 0, half}, 50.0f};
+      tools::PinholeCamera cam{
+          {half, 0.6f * float(side) + 3, -0.3f * float(side) - 3}, {half, 0, half}, 50.0f};
       const std::vector<Ray> rays = tools::primary_rays(cam, width, height);
       std::vector<InstanceHit> hits(rays.size());
       std::vector<double> update_ms, tlas_ms, trace_ms;
@@ -178,18 +198,24 @@ int main(int argc, char** argv) {
       size_t hit = 0;
       for (const InstanceHit& h : hits) hit += h.hit();
       const double mr = rays.size() / (median(trace_ms) * 1e3);
-      fmt::print("moving instances: {:8} instances of 3 meshes: set_transform {:8.2f} ms, TLAS rebuild {:8.2f} ms "
-                 "({:.2f} M instances/s), trace {:6.2f} Mrays/s ({:.0f}% hit)\n",
-                 n, median(update_ms), median(tlas_ms), n / (median(tlas_ms) * 1e3), mr, 100.0 * hit / rays.size());
-      json.add(fmt::format("{{\"scene\": \"moving_instances\", \"instances\": {}, \"set_transform_ms\": {:.3f}, \"tlas_ms\": {:.3f}, "
-                           "\"trace_mrays\": {:.3f}}}",
-                           n, median(update_ms), median(tlas_ms), mr));
+      fmt::print(
+          "moving instances: {:8} instances of 3 meshes: set_transform {:8.2f} ms, TLAS rebuild "
+          "{:8.2f} ms "
+          "({:.2f} M instances/s), trace {:6.2f} Mrays/s ({:.0f}% hit)\n",
+          n, median(update_ms), median(tlas_ms), n / (median(tlas_ms) * 1e3), mr,
+          100.0 * hit / rays.size());
+      json.add(
+          fmt::format("{{\"scene\": \"moving_instances\", \"instances\": {}, \"set_transform_ms\": "
+                      "{:.3f}, \"tlas_ms\": {:.3f}, "
+                      "\"trace_mrays\": {:.3f}}}",
+                      n, median(update_ms), median(tlas_ms), mr));
     }
 
     // 3. Animated glTF scenes: node animations and morph targets, per frame.
-    for (const char* rel : {"gltf_truck_fleet/truck_fleet.gltf", "gltf_cesium_milk_truck/CesiumMilkTruck.gltf",
-                            "gltf_box_animated/BoxAnimated.gltf", "gltf_animated_morph_cube/AnimatedMorphCube.gltf",
-                            "gltf_morph_stress_test/MorphStressTest.gltf"}) {
+    for (const char* rel :
+         {"gltf_truck_fleet/truck_fleet.gltf", "gltf_cesium_milk_truck/CesiumMilkTruck.gltf",
+          "gltf_box_animated/BoxAnimated.gltf", "gltf_animated_morph_cube/AnimatedMorphCube.gltf",
+          "gltf_morph_stress_test/MorphStressTest.gltf"}) {
       const std::string path = scene_root + "/" + rel;
       if (!std::filesystem::exists(path)) continue;
       GltfInstances anim = GltfInstances::load(path);
@@ -219,13 +245,17 @@ int main(int argc, char** argv) {
       }
       const double mr = rays.size() / (median(trace_ms) * 1e3);
       const std::string name = std::filesystem::path(path).stem().string();
-      fmt::print("animated {:<18} {:3} meshes {:4} instances: pose {:6.3f} ms, TLAS {:6.3f} ms, BLAS refits {:3} ({:6.3f} ms), "
-                 "rebuilds {:3} ({:6.2f} ms), trace {:6.2f} Mrays/s\n",
-                 name, anim.mesh_count(), anim.instance_count(), median(pose_ms), median(tlas_ms), refits, median(refit_ms),
-                 builds, median(build_ms), mr);
-      json.add(fmt::format("{{\"scene\": \"{}\", \"instances\": {}, \"tlas_ms\": {:.4f}, \"refit_ms\": {:.4f}, \"refits\": {}, "
-                           "\"rebuilds\": {}, \"trace_mrays\": {:.3f}}}",
-                           name, anim.instance_count(), median(tlas_ms), median(refit_ms), refits, builds, mr));
+      fmt::print(
+          "animated {:<18} {:3} meshes {:4} instances: pose {:6.3f} ms, TLAS {:6.3f} ms, BLAS "
+          "refits {:3} ({:6.3f} ms), "
+          "rebuilds {:3} ({:6.2f} ms), trace {:6.2f} Mrays/s\n",
+          name, anim.mesh_count(), anim.instance_count(), median(pose_ms), median(tlas_ms), refits,
+          median(refit_ms), builds, median(build_ms), mr);
+      json.add(fmt::format(
+          "{{\"scene\": \"{}\", \"instances\": {}, \"tlas_ms\": {:.4f}, \"refit_ms\": {:.4f}, "
+          "\"refits\": {}, "
+          "\"rebuilds\": {}, \"trace_mrays\": {:.3f}}}",
+          name, anim.instance_count(), median(tlas_ms), median(refit_ms), refits, builds, mr));
     }
 
     // 4. Deforming mesh: refit per frame.
@@ -257,12 +287,17 @@ int main(int argc, char** argv) {
         refits += s.blas_refits;
         builds += s.blas_builds;
       }
-      fmt::print("deforming Lamborghini ({} triangles): first build {:.1f} ms; per frame: {} refits (median {:.2f} ms), "
-                 "{} rebuilds (median {:.1f} ms)\n",
-                 mesh.triangle_count(), first.blas_build_ms, refits, median(refit_ms), builds, median(build_ms));
-      json.add(fmt::format("{{\"scene\": \"deforming_lamborghini\", \"triangles\": {}, \"refit_ms\": {:.3f}, \"refits\": {}, "
-                           "\"rebuilds\": {}}}",
-                           mesh.triangle_count(), median(refit_ms), refits, builds));
+      fmt::print(
+          "deforming Lamborghini ({} triangles): first build {:.1f} ms; per frame: {} refits "
+          "(median {:.2f} ms), "
+          "{} rebuilds (median {:.1f} ms)\n",
+          mesh.triangle_count(), first.blas_build_ms, refits, median(refit_ms), builds,
+          median(build_ms));
+      json.add(
+          fmt::format("{{\"scene\": \"deforming_lamborghini\", \"triangles\": {}, \"refit_ms\": "
+                      "{:.3f}, \"refits\": {}, "
+                      "\"rebuilds\": {}}}",
+                      mesh.triangle_count(), median(refit_ms), refits, builds));
     }
   } catch (const std::exception& e) {
     std::fprintf(stderr, "kestrel_scene_bench: %s\n", e.what());

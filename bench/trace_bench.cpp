@@ -24,8 +24,8 @@
 #include "core/timer.h"
 #include "kestrel/kestrel.h"
 #ifdef KESTREL_HAVE_EMBREE
-#include "embree_peer.h"
 #include "bvh/cost_model.h"
+#include "embree_peer.h"
 #endif
 
 namespace {
@@ -43,8 +43,10 @@ std::string label(const std::string& path) {
 
 std::vector<SceneSpec> default_scenes(const std::string& root) {
   std::vector<SceneSpec> out;
-  for (auto [rel, view] : {std::pair{"dabrovic_sponza/sponza.obj", "inside"}, {"lamborghini/lamborghini.obj", "framing"},
-                           {"bunny_grid/bunny_grid.obj", "framing"}, {"teapot/teapot.obj", "framing"},
+  for (auto [rel, view] : {std::pair{"dabrovic_sponza/sponza.obj", "inside"},
+                           {"lamborghini/lamborghini.obj", "framing"},
+                           {"bunny_grid/bunny_grid.obj", "framing"},
+                           {"teapot/teapot.obj", "framing"},
                            {"cornell_box/cornell_box.obj", "framing"}}) {
     const std::string p = root + "/" + rel;
     if (std::filesystem::exists(p)) out.push_back({p, view});
@@ -84,11 +86,14 @@ int main(int argc, char** argv) {
   std::string scene_root = KESTREL_SCENE_ROOT;
   int repeat = 5;
   bool quick = false, all_kernels = false;
-  app.add_option("--scenes", scenes_arg, "comma-separated scene files (path[:view]); default: the shared scenes");
+  app.add_option("--scenes", scenes_arg,
+                 "comma-separated scene files (path[:view]); default: the shared scenes");
   app.add_option("--scene-root", scene_root, "folder of the shared scenes");
   app.add_option("--res", res, "primary ray resolution WxH");
-  app.add_option("--repeat", repeat, "rounds, alternating kestrel and Embree (median reported)")->check(CLI::Range(1, 100));
-  app.add_option("--builder", builder_arg, "kestrel builder for the trace runs (default: the library's default)");
+  app.add_option("--repeat", repeat, "rounds, alternating kestrel and Embree (median reported)")
+      ->check(CLI::Range(1, 100));
+  app.add_option("--builder", builder_arg,
+                 "kestrel builder for the trace runs (default: the library's default)");
   app.add_option("--ci", ci, "intersection cost Ci of the SAH (Ct = 1)");
   app.add_option("--max-leaf", max_leaf, "max primitives per leaf");
   app.add_flag("--all-kernels", all_kernels, "also every layout x ISA, not only the default");
@@ -126,7 +131,9 @@ int main(int argc, char** argv) {
   if (all_kernels) {
     for (Layout layout : {Layout::bvh4, Layout::bvh8})
       for (Isa isa : {Isa::sse2, Isa::avx2, Isa::avx512})
-        if (isa_supported(isa)) variants.push_back({fmt::format("{}-{}", layout_name(layout), isa_name(isa)), layout, {isa, false}});
+        if (isa_supported(isa))
+          variants.push_back(
+              {fmt::format("{}-{}", layout_name(layout), isa_name(isa)), layout, {isa, false}});
     variants.push_back({"bvh2-scalar", Layout::bvh2, {}});
   }
   std::vector<Result> results;
@@ -153,7 +160,9 @@ int main(int argc, char** argv) {
       const Scene scene = load_scene(spec.path);
       const std::string name = label(spec.path);
       auto cam = tools::named_view(scene, spec.view);
-      if (!cam) throw Error(ErrorCode::invalid_argument, fmt::format("{}: no view named '{}'", spec.path, spec.view));
+      if (!cam)
+        throw Error(ErrorCode::invalid_argument,
+                    fmt::format("{}: no view named '{}'", spec.path, spec.view));
       // Accels: one per layout variant (built once; build time is the build benchmark's).
       std::vector<Accel> accels;
       for (const Variant& v : variants) {
@@ -167,14 +176,20 @@ int main(int argc, char** argv) {
       const Accel& accel = accels[0];
       const std::vector<Ray> primary = tools::primary_rays(*cam, width, height);
       const Vec3 light = tools::default_light(tools::scene_bounds(scene));
-      const std::vector<Ray> shadow = tools::secondary_rays(accel, scene, primary, tools::RayKind::shadow, light, 7);
-      const std::vector<Ray> diffuse = tools::secondary_rays(accel, scene, primary, tools::RayKind::diffuse, light, 7);
+      const std::vector<Ray> shadow =
+          tools::secondary_rays(accel, scene, primary, tools::RayKind::shadow, light, 7);
+      const std::vector<Ray> diffuse =
+          tools::secondary_rays(accel, scene, primary, tools::RayKind::diffuse, light, 7);
 #ifdef KESTREL_HAVE_EMBREE
       peer::EmbreeScene embree(scene, peer::EmbreeQuality::medium, 1);
-      memory.push_back({name, accel.prim_count, double(accel.memory_bytes()) / double(std::max<size_t>(1, accel.prim_count)),
-                        double(embree.memory_bytes()) / double(std::max<size_t>(1, accel.prim_count))});
+      memory.push_back(
+          {name, accel.prim_count,
+           double(accel.memory_bytes()) / double(std::max<size_t>(1, accel.prim_count)),
+           double(embree.memory_bytes()) / double(std::max<size_t>(1, accel.prim_count))});
 #else
-      memory.push_back({name, accel.prim_count, double(accel.memory_bytes()) / double(std::max<size_t>(1, accel.prim_count)), 0});
+      memory.push_back(
+          {name, accel.prim_count,
+           double(accel.memory_bytes()) / double(std::max<size_t>(1, accel.prim_count)), 0});
 #endif
       struct Kind {
         const char* name;
@@ -219,18 +234,21 @@ int main(int argc, char** argv) {
           res.rays = rays.size();
           res.kestrel_mrays = double(rays.size()) / (median(a_ms) * 1e3);
           if (!b_ms.empty()) {
-            res.peer = kind.packets ? "rtcIntersect16" : kind.any_hit ? "rtcOccluded1" : "rtcIntersect1";
+            res.peer = kind.packets   ? "rtcIntersect16"
+                       : kind.any_hit ? "rtcOccluded1"
+                                      : "rtcIntersect1";
             res.peer_mrays = double(rays.size()) / (median(b_ms) * 1e3);
             size_t same = 0;
-            for (size_t i = 0; i < rays.size(); ++i) same += kind.any_hit ? ours[i].hit() == bool(occ[i]) : same_hit(ours[i], theirs[i]);
+            for (size_t i = 0; i < rays.size(); ++i)
+              same += kind.any_hit ? ours[i].hit() == bool(occ[i]) : same_hit(ours[i], theirs[i]);
             res.agree = double(same) / double(rays.size());
           }
           results.push_back(res);
-          fmt::print("{:<12} {:<16} {:<14} {:>8} rays  kestrel {:7.2f} Mrays/s", name, kind.name, res.kestrel_variant, rays.size(),
-                     res.kestrel_mrays);
+          fmt::print("{:<12} {:<16} {:<14} {:>8} rays  kestrel {:7.2f} Mrays/s", name, kind.name,
+                     res.kestrel_variant, rays.size(), res.kestrel_mrays);
           if (res.peer_mrays > 0)
-            fmt::print("  Embree {:7.2f}  ratio {:5.2f}  agree {:.4f}%", res.peer_mrays, res.kestrel_mrays / res.peer_mrays,
-                       100 * res.agree);
+            fmt::print("  Embree {:7.2f}  ratio {:5.2f}  agree {:.4f}%", res.peer_mrays,
+                       res.kestrel_mrays / res.peer_mrays, 100 * res.agree);
           fmt::print("\n");
           std::fflush(stdout);
         }
@@ -247,12 +265,14 @@ int main(int argc, char** argv) {
           double build_ms, mrays;
         };
         // Rounds are interleaved across all methods (machine speed drifts between runs).
-        const std::vector<Builder> builders = {Builder::median, Builder::lbvh, Builder::binned, Builder::sweep, Builder::treelet};
+        const std::vector<Builder> builders = {Builder::median, Builder::lbvh, Builder::binned,
+                                               Builder::sweep, Builder::treelet};
         std::vector<std::string> names;
         for (Builder bld : builders) names.push_back(builder_name(bld));
 #ifdef KESTREL_HAVE_EMBREE
         std::vector<std::unique_ptr<peer::EmbreeScene>> peers;
-        for (auto q : {peer::EmbreeQuality::low, peer::EmbreeQuality::medium, peer::EmbreeQuality::high}) {
+        for (auto q :
+             {peer::EmbreeQuality::low, peer::EmbreeQuality::medium, peer::EmbreeQuality::high}) {
           peers.push_back(std::make_unique<peer::EmbreeScene>(scene, q, 1));
           names.push_back(std::string("embree-") + peer::embree_quality_name(q));
         }
@@ -282,14 +302,18 @@ int main(int argc, char** argv) {
         }
         std::vector<Point> points;
         for (size_t m = 0; m < names.size(); ++m)
-          points.push_back({names[m], median(build_ms[m]), double(mix.size()) / (median(trace_ms[m]) * 1e3)});
-        auto effective = [](const Point& p, double R) { return R / (p.build_ms * 1e-3 + R / (p.mrays * 1e6)) * 1e-6; };
+          points.push_back(
+              {names[m], median(build_ms[m]), double(mix.size()) / (median(trace_ms[m]) * 1e3)});
+        auto effective = [](const Point& p, double R) {
+          return R / (p.build_ms * 1e-3 + R / (p.mrays * 1e6)) * 1e-6;
+        };
         for (const Point& p : points) {
-          fmt::print("{:<12} amortization {:<14} build {:9.2f} ms  trace {:7.2f} Mrays/s\n", name, p.method, p.build_ms, p.mrays);
+          fmt::print("{:<12} amortization {:<14} build {:9.2f} ms  trace {:7.2f} Mrays/s\n", name,
+                     p.method, p.build_ms, p.mrays);
           for (double lg = 4; lg <= 10.0001; lg += 0.25) {
             const double R = std::pow(10.0, lg);
-            amort << fmt::format("{},{},{},{:.4f},{:.4f},{:.6g},{:.6f},\n", name, p.method, accel.prim_count, p.build_ms, p.mrays, R,
-                                 effective(p, R));
+            amort << fmt::format("{},{},{},{:.4f},{:.4f},{:.6g},{:.6f},\n", name, p.method,
+                                 accel.prim_count, p.build_ms, p.mrays, R, effective(p, R));
           }
         }
         // quality = auto: the builder the cost model picks for R, at its measured throughput,
@@ -306,8 +330,9 @@ int main(int argc, char** argv) {
             if (e > best) best = e, best_name = p.method;
             if (p.method == pick) chosen = e, picked = &p;
           }
-          amort << fmt::format("{},auto,{},{:.4f},{:.4f},{:.6g},{:.6f},picks {} (best fixed: {})\n", name, accel.prim_count,
-                               picked ? picked->build_ms : 0.0, picked ? picked->mrays : 0.0, R, chosen, pick, best_name);
+          amort << fmt::format("{},auto,{},{:.4f},{:.4f},{:.6g},{:.6f},picks {} (best fixed: {})\n",
+                               name, accel.prim_count, picked ? picked->build_ms : 0.0,
+                               picked ? picked->mrays : 0.0, R, chosen, pick, best_name);
           auto_rows.push_back({name, R, pick, best_name, chosen, best});
         }
       }
@@ -318,41 +343,60 @@ int main(int argc, char** argv) {
   }
 
   // Markdown table and JSON.
-  std::string md = fmt::format("Single thread, same rays, runs alternating kestrel / Embree, median of {} (Mrays/s).\n\n", repeat);
-  md += "| scene | rays | kestrel | rays | kestrel Mrays/s | Embree call | Embree Mrays/s | ratio | same hits |\n";
+  std::string md = fmt::format(
+      "Single thread, same rays, runs alternating kestrel / Embree, median of {} (Mrays/s).\n\n",
+      repeat);
+  md +=
+      "| scene | rays | kestrel | rays | kestrel Mrays/s | Embree call | Embree Mrays/s | ratio | "
+      "same hits |\n";
   md += "|---|---|---|---:|---:|---|---:|---:|---:|\n";
   for (const Result& r : results)
-    md += fmt::format("| {} | {} | {} | {} | {:.2f} | {} | {} | {} | {} |\n", r.scene, r.kind, r.kestrel_variant, r.rays,
-                      r.kestrel_mrays, r.peer.empty() ? "-" : r.peer, r.peer_mrays > 0 ? fmt::format("{:.2f}", r.peer_mrays) : "-",
-                      r.peer_mrays > 0 ? fmt::format("{:.2f}", r.kestrel_mrays / r.peer_mrays) : "-",
-                      r.peer_mrays > 0 ? fmt::format("{:.3f}%", 100 * r.agree) : "-");
+    md +=
+        fmt::format("| {} | {} | {} | {} | {:.2f} | {} | {} | {} | {} |\n", r.scene, r.kind,
+                    r.kestrel_variant, r.rays, r.kestrel_mrays, r.peer.empty() ? "-" : r.peer,
+                    r.peer_mrays > 0 ? fmt::format("{:.2f}", r.peer_mrays) : "-",
+                    r.peer_mrays > 0 ? fmt::format("{:.2f}", r.kestrel_mrays / r.peer_mrays) : "-",
+                    r.peer_mrays > 0 ? fmt::format("{:.3f}%", 100 * r.agree) : "-");
   md += "\n| scene | triangles | kestrel bytes/prim | Embree bytes/prim |\n|---|---:|---:|---:|\n";
-  for (const MemRow& m : memory) md += fmt::format("| {} | {} | {:.1f} | {:.1f} |\n", m.scene, m.prims, m.kestrel_bpp, m.embree_bpp);
+  for (const MemRow& m : memory)
+    md += fmt::format("| {} | {} | {:.1f} | {:.1f} |\n", m.scene, m.prims, m.kestrel_bpp,
+                      m.embree_bpp);
   if (!auto_rows.empty()) {
-    md += "\n`quality = auto` against the best fixed kestrel builder (effective Mrays/s at R rays per build):\n\n";
-    md += "| scene | R | auto picks | its effective Mrays/s | best fixed | best Mrays/s | auto / best |\n|---|---:|---|---:|---|---:|---:|\n";
+    md +=
+        "\n`quality = auto` against the best fixed kestrel builder (effective Mrays/s at R rays "
+        "per build):\n\n";
+    md +=
+        "| scene | R | auto picks | its effective Mrays/s | best fixed | best Mrays/s | auto / "
+        "best |\n|---|---:|---|---:|---|---:|---:|\n";
     for (const AutoRow& a : auto_rows) {
       const double lg = std::log10(a.rays);
       if (std::fabs(lg - std::round(lg)) > 1e-6) continue;  // decades only in the table
-      md += fmt::format("| {} | 1e{:.0f} | {} | {:.3f} | {} | {:.3f} | {:.3f} |\n", a.scene, lg, a.pick, a.pick_mrays, a.best,
-                        a.best_mrays, a.best_mrays > 0 ? a.pick_mrays / a.best_mrays : 0.0);
+      md += fmt::format("| {} | 1e{:.0f} | {} | {:.3f} | {} | {:.3f} | {:.3f} |\n", a.scene, lg,
+                        a.pick, a.pick_mrays, a.best, a.best_mrays,
+                        a.best_mrays > 0 ? a.pick_mrays / a.best_mrays : 0.0);
     }
   }
   fmt::print("\n{}", md);
   if (!md_path.empty()) std::ofstream(md_path) << md;
   std::ofstream json(json_path);
-  json << "{\n  \"isa\": \"" << isa_name(default_isa()) << "\",\n  \"repeat\": " << repeat << ",\n  \"results\": [\n";
+  json << "{\n  \"isa\": \"" << isa_name(default_isa()) << "\",\n  \"repeat\": " << repeat
+       << ",\n  \"results\": [\n";
   for (size_t i = 0; i < results.size(); ++i) {
     const Result& r = results[i];
-    json << fmt::format("    {{\"scene\": \"{}\", \"kind\": \"{}\", \"kestrel\": \"{}\", \"rays\": {}, \"kestrel_mrays\": {:.4f}, "
-                        "\"peer\": \"{}\", \"peer_mrays\": {:.4f}, \"agree\": {:.6f}}}{}\n",
-                        r.scene, r.kind, r.kestrel_variant, r.rays, r.kestrel_mrays, r.peer, r.peer_mrays, r.agree,
-                        i + 1 < results.size() ? "," : "");
+    json << fmt::format(
+        "    {{\"scene\": \"{}\", \"kind\": \"{}\", \"kestrel\": \"{}\", \"rays\": {}, "
+        "\"kestrel_mrays\": {:.4f}, "
+        "\"peer\": \"{}\", \"peer_mrays\": {:.4f}, \"agree\": {:.6f}}}{}\n",
+        r.scene, r.kind, r.kestrel_variant, r.rays, r.kestrel_mrays, r.peer, r.peer_mrays, r.agree,
+        i + 1 < results.size() ? "," : "");
   }
   json << "  ],\n  \"memory\": [\n";
   for (size_t i = 0; i < memory.size(); ++i)
-    json << fmt::format("    {{\"scene\": \"{}\", \"prims\": {}, \"kestrel_bytes_per_prim\": {:.3f}, \"embree_bytes_per_prim\": {:.3f}}}{}\n",
-                        memory[i].scene, memory[i].prims, memory[i].kestrel_bpp, memory[i].embree_bpp, i + 1 < memory.size() ? "," : "");
+    json << fmt::format(
+        "    {{\"scene\": \"{}\", \"prims\": {}, \"kestrel_bytes_per_prim\": {:.3f}, "
+        "\"embree_bytes_per_prim\": {:.3f}}}{}\n",
+        memory[i].scene, memory[i].prims, memory[i].kestrel_bpp, memory[i].embree_bpp,
+        i + 1 < memory.size() ? "," : "");
   json << "  ]\n}\n";
   return 0;
 }

@@ -3,9 +3,9 @@
 // sRGB against the full-resolution reference, temporal error tErr = mean |(o_t - o_{t-1}) -
 // (r_t - r_{t-1})| (tone-mapped), and ms per 1280x720 output frame (median after warm-up, the
 // machine's threads). Writes a Markdown table, a JSON file and side-by-side crops (PNG).
-#include <CLI/CLI.hpp>
 #include <fmt/format.h>
 #include <tbb/global_control.h>
+#include <CLI/CLI.hpp>
 
 #include <chrono>
 #include <cmath>
@@ -40,7 +40,8 @@ LowFrame load_low(const fs::path& dir, int frame) {
   f.color = read_pfm((dir / "color.pfm").string());
   const FloatImage d = read_pfm((dir / "depth.pfm").string());
   f.depth = FloatImage(d.width, d.height, 1);
-  for (size_t p = 0; p < f.depth.pixels.size(); ++p) f.depth.pixels[p] = d.pixels[p * size_t(d.channels)];
+  for (size_t p = 0; p < f.depth.pixels.size(); ++p)
+    f.depth.pixels[p] = d.pixels[p * size_t(d.channels)];
   f.motion = read_pfm((dir / "motion.pfm").string());
   frame_jitter(uint32_t(frame), f.jx, f.jy);
   return f;
@@ -51,15 +52,19 @@ struct Scores {
   int n = 0;
 };
 
-const UpscaleMethod kMethods[] = {UpscaleMethod::bilinear, UpscaleMethod::bicubic, UpscaleMethod::taau,
-                                  UpscaleMethod::neural};
+const UpscaleMethod kMethods[] = {UpscaleMethod::bilinear, UpscaleMethod::bicubic,
+                                  UpscaleMethod::taau, UpscaleMethod::neural};
 
 const char* label(UpscaleMethod m) {
   switch (m) {
-    case UpscaleMethod::bilinear: return "bilinear";
-    case UpscaleMethod::bicubic: return "bicubic (Catmull-Rom)";
-    case UpscaleMethod::taau: return "TAAU-like";
-    default: return "neural (learned TAAU)";
+    case UpscaleMethod::bilinear:
+      return "bilinear";
+    case UpscaleMethod::bicubic:
+      return "bicubic (Catmull-Rom)";
+    case UpscaleMethod::taau:
+      return "TAAU-like";
+    default:
+      return "neural (learned TAAU)";
   }
 }
 
@@ -72,22 +77,30 @@ int main(int argc, char** argv) {
   int threads = int(std::thread::hardware_concurrency()), repeat = 9;
   bool quick = false;
   CLI::App app{"kestrel_upscale_eval: the upsamplers on the held-out clips"};
-  app.add_option("--dataset", dataset, "The dataset of scripts/upscale/make_dataset.py")->capture_default_str();
-  app.add_option("--out", out_dir, "Where eval.md, eval.json and the crops go")->capture_default_str();
+  app.add_option("--dataset", dataset, "The dataset of scripts/upscale/make_dataset.py")
+      ->capture_default_str();
+  app.add_option("--out", out_dir, "Where eval.md, eval.json and the crops go")
+      ->capture_default_str();
   app.add_option("--weights", weights, "Neural weights (default: weights/upscaler.kdw)");
   app.add_option("--threads", threads, "Worker threads")->capture_default_str();
   app.add_option("--repeat", repeat, "Timed frames (median)")->capture_default_str();
   app.add_flag("--quick", quick, "Three frames per clip (smoke test)");
   CLI11_PARSE(app, argc, argv);
-  tbb::global_control threads_limit(tbb::global_control::max_allowed_parallelism, size_t(std::max(threads, 1)));
+  tbb::global_control threads_limit(tbb::global_control::max_allowed_parallelism,
+                                    size_t(std::max(threads, 1)));
   try {
     std::ifstream mf(fs::path(dataset) / "manifest.json");
-    if (!mf) throw Error(ErrorCode::io_error, fmt::format("{}/manifest.json: not found (run scripts/upscale/make_dataset.py)", dataset));
+    if (!mf)
+      throw Error(ErrorCode::io_error,
+                  fmt::format("{}/manifest.json: not found (run scripts/upscale/make_dataset.py)",
+                              dataset));
     const nlohmann::json manifest = nlohmann::json::parse(mf);
     std::vector<std::string> clips;
     for (const auto& [name, c] : manifest.at("clips").items())
       if (c.at("split") == "test") clips.push_back(name);
-    if (clips.empty()) throw Error(ErrorCode::parse_error, fmt::format("{}: no test clips in the manifest", dataset));
+    if (clips.empty())
+      throw Error(ErrorCode::parse_error,
+                  fmt::format("{}: no test clips in the manifest", dataset));
     fs::create_directories(out_dir);
     auto options = [&](UpscaleMethod m, int f) {
       UpscalerOptions o;
@@ -106,12 +119,15 @@ int main(int argc, char** argv) {
       std::vector<FloatImage> refs;
       std::vector<std::vector<float>> refs_tm;
       for (int t = 0; t < frames; ++t) {
-        refs.push_back(read_pfm((root / "full" / "pfm" / fmt::format("frame_{:04d}", t) / "color.pfm").string()));
+        refs.push_back(read_pfm(
+            (root / "full" / "pfm" / fmt::format("frame_{:04d}", t) / "color.pfm").string()));
         refs_tm.push_back(tonemapped(refs.back()));
       }
       for (int f : {2, 4}) {
         std::vector<LowFrame> low;
-        for (int t = 0; t < frames; ++t) low.push_back(load_low(root / fmt::format("x{}", f) / "pfm" / fmt::format("frame_{:04d}", t), t));
+        for (int t = 0; t < frames; ++t)
+          low.push_back(
+              load_low(root / fmt::format("x{}", f) / "pfm" / fmt::format("frame_{:04d}", t), t));
         std::vector<FloatImage> last;
         for (UpscaleMethod m : kMethods) {
           Upscaler up(options(m, f));
@@ -121,7 +137,9 @@ int main(int argc, char** argv) {
           for (int t = 0; t < frames; ++t) {
             up.upscale(low[size_t(t)].input(), out);
             if (out.width != refs[size_t(t)].width || out.height != refs[size_t(t)].height)
-              throw Error(ErrorCode::invalid_argument, fmt::format("{}: x{} frames do not upsample to the reference size", clip, f));
+              throw Error(
+                  ErrorCode::invalid_argument,
+                  fmt::format("{}: x{} frames do not upsample to the reference size", clip, f));
             const std::vector<float> to = tonemapped(out);
             const std::vector<float>& tr = refs_tm[size_t(t)];
             s.psnr += psnr(to, tr);
@@ -129,16 +147,24 @@ int main(int argc, char** argv) {
             if (t > 0) {
               double e = 0;
               const std::vector<float>& pr = refs_tm[size_t(t - 1)];
-              for (size_t i = 0; i < to.size(); ++i) e += std::abs((to[i] - prev[i]) - (tr[i] - pr[i]));
+              for (size_t i = 0; i < to.size(); ++i)
+                e += std::abs((to[i] - prev[i]) - (tr[i] - pr[i]));
               s.terr += e / double(to.size());
             }
             prev = to;
           }
           s.psnr /= frames, s.ssim /= frames, s.terr /= std::max(frames - 1, 1), s.n = 1;
-          per_clip += fmt::format("| {} | x{} | {} | {:.2f} | {:.4f} | {:.5f} |\n", clip, f, label(m), s.psnr, s.ssim, s.terr);
-          fmt::print("{:18s} x{}  {:24s} PSNR {:6.2f}  SSIM {:.4f}  tErr {:.5f}\n", clip, f, label(m), s.psnr, s.ssim, s.terr);
-          json_clips.push_back({{"clip", clip}, {"factor", f}, {"method", upscale_method_name(m)}, {"psnr", s.psnr},
-                                {"ssim", s.ssim}, {"terr", s.terr}, {"frames", frames}});
+          per_clip += fmt::format("| {} | x{} | {} | {:.2f} | {:.4f} | {:.5f} |\n", clip, f,
+                                  label(m), s.psnr, s.ssim, s.terr);
+          fmt::print("{:18s} x{}  {:24s} PSNR {:6.2f}  SSIM {:.4f}  tErr {:.5f}\n", clip, f,
+                     label(m), s.psnr, s.ssim, s.terr);
+          json_clips.push_back({{"clip", clip},
+                                {"factor", f},
+                                {"method", upscale_method_name(m)},
+                                {"psnr", s.psnr},
+                                {"ssim", s.ssim},
+                                {"terr", s.terr},
+                                {"frames", frames}});
           Scores& tt = total[f][m];
           tt.psnr += s.psnr, tt.ssim += s.ssim, tt.terr += s.terr, tt.n += 1;
           last.push_back(out);
@@ -147,11 +173,12 @@ int main(int argc, char** argv) {
         for (const FloatImage& o : last) imgs.push_back(&o);
         imgs.push_back(&refs.back());
         const int cw = std::min(96, refs.back().width), ch = std::min(72, refs.back().height);
-        write_crop_png((fs::path(out_dir) / fmt::format("{}_x{}_crops.png", clip, f)).string(), imgs,
-                       (refs.back().width - cw) / 2, (refs.back().height - ch) / 2, cw, ch);
+        write_crop_png((fs::path(out_dir) / fmt::format("{}_x{}_crops.png", clip, f)).string(),
+                       imgs, (refs.back().width - cw) / 2, (refs.back().height - ch) / 2, cw, ch);
       }
     }
-    // Timing per 1280x720 output: the first clip's low-resolution frames tiled to 640x360 / 320x180.
+    // Timing per 1280x720 output: the first clip's low-resolution frames tiled to 640x360 /
+    // 320x180.
     std::map<int, std::map<UpscaleMethod, double>> ms;
     std::map<int, std::map<std::string, double>> stages;
     for (int f : {2, 4}) {
@@ -165,7 +192,9 @@ int main(int argc, char** argv) {
       };
       std::vector<LowFrame> big;
       for (int t = 0; t < 2; ++t) {
-        LowFrame s = load_low(fs::path(dataset) / clips.front() / fmt::format("x{}", f) / "pfm" / fmt::format("frame_{:04d}", t), t);
+        LowFrame s = load_low(fs::path(dataset) / clips.front() / fmt::format("x{}", f) / "pfm" /
+                                  fmt::format("frame_{:04d}", t),
+                              t);
         big.push_back({tile(s.color), tile(s.depth), tile(s.motion), s.jx, s.jy});
       }
       for (UpscaleMethod m : kMethods) {
@@ -175,7 +204,9 @@ int main(int argc, char** argv) {
         for (int r = 0; r < repeat + 2; ++r) {
           const auto t0 = std::chrono::steady_clock::now();
           up.upscale(big[size_t(r % 2)].input(), out);
-          const double t = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+          const double t =
+              std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0)
+                  .count();
           if (r >= 2) {
             times.push_back(t);
             const Upscaler::Times st = up.last_times();
@@ -184,39 +215,63 @@ int main(int argc, char** argv) {
         }
         ms[f][m] = median(times);
         if (m == UpscaleMethod::neural)
-          stages[f] = {{"features", median(feat)}, {"network", median(net)}, {"reconstruct", median(rec)}};
-        fmt::print("x{} {:24s} {:.1f} ms per 1280x720 output ({} threads, median of {})\n", f, label(m), ms[f][m], threads, repeat);
+          stages[f] = {
+              {"features", median(feat)}, {"network", median(net)}, {"reconstruct", median(rec)}};
+        fmt::print("x{} {:24s} {:.1f} ms per 1280x720 output ({} threads, median of {})\n", f,
+                   label(m), ms[f][m], threads, repeat);
       }
     }
     std::string md = fmt::format(
-        "# Upsampler evaluation\n\nWritten by `kestrel_upscale_eval` (bench/upscale_eval.cpp) on the held-out test clips of "
-        "`{}`: {}. Inputs: the clips rendered at 1/2 and 1/4 of the reference resolution, point-sampled at kestrel's "
-        "per-frame Halton jitter (clean: `--fixed-jitter`, many samples). References: the full resolution, many samples per "
-        "pixel. Means over clips of per-clip means over every frame (the first frame has no history). PSNR / SSIM on "
-        "tone-mapped sRGB (ACES fit, exposure 0); tErr = mean |(o_t - o_(t-1)) - (r_t - r_(t-1))|, tone-mapped. Time: ms "
-        "per 1280x720 output frame (tiled test frames), {} threads, median of {} after 2 warm-up frames. Neural network: "
+        "# Upsampler evaluation\n\nWritten by `kestrel_upscale_eval` (bench/upscale_eval.cpp) on "
+        "the held-out test clips of "
+        "`{}`: {}. Inputs: the clips rendered at 1/2 and 1/4 of the reference resolution, "
+        "point-sampled at kestrel's "
+        "per-frame Halton jitter (clean: `--fixed-jitter`, many samples). References: the full "
+        "resolution, many samples per "
+        "pixel. Means over clips of per-clip means over every frame (the first frame has no "
+        "history). PSNR / SSIM on "
+        "tone-mapped sRGB (ACES fit, exposure 0); tErr = mean |(o_t - o_(t-1)) - (r_t - r_(t-1))|, "
+        "tone-mapped. Time: ms "
+        "per 1280x720 output frame (tiled test frames), {} threads, median of {} after 2 warm-up "
+        "frames. Neural network: "
         "{} parameters.\n\n",
-        fs::relative(dataset, KESTREL_SOURCE_DIR).string(), fmt::join(clips, ", "), threads, repeat, params);
+        fs::relative(dataset, KESTREL_SOURCE_DIR).string(), fmt::join(clips, ", "), threads, repeat,
+        params);
     nlohmann::json json_total = nlohmann::json::array();
     for (int f : {2, 4}) {
-      md += fmt::format("## Factor {}x{} ({}x{} -> 1280x720 timing)\n\n| method | PSNR dB | SSIM | tErr | ms |\n|---|---:|---:|---:|---:|\n",
-                        f, f, 1280 / f, 720 / f);
+      md += fmt::format(
+          "## Factor {}x{} ({}x{} -> 1280x720 timing)\n\n| method | PSNR dB | SSIM | tErr | ms "
+          "|\n|---|---:|---:|---:|---:|\n",
+          f, f, 1280 / f, 720 / f);
       for (UpscaleMethod m : kMethods) {
         const Scores& s = total[f][m];
-        md += fmt::format("| {} | {:.2f} | {:.4f} | {:.5f} | {:.1f} |\n", label(m), s.psnr / s.n, s.ssim / s.n, s.terr / s.n, ms[f][m]);
-        json_total.push_back({{"factor", f}, {"method", upscale_method_name(m)}, {"psnr", s.psnr / s.n},
-                              {"ssim", s.ssim / s.n}, {"terr", s.terr / s.n}, {"ms_1280x720", ms[f][m]}});
+        md += fmt::format("| {} | {:.2f} | {:.4f} | {:.5f} | {:.1f} |\n", label(m), s.psnr / s.n,
+                          s.ssim / s.n, s.terr / s.n, ms[f][m]);
+        json_total.push_back({{"factor", f},
+                              {"method", upscale_method_name(m)},
+                              {"psnr", s.psnr / s.n},
+                              {"ssim", s.ssim / s.n},
+                              {"terr", s.terr / s.n},
+                              {"ms_1280x720", ms[f][m]}});
       }
-      md += fmt::format("\nNeural stages (ms): features {:.1f}, network {:.1f}, reconstruction {:.1f}.\n\n",
-                        stages[f]["features"], stages[f]["network"], stages[f]["reconstruct"]);
+      md += fmt::format(
+          "\nNeural stages (ms): features {:.1f}, network {:.1f}, reconstruction {:.1f}.\n\n",
+          stages[f]["features"], stages[f]["network"], stages[f]["reconstruct"]);
     }
-    md += "## Per clip\n\n| clip | factor | method | PSNR dB | SSIM | tErr |\n|---|---|---|---:|---:|---:|\n" + per_clip;
-    md += "\nCrops (`<clip>_x<f>_crops.png`, last frame, centre, 2x nearest): bilinear, bicubic, TAAU-like, neural, reference.\n";
+    md +=
+        "## Per clip\n\n| clip | factor | method | PSNR dB | SSIM | tErr "
+        "|\n|---|---|---|---:|---:|---:|\n" +
+        per_clip;
+    md +=
+        "\nCrops (`<clip>_x<f>_crops.png`, last frame, centre, 2x nearest): bilinear, bicubic, "
+        "TAAU-like, neural, reference.\n";
     std::ofstream((fs::path(out_dir) / "eval.md").string()) << md;
-    std::ofstream((fs::path(out_dir) / "eval.json").string())
-        << nlohmann::json{{"threads", threads}, {"repeat", repeat}, {"parameters", params}, {"means", json_total},
-                           {"clips", json_clips}}
-               .dump(1);
+    std::ofstream((fs::path(out_dir) / "eval.json").string()) << nlohmann::json{
+        {"threads", threads},
+        {"repeat", repeat},
+        {"parameters", params},
+        {"means", json_total},
+        {"clips", json_clips}}.dump(1);
     fmt::print("wrote {}/eval.md, eval.json and crops\n", out_dir);
   } catch (const Error& e) {
     fmt::print(stderr, "kestrel_upscale_eval: {}\n", e.what());

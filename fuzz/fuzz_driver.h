@@ -68,7 +68,9 @@ inline int run_input(const uint8_t* data, size_t size) {
 
 }  // namespace kestrel::fuzz
 
-extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) { return kestrel::fuzz::run_input(data, size); }
+extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
+  return kestrel::fuzz::run_input(data, size);
+}
 
 #ifndef KESTREL_LIBFUZZER
 // Replay: every file named, and every file in every folder named.

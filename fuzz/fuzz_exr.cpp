@@ -3,4 +3,6 @@
 
 const char* const kestrel::fuzz::input_name = "fuzz.exr";
 
-void kestrel::fuzz::fuzz_one(const std::string& path, const std::string&) { (void)read_exr(path); }
+void kestrel::fuzz::fuzz_one(const std::string& path, const std::string&) {
+  (void)read_exr(path);
+}

@@ -12,6 +12,7 @@ void kestrel::fuzz::fuzz_one(const std::string& path, const std::string&) {
   m.indices = {0, 1, 2};
   m.material_ids = {0};
   const MeshId mesh = scene.add_mesh(m);
-  for (size_t i = 0; i < transforms.size() && i < 4096; ++i) scene.add_instance(mesh, transforms[i]);
+  for (size_t i = 0; i < transforms.size() && i < 4096; ++i)
+    scene.add_instance(mesh, transforms[i]);
   scene.commit();
 }

@@ -7,7 +7,8 @@ const char* const kestrel::fuzz::input_name = "fuzz.obj";
 
 void kestrel::fuzz::fuzz_one(const std::string& path, const std::string& bytes) {
   const size_t split = bytes.find("\n#MTL\n");
-  write_file(scratch_dir() + "/fuzz.mtl", split == std::string::npos ? std::string() : bytes.substr(split + 6));
+  write_file(scratch_dir() + "/fuzz.mtl",
+             split == std::string::npos ? std::string() : bytes.substr(split + 6));
   const Scene scene = load_scene(path);
   (void)validate_scene(scene);
 }

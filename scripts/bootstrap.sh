@@ -14,7 +14,7 @@ packages=(build-essential cmake ninja-build ccache pkg-config
   libembree-dev libopenexr-dev python3 python3-matplotlib
   libsdl2-dev libsdl2-ttf-dev fonts-dejavu-core xvfb xauth
   python3-dev pybind11-dev python3-pybind11 python3-numpy python3-pytest python3-venv python3-pip
-  python3-setuptools python3-wheel libopenmpi-dev openmpi-bin clang-14 libclang-rt-14-dev)
+  python3-setuptools python3-wheel libopenmpi-dev openmpi-bin clang-14 libclang-rt-14-dev clang-format-14)
 missing=()
 for p in "${packages[@]}"; do
   dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")

@@ -55,7 +55,8 @@ Vec3 default_light(const Bounds3& b) {
   return {c.x, b.hi.y - 0.45f * (b.hi.y - b.lo.y), c.z};
 }
 
-std::vector<Ray> secondary_rays(const Accel& accel, const Scene& scene, const std::vector<Ray>& primary, RayKind kind, Vec3 light,
+std::vector<Ray> secondary_rays(const Accel& accel, const Scene& scene,
+                                const std::vector<Ray>& primary, RayKind kind, Vec3 light,
                                 uint64_t seed) {
   std::vector<Hit> hits(primary.size());
   trace(accel, primary, hits, /* any_hit = */ false);
@@ -81,17 +82,19 @@ std::vector<Ray> secondary_rays(const Accel& accel, const Scene& scene, const st
       // Cosine-weighted hemisphere about n (Malley's method) in an orthonormal frame.
       const float u1 = rng.uniform(), u2 = rng.uniform();
       const float radius = std::sqrt(u1), phi = 6.28318530718f * u2;
-      const Vec3 t = std::fabs(n.x) > 0.9f ? normalize(cross(n, Vec3{0, 1, 0})) : normalize(cross(n, Vec3{1, 0, 0}));
+      const Vec3 t = std::fabs(n.x) > 0.9f ? normalize(cross(n, Vec3{0, 1, 0}))
+                                           : normalize(cross(n, Vec3{1, 0, 0}));
       const Vec3 bt = cross(n, t);
-      const Vec3 d = t * (radius * std::cos(phi)) + bt * (radius * std::sin(phi)) + n * std::sqrt(std::max(0.0f, 1.0f - u1));
+      const Vec3 d = t * (radius * std::cos(phi)) + bt * (radius * std::sin(phi)) +
+                     n * std::sqrt(std::max(0.0f, 1.0f - u1));
       out.push_back(Ray{p, d, 0.0f, INFINITY});
     }
   }
   return out;
 }
 
-std::vector<Ray> make_rays(const Accel& accel, const Scene& scene, const PinholeCamera& cam, int width, int height,
-                           RayKind kind, uint64_t seed) {
+std::vector<Ray> make_rays(const Accel& accel, const Scene& scene, const PinholeCamera& cam,
+                           int width, int height, RayKind kind, uint64_t seed) {
   std::vector<Ray> primary = primary_rays(cam, width, height);
   if (kind == RayKind::primary) return primary;
   return secondary_rays(accel, scene, primary, kind, default_light(scene_bounds(scene)), seed);

@@ -21,8 +21,9 @@ std::vector<Ray> primary_rays(const PinholeCamera& cam, int width, int height);
 /// short of the light) or a cosine-distributed diffuse ray about the geometric normal
 /// facing the incoming ray. Misses produce no ray. Origins are offset along the normal by a
 /// small fraction of the scene size. Deterministic for a seed.
-std::vector<Ray> secondary_rays(const Accel& accel, const Scene& scene, const std::vector<Ray>& primary, RayKind kind,
-                                Vec3 light, uint64_t seed);
+std::vector<Ray> secondary_rays(const Accel& accel, const Scene& scene,
+                                const std::vector<Ray>& primary, RayKind kind, Vec3 light,
+                                uint64_t seed);
 
 /// Every triangle of the scene by global prim id (bad-index triangles are zero), so a
 /// hit's triangle is scene_triangles(scene)[hit.prim_id].
@@ -33,7 +34,7 @@ std::vector<Triangle> scene_triangles(const Scene& scene);
 Vec3 default_light(const Bounds3& scene_box);
 
 /// The whole ray set of a kind for a camera (primary, or primary then secondary).
-std::vector<Ray> make_rays(const Accel& accel, const Scene& scene, const PinholeCamera& cam, int width, int height,
-                           RayKind kind, uint64_t seed);
+std::vector<Ray> make_rays(const Accel& accel, const Scene& scene, const PinholeCamera& cam,
+                           int width, int height, RayKind kind, uint64_t seed);
 
 }  // namespace kestrel::tools

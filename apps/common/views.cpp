@@ -35,9 +35,11 @@ std::optional<PinholeCamera> named_view(const Scene& scene, const std::string& n
   return PinholeCamera{c->eye, c->target, c->vfov_degrees};
 }
 
-CameraPath camera_path_for(const Asset& asset, const std::string& path_spec, const std::string& view_name) {
+CameraPath camera_path_for(const Asset& asset, const std::string& path_spec,
+                           const std::string& view_name) {
   if (path_spec.rfind("orbit", 0) != 0) {
-    if (!view_name.empty()) throw Error(ErrorCode::invalid_argument, "--view is only for --path orbit[:DEG]");
+    if (!view_name.empty())
+      throw Error(ErrorCode::invalid_argument, "--view is only for --path orbit[:DEG]");
     return CameraPath::load(path_spec);
   }
   double degrees = 360;
@@ -46,7 +48,8 @@ CameraPath camera_path_for(const Asset& asset, const std::string& path_spec, con
     const std::string arg = path_spec.size() > 6 && path_spec[5] == ':' ? path_spec.substr(6) : "";
     degrees = std::strtod(arg.c_str(), &end);
     if (arg.empty() || end != arg.c_str() + arg.size())
-      throw Error(ErrorCode::invalid_argument, fmt::format("--path '{}': expected a JSON file or orbit[:DEGREES]", path_spec));
+      throw Error(ErrorCode::invalid_argument,
+                  fmt::format("--path '{}': expected a JSON file or orbit[:DEGREES]", path_spec));
   }
   return CameraPath::orbit(start_camera_for(asset, view_name), degrees);
 }
@@ -55,7 +58,9 @@ Camera start_camera_for(const Asset& asset, const std::string& view_name) {
   std::string view = view_name;
   if (view.empty()) view = find_view(asset, "front") ? "front" : "framing";
   const auto c = find_view(asset, view);
-  if (!c) throw Error(ErrorCode::invalid_argument, fmt::format("{}: no view named '{}'", asset.source(), view));
+  if (!c)
+    throw Error(ErrorCode::invalid_argument,
+                fmt::format("{}: no view named '{}'", asset.source(), view));
   return *c;
 }
 

@@ -30,7 +30,8 @@ std::optional<PinholeCamera> named_view(const Scene& scene, const std::string& n
 
 /// A camera path: a keyframe JSON file (CameraPath::load), or "orbit[:DEGREES]" (default
 /// 360), a turntable about start_camera_for(asset, view_name). Throws Error.
-CameraPath camera_path_for(const Asset& asset, const std::string& path_spec, const std::string& view_name);
+CameraPath camera_path_for(const Asset& asset, const std::string& path_spec,
+                           const std::string& view_name);
 /// A named view of a loaded scene (its .views.json or data/views); "" = "front", else
 /// "framing". Throws Error for an unknown name.
 Camera start_camera_for(const Asset& asset, const std::string& view_name);

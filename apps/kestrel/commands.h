@@ -4,10 +4,10 @@
 #include <functional>
 #include <string>
 
+#include "common/views.h"
 #include "kestrel/asset.h"
 #include "kestrel/bvh.h"
 #include "kestrel/io.h"
-#include "common/views.h"
 #include "kestrel/render.h"
 
 namespace kestrel::cli {

@@ -6,8 +6,8 @@
 #include <string_view>
 
 #include "commands.h"
-#include "distributed/distributed.h"
 #include "core/timer.h"
+#include "distributed/distributed.h"
 #include "geometry/prim_ref.h"
 #include "kestrel/error.h"
 #include "kestrel/parallel.h"
@@ -17,10 +17,12 @@ namespace kestrel::cli {
 
 void BuildOptions::add_to(CLI::App& cmd) {
   cmd.add_option("--builder", builder,
-                 "median | sweep | binned | lbvh | treelet (overrides --quality). treelet = Karras & Aila 2013 "
+                 "median | sweep | binned | lbvh | treelet (overrides --quality). treelet = Karras "
+                 "& Aila 2013 "
                  "treelet restructuring, covered by NVIDIA patents (US 10331632); never a default");
-  cmd.add_option("--quality", quality,
-                 "fast (lbvh) | balanced (binned) | high (sweep) | auto (best for --expected-rays per build)");
+  cmd.add_option(
+      "--quality", quality,
+      "fast (lbvh) | balanced (binned) | high (sweep) | auto (best for --expected-rays per build)");
   cmd.add_option("--expected-rays", expected_rays, "rays traced per build, for --quality auto");
   cmd.add_option("--threads", threads, "worker threads (0 = all)")->check(CLI::Range(0, 1024));
   cmd.add_option("--traversal-cost", traversal_cost, "SAH Ct, cost of an inner node visit");
@@ -35,11 +37,14 @@ BuildConfig BuildOptions::config() const {
   if (!builder.empty()) {
     c.builder = builder_from_name(builder);
     if (!c.builder)
-      throw Error(ErrorCode::invalid_argument,
-                  fmt::format("unknown builder '{}' (median, sweep, binned, lbvh, treelet)", builder));
+      throw Error(
+          ErrorCode::invalid_argument,
+          fmt::format("unknown builder '{}' (median, sweep, binned, lbvh, treelet)", builder));
   }
   auto q = quality_from_name(quality);
-  if (!q) throw Error(ErrorCode::invalid_argument, fmt::format("unknown quality '{}' (fast, balanced, high, auto)", quality));
+  if (!q)
+    throw Error(ErrorCode::invalid_argument,
+                fmt::format("unknown quality '{}' (fast, balanced, high, auto)", quality));
   c.quality = *q;
   c.expected_rays = expected_rays;
   c.traversal_cost = traversal_cost;
@@ -69,15 +74,18 @@ void parse_resolution(const std::string& text, int& width, int& height) {
   // Strictly WxH: digits, 'x', digits, nothing else ("16x16junk" and "+16x-4" are errors).
   const size_t x = text.find('x');
   auto number = [](std::string_view s, int& v) {
-    if (s.empty() || s.size() > 6 || !std::all_of(s.begin(), s.end(), [](char c) { return c >= '0' && c <= '9'; }))
+    if (s.empty() || s.size() > 6 ||
+        !std::all_of(s.begin(), s.end(), [](char c) { return c >= '0' && c <= '9'; }))
       return false;
     v = std::stoi(std::string(s));
     return true;
   };
   if (x == std::string::npos || !number(std::string_view(text).substr(0, x), width) ||
-      !number(std::string_view(text).substr(x + 1), height) || width <= 0 || height <= 0 || width > 32768 || height > 32768)
-    throw Error(ErrorCode::invalid_argument,
-                fmt::format("resolution '{}' is not WxH with sizes from 1 to 32768 (e.g. 1280x720)", text));
+      !number(std::string_view(text).substr(x + 1), height) || width <= 0 || height <= 0 ||
+      width > 32768 || height > 32768)
+    throw Error(
+        ErrorCode::invalid_argument,
+        fmt::format("resolution '{}' is not WxH with sizes from 1 to 32768 (e.g. 1280x720)", text));
 }
 
 namespace {
@@ -98,7 +106,8 @@ void run_bvh(const BvhArgs& a) {
   const double load_ms = load_timer.ms();
   const SceneValidation validation = validate_scene(scene);
   if (validation.report.valid_triangle_count == 0)
-    throw Error(ErrorCode::invalid_geometry, fmt::format("{}: no valid triangle ({})", a.scene, validation.report.summary()));
+    throw Error(ErrorCode::invalid_geometry,
+                fmt::format("{}: no valid triangle ({})", a.scene, validation.report.summary()));
   std::vector<double> ref_ms, build_ms;
   Buffer<PrimRef> refs;
   Bvh2 bvh;
@@ -119,26 +128,34 @@ void run_bvh(const BvhArgs& a) {
     for (size_t k = 1; k < m.leaf_size_histogram.size(); ++k)
       hist += fmt::format("{}{}", k > 1 ? ", " : "", m.leaf_size_histogram[k]);
     fmt::print(
-        "{{\"scene\": \"{}\", \"builder\": \"{}\", \"threads\": {}, \"triangles\": {}, \"valid_triangles\": {}, "
-        "\"load_ms\": {:.3f}, \"prim_refs_ms\": {:.3f}, \"build_ms\": {:.3f}, \"build_runs\": {}, \"mprims_per_s\": {:.3f}, "
-        "\"sah_cost\": {:.5f}, \"sah_cost_unit\": {:.5f}, \"traversal_cost\": {}, \"intersection_cost\": {}, "
-        "\"nodes\": {}, \"inner_nodes\": {}, \"leaves\": {}, \"max_depth\": {}, \"mean_leaf_depth\": {:.3f}, "
-        "\"leaf_size_histogram\": [{}], \"bytes_per_prim\": {:.3f}, \"valid\": {}, \"problem\": \"{}\"}}\n",
-        a.scene, name, a.build.threads, validation.report.triangle_count, validation.report.valid_triangle_count,
-        load_ms, median(ref_ms), med, build_ms.size(), double(refs.size()) / (med * 1e3), m.sah_cost,
-        m.sah_cost_unit, config.traversal_cost, config.intersection_cost, m.node_count, m.inner_count, m.leaf_count,
-        m.max_depth, m.mean_leaf_depth, hist, m.bytes_per_prim, problem.empty() ? "true" : "false", problem);
+        "{{\"scene\": \"{}\", \"builder\": \"{}\", \"threads\": {}, \"triangles\": {}, "
+        "\"valid_triangles\": {}, "
+        "\"load_ms\": {:.3f}, \"prim_refs_ms\": {:.3f}, \"build_ms\": {:.3f}, \"build_runs\": {}, "
+        "\"mprims_per_s\": {:.3f}, "
+        "\"sah_cost\": {:.5f}, \"sah_cost_unit\": {:.5f}, \"traversal_cost\": {}, "
+        "\"intersection_cost\": {}, "
+        "\"nodes\": {}, \"inner_nodes\": {}, \"leaves\": {}, \"max_depth\": {}, "
+        "\"mean_leaf_depth\": {:.3f}, "
+        "\"leaf_size_histogram\": [{}], \"bytes_per_prim\": {:.3f}, \"valid\": {}, \"problem\": "
+        "\"{}\"}}\n",
+        a.scene, name, a.build.threads, validation.report.triangle_count,
+        validation.report.valid_triangle_count, load_ms, median(ref_ms), med, build_ms.size(),
+        double(refs.size()) / (med * 1e3), m.sah_cost, m.sah_cost_unit, config.traversal_cost,
+        config.intersection_cost, m.node_count, m.inner_count, m.leaf_count, m.max_depth,
+        m.mean_leaf_depth, hist, m.bytes_per_prim, problem.empty() ? "true" : "false", problem);
   } else {
     fmt::print("scene          {}\n", a.scene);
     fmt::print("validation     {}\n", validation.report.summary());
-    fmt::print("builder        {} (threads: {})\n", name, a.build.threads > 0 ? a.build.threads : hardware_thread_count());
+    fmt::print("builder        {} (threads: {})\n", name,
+               a.build.threads > 0 ? a.build.threads : hardware_thread_count());
     fmt::print("load           {:.1f} ms\n", load_ms);
     fmt::print("prim refs      {:.2f} ms (median)\n", median(ref_ms));
     fmt::print("build          {:.2f} ms (median of {}), {:.2f} Mprims/s\n", med, build_ms.size(),
                double(refs.size()) / (med * 1e3));
     fmt::print("SAH cost       {:.4f} (Ct = {}, Ci = {}); {:.4f} with Ct = Ci = 1\n", m.sah_cost,
                config.traversal_cost, config.intersection_cost, m.sah_cost_unit);
-    fmt::print("nodes          {} ({} inner, {} leaves)\n", m.node_count, m.inner_count, m.leaf_count);
+    fmt::print("nodes          {} ({} inner, {} leaves)\n", m.node_count, m.inner_count,
+               m.leaf_count);
     fmt::print("depth          max {}, mean leaf {:.2f}\n", m.max_depth, m.mean_leaf_depth);
     fmt::print("leaf sizes     ");
     for (size_t k = 1; k < m.leaf_size_histogram.size(); ++k)
@@ -146,16 +163,19 @@ void run_bvh(const BvhArgs& a) {
     fmt::print("\nbytes/prim     {:.2f} (nodes + prim ids; triangles add 36)\n", m.bytes_per_prim);
     fmt::print("validate       {}\n", problem.empty() ? "ok" : problem);
   }
-  if (!problem.empty()) throw Error(ErrorCode::invalid_geometry, "BVH failed validation: " + problem);
+  if (!problem.empty())
+    throw Error(ErrorCode::invalid_geometry, "BVH failed validation: " + problem);
 }
 
 }  // namespace
 
 Action add_bvh_command(CLI::App& cmd) {
   auto args = std::make_shared<BvhArgs>();
-  cmd.add_option("scene", args->scene, "scene file (.obj, .gltf, .glb) or builtin:cornell_box")->required();
+  cmd.add_option("scene", args->scene, "scene file (.obj, .gltf, .glb) or builtin:cornell_box")
+      ->required();
   args->build.add_to(cmd);
-  cmd.add_option("--repeat", args->repeat, "builds to time (the median is reported)")->check(CLI::Range(1, 1000));
+  cmd.add_option("--repeat", args->repeat, "builds to time (the median is reported)")
+      ->check(CLI::Range(1, 1000));
   cmd.add_flag("--json", args->json, "print one JSON object");
   return [args] { run_bvh(*args); };
 }

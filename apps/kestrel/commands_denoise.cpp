@@ -4,9 +4,9 @@
 
 #include <algorithm>
 #include <chrono>
-#include <vector>
 #include <filesystem>
 #include <memory>
+#include <vector>
 
 #include "commands.h"
 #include "kestrel/denoise.h"
@@ -32,7 +32,9 @@ std::string frame_name(const std::string& pattern, int frame) {
   const bool ok = at != std::string::npos && end != std::string::npos &&
                   spec.find_first_not_of("0123456789") == std::string::npos && spec.size() <= 2 &&
                   pattern.find('%', end) == std::string::npos;
-  if (!ok) throw Error(ErrorCode::invalid_argument, fmt::format("'{}': a sequence name needs one %d or %0Nd", pattern));
+  if (!ok)
+    throw Error(ErrorCode::invalid_argument,
+                fmt::format("'{}': a sequence name needs one %d or %0Nd", pattern));
   const int width = spec.empty() ? 0 : std::stoi(spec);
   return pattern.substr(0, at) + fmt::format("{:0{}d}", frame, width) + pattern.substr(end + 1);
 }
@@ -41,7 +43,8 @@ namespace {
 
 struct Loaded {
   FloatImage color, albedo, normal, depth, rough, motion;
-  bool has_albedo = false, has_normal = false, has_depth = false, has_rough = false, has_motion = false;
+  bool has_albedo = false, has_normal = false, has_depth = false, has_rough = false,
+       has_motion = false;
 };
 
 Loaded load_inputs(const DenoiseArgs& a, int frame) {
@@ -51,14 +54,21 @@ Loaded load_inputs(const DenoiseArgs& a, int frame) {
     const std::string path = name(a.input);
     for (ImageLayer& layer : read_exr(path)) {
       const std::string& n = layer.name;
-      if (n == "color" || n.empty()) l.color = std::move(layer.image);
-      else if (n == "albedo") l.albedo = std::move(layer.image), l.has_albedo = true;
-      else if (n == "normal") l.normal = std::move(layer.image), l.has_normal = true;
-      else if (n == "depth") l.depth = std::move(layer.image), l.has_depth = true;
-      else if (n == "roughness") l.rough = std::move(layer.image), l.has_rough = true;
-      else if (n == "motion") l.motion = std::move(layer.image), l.has_motion = true;
+      if (n == "color" || n.empty())
+        l.color = std::move(layer.image);
+      else if (n == "albedo")
+        l.albedo = std::move(layer.image), l.has_albedo = true;
+      else if (n == "normal")
+        l.normal = std::move(layer.image), l.has_normal = true;
+      else if (n == "depth")
+        l.depth = std::move(layer.image), l.has_depth = true;
+      else if (n == "roughness")
+        l.rough = std::move(layer.image), l.has_rough = true;
+      else if (n == "motion")
+        l.motion = std::move(layer.image), l.has_motion = true;
     }
-    if (l.color.width == 0) throw Error(ErrorCode::parse_error, fmt::format("{}: no colour (R,G,B) layer", path));
+    if (l.color.width == 0)
+      throw Error(ErrorCode::parse_error, fmt::format("{}: no colour (R,G,B) layer", path));
     return l;
   }
   l.color = read_float_image(name(a.hdr));
@@ -94,11 +104,16 @@ namespace {
 
 void run_denoise(const DenoiseArgs& a) {
   if (a.hdr.empty() == a.input.empty())
-    throw Error(ErrorCode::invalid_argument, "denoise: give --hdr color.pfm (with --alb/--nrm/...) or --input frame.exr");
-  if (a.out.empty()) throw Error(ErrorCode::invalid_argument, "denoise: -o out.pfm|out.exr is required");
+    throw Error(ErrorCode::invalid_argument,
+                "denoise: give --hdr color.pfm (with --alb/--nrm/...) or --input frame.exr");
+  if (a.out.empty())
+    throw Error(ErrorCode::invalid_argument, "denoise: -o out.pfm|out.exr is required");
   const auto method = denoise_method_from_name(a.method);
-  if (!method) throw Error(ErrorCode::invalid_argument, fmt::format("denoise: unknown --method '{}' (neural, svgf, atrous)", a.method));
-  if (a.sequence && a.frames <= 0) throw Error(ErrorCode::invalid_argument, "denoise: --sequence needs --frames N");
+  if (!method)
+    throw Error(ErrorCode::invalid_argument,
+                fmt::format("denoise: unknown --method '{}' (neural, svgf, atrous)", a.method));
+  if (a.sequence && a.frames <= 0)
+    throw Error(ErrorCode::invalid_argument, "denoise: --sequence needs --frames N");
   DenoiserOptions o;
   o.method = *method;
   o.weights = a.weights;
@@ -117,21 +132,27 @@ void run_denoise(const DenoiseArgs& a) {
     in.motion = l.has_motion ? &l.motion : nullptr;
     auto t0 = std::chrono::steady_clock::now();
     const FloatImage out = denoiser.denoise(in);
-    double ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+    double ms =
+        std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
     if (a.bench > 0) {  // as oidnDenoise --bench: the same frame again (state carried), median
       std::vector<double> times;
       for (int r = 0; r < a.bench; ++r) {
         t0 = std::chrono::steady_clock::now();
         (void)denoiser.denoise(in);
-        times.push_back(std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count());
+        times.push_back(
+            std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0)
+                .count());
       }
       std::sort(times.begin(), times.end());
       ms = times[times.size() / 2];
-      fmt::print("bench    {} runs after the first: median {:.1f} ms, min {:.1f} ms\n", a.bench, ms, times.front());
+      fmt::print("bench    {} runs after the first: median {:.1f} ms, min {:.1f} ms\n", a.bench, ms,
+                 times.front());
     }
     const std::string path = a.sequence ? frame_name(a.out, frame) : a.out;
     write_image(path, out);
-    if (!a.quiet) fmt::print("denoised {}x{} ({}) in {:.1f} ms -> {}\n", out.width, out.height, a.method, ms, path);
+    if (!a.quiet)
+      fmt::print("denoised {}x{} ({}) in {:.1f} ms -> {}\n", out.width, out.height, a.method, ms,
+                 path);
   }
 }
 
@@ -145,16 +166,20 @@ Action add_denoise_command(CLI::App& cmd) {
   cmd.add_option("--depth", a->depth, "Depth AOV");
   cmd.add_option("--rough,--roughness", a->rough, "Roughness AOV");
   cmd.add_option("--motion", a->motion, "Motion vectors, pixels (p + motion = previous position)");
-  cmd.add_option("-i,--input", a->input, "kestrel's multi-layer EXR (every AOV) instead of separate files");
+  cmd.add_option("-i,--input", a->input,
+                 "kestrel's multi-layer EXR (every AOV) instead of separate files");
   cmd.add_option("-o,--output", a->out, "Output .pfm or .exr")->required();
   cmd.add_option("--method", a->method, "neural | svgf | atrous")->capture_default_str();
   cmd.add_option("--weights", a->weights, "Neural weights file (default: weights/denoiser.kdw)");
-  cmd.add_flag("--sequence", a->sequence, "File names are printf patterns (%04d); recurrent state carries over");
+  cmd.add_flag("--sequence", a->sequence,
+               "File names are printf patterns (%04d); recurrent state carries over");
   cmd.add_option("--frames", a->frames, "Frames of the sequence");
   cmd.add_option("--start", a->start, "First frame number")->capture_default_str();
-  cmd.add_flag("--no-recurrent", a->no_recurrent, "Neural: each frame alone (no warped previous output)");
+  cmd.add_flag("--no-recurrent", a->no_recurrent,
+               "Neural: each frame alone (no warped previous output)");
   cmd.add_flag("--quiet", a->quiet, "Print nothing");
-  cmd.add_option("--bench", a->bench, "Denoise each frame this many more times and print the median time");
+  cmd.add_option("--bench", a->bench,
+                 "Denoise each frame this many more times and print the median time");
   return [a] { run_denoise(*a); };
 }
 

@@ -34,7 +34,8 @@ void run_preview(const PreviewArgs& a) {
   std::string view = a.view;
   if (view.empty()) view = scene.source == "builtin:cornell_box" ? "front" : "framing";
   auto cam = tools::named_view(scene, view);
-  if (!cam) throw Error(ErrorCode::invalid_argument, fmt::format("{}: no view named '{}'", a.scene, view));
+  if (!cam)
+    throw Error(ErrorCode::invalid_argument, fmt::format("{}: no view named '{}'", a.scene, view));
   const Accel accel = build_accel(scene, config);
   if (accel.validation.report.valid_triangle_count == 0)
     throw Error(ErrorCode::invalid_geometry, fmt::format("{}: no valid triangle", a.scene));
@@ -73,9 +74,11 @@ void run_preview(const PreviewArgs& a) {
   }
   write_png(a.out, w, h, rgb);
   fmt::print("scene    {} ({})\n", a.scene, accel.validation.report.summary());
-  fmt::print("bvh      {}: {} bytes, built in {:.2f} ms\n", builder_name(resolve_builder(config, accel.prim_count)),
-             accel.memory_bytes(), accel.build_ms);
-  fmt::print("render   {}x{} in {:.2f} ms ({:.2f} Mrays/s)\n", w, h, trace_ms, double(w) * h / (trace_ms * 1e3));
+  fmt::print("bvh      {}: {} bytes, built in {:.2f} ms\n",
+             builder_name(resolve_builder(config, accel.prim_count)), accel.memory_bytes(),
+             accel.build_ms);
+  fmt::print("render   {}x{} in {:.2f} ms ({:.2f} Mrays/s)\n", w, h, trace_ms,
+             double(w) * h / (trace_ms * 1e3));
   fmt::print("wrote    {}\n", a.out);
 }
 
@@ -85,7 +88,8 @@ Action add_preview_command(CLI::App& cmd) {
   auto args = std::make_shared<PreviewArgs>();
   cmd.add_option("scene", args->scene, "scene file or builtin:cornell_box (default)");
   cmd.add_option("-o,--out", args->out, "output PNG");
-  cmd.add_option("--view", args->view, "named view (framing; inside for Sponza; front for the built-in box)");
+  cmd.add_option("--view", args->view,
+                 "named view (framing; inside for Sponza; front for the built-in box)");
   cmd.add_option("--res", args->res, "WxH pixels");
   args->build.add_to(cmd);
   return [args] { run_preview(*args); };

@@ -2,18 +2,18 @@
 // animated glTF scenes moving, one file set per frame).
 #include <fmt/format.h>
 
+#include <unistd.h>
 #include <cmath>
 #include <cstdio>
-#include <unistd.h>
 #include <filesystem>
 #include <memory>
 
 #include "commands.h"
 #include "core/file_io.h"
 #include "distributed/distributed.h"
+#include "kestrel/denoise.h"
 #include "kestrel/error.h"
 #include "kestrel/io.h"
-#include "kestrel/denoise.h"
 #include "kestrel/pipeline.h"
 #include "kestrel/render.h"
 #include "kestrel/upscale.h"
@@ -23,7 +23,8 @@ namespace kestrel::cli {
 namespace {
 
 struct RenderArgs {
-  std::string scene = "builtin:cornell_box", view, camera, res = "640x360", out, pfm, png, env, path, denoise, upscale;
+  std::string scene = "builtin:cornell_box", view, camera, res = "640x360", out, pfm, png, env,
+              path, denoise, upscale;
   int spp = 1, max_depth = 8, threads = 0, frames = 0, frame = 0, factor = 2;
   uint64_t seed = 0;
   double time_limit = 0, time = 0;
@@ -34,19 +35,31 @@ struct RenderArgs {
 void add_common(CLI::App& cmd, RenderArgs& a) {
   cmd.add_option("scene", a.scene, "Scene file (OBJ, glTF, GLB) or builtin:NAME")->required();
   cmd.add_option("--res", a.res, "Resolution WxH")->capture_default_str();
-  cmd.add_option("--spp", a.spp, "Samples per pixel")->capture_default_str()->check(CLI::Range(1, 1 << 20));
-  cmd.add_option("--seed", a.seed, "Random seed (same seed: same image for any thread count)")->capture_default_str();
-  cmd.add_option("--max-depth", a.max_depth, "Path vertices after the camera (1 = direct light)")->capture_default_str()->check(CLI::Range(1, 1024));
-  cmd.add_option("--threads", a.threads, "Worker threads (0 = all)")->capture_default_str()->check(CLI::Range(0, 1024));
-  cmd.add_option("--env", a.env, "Environment: none | sky | constant:R,G,B | image file (.hdr .exr .pfm .png)");
+  cmd.add_option("--spp", a.spp, "Samples per pixel")
+      ->capture_default_str()
+      ->check(CLI::Range(1, 1 << 20));
+  cmd.add_option("--seed", a.seed, "Random seed (same seed: same image for any thread count)")
+      ->capture_default_str();
+  cmd.add_option("--max-depth", a.max_depth, "Path vertices after the camera (1 = direct light)")
+      ->capture_default_str()
+      ->check(CLI::Range(1, 1024));
+  cmd.add_option("--threads", a.threads, "Worker threads (0 = all)")
+      ->capture_default_str()
+      ->check(CLI::Range(0, 1024));
+  cmd.add_option("--env", a.env,
+                 "Environment: none | sky | constant:R,G,B | image file (.hdr .exr .pfm .png)");
   cmd.add_option("--pfm", a.pfm, "Also write one PFM per AOV into this directory");
   cmd.add_option("--png", a.png, "Also write the tone-mapped colour as PNG");
   cmd.add_option("--exposure", a.exposure, "Exposure of the PNG, stops")->capture_default_str();
-  cmd.add_option("--clamp", a.clamp, "Clamp sample radiance to this (biased; 0 = off)")->capture_default_str();
+  cmd.add_option("--clamp", a.clamp, "Clamp sample radiance to this (biased; 0 = off)")
+      ->capture_default_str();
   cmd.add_flag("--no-jitter", a.no_jitter, "Sample pixel centres (no Halton jitter)");
-  cmd.add_flag("--fixed-jitter", a.fixed_jitter, "Every sample at the frame's jitter (point-sampled, as an upsampler's input)");
+  cmd.add_flag("--fixed-jitter", a.fixed_jitter,
+               "Every sample at the frame's jitter (point-sampled, as an upsampler's input)");
   cmd.add_flag("--quiet", a.quiet, "No progress bar");
-  cmd.add_option("--denoise", a.denoise, "Denoise the colour AOV: neural | svgf | atrous (the noisy one is kept as layer 'noisy' / noisy.pfm)");
+  cmd.add_option("--denoise", a.denoise,
+                 "Denoise the colour AOV: neural | svgf | atrous (the noisy one is kept as layer "
+                 "'noisy' / noisy.pfm)");
 }
 
 RenderSettings settings_of(const RenderArgs& a) {
@@ -74,18 +87,21 @@ Camera parse_camera(const std::string& text) {
   size_t at = 0;
   while (at <= text.size()) {
     const size_t comma = text.find(',', at);
-    const std::string part = text.substr(at, comma == std::string::npos ? std::string::npos : comma - at);
+    const std::string part =
+        text.substr(at, comma == std::string::npos ? std::string::npos : comma - at);
     char* end = nullptr;
     const float x = std::strtof(part.c_str(), &end);
     if (part.empty() || end != part.c_str() + part.size())
-      throw Error(ErrorCode::invalid_argument, fmt::format("--camera '{}': '{}' is not a number", text, part));
+      throw Error(ErrorCode::invalid_argument,
+                  fmt::format("--camera '{}': '{}' is not a number", text, part));
     v.push_back(x);
     if (comma == std::string::npos) break;
     at = comma + 1;
   }
   if (v.size() != 6 && v.size() != 7 && v.size() != 9)
-    throw Error(ErrorCode::invalid_argument,
-                fmt::format("--camera '{}': expected ex,ey,ez,tx,ty,tz[,vfov[,aperture,focus]]", text));
+    throw Error(
+        ErrorCode::invalid_argument,
+        fmt::format("--camera '{}': expected ex,ey,ez,tx,ty,tz[,vfov[,aperture,focus]]", text));
   Camera c;
   c.eye = {v[0], v[1], v[2]};
   c.target = {v[3], v[4], v[5]};
@@ -98,7 +114,9 @@ Camera parse_camera(const std::string& text) {
 std::unique_ptr<Denoiser> denoiser_of(const RenderArgs& a) {
   if (a.denoise.empty()) return nullptr;
   const auto m = denoise_method_from_name(a.denoise);
-  if (!m) throw Error(ErrorCode::invalid_argument, fmt::format("--denoise '{}': expected neural, svgf or atrous", a.denoise));
+  if (!m)
+    throw Error(ErrorCode::invalid_argument,
+                fmt::format("--denoise '{}': expected neural, svgf or atrous", a.denoise));
   DenoiserOptions o;
   o.method = *m;
   return std::make_unique<Denoiser>(o);
@@ -116,7 +134,9 @@ class FileSet {
   std::string add(const std::string& final_path) {
     const std::filesystem::path p(final_path);
     const std::string tmp =
-        (p.parent_path() / fmt::format(".{}.partial-{}{}", p.filename().string(), getpid(), p.extension().string())).string();
+        (p.parent_path() /
+         fmt::format(".{}.partial-{}{}", p.filename().string(), getpid(), p.extension().string()))
+            .string();
     files_.emplace_back(tmp, final_path);
     return tmp;
   }
@@ -124,7 +144,9 @@ class FileSet {
     for (const auto& [tmp, final_path] : files_) {
       std::error_code ec;
       std::filesystem::rename(tmp, final_path, ec);
-      if (ec) throw Error(ErrorCode::io_error, fmt::format("{}: cannot replace the file: {}", final_path, ec.message()));
+      if (ec)
+        throw Error(ErrorCode::io_error,
+                    fmt::format("{}: cannot replace the file: {}", final_path, ec.message()));
     }
     files_.clear();
   }
@@ -135,8 +157,8 @@ class FileSet {
 
 // With a denoised colour, the colour AOV becomes it and the noisy one is written beside it
 // (EXR layer "noisy", noisy.pfm).
-void write_outputs(const Frame& frame, const std::string& exr, const std::string& pfm, const std::string& png, float exposure,
-                   const FloatImage* denoised = nullptr) {
+void write_outputs(const Frame& frame, const std::string& exr, const std::string& pfm,
+                   const std::string& png, float exposure, const FloatImage* denoised = nullptr) {
   Frame copy;
   if (denoised) {
     copy = frame;
@@ -159,25 +181,33 @@ void write_outputs(const Frame& frame, const std::string& exr, const std::string
   if (!pfm.empty()) {
     std::error_code ec;
     std::filesystem::create_directories(pfm, ec);
-    if (ec) throw Error(ErrorCode::io_error, fmt::format("{}: cannot create directory: {}", pfm, ec.message()));
+    if (ec)
+      throw Error(ErrorCode::io_error,
+                  fmt::format("{}: cannot create directory: {}", pfm, ec.message()));
     for (int a = 0; a < aov_count; ++a)
-      write_pfm(files.add((std::filesystem::path(pfm) / (std::string(aov_name(Aov(a))) + ".pfm")).string()), f.aov[a]);
+      write_pfm(
+          files.add(
+              (std::filesystem::path(pfm) / (std::string(aov_name(Aov(a))) + ".pfm")).string()),
+          f.aov[a]);
     if (denoised) write_pfm(files.add((std::filesystem::path(pfm) / "noisy.pfm").string()), noisy);
   }
-  if (!png.empty()) write_png(files.add(png), f.width, f.height, tonemap_srgb8(f[Aov::color], exposure));
+  if (!png.empty())
+    write_png(files.add(png), f.width, f.height, tonemap_srgb8(f[Aov::color], exposure));
   files.commit();
 }
 
 FloatImage denoise_frame(Denoiser& d, const Frame& f) {
-  return d.denoise({&f[Aov::color], &f[Aov::albedo], &f[Aov::normal], &f[Aov::depth], &f[Aov::roughness], &f[Aov::motion]});
+  return d.denoise({&f[Aov::color], &f[Aov::albedo], &f[Aov::normal], &f[Aov::depth],
+                    &f[Aov::roughness], &f[Aov::motion]});
 }
 
 void print_stats(const RenderStats& st) {
   const double mrays = double(st.rays()) / (st.ms * 1e3);
-  fmt::print("render   {} spp in {:.1f} ms: {} camera + {} bounce + {} shadow rays, {:.2f} Mrays/s; "
-             "{:.0f}% of thread time in trace/occluded\n",
-             st.passes, st.ms, st.camera_rays, st.bounce_rays, st.shadow_rays, mrays,
-             st.total_thread_ms > 0 ? 100.0 * st.trace_ms / st.total_thread_ms : 0.0);
+  fmt::print(
+      "render   {} spp in {:.1f} ms: {} camera + {} bounce + {} shadow rays, {:.2f} Mrays/s; "
+      "{:.0f}% of thread time in trace/occluded\n",
+      st.passes, st.ms, st.camera_rays, st.bounce_rays, st.shadow_rays, mrays,
+      st.total_thread_ms > 0 ? 100.0 * st.trace_ms / st.total_thread_ms : 0.0);
 }
 
 // Per-rank busy time under mpirun: how evenly the dynamic tiles spread.
@@ -186,10 +216,10 @@ void print_ranks(const std::vector<distributed::RankStats>& ranks, double frame_
   double busy = 0;
   for (const auto& r : ranks) busy += r.busy_ms;
   for (size_t r = 0; r < ranks.size(); ++r)
-    fmt::print("rank {:<3} {:5} tiles, busy {:.1f} ms ({:.0f}% of the frame)\n", r, ranks[r].tiles, ranks[r].busy_ms,
-               frame_ms > 0 ? 100.0 * ranks[r].busy_ms / frame_ms : 0.0);
-  fmt::print("ranks    {}: parallel efficiency {:.3f} (busy time / (ranks x frame time))\n", ranks.size(),
-             frame_ms > 0 ? busy / (double(ranks.size()) * frame_ms) : 0.0);
+    fmt::print("rank {:<3} {:5} tiles, busy {:.1f} ms ({:.0f}% of the frame)\n", r, ranks[r].tiles,
+               ranks[r].busy_ms, frame_ms > 0 ? 100.0 * ranks[r].busy_ms / frame_ms : 0.0);
+  fmt::print("ranks    {}: parallel efficiency {:.3f} (busy time / (ranks x frame time))\n",
+             ranks.size(), frame_ms > 0 ? busy / (double(ranks.size()) * frame_ms) : 0.0);
 }
 
 // Every destination checked before the work starts: a bad --png must not cost a render, nor
@@ -203,7 +233,9 @@ void check_destinations(const std::string& exr, const std::string& pfm, const st
   if (!pfm.empty()) {
     std::error_code ec;
     std::filesystem::create_directories(pfm, ec);
-    if (ec) throw Error(ErrorCode::io_error, fmt::format("{}: cannot create directory: {}", pfm, ec.message()));
+    if (ec)
+      throw Error(ErrorCode::io_error,
+                  fmt::format("{}: cannot create directory: {}", pfm, ec.message()));
     check_writable_destination((std::filesystem::path(pfm) / "color.pfm").string());
   }
   if (!png.empty()) check_writable_destination(png);
@@ -211,9 +243,11 @@ void check_destinations(const std::string& exr, const std::string& pfm, const st
 
 void run_render(const RenderArgs& a) {
   if (a.out.empty() && a.pfm.empty() && a.png.empty())
-    throw Error(ErrorCode::invalid_argument, "render: nothing to write (give -o out.exr, --pfm DIR or --png out.png)");
+    throw Error(ErrorCode::invalid_argument,
+                "render: nothing to write (give -o out.exr, --pfm DIR or --png out.png)");
   if (distributed::rank() == 0) check_destinations(a.out, a.pfm, a.png);
-  if (!a.view.empty() && !a.camera.empty()) throw Error(ErrorCode::invalid_argument, "render: give --view or --camera, not both");
+  if (!a.view.empty() && !a.camera.empty())
+    throw Error(ErrorCode::invalid_argument, "render: give --view or --camera, not both");
   const RenderSettings s = settings_of(a);
   const Asset asset = load_asset_reporting(a.scene);
   Camera camera;
@@ -223,8 +257,10 @@ void run_render(const RenderArgs& a) {
     std::string view = a.view;
     if (view.empty()) view = find_view(asset, "front") ? "front" : "framing";
     auto c = find_view(asset, view);
-    if (!c) throw Error(ErrorCode::invalid_argument, fmt::format("{}: no view named '{}' (looked in {})", a.scene, view,
-                                                                 fmt::join(view_files_for(asset.source()), ", ")));
+    if (!c)
+      throw Error(ErrorCode::invalid_argument,
+                  fmt::format("{}: no view named '{}' (looked in {})", a.scene, view,
+                              fmt::join(view_files_for(asset.source()), ", ")));
     camera = *c;
   }
   const std::string source = asset.source();
@@ -236,7 +272,8 @@ void run_render(const RenderArgs& a) {
   std::vector<distributed::RankStats> ranks;
   const Frame f = distributed::render(renderer, camera, rs, std::nullopt, &ranks);
   if (distributed::rank() != 0) return;  // rank 0 holds the frame and writes the files
-  fmt::print("scene    {} ({} triangles, {} light triangles)\n", source, triangles, renderer.light_count());
+  fmt::print("scene    {} ({} triangles, {} light triangles)\n", source, triangles,
+             renderer.light_count());
   print_stats(f.stats);
   print_ranks(ranks, f.stats.ms);
   const FloatImage denoised = denoiser ? denoise_frame(*denoiser, f) : FloatImage{};
@@ -248,34 +285,47 @@ void run_render(const RenderArgs& a) {
 // The frames go through the Pipeline (the one frame loop): the scene posed at each frame's
 // time, rendered (distributed under mpirun), denoised and upsampled as asked.
 void run_sequence(const RenderArgs& a) {
-  if (a.frames <= 0) throw Error(ErrorCode::invalid_argument, fmt::format("render-sequence: --frames must be positive, got {}", a.frames));
-  if (a.out.empty()) throw Error(ErrorCode::invalid_argument, "render-sequence: -o DIR is required");
+  if (a.frames <= 0)
+    throw Error(ErrorCode::invalid_argument,
+                fmt::format("render-sequence: --frames must be positive, got {}", a.frames));
+  if (a.out.empty())
+    throw Error(ErrorCode::invalid_argument, "render-sequence: -o DIR is required");
   const RenderSettings s = settings_of(a);
   PipelineSettings ps;
-  ps.width = s.width, ps.height = s.height, ps.spp = s.spp, ps.max_depth = s.max_depth, ps.clamp = s.clamp;
+  ps.width = s.width, ps.height = s.height, ps.spp = s.spp, ps.max_depth = s.max_depth,
+  ps.clamp = s.clamp;
   ps.seed = s.seed, ps.threads = s.threads, ps.jitter = s.jitter, ps.fixed_jitter = s.fixed_jitter;
   ps.exposure = a.exposure;
   ps.factor = 1;
   ps.denoise = !a.denoise.empty();
   if (ps.denoise) {
     const auto m = denoise_method_from_name(a.denoise);
-    if (!m) throw Error(ErrorCode::invalid_argument, fmt::format("--denoise '{}': expected neural, svgf or atrous", a.denoise));
+    if (!m)
+      throw Error(ErrorCode::invalid_argument,
+                  fmt::format("--denoise '{}': expected neural, svgf or atrous", a.denoise));
     ps.denoiser = *m;
   }
-  if (!a.upscale.empty()) {  // --res is the output; render at 1/factor, every sample at the frame's jitter
+  if (!a.upscale.empty()) {  // --res is the output; render at 1/factor, every sample at the frame's
+                             // jitter
     const auto m = upscale_method_from_name(a.upscale);
-    if (!m) throw Error(ErrorCode::invalid_argument, fmt::format("--upscale '{}': expected neural, taau, bicubic or bilinear", a.upscale));
+    if (!m)
+      throw Error(
+          ErrorCode::invalid_argument,
+          fmt::format("--upscale '{}': expected neural, taau, bicubic or bilinear", a.upscale));
     if (a.factor != 2 && a.factor != 4)
-      throw Error(ErrorCode::invalid_argument, fmt::format("render-sequence: --factor must be 2 or 4, got {}", a.factor));
+      throw Error(ErrorCode::invalid_argument,
+                  fmt::format("render-sequence: --factor must be 2 or 4, got {}", a.factor));
     if (s.width % a.factor || s.height % a.factor)
-      throw Error(ErrorCode::invalid_argument, fmt::format("render-sequence: --res {} is not divisible by --factor {}", a.res, a.factor));
+      throw Error(ErrorCode::invalid_argument,
+                  fmt::format("render-sequence: --res {} is not divisible by --factor {}", a.res,
+                              a.factor));
     ps.upscaler = *m, ps.factor = a.factor, ps.fixed_jitter = true;
   }
   std::filesystem::create_directories(a.out);
   Pipeline pipeline(load_asset_reporting(a.scene), ps, a.env);
-  pipeline.set_render_function([](Renderer& r, const Camera& cam, const RenderSettings& rs, const std::optional<Camera>& prev) {
-    return distributed::render(r, cam, rs, prev);
-  });
+  pipeline.set_render_function(
+      [](Renderer& r, const Camera& cam, const RenderSettings& rs,
+         const std::optional<Camera>& prev) { return distributed::render(r, cam, rs, prev); });
   const CameraPath path = camera_path_for(pipeline.asset(), a.path, a.view);
   const double t0 = path.start(), t1 = path.end();
   for (int i = 0; i < a.frames; ++i) {
@@ -289,15 +339,17 @@ void run_sequence(const RenderArgs& a) {
     const std::string pfm_dir = a.pfm.empty() ? "" : (std::filesystem::path(a.pfm) / name).string();
     const FloatImage* denoised = ps.denoise ? &o.denoised : nullptr;
     if (ps.factor > 1) {  // the low-resolution frame under low/, the upsampled colour as the frame
-      write_outputs(f, (std::filesystem::path(a.out) / "low" / (name + ".exr")).string(), pfm_dir, "", a.exposure, denoised);
+      write_outputs(f, (std::filesystem::path(a.out) / "low" / (name + ".exr")).string(), pfm_dir,
+                    "", a.exposure, denoised);
       write_image(stem + ".exr", o.upscaled);
       if (!a.png.empty()) write_png(stem + ".png", o.width, o.height, o.rgb8);
     } else {
-      write_outputs(f, stem + ".exr", pfm_dir, a.png.empty() ? "" : stem + ".png", a.exposure, denoised);
+      write_outputs(f, stem + ".exr", pfm_dir, a.png.empty() ? "" : stem + ".png", a.exposure,
+                    denoised);
     }
     if (!a.quiet)
-      fmt::print("frame {:4d}/{}  t = {:.3f} s  {:.1f} ms  {:.2f} Mrays/s\n", i + 1, a.frames, t, o.stats.ms,
-                 double(o.stats.rays()) / (o.stats.ms * 1e3));
+      fmt::print("frame {:4d}/{}  t = {:.3f} s  {:.1f} ms  {:.2f} Mrays/s\n", i + 1, a.frames, t,
+                 o.stats.ms, double(o.stats.rays()) / (o.stats.ms * 1e3));
   }
   if (distributed::rank() == 0) fmt::print("wrote    {} frames to {}\n", a.frames, a.out);
 }
@@ -307,25 +359,34 @@ void run_sequence(const RenderArgs& a) {
 Action add_render_command(CLI::App& cmd) {
   auto a = std::make_shared<RenderArgs>();
   add_common(cmd, *a);
-  cmd.add_option("--view", a->view, "Named view (scene's .views.json or data/views; 'framing' always exists)");
+  cmd.add_option("--view", a->view,
+                 "Named view (scene's .views.json or data/views; 'framing' always exists)");
   cmd.add_option("--camera", a->camera, "Camera ex,ey,ez,tx,ty,tz[,vfov[,aperture,focus]]");
   cmd.add_option("-o,--out", a->out, "Multi-layer EXR with every AOV");
-  cmd.add_option("--time-limit", a->time_limit, "Stop accumulating after this many seconds (progressive)");
-  cmd.add_option("--frame", a->frame, "Frame index (Halton jitter, noise decorrelation)")->capture_default_str();
+  cmd.add_option("--time-limit", a->time_limit,
+                 "Stop accumulating after this many seconds (progressive)");
+  cmd.add_option("--frame", a->frame, "Frame index (Halton jitter, noise decorrelation)")
+      ->capture_default_str();
   return [a] { run_render(*a); };
 }
 
 Action add_render_sequence_command(CLI::App& cmd) {
   auto a = std::make_shared<RenderArgs>();
   add_common(cmd, *a);
-  cmd.add_option("--path", a->path, "Camera path JSON (keyframes), or orbit[:DEGREES] about --view")->required();
+  cmd.add_option("--path", a->path, "Camera path JSON (keyframes), or orbit[:DEGREES] about --view")
+      ->required();
   cmd.add_option("--view", a->view, "Start view of --path orbit (default: front, else framing)");
-  cmd.add_option("--frames", a->frames, "Frames, evenly spread over the path's time span")->required()->check(CLI::Range(1, 1000000));
+  cmd.add_option("--frames", a->frames, "Frames, evenly spread over the path's time span")
+      ->required()
+      ->check(CLI::Range(1, 1000000));
   cmd.add_option("--upscale", a->upscale,
-                 "Render at --res / --factor (fixed jitter), then upsample: neural | taau | bicubic | bilinear "
+                 "Render at --res / --factor (fixed jitter), then upsample: neural | taau | "
+                 "bicubic | bilinear "
                  "(frame_NNNN.exr: the upsampled colour; low/: the low-resolution frames)");
   cmd.add_option("--factor", a->factor, "Upsampling factor, 2 or 4")->capture_default_str();
-  cmd.add_option("-o,--out", a->out, "Output directory: frame_NNNN.exr (+ .png with --png x, PFMs under --pfm DIR)")->required();
+  cmd.add_option("-o,--out", a->out,
+                 "Output directory: frame_NNNN.exr (+ .png with --png x, PFMs under --pfm DIR)")
+      ->required();
   return [a] { run_sequence(*a); };
 }
 

@@ -32,34 +32,46 @@ double percentile(std::vector<double> v, double q) {
 }
 
 void run(RunArgs& a) {
-  if (a.frames <= 0) throw Error(ErrorCode::invalid_argument, fmt::format("run: --frames must be positive, got {}", a.frames));
+  if (a.frames <= 0)
+    throw Error(ErrorCode::invalid_argument,
+                fmt::format("run: --frames must be positive, got {}", a.frames));
   if (a.out.empty()) throw Error(ErrorCode::invalid_argument, "run: -o DIR is required");
   const PipelineSettings settings = a.p.settings();
   Pipeline pipeline(a.p.scene, settings, a.p.env);
-  const CameraPath path = camera_path_for(pipeline.asset(), a.path.empty() ? "orbit:30" : a.path, a.view);
+  const CameraPath path =
+      camera_path_for(pipeline.asset(), a.path.empty() ? "orbit:30" : a.path, a.view);
   std::filesystem::create_directories(a.out);
   fmt::print("scene    {} ({} triangles)\n", pipeline.source(), pipeline.triangle_count());
-  fmt::print("pipeline {}x{} output, internal {}x{} (x{}), denoise {}, upscale {}, {} spp, max depth {}\n", settings.width,
-             settings.height, settings.width / settings.factor, settings.height / settings.factor, settings.factor,
-             settings.denoise ? denoise_method_name(settings.denoiser) : "none",
-             settings.factor > 1 ? upscale_method_name(settings.upscaler) : "none", settings.spp, settings.max_depth);
+  fmt::print(
+      "pipeline {}x{} output, internal {}x{} (x{}), denoise {}, upscale {}, {} spp, max depth {}\n",
+      settings.width, settings.height, settings.width / settings.factor,
+      settings.height / settings.factor, settings.factor,
+      settings.denoise ? denoise_method_name(settings.denoiser) : "none",
+      settings.factor > 1 ? upscale_method_name(settings.upscaler) : "none", settings.spp,
+      settings.max_depth);
   const double t0 = path.start(), t1 = path.end();
   std::vector<PipelineTimes> times;
   std::vector<double> mrays;
-  std::string csv = "frame,factor,update_ms,render_ms,denoise_ms,upscale_ms,tonemap_ms,total_ms,mrays_per_s\n";
+  std::string csv =
+      "frame,factor,update_ms,render_ms,denoise_ms,upscale_ms,tonemap_ms,total_ms,mrays_per_s\n";
   for (int i = 0; i < a.frames; ++i) {
     const double t = a.frames > 1 ? t0 + (t1 - t0) * double(i) / double(a.frames - 1) : t0;
     const PipelineFrame& f = pipeline.frame(path.at(t), t);
     const double mr = double(f.stats.rays()) / (f.times.render * 1e3);
     times.push_back(f.times), mrays.push_back(mr);
-    csv += fmt::format("{},{},{:.3f},{:.3f},{:.3f},{:.3f},{:.3f},{:.3f},{:.2f}\n", i, f.factor, f.times.update, f.times.render,
-                       f.times.denoise, f.times.upscale, f.times.tonemap, f.times.total, mr);
-    const std::string stem = (std::filesystem::path(a.out) / fmt::format("frame_{:04d}", i)).string();
+    csv += fmt::format("{},{},{:.3f},{:.3f},{:.3f},{:.3f},{:.3f},{:.3f},{:.2f}\n", i, f.factor,
+                       f.times.update, f.times.render, f.times.denoise, f.times.upscale,
+                       f.times.tonemap, f.times.total, mr);
+    const std::string stem =
+        (std::filesystem::path(a.out) / fmt::format("frame_{:04d}", i)).string();
     if (!a.no_png) write_png(stem + ".png", f.width, f.height, f.rgb8);
     if (a.exr) write_image(stem + ".exr", f.upscaled);
     if (!a.quiet)
-      fmt::print("frame {:4d}/{}  x{}  render {:6.1f}  denoise {:6.1f}  upscale {:5.1f}  total {:6.1f} ms  ({:.1f} fps)\n", i + 1,
-                 a.frames, f.factor, f.times.render, f.times.denoise, f.times.upscale, f.times.total, 1000.0 / f.times.total);
+      fmt::print(
+          "frame {:4d}/{}  x{}  render {:6.1f}  denoise {:6.1f}  upscale {:5.1f}  total {:6.1f} ms "
+          " ({:.1f} fps)\n",
+          i + 1, a.frames, f.factor, f.times.render, f.times.denoise, f.times.upscale,
+          f.times.total, 1000.0 / f.times.total);
   }
   // The table: median and p95 per stage (the first frame, warm-up, excluded when there are more).
   const size_t skip = times.size() > 1 ? 1 : 0;
@@ -69,28 +81,34 @@ void run(RunArgs& a) {
     return v;
   };
   std::string md = fmt::format(
-      "# kestrel run: {}\n\n{}x{} output from {}x{} internal (x{}), denoiser {}, upsampler {}, {} spp, max depth {}; {} "
-      "frames ({} timed, the first is warm-up).\n\n| stage | median ms | p95 ms |\n|---|---:|---:|\n",
-      pipeline.source(), settings.width, settings.height, settings.width / settings.factor, settings.height / settings.factor,
-      settings.factor, settings.denoise ? denoise_method_name(settings.denoiser) : "none",
-      settings.factor > 1 ? upscale_method_name(settings.upscaler) : "none", settings.spp, settings.max_depth, a.frames,
-      times.size() - skip);
+      "# kestrel run: {}\n\n{}x{} output from {}x{} internal (x{}), denoiser {}, upsampler {}, {} "
+      "spp, max depth {}; {} "
+      "frames ({} timed, the first is warm-up).\n\n| stage | median ms | p95 ms "
+      "|\n|---|---:|---:|\n",
+      pipeline.source(), settings.width, settings.height, settings.width / settings.factor,
+      settings.height / settings.factor, settings.factor,
+      settings.denoise ? denoise_method_name(settings.denoiser) : "none",
+      settings.factor > 1 ? upscale_method_name(settings.upscaler) : "none", settings.spp,
+      settings.max_depth, a.frames, times.size() - skip);
   const std::pair<const char*, double PipelineTimes::*> stages[] = {
-      {"scene update", &PipelineTimes::update}, {"render", &PipelineTimes::render}, {"denoise", &PipelineTimes::denoise},
-      {"upscale", &PipelineTimes::upscale},     {"tone map", &PipelineTimes::tonemap}, {"frame", &PipelineTimes::total}};
+      {"scene update", &PipelineTimes::update}, {"render", &PipelineTimes::render},
+      {"denoise", &PipelineTimes::denoise},     {"upscale", &PipelineTimes::upscale},
+      {"tone map", &PipelineTimes::tonemap},    {"frame", &PipelineTimes::total}};
   for (const auto& [name, m] : stages) {
     const std::vector<double> v = column(m);
     md += fmt::format("| {} | {:.1f} | {:.1f} |\n", name, percentile(v, 0.5), percentile(v, 0.95));
   }
   const double med = percentile(column(&PipelineTimes::total), 0.5);
   std::vector<double> mr(mrays.begin() + std::ptrdiff_t(skip), mrays.end());
-  md += fmt::format("\n{:.2f} frames per second (median frame), render {:.2f} Mrays/s (median).\n", 1000.0 / med,
-                    percentile(mr, 0.5));
+  md += fmt::format("\n{:.2f} frames per second (median frame), render {:.2f} Mrays/s (median).\n",
+                    1000.0 / med, percentile(mr, 0.5));
   write_text_file((std::filesystem::path(a.out) / "timings.csv").string(), csv);
   write_text_file((std::filesystem::path(a.out) / "timings.md").string(), md);
   fmt::print("\n{}", md);
-  fmt::print("wrote    {} frames, timings.md and timings.csv to {}{}\n", a.frames, a.out,
-             a.no_png ? "" : fmt::format(" (video: ffmpeg -framerate 30 -i {}/frame_%04d.png out.mp4)", a.out));
+  fmt::print(
+      "wrote    {} frames, timings.md and timings.csv to {}{}\n", a.frames, a.out,
+      a.no_png ? ""
+               : fmt::format(" (video: ffmpeg -framerate 30 -i {}/frame_%04d.png out.mp4)", a.out));
 }
 
 }  // namespace
@@ -98,10 +116,14 @@ void run(RunArgs& a) {
 Action add_run_command(CLI::App& cmd) {
   auto a = std::make_shared<RunArgs>();
   a->p.add_to(cmd);
-  cmd.add_option("--path", a->path, "Camera path JSON (keyframes), or orbit[:DEGREES] about --view (default orbit:30)");
+  cmd.add_option(
+      "--path", a->path,
+      "Camera path JSON (keyframes), or orbit[:DEGREES] about --view (default orbit:30)");
   cmd.add_option("--view", a->view, "Start view of an orbit");
-  cmd.add_option("--frames", a->frames, "Frames, evenly spread over the path's time span")->capture_default_str();
-  cmd.add_option("-o,--out", a->out, "Output directory: frame_NNNN.png, timings.md, timings.csv")->required();
+  cmd.add_option("--frames", a->frames, "Frames, evenly spread over the path's time span")
+      ->capture_default_str();
+  cmd.add_option("-o,--out", a->out, "Output directory: frame_NNNN.png, timings.md, timings.csv")
+      ->required();
   cmd.add_flag("--exr", a->exr, "Also write each output frame as linear EXR");
   cmd.add_flag("--no-png", a->no_png, "No PNG frames (timings only)");
   cmd.add_flag("--quiet", a->quiet, "Only the table");

@@ -34,19 +34,29 @@ Accel load_and_build(const std::string& path, const BuildConfig& config) {
 void run_trace(const TraceArgs& a) {
   BuildConfig config = a.build.config();
   auto layout = layout_from_name(a.layout);
-  if (!layout) throw Error(ErrorCode::invalid_argument, fmt::format("unknown layout '{}' (auto, bvh2, bvh4, bvh8)", a.layout));
+  if (!layout)
+    throw Error(ErrorCode::invalid_argument,
+                fmt::format("unknown layout '{}' (auto, bvh2, bvh4, bvh8)", a.layout));
   config.layout = *layout;
   TraceOptions options;
   if (a.isa != "auto") {
     options.isa = isa_from_name(a.isa);
-    if (!options.isa) throw Error(ErrorCode::invalid_argument, fmt::format("unknown ISA '{}' (auto, sse2, avx2, avx512)", a.isa));
+    if (!options.isa)
+      throw Error(ErrorCode::invalid_argument,
+                  fmt::format("unknown ISA '{}' (auto, sse2, avx2, avx512)", a.isa));
     if (!isa_supported(*options.isa))
-      throw Error(ErrorCode::invalid_argument, fmt::format("ISA '{}' is not supported by this CPU (best: {})", a.isa, isa_name(host_isa())));
+      throw Error(ErrorCode::invalid_argument,
+                  fmt::format("ISA '{}' is not supported by this CPU (best: {})", a.isa,
+                              isa_name(host_isa())));
     set_default_isa(*options.isa);  // also picks the layout `auto` resolves to
   }
-  if (a.packets == "on") options.packets = true;
-  else if (a.packets == "off") options.packets = false;
-  else if (a.packets != "auto") throw Error(ErrorCode::invalid_argument, fmt::format("--packets '{}': expected auto, on or off", a.packets));
+  if (a.packets == "on")
+    options.packets = true;
+  else if (a.packets == "off")
+    options.packets = false;
+  else if (a.packets != "auto")
+    throw Error(ErrorCode::invalid_argument,
+                fmt::format("--packets '{}': expected auto, on or off", a.packets));
   std::unique_ptr<ThreadLimit> limit;
   if (a.build.threads > 0) limit = std::make_unique<ThreadLimit>(a.build.threads);
   const std::vector<Ray> rays = read_rays(a.rays_path);
@@ -63,15 +73,19 @@ void run_trace(const TraceArgs& a) {
   for (const Hit& h : hits) hit_count += h.hit();
   const double med = median(ms);
   fmt::print("scene      {} ({})\n", a.scene, accel.validation.report.summary());
-  fmt::print("builder    {}{}\n", builder_name(accel.builder),
-             accel.depth_fallback ? fmt::format(" (the {} tree was deeper than traversal allows: rebuilt by median split)",
-                                                builder_name(resolve_builder(config, accel.prim_count)))
-                                  : std::string());
-  fmt::print("layout     {} ({} bytes, {:.1f} bytes/prim), ISA {}, packets {}\n", layout_name(accel.layout), accel.memory_bytes(),
+  fmt::print(
+      "builder    {}{}\n", builder_name(accel.builder),
+      accel.depth_fallback
+          ? fmt::format(" (the {} tree was deeper than traversal allows: rebuilt by median split)",
+                        builder_name(resolve_builder(config, accel.prim_count)))
+          : std::string());
+  fmt::print("layout     {} ({} bytes, {:.1f} bytes/prim), ISA {}, packets {}\n",
+             layout_name(accel.layout), accel.memory_bytes(),
              accel.prim_count ? double(accel.memory_bytes()) / double(accel.prim_count) : 0.0,
              isa_name(options.isa.value_or(default_isa())), a.packets);
   fmt::print("build      {:.2f} ms\n", accel.build_ms);
-  fmt::print("rays       {} ({}), {} hit\n", rays.size(), a.any_hit ? "any hit" : "closest hit", hit_count);
+  fmt::print("rays       {} ({}), {} hit\n", rays.size(), a.any_hit ? "any hit" : "closest hit",
+             hit_count);
   fmt::print("trace      {:.2f} ms (median of {}), {:.3f} Mrays/s\n", med, ms.size(),
              med > 0 ? double(rays.size()) / (med * 1e3) : 0.0);
   fmt::print("wrote      {}\n", a.hits_path);
@@ -84,12 +98,16 @@ struct RaysArgs {
 
 void run_rays(const RaysArgs& a) {
   auto kind = tools::ray_kind_from_name(a.kind);
-  if (!kind) throw Error(ErrorCode::invalid_argument, fmt::format("unknown ray kind '{}' (primary, shadow, diffuse)", a.kind));
+  if (!kind)
+    throw Error(ErrorCode::invalid_argument,
+                fmt::format("unknown ray kind '{}' (primary, shadow, diffuse)", a.kind));
   int w, h;
   parse_resolution(a.res, w, h);
   const Scene scene = load_scene_reporting(a.scene);
   auto cam = tools::named_view(scene, a.view);
-  if (!cam) throw Error(ErrorCode::invalid_argument, fmt::format("{}: no view named '{}'", a.scene, a.view));
+  if (!cam)
+    throw Error(ErrorCode::invalid_argument,
+                fmt::format("{}: no view named '{}'", a.scene, a.view));
   const Accel accel = build_accel(scene, BuildConfig{});
   const std::vector<Ray> rays = tools::make_rays(accel, scene, *cam, w, h, *kind, a.seed);
   write_rays(a.out, rays);
@@ -100,14 +118,18 @@ void run_rays(const RaysArgs& a) {
 
 Action add_trace_command(CLI::App& cmd) {
   auto args = std::make_shared<TraceArgs>();
-  cmd.add_option("scene", args->scene, "scene file (.obj, .gltf, .glb) or builtin:cornell_box")->required();
+  cmd.add_option("scene", args->scene, "scene file (.obj, .gltf, .glb) or builtin:cornell_box")
+      ->required();
   cmd.add_option("--rays", args->rays_path, "input .rays file")->required();
   cmd.add_option("--hits", args->hits_path, "output .hits file")->required();
   cmd.add_flag("--any-hit", args->any_hit, "occlusion query: t of any hit found, or +inf");
-  cmd.add_option("--repeat", args->repeat, "timed passes (median reported)")->check(CLI::Range(1, 1000));
+  cmd.add_option("--repeat", args->repeat, "timed passes (median reported)")
+      ->check(CLI::Range(1, 1000));
   cmd.add_option("--layout", args->layout, "auto | bvh2 (scalar reference) | bvh4 | bvh8");
   cmd.add_option("--isa", args->isa, "auto | sse2 | avx2 | avx512 (kernel instruction set)");
-  cmd.add_option("--packets", args->packets, "auto | on | off: trace closest-hit rays in packets (16 rays per packet with AVX-512, 8 otherwise)");
+  cmd.add_option("--packets", args->packets,
+                 "auto | on | off: trace closest-hit rays in packets (16 rays per packet with "
+                 "AVX-512, 8 otherwise)");
   args->build.add_to(cmd);
   return [args] { run_trace(*args); };
 }

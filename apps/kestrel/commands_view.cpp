@@ -51,27 +51,35 @@ struct FlyCamera {
     f.vfov = c.vfov_degrees, f.aperture = c.aperture_radius, f.focus = c.focus_distance;
     return f;
   }
-  Vec3 forward() const { return {std::sin(yaw) * std::cos(pitch), std::sin(pitch), -std::cos(yaw) * std::cos(pitch)}; }
+  Vec3 forward() const {
+    return {std::sin(yaw) * std::cos(pitch), std::sin(pitch), -std::cos(yaw) * std::cos(pitch)};
+  }
   Vec3 right() const { return {std::cos(yaw), 0, std::sin(yaw)}; }
   Camera camera() const {
     Camera c;
-    c.eye = eye, c.target = eye + forward(), c.vfov_degrees = vfov, c.aperture_radius = aperture, c.focus_distance = focus;
+    c.eye = eye, c.target = eye + forward(), c.vfov_degrees = vfov, c.aperture_radius = aperture,
+    c.focus_distance = focus;
     return c;
   }
 };
 
 const char* stage_name(int s) {
   switch (s) {
-    case 1: return "noisy";
-    case 2: return "denoised";
-    case 4: return "reference";
-    default: return "upsampled";
+    case 1:
+      return "noisy";
+    case 2:
+      return "denoised";
+    case 4:
+      return "reference";
+    default:
+      return "upsampled";
   }
 }
 
 // The displayed stage as RGB8 at the window's size: the frame's own for the output stages,
 // else `scratch`, the internal-resolution stage nearest-upsampled.
-const std::vector<uint8_t>& stage_pixels(const PipelineFrame& f, int stage, float exposure, std::vector<uint8_t>& scratch) {
+const std::vector<uint8_t>& stage_pixels(const PipelineFrame& f, int stage, float exposure,
+                                         std::vector<uint8_t>& scratch) {
   if (stage == 3 || stage == 4 || f.factor == 1) return f.rgb8;
   std::vector<uint8_t>& rgb = scratch;
   const FloatImage& src = stage == 1 ? f.noisy : f.denoised;
@@ -92,7 +100,8 @@ void view(ViewArgs& a) {
   std::unique_ptr<Pipeline> pipeline = std::make_unique<Pipeline>(scene_path, settings, a.p.env);
   std::optional<CameraPath> path;
   if (!a.path.empty()) path = camera_path_for(pipeline->asset(), a.path, a.view);
-  FlyCamera fly = FlyCamera::from(path ? path->at(path->start()) : start_camera_for(pipeline->asset(), a.view));
+  FlyCamera fly =
+      FlyCamera::from(path ? path->at(path->start()) : start_camera_for(pipeline->asset(), a.view));
   auto speed_of = [](const Pipeline& p) {
     const Bounds3 b = p.bounds();
     const Vec3 d = b.hi - b.lo;
@@ -100,17 +109,21 @@ void view(ViewArgs& a) {
   };
   float speed = speed_of(*pipeline);
 
-  if (SDL_Init(SDL_INIT_VIDEO) != 0) throw Error(ErrorCode::io_error, fmt::format("view: SDL_Init failed: {}", SDL_GetError()));
+  if (SDL_Init(SDL_INIT_VIDEO) != 0)
+    throw Error(ErrorCode::io_error, fmt::format("view: SDL_Init failed: {}", SDL_GetError()));
   struct Quit {
     ~Quit() { SDL_Quit(); }
   } quit_sdl;
-  SDL_Window* window = SDL_CreateWindow("kestrel", SDL_WINDOWPOS_CENTERED, SDL_WINDOWPOS_CENTERED, settings.width,
-                                        settings.height, 0);
-  if (!window) throw Error(ErrorCode::io_error, fmt::format("view: cannot open a window: {}", SDL_GetError()));
+  SDL_Window* window = SDL_CreateWindow("kestrel", SDL_WINDOWPOS_CENTERED, SDL_WINDOWPOS_CENTERED,
+                                        settings.width, settings.height, 0);
+  if (!window)
+    throw Error(ErrorCode::io_error, fmt::format("view: cannot open a window: {}", SDL_GetError()));
   SDL_Renderer* ren = SDL_CreateRenderer(window, -1, 0);
   if (!ren) ren = SDL_CreateRenderer(window, -1, SDL_RENDERER_SOFTWARE);
-  if (!ren) throw Error(ErrorCode::io_error, fmt::format("view: no SDL renderer: {}", SDL_GetError()));
-  SDL_Texture* tex = SDL_CreateTexture(ren, SDL_PIXELFORMAT_RGB24, SDL_TEXTUREACCESS_STREAMING, settings.width, settings.height);
+  if (!ren)
+    throw Error(ErrorCode::io_error, fmt::format("view: no SDL renderer: {}", SDL_GetError()));
+  SDL_Texture* tex = SDL_CreateTexture(ren, SDL_PIXELFORMAT_RGB24, SDL_TEXTUREACCESS_STREAMING,
+                                       settings.width, settings.height);
   SDL_EventState(SDL_DROPFILE, SDL_ENABLE);
 #ifdef KESTREL_HAVE_SDL2_TTF
   TTF_Font* font = nullptr;
@@ -133,25 +146,41 @@ void view(ViewArgs& a) {
     last = now;
     SDL_Event e;
     while (SDL_PollEvent(&e)) {
-      if (e.type == SDL_QUIT) running = false;
+      if (e.type == SDL_QUIT)
+        running = false;
       else if (e.type == SDL_KEYDOWN) {
         switch (e.key.keysym.sym) {
-          case SDLK_ESCAPE: running = false; break;
-          case SDLK_1: stage = 1; break;
-          case SDLK_2: stage = 2; break;
-          case SDLK_3: stage = 3; break;
-          case SDLK_4: stage = 4; break;
-          case SDLK_TAB: overlay = !overlay; break;
+          case SDLK_ESCAPE:
+            running = false;
+            break;
+          case SDLK_1:
+            stage = 1;
+            break;
+          case SDLK_2:
+            stage = 2;
+            break;
+          case SDLK_3:
+            stage = 3;
+            break;
+          case SDLK_4:
+            stage = 4;
+            break;
+          case SDLK_TAB:
+            overlay = !overlay;
+            break;
           case SDLK_F12: {
             const std::string shot = fmt::format("kestrel_{:04d}.png", frame_count);
             if (shown) write_png(shot, settings.width, settings.height, *shown);
             message = "saved " + shot;
             break;
           }
-          default: break;
+          default:
+            break;
         }
-      } else if (e.type == SDL_MOUSEBUTTONDOWN && e.button.button == SDL_BUTTON_LEFT) dragging = true;
-      else if (e.type == SDL_MOUSEBUTTONUP && e.button.button == SDL_BUTTON_LEFT) dragging = false;
+      } else if (e.type == SDL_MOUSEBUTTONDOWN && e.button.button == SDL_BUTTON_LEFT)
+        dragging = true;
+      else if (e.type == SDL_MOUSEBUTTONUP && e.button.button == SDL_BUTTON_LEFT)
+        dragging = false;
       else if (e.type == SDL_MOUSEMOTION && dragging) {
         fly.yaw += 0.004f * float(e.motion.xrel);
         fly.pitch = std::clamp(fly.pitch - 0.004f * float(e.motion.yrel), -1.5f, 1.5f);
@@ -183,7 +212,8 @@ void view(ViewArgs& a) {
     Camera camera = fly.camera();
     if (path) {  // scripted: the path's frames spread over --frames, as `kestrel run`
       const int n = std::max(a.frames, 1);
-      time = n > 1 ? path->start() + (path->end() - path->start()) * double(std::min(frame_count, n - 1)) / double(n - 1)
+      time = n > 1 ? path->start() + (path->end() - path->start()) *
+                                         double(std::min(frame_count, n - 1)) / double(n - 1)
                    : path->start();
       camera = path->at(time);
     } else if (pipeline->animation_duration() > 0) {
@@ -191,22 +221,27 @@ void view(ViewArgs& a) {
     }
     const bool resting = camera == prev_camera && pipeline->animation_duration() == 0;
     prev_camera = camera;
-    const PipelineFrame& f = stage == 4 && resting ? pipeline->accumulate(camera, time) : pipeline->frame(camera, time);
+    const PipelineFrame& f =
+        stage == 4 && resting ? pipeline->accumulate(camera, time) : pipeline->frame(camera, time);
     shown = &stage_pixels(f, stage == 4 && !resting ? 3 : stage, settings.exposure, scratch);
     SDL_UpdateTexture(tex, nullptr, shown->data(), settings.width * 3);
     SDL_RenderClear(ren);
     SDL_RenderCopy(ren, tex, nullptr, nullptr);
     fps = fps == 0 ? 1000.0 / f.times.total : 0.9 * fps + 0.1 * 1000.0 / f.times.total;
     const std::string stats = fmt::format(
-        "{} x{} {}x{}->{}x{}  {:.1f} fps  render {:.1f} denoise {:.1f} upscale {:.1f} tonemap {:.1f} ms  {:.1f} Mrays/s{}",
-        stage == 4 && resting ? fmt::format("reference {} spp", pipeline->accumulated()) : stage_name(stage), f.factor,
-        f.internal_width, f.internal_height, f.width, f.height, fps, f.times.render, f.times.denoise, f.times.upscale,
-        f.times.tonemap, double(f.stats.rays()) / (f.times.render * 1e3), message.empty() ? "" : "  " + message);
+        "{} x{} {}x{}->{}x{}  {:.1f} fps  render {:.1f} denoise {:.1f} upscale {:.1f} tonemap "
+        "{:.1f} ms  {:.1f} Mrays/s{}",
+        stage == 4 && resting ? fmt::format("reference {} spp", pipeline->accumulated())
+                              : stage_name(stage),
+        f.factor, f.internal_width, f.internal_height, f.width, f.height, fps, f.times.render,
+        f.times.denoise, f.times.upscale, f.times.tonemap,
+        double(f.stats.rays()) / (f.times.render * 1e3), message.empty() ? "" : "  " + message);
     bool drawn = false;
 #ifdef KESTREL_HAVE_SDL2_TTF
     if (overlay && font) {
-      SDL_Surface* text = TTF_RenderUTF8_Blended_Wrapped(font, stats.c_str(), SDL_Color{255, 255, 255, 255},
-                                                         Uint32(std::max(200, settings.width - 16)));
+      SDL_Surface* text =
+          TTF_RenderUTF8_Blended_Wrapped(font, stats.c_str(), SDL_Color{255, 255, 255, 255},
+                                         Uint32(std::max(200, settings.width - 16)));
       if (text) {
         SDL_Texture* t = SDL_CreateTextureFromSurface(ren, text);
         SDL_Rect box{4, 4, text->w + 8, text->h + 4}, dst{8, 6, text->w, text->h};
@@ -223,10 +258,13 @@ void view(ViewArgs& a) {
     if (overlay && !drawn) SDL_SetWindowTitle(window, ("kestrel  " + stats).c_str());
     ++frame_count;
     const bool last_frame = a.frames > 0 && frame_count >= a.frames;
-    if (last_frame && !a.screenshot.empty()) {  // what the window shows (overlay included), read back
+    if (last_frame &&
+        !a.screenshot.empty()) {  // what the window shows (overlay included), read back
       std::vector<uint8_t> shot(size_t(settings.width) * size_t(settings.height) * 3);
-      if (SDL_RenderReadPixels(ren, nullptr, SDL_PIXELFORMAT_RGB24, shot.data(), settings.width * 3) != 0)
-        throw Error(ErrorCode::io_error, fmt::format("view: cannot read the window back: {}", SDL_GetError()));
+      if (SDL_RenderReadPixels(ren, nullptr, SDL_PIXELFORMAT_RGB24, shot.data(),
+                               settings.width * 3) != 0)
+        throw Error(ErrorCode::io_error,
+                    fmt::format("view: cannot read the window back: {}", SDL_GetError()));
       write_png(a.screenshot, settings.width, settings.height, shot);
       fmt::print("wrote    {}\n", a.screenshot);
     }
@@ -246,7 +284,8 @@ void view(ViewArgs& a) {
 #else
 
 void view(ViewArgs&) {
-  throw Error(ErrorCode::unsupported, "view: this kestrel was built without SDL2 (apt-get install libsdl2-dev, rebuild)");
+  throw Error(ErrorCode::unsupported,
+              "view: this kestrel was built without SDL2 (apt-get install libsdl2-dev, rebuild)");
 }
 
 #endif
@@ -257,11 +296,17 @@ Action add_view_command(CLI::App& cmd) {
   auto a = std::make_shared<ViewArgs>();
   a->p.res = "960x540";
   a->p.add_to(cmd);
-  cmd.add_option("--view", a->view, "Start view (the scene's .views.json or data/views; default front, else framing)");
-  cmd.add_option("--path", a->path, "Drive the camera along a path (JSON or orbit[:DEG]) over --frames frames");
-  cmd.add_option("--frames", a->frames, "Close after this many frames (0 = when the window closes)")->capture_default_str();
-  cmd.add_option("--screenshot", a->screenshot, "With --frames: write the last frame as the window shows it (PNG)");
-  cmd.add_option("--stage", a->stage, "Displayed stage: 1 noisy, 2 denoised, 3 upsampled, 4 reference")->capture_default_str();
+  cmd.add_option("--view", a->view,
+                 "Start view (the scene's .views.json or data/views; default front, else framing)");
+  cmd.add_option("--path", a->path,
+                 "Drive the camera along a path (JSON or orbit[:DEG]) over --frames frames");
+  cmd.add_option("--frames", a->frames, "Close after this many frames (0 = when the window closes)")
+      ->capture_default_str();
+  cmd.add_option("--screenshot", a->screenshot,
+                 "With --frames: write the last frame as the window shows it (PNG)");
+  cmd.add_option("--stage", a->stage,
+                 "Displayed stage: 1 noisy, 2 denoised, 3 upsampled, 4 reference")
+      ->capture_default_str();
   cmd.add_flag("--no-overlay", a->no_overlay, "Start without the overlay (Tab toggles it)");
   cmd.add_option("--font", a->font, "TrueType font of the overlay")->capture_default_str();
   return [a] { view(*a); };

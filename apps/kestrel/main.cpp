@@ -19,14 +19,21 @@ int main(int argc, char** argv) {
   };
   add(kestrel::cli::add_bvh_command, "bvh", "Build a BVH and print build time and quality metrics");
   add(kestrel::cli::add_trace_command, "trace", "Trace a .rays file and write a .hits file");
-  add(kestrel::cli::add_rays_command, "rays", "Generate a .rays file (primary, shadow or diffuse rays)");
+  add(kestrel::cli::add_rays_command, "rays",
+      "Generate a .rays file (primary, shadow or diffuse rays)");
   add(kestrel::cli::add_preview_command, "preview", "Render a shaded depth/normal PNG of a scene");
-  add(kestrel::cli::add_render_command, "render", "Path-trace one frame with every AOV (EXR, PFM, PNG)");
-  add(kestrel::cli::add_render_sequence_command, "render-sequence", "Path-trace a camera path, one file set per frame");
-  add(kestrel::cli::add_denoise_command, "denoise", "Denoise a frame or a sequence (neural, svgf, atrous)");
-  add(kestrel::cli::add_upscale_command, "upscale", "Upsample a jittered low-resolution sequence (neural, taau, bicubic, bilinear)");
-  add(kestrel::cli::add_run_command, "run", "The real-time pipeline headless along a camera path: frames and stage timings");
-  add(kestrel::cli::add_view_command, "view", "The real-time pipeline in a window (SDL2): WASD + mouse, stages, overlay");
+  add(kestrel::cli::add_render_command, "render",
+      "Path-trace one frame with every AOV (EXR, PFM, PNG)");
+  add(kestrel::cli::add_render_sequence_command, "render-sequence",
+      "Path-trace a camera path, one file set per frame");
+  add(kestrel::cli::add_denoise_command, "denoise",
+      "Denoise a frame or a sequence (neural, svgf, atrous)");
+  add(kestrel::cli::add_upscale_command, "upscale",
+      "Upsample a jittered low-resolution sequence (neural, taau, bicubic, bilinear)");
+  add(kestrel::cli::add_run_command, "run",
+      "The real-time pipeline headless along a camera path: frames and stage timings");
+  add(kestrel::cli::add_view_command, "view",
+      "The real-time pipeline in a window (SDL2): WASD + mouse, stages, overlay");
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
@@ -40,7 +47,8 @@ int main(int argc, char** argv) {
       const std::string name = sub->get_name();
       if (kestrel::distributed::size() > 1 && name != "render" && name != "render-sequence")
         throw kestrel::Error(kestrel::ErrorCode::unsupported,
-                             "only render and render-sequence run distributed; run `kestrel " + name + "` without mpirun");
+                             "only render and render-sequence run distributed; run `kestrel " +
+                                 name + "` without mpirun");
       action();
     }
   } catch (const std::exception& e) {

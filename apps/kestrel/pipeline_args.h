@@ -1,7 +1,7 @@
 // Options shared by `kestrel run` and `kestrel view`: the scene and the pipeline's settings.
 #pragma once
-#include <CLI/CLI.hpp>
 #include <fmt/format.h>
+#include <CLI/CLI.hpp>
 
 #include <memory>
 #include <string>
@@ -14,7 +14,8 @@
 namespace kestrel::cli {
 
 struct PipelineArgs {
-  std::string scene = "builtin:cornell_box", res = "1280x720", internal, env, denoise = "neural", upscale = "neural";
+  std::string scene = "builtin:cornell_box", res = "1280x720", internal, env, denoise = "neural",
+              upscale = "neural";
   int factor = 2, spp = 1, max_depth = 4, threads = 0;
   float clamp = 16, exposure = 0;
   double target_ms = 0;
@@ -22,20 +23,31 @@ struct PipelineArgs {
   std::shared_ptr<ThreadLimit> limit;
 
   void add_to(CLI::App& cmd) {
-    cmd.add_option("scene", scene, "Scene file (OBJ, glTF, GLB) or builtin:NAME")->capture_default_str();
+    cmd.add_option("scene", scene, "Scene file (OBJ, glTF, GLB) or builtin:NAME")
+        ->capture_default_str();
     cmd.add_option("--res", res, "Output resolution WxH")->capture_default_str();
-    cmd.add_option("--internal", internal, "Internal (render) resolution WxH: output / 1, 2 or 4 (overrides --factor)");
-    cmd.add_option("--factor", factor, "Output / internal resolution: 1, 2 or 4")->capture_default_str();
+    cmd.add_option("--internal", internal,
+                   "Internal (render) resolution WxH: output / 1, 2 or 4 (overrides --factor)");
+    cmd.add_option("--factor", factor, "Output / internal resolution: 1, 2 or 4")
+        ->capture_default_str();
     cmd.add_option("--denoise", denoise, "neural | svgf | atrous | none")->capture_default_str();
-    cmd.add_option("--upscale", upscale, "neural | taau | bicubic | bilinear")->capture_default_str();
-    cmd.add_option("--spp", spp, "Samples per pixel per frame")->capture_default_str()->check(CLI::Range(1, 1 << 16));
-    cmd.add_option("--max-depth", max_depth, "Path vertices after the camera")->capture_default_str()->check(CLI::Range(1, 1024));
+    cmd.add_option("--upscale", upscale, "neural | taau | bicubic | bilinear")
+        ->capture_default_str();
+    cmd.add_option("--spp", spp, "Samples per pixel per frame")
+        ->capture_default_str()
+        ->check(CLI::Range(1, 1 << 16));
+    cmd.add_option("--max-depth", max_depth, "Path vertices after the camera")
+        ->capture_default_str()
+        ->check(CLI::Range(1, 1024));
     cmd.add_option("--clamp", clamp, "Sample radiance clamp (0 = off)")->capture_default_str();
     cmd.add_option("--env", env, "Environment: none | sky | constant:R,G,B | image file");
     cmd.add_option("--exposure", exposure, "Tone-map exposure, stops")->capture_default_str();
-    cmd.add_option("--target-ms", target_ms, "Adapt the factor (1, 2, 4) to hold this frame time (0 = fixed)");
+    cmd.add_option("--target-ms", target_ms,
+                   "Adapt the factor (1, 2, 4) to hold this frame time (0 = fixed)");
     cmd.add_option("--seed", seed, "Random seed")->capture_default_str();
-    cmd.add_option("--threads", threads, "Worker threads (0 = all)")->capture_default_str()->check(CLI::Range(0, 1024));
+    cmd.add_option("--threads", threads, "Worker threads (0 = all)")
+        ->capture_default_str()
+        ->check(CLI::Range(0, 1024));
   }
 
   PipelineSettings settings() {
@@ -47,20 +59,29 @@ struct PipelineArgs {
       int iw = 0, ih = 0;
       parse_resolution(internal, iw, ih);
       if (s.width % iw || s.height % ih || s.width / iw != s.height / ih)
-        throw Error(ErrorCode::invalid_argument,
-                    fmt::format("--internal {}: the output {} must be 1, 2 or 4 times it in both dimensions", internal, res));
+        throw Error(
+            ErrorCode::invalid_argument,
+            fmt::format(
+                "--internal {}: the output {} must be 1, 2 or 4 times it in both dimensions",
+                internal, res));
       s.factor = s.width / iw;
     }
     s.denoise = denoise != "none";
     if (s.denoise) {
       const auto m = denoise_method_from_name(denoise);
-      if (!m) throw Error(ErrorCode::invalid_argument, fmt::format("--denoise '{}': expected neural, svgf, atrous or none", denoise));
+      if (!m)
+        throw Error(ErrorCode::invalid_argument,
+                    fmt::format("--denoise '{}': expected neural, svgf, atrous or none", denoise));
       s.denoiser = *m;
     }
     const auto u = upscale_method_from_name(upscale);
-    if (!u) throw Error(ErrorCode::invalid_argument, fmt::format("--upscale '{}': expected neural, taau, bicubic or bilinear", upscale));
+    if (!u)
+      throw Error(
+          ErrorCode::invalid_argument,
+          fmt::format("--upscale '{}': expected neural, taau, bicubic or bilinear", upscale));
     s.upscaler = *u;
-    s.spp = spp, s.max_depth = max_depth, s.clamp = clamp, s.exposure = exposure, s.target_ms = target_ms, s.seed = seed;
+    s.spp = spp, s.max_depth = max_depth, s.clamp = clamp, s.exposure = exposure,
+    s.target_ms = target_ms, s.seed = seed;
     return s;
   }
 };

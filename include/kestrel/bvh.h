@@ -47,19 +47,19 @@ const char* layout_name(Layout layout);
 
 /// Build parameters. Costs are in units of one ray–box-pair test; areas are surface areas.
 struct BuildConfig {
-  std::optional<Builder> builder;        ///< explicit builder; when empty `quality` decides
+  std::optional<Builder> builder;  ///< explicit builder; when empty `quality` decides
   BuildQuality quality = BuildQuality::balanced;
-  float traversal_cost = 1.0f;           ///< Ct: cost of visiting an inner node (2 box tests)
-  float intersection_cost = 1.0f;        ///< Ci: cost of one ray-triangle test
-  uint32_t max_leaf_size = 8;            ///< primitives per leaf, at most (1..255)
-  uint32_t bin_count = 32;               ///< binned: bins per axis at the top levels (8..32;
-                                         ///< nodes of n primitives use max(8, min(n/4, this)))
-  uint32_t morton_bits = 30;             ///< lbvh/treelet: 30 (10 per axis) or 63 (21 per axis)
-  uint32_t treelet_leaf_count = 7;       ///< treelet: leaves per treelet (3..7)
-  uint32_t treelet_rounds = 3;           ///< treelet: bottom-up restructuring passes
-  size_t parallel_threshold = 4096;      ///< subtrees smaller than this build on one task
-  Layout layout = Layout::automatic;     ///< build_accel: the layout the Bvh2 becomes
-  double expected_rays = 1e6;            ///< quality automatic: rays traced per build
+  float traversal_cost = 1.0f;        ///< Ct: cost of visiting an inner node (2 box tests)
+  float intersection_cost = 1.0f;     ///< Ci: cost of one ray-triangle test
+  uint32_t max_leaf_size = 8;         ///< primitives per leaf, at most (1..255)
+  uint32_t bin_count = 32;            ///< binned: bins per axis at the top levels (8..32;
+                                      ///< nodes of n primitives use max(8, min(n/4, this)))
+  uint32_t morton_bits = 30;          ///< lbvh/treelet: 30 (10 per axis) or 63 (21 per axis)
+  uint32_t treelet_leaf_count = 7;    ///< treelet: leaves per treelet (3..7)
+  uint32_t treelet_rounds = 3;        ///< treelet: bottom-up restructuring passes
+  size_t parallel_threshold = 4096;   ///< subtrees smaller than this build on one task
+  Layout layout = Layout::automatic;  ///< build_accel: the layout the Bvh2 becomes
+  double expected_rays = 1e6;         ///< quality automatic: rays traced per build
 };
 
 /// Canonical binary BVH node, 32 bytes = one half cache line. The two 16-byte rows are the
@@ -102,8 +102,8 @@ Bvh2 build_bvh(std::span<const PrimRef> refs, const BuildConfig& config);
 
 /// Quality figures of a Bvh2.
 struct BvhMetrics {
-  double sah_cost = 0;            ///< with the config's Ct and Ci, normalised by root area
-  double sah_cost_unit = 0;       ///< with Ct = Ci = 1
+  double sah_cost = 0;       ///< with the config's Ct and Ci, normalised by root area
+  double sah_cost_unit = 0;  ///< with Ct = Ci = 1
   size_t node_count = 0;
   size_t inner_count = 0;
   size_t leaf_count = 0;

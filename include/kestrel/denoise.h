@@ -33,8 +33,8 @@ struct DenoiseInput {
 
 struct DenoiserOptions {
   DenoiseMethod method = DenoiseMethod::neural;
-  std::string weights;     ///< neural: weights file ("" = default_denoiser_weights())
-  bool recurrent = true;   ///< neural: carry the warped previous output (false: frame by frame)
+  std::string weights;    ///< neural: weights file ("" = default_denoiser_weights())
+  bool recurrent = true;  ///< neural: carry the warped previous output (false: frame by frame)
 };
 
 /// Where the committed weights are: $KESTREL_WEIGHTS_DIR/denoiser.kdw, else the source

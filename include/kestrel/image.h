@@ -11,9 +11,14 @@ struct FloatImage {
   int width = 0, height = 0, channels = 0;
   std::vector<float> pixels;
   FloatImage() = default;
-  FloatImage(int w, int h, int c) : width(w), height(h), channels(c), pixels(size_t(w) * size_t(h) * size_t(c), 0.0f) {}
-  float* at(int x, int y) { return &pixels[(size_t(y) * size_t(width) + size_t(x)) * size_t(channels)]; }
-  const float* at(int x, int y) const { return &pixels[(size_t(y) * size_t(width) + size_t(x)) * size_t(channels)]; }
+  FloatImage(int w, int h, int c)
+      : width(w), height(h), channels(c), pixels(size_t(w) * size_t(h) * size_t(c), 0.0f) {}
+  float* at(int x, int y) {
+    return &pixels[(size_t(y) * size_t(width) + size_t(x)) * size_t(channels)];
+  }
+  const float* at(int x, int y) const {
+    return &pixels[(size_t(y) * size_t(width) + size_t(x)) * size_t(channels)];
+  }
 };
 
 }  // namespace kestrel

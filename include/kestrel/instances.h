@@ -46,8 +46,8 @@ struct InstanceHit {
 };
 
 struct SceneConfig {
-  BuildConfig blas;                ///< how meshes are built (layout: automatic)
-  BuildConfig tlas = [] {          ///< how the instance tree is built (LBVH: built every frame)
+  BuildConfig blas;        ///< how meshes are built (layout: automatic)
+  BuildConfig tlas = [] {  ///< how the instance tree is built (LBVH: built every frame)
     BuildConfig c;
     c.builder = Builder::lbvh;
     c.max_leaf_size = 1;
@@ -105,11 +105,11 @@ class InstancedScene {
   ValidationReport validation() const;
 
   /// Closest hits of a batch (threads, chunks; instance masks AND ray_mask must be non-zero).
-  void trace(std::span<const Ray> rays, std::span<InstanceHit> hits, uint32_t ray_mask = 0xFFFFFFFFu,
-             const TraceOptions& options = {}) const;
+  void trace(std::span<const Ray> rays, std::span<InstanceHit> hits,
+             uint32_t ray_mask = 0xFFFFFFFFu, const TraceOptions& options = {}) const;
   /// Occlusion of a batch: 1 when the ray hits anything in (tmin, tmax).
-  void occluded(std::span<const Ray> rays, std::span<uint8_t> occluded, uint32_t ray_mask = 0xFFFFFFFFu,
-                const TraceOptions& options = {}) const;
+  void occluded(std::span<const Ray> rays, std::span<uint8_t> occluded,
+                uint32_t ray_mask = 0xFFFFFFFFu, const TraceOptions& options = {}) const;
 
   size_t instance_count() const;
   size_t mesh_count() const;

@@ -6,8 +6,8 @@
 
 namespace kestrel {
 
-/// Instruction sets with kernels (traversal, convolution, reconstruction). sse2 is the x86-64 baseline (always there);
-/// avx2 needs AVX2+FMA+BMI; avx512 needs AVX-512 F/VL/BW/DQ.
+/// Instruction sets with kernels (traversal, convolution, reconstruction). sse2 is the x86-64
+/// baseline (always there); avx2 needs AVX2+FMA+BMI; avx512 needs AVX-512 F/VL/BW/DQ.
 enum class Isa { sse2, avx2, avx512 };
 const char* isa_name(Isa isa);
 /// Parses "sse2", "avx2", "avx512".

@@ -23,12 +23,12 @@ struct PipelineSettings {
   DenoiseMethod denoiser = DenoiseMethod::neural;
   UpscaleMethod upscaler = UpscaleMethod::neural;  ///< unused at factor 1
   int spp = 1, max_depth = 4;
-  bool jitter = true;          ///< sub-pixel Halton jitter by frame (false: pixel centres)
-  bool fixed_jitter = true;    ///< every sample of a frame at its jitter (what upsamplers expect)
-  int threads = 0;             ///< the render's threads (RenderSettings::threads; 0 = all)
-  float clamp = 16.0f;         ///< sample radiance clamp (0 = off): fireflies hurt a 1-spp loop
-  float exposure = 0.0f;       ///< stops, for the tone map
-  double target_ms = 0;        ///< > 0: change the factor (1, 2, 4) to hold this frame time
+  bool jitter = true;        ///< sub-pixel Halton jitter by frame (false: pixel centres)
+  bool fixed_jitter = true;  ///< every sample of a frame at its jitter (what upsamplers expect)
+  int threads = 0;           ///< the render's threads (RenderSettings::threads; 0 = all)
+  float clamp = 16.0f;       ///< sample radiance clamp (0 = off): fireflies hurt a 1-spp loop
+  float exposure = 0.0f;     ///< stops, for the tone map
+  double target_ms = 0;      ///< > 0: change the factor (1, 2, 4) to hold this frame time
   uint64_t seed = 0;
 };
 
@@ -39,13 +39,13 @@ struct PipelineTimes {
 
 /// What the loop shows. The images are reused from frame to frame.
 struct PipelineFrame {
-  FloatImage noisy;      ///< the internal-resolution render (colour)
-  Frame render;          ///< that render's other AOVs and stats (its colour slot is moved into noisy)
-  FloatImage denoised;   ///< after the denoiser (= noisy without one)
-  FloatImage upscaled;   ///< the output resolution, linear
+  FloatImage noisy;  ///< the internal-resolution render (colour)
+  Frame render;      ///< that render's other AOVs and stats (its colour slot is moved into noisy)
+  FloatImage denoised;        ///< after the denoiser (= noisy without one)
+  FloatImage upscaled;        ///< the output resolution, linear
   std::vector<uint8_t> rgb8;  ///< upscaled, tone-mapped sRGB, width x height x 3
   int width = 0, height = 0, internal_width = 0, internal_height = 0, factor = 1;
-  uint32_t index = 0;    ///< frames since the start (the Halton jitter's index)
+  uint32_t index = 0;  ///< frames since the start (the Halton jitter's index)
   PipelineTimes times;
   RenderStats stats;
 };
@@ -53,8 +53,8 @@ struct PipelineFrame {
 /// How a frame is rendered (default: Renderer::render). A distributed render returns the
 /// frame on one process and an empty Frame (width 0) on the others, whose pipelines then
 /// skip the stages after the render.
-using PipelineRenderFn =
-    std::function<Frame(Renderer&, const Camera&, const RenderSettings&, const std::optional<Camera>& prev_camera)>;
+using PipelineRenderFn = std::function<Frame(Renderer&, const Camera&, const RenderSettings&,
+                                             const std::optional<Camera>& prev_camera)>;
 
 /// The one frame loop of kestrel: `run`, `view`, `render-sequence` and the evaluation
 /// programs all go through it.
@@ -63,7 +63,8 @@ class Pipeline {
   /// Loads a scene (Asset::load: OBJ, glTF/GLB with its animation, builtin:NAME) and builds
   /// its acceleration structures. environment: as Environment::parse ("" = the scene's
   /// default). Throws Error naming the file or the bad setting.
-  Pipeline(const std::string& scene, const PipelineSettings& settings, const std::string& environment = "");
+  Pipeline(const std::string& scene, const PipelineSettings& settings,
+           const std::string& environment = "");
   /// A loaded asset, owned from now on.
   Pipeline(Asset asset, const PipelineSettings& settings, const std::string& environment = "");
   ~Pipeline();

@@ -90,19 +90,19 @@ struct Environment {
 /// What a render does. The same settings and seed give the same bits for any thread count.
 struct RenderSettings {
   int width = 640, height = 360;
-  int spp = 1;                ///< samples per pixel (a time limit may stop earlier)
-  double time_limit_s = 0;    ///< > 0: stop after the pass during which this much time passed
+  int spp = 1;              ///< samples per pixel (a time limit may stop earlier)
+  double time_limit_s = 0;  ///< > 0: stop after the pass during which this much time passed
   uint64_t seed = 0;
-  uint32_t frame = 0;         ///< frame index: picks the Halton jitter and decorrelates noise
-  bool jitter = true;         ///< sub-pixel jitter (Halton 2,3 by frame); false = pixel centres
+  uint32_t frame = 0;  ///< frame index: picks the Halton jitter and decorrelates noise
+  bool jitter = true;  ///< sub-pixel jitter (Halton 2,3 by frame); false = pixel centres
   /// Every pass at the frame's jitter (Halton index frame + 1, the 1-spp sequence): a clean,
   /// point-sampled low-resolution frame, as temporal upsamplers see it, from many passes.
   bool fixed_jitter = false;
-  int max_depth = 8;          ///< path vertices after the camera (1 = direct light only)
-  int rr_depth = 3;           ///< Russian roulette from this bounce on
-  float clamp = 0;            ///< > 0: clamp each sample's radiance (biased); 0 = off
-  int threads = 0;            ///< 0 = all the library may use
-  bool progress = false;      ///< a progress bar on stderr
+  int max_depth = 8;      ///< path vertices after the camera (1 = direct light only)
+  int rr_depth = 3;       ///< Russian roulette from this bounce on
+  float clamp = 0;        ///< > 0: clamp each sample's radiance (biased); 0 = off
+  int threads = 0;        ///< 0 = all the library may use
+  bool progress = false;  ///< a progress bar on stderr
 };
 
 /// Edge of the square tiles a render is split into, pixels; tiles are numbered row-major.
@@ -123,11 +123,11 @@ const char* aov_name(Aov aov);
 int aov_channels(Aov aov);
 
 struct RenderStats {
-  double ms = 0;        ///< wall time of the render
-  double trace_ms = 0;  ///< time inside trace/occluded calls (summed over threads)
+  double ms = 0;               ///< wall time of the render
+  double trace_ms = 0;         ///< time inside trace/occluded calls (summed over threads)
   double total_thread_ms = 0;  ///< time inside the render's tiles (summed over threads)
   uint64_t camera_rays = 0, bounce_rays = 0, shadow_rays = 0;
-  int passes = 0;       ///< samples per pixel done
+  int passes = 0;  ///< samples per pixel done
   uint64_t rays() const { return camera_rays + bounce_rays + shadow_rays; }
 };
 
@@ -175,24 +175,28 @@ class Renderer {
   /// the scene as of its last commit(); the transforms of the commit before drive the motion
   /// vectors. `environment`: nullopt = "sky" when the scene has no emissive triangle, else
   /// none. Throws Error naming the scene's source for bad materials or no valid triangle.
-  explicit Renderer(const InstancedScene& scene, std::optional<Environment> environment = std::nullopt);
+  explicit Renderer(const InstancedScene& scene,
+                    std::optional<Environment> environment = std::nullopt);
   ~Renderer();
   Renderer(Renderer&&) noexcept;
   Renderer& operator=(Renderer&&) noexcept;
   /// Renders one frame. prev_camera: the previous frame's camera (for motion vectors;
   /// nullopt = this camera). Throws Error for bad settings or a bad camera.
-  Frame render(const Camera& camera, const RenderSettings& settings, std::optional<Camera> prev_camera = std::nullopt);
+  Frame render(const Camera& camera, const RenderSettings& settings,
+               std::optional<Camera> prev_camera = std::nullopt);
   /// Renders only the listed tiles (render_tile_size() pixels square, row-major over the
   /// image; every pass of each) into `frame`, which is sized (and zeroed) when its size
   /// differs from the settings'; other pixels are left as they are. Every rendered pixel
   /// equals render()'s bit for bit, so tiles can be spread over processes (distributed
   /// rendering). frame.stats adds this call's rays and times. No time limit.
-  void render_tiles(const Camera& camera, const RenderSettings& settings, std::span<const uint32_t> tiles, Frame& frame,
+  void render_tiles(const Camera& camera, const RenderSettings& settings,
+                    std::span<const uint32_t> tiles, Frame& frame,
                     std::optional<Camera> prev_camera = std::nullopt);
   /// Bounds of the scene as rendered.
   Bounds3 bounds() const;
   size_t light_count() const;
   const Environment& environment() const;
+
  private:
   friend struct RendererTesting;  // benchmark hooks (src/render/testing.h)
   struct Impl;

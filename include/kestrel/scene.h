@@ -19,14 +19,14 @@ struct Texture {
 struct Material {
   std::string name;
   Vec3 base_color{0.8f, 0.8f, 0.8f};  ///< linear RGB
-  float metallic = 0.0f;               ///< [0, 1]
-  float roughness = 1.0f;              ///< perceptual roughness, [0, 1] (GGX alpha = roughness^2)
+  float metallic = 0.0f;              ///< [0, 1]
+  float roughness = 1.0f;             ///< perceptual roughness, [0, 1] (GGX alpha = roughness^2)
   /// Weight of the dielectric (IOR 1.5) GGX coat over the diffuse base, [0, 1]: 0 = pure
   /// Lambertian, 1 = glTF's dielectric. MTL: max(Ks); glTF: 1. Unused where metallic = 1.
   float specular = 0.0f;
-  Vec3 emission{0, 0, 0};              ///< linear RGB radiance scale (W/sr/m^2 units of the scene)
-  int base_color_texture = -1;         ///< index into Scene::textures, or -1
-  int metallic_roughness_texture = -1; ///< glTF: G = roughness, B = metallic
+  Vec3 emission{0, 0, 0};               ///< linear RGB radiance scale (W/sr/m^2 units of the scene)
+  int base_color_texture = -1;          ///< index into Scene::textures, or -1
+  int metallic_roughness_texture = -1;  ///< glTF: G = roughness, B = metallic
   int emission_texture = -1;
   int normal_texture = -1;
 };
@@ -37,7 +37,8 @@ struct TriangleMesh {
   std::string name;
   std::vector<Vec3> positions;
   std::vector<Vec3> normals;
-  std::vector<Vec2> uvs;  ///< glTF convention: (0, 0) is the top-left of a texture (OBJ v is flipped on load)
+  std::vector<Vec2>
+      uvs;  ///< glTF convention: (0, 0) is the top-left of a texture (OBJ v is flipped on load)
   std::vector<uint32_t> indices;
   std::vector<uint32_t> material_ids;  ///< one per triangle (index into Scene::materials)
   size_t triangle_count() const { return indices.size() / 3; }
@@ -46,12 +47,12 @@ struct TriangleMesh {
 /// What validation found. Invalid triangles keep their ids (so OBJ numbering is preserved)
 /// but never reach a builder.
 struct ValidationReport {
-  size_t triangle_count = 0;           ///< all triangles, valid or not
+  size_t triangle_count = 0;  ///< all triangles, valid or not
   size_t valid_triangle_count = 0;
-  size_t nonfinite_triangle_count = 0; ///< a vertex with a NaN or Inf coordinate
-  size_t bad_index_triangle_count = 0; ///< an index past the vertex array
-  size_t degenerate_triangle_count = 0;///< zero area (collinear or repeated vertices)
-  size_t empty_mesh_count = 0;         ///< meshes with no triangle
+  size_t nonfinite_triangle_count = 0;   ///< a vertex with a NaN or Inf coordinate
+  size_t bad_index_triangle_count = 0;   ///< an index past the vertex array
+  size_t degenerate_triangle_count = 0;  ///< zero area (collinear or repeated vertices)
+  size_t empty_mesh_count = 0;           ///< meshes with no triangle
   /// One line, e.g. "66445 triangles: 66445 valid, 0 non-finite, 0 bad index, 0 degenerate".
   std::string summary() const;
 };

@@ -50,14 +50,14 @@ struct Accel {
   Accel& operator=(Accel&&) noexcept;
 
   Layout layout = Layout::bvh2;
-  Bounds3 bounds;                   ///< of the valid triangles (empty box when none)
-  size_t prim_count = 0;            ///< valid triangles in the BVH
+  Bounds3 bounds;         ///< of the valid triangles (empty box when none)
+  size_t prim_count = 0;  ///< valid triangles in the BVH
   SceneValidation validation;
   /// The builder that made the tree: the configured one, or median when an SAH tree came out
   /// deeper than traversal allows (pathological inputs) and was rebuilt (`depth_fallback`).
   Builder builder = Builder::binned;
   bool depth_fallback = false;
-  double build_ms = 0;              ///< prim refs + builder + collapse + triangle copy, wall
+  double build_ms = 0;  ///< prim refs + builder + collapse + triangle copy, wall
   /// Bytes of the traversal structure: nodes + triangles (+ prim ids for bvh2).
   size_t memory_bytes() const;
   std::unique_ptr<detail::AccelNodes> nodes;  ///< never null

@@ -34,8 +34,8 @@ struct UpscaleInput {
 
 struct UpscalerOptions {
   UpscaleMethod method = UpscaleMethod::neural;
-  int factor = 2;        ///< 2 or 4: the output is factor x the input in each dimension
-  std::string weights;   ///< neural: weights file ("" = default_upscaler_weights())
+  int factor = 2;       ///< 2 or 4: the output is factor x the input in each dimension
+  std::string weights;  ///< neural: weights file ("" = default_upscaler_weights())
 };
 
 /// $KESTREL_WEIGHTS_DIR/upscaler.kdw, else the source tree's weights/upscaler.kdw.

@@ -28,8 +28,9 @@ py::dict last_inputs();
 /// (H, W) for a one-channel image). A numpy array of another dtype is a TypeError naming the
 /// argument; a Python list is converted; a non-contiguous array is copied once; a wrong
 /// shape is a ValueError. C-contiguous arrays of dtype T are used in place (note_input).
-py::array checked_array(py::handle object, const char* name, const py::dtype& dtype, const char* dtype_name,
-                        std::initializer_list<py::ssize_t> shape, bool allow_missing_last = false);
+py::array checked_array(py::handle object, const char* name, const py::dtype& dtype,
+                        const char* dtype_name, std::initializer_list<py::ssize_t> shape,
+                        bool allow_missing_last = false);
 
 template <class T>
 py::array_t<T, py::array::c_style> input_array(py::handle object, const char* name,
@@ -39,7 +40,8 @@ py::array_t<T, py::array::c_style> input_array(py::handle object, const char* na
 /// A float image (H, W, C) from a float32 array of shape (H, W, C) or (H, W); `channels`
 /// > 0 requires that count. Copied: FloatImage owns its pixels. NaN/Inf entries are a
 /// ValueError when `finite` is set.
-FloatImage image_from_array(py::handle object, const char* name, int channels = 0, bool finite = false);
+FloatImage image_from_array(py::handle object, const char* name, int channels = 0,
+                            bool finite = false);
 
 /// A numpy array over a vector's storage, which the array then owns (no copy).
 template <class T>
@@ -68,7 +70,8 @@ namespace kestrel::python {
 
 template <class T>
 py::array_t<T, py::array::c_style> input_array(py::handle object, const char* name,
-                                               std::initializer_list<py::ssize_t> shape, bool allow_missing_last) {
+                                               std::initializer_list<py::ssize_t> shape,
+                                               bool allow_missing_last) {
   const char* dtype_name = std::is_same_v<T, float>      ? "float32"
                            : std::is_same_v<T, uint32_t> ? "uint32"
                            : std::is_same_v<T, uint8_t>  ? "uint8"

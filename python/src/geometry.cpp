@@ -20,9 +20,12 @@ namespace kestrel::python {
 
 // The (N, 8) float32 rays array is read in place as Ray records, and the hits array that
 // numpy allocates is written in place as Hit records: both layouts are fixed here.
-static_assert(sizeof(Ray) == 32 && offsetof(Ray, dir) == 12 && offsetof(Ray, tmin) == 24 && offsetof(Ray, tmax) == 28);
-static_assert(sizeof(Hit) == 16 && offsetof(Hit, prim_id) == 4 && offsetof(Hit, u) == 8 && offsetof(Hit, v) == 12);
-static_assert(sizeof(InstanceHit) == 20 && offsetof(InstanceHit, instance_id) == 8 && offsetof(InstanceHit, v) == 16);
+static_assert(sizeof(Ray) == 32 && offsetof(Ray, dir) == 12 && offsetof(Ray, tmin) == 24 &&
+              offsetof(Ray, tmax) == 28);
+static_assert(sizeof(Hit) == 16 && offsetof(Hit, prim_id) == 4 && offsetof(Hit, u) == 8 &&
+              offsetof(Hit, v) == 12);
+static_assert(sizeof(InstanceHit) == 20 && offsetof(InstanceHit, instance_id) == 8 &&
+              offsetof(InstanceHit, v) == 16);
 static_assert(sizeof(Vec3) == 12 && sizeof(Vec2) == 8);
 
 TraceOptions trace_options(const std::optional<std::string>& isa, std::optional<bool> packets) {
@@ -30,18 +33,24 @@ TraceOptions trace_options(const std::optional<std::string>& isa, std::optional<
   o.packets = packets;
   if (isa && *isa != "auto") {
     o.isa = isa_from_name(*isa);
-    if (!o.isa) throw py::value_error(fmt::format("isa: unknown ISA '{}' (auto, sse2, avx2, avx512)", *isa));
+    if (!o.isa)
+      throw py::value_error(fmt::format("isa: unknown ISA '{}' (auto, sse2, avx2, avx512)", *isa));
     if (!isa_supported(*o.isa))
-      throw py::value_error(fmt::format("isa: '{}' is not supported by this CPU (best: {})", *isa, isa_name(host_isa())));
+      throw py::value_error(fmt::format("isa: '{}' is not supported by this CPU (best: {})", *isa,
+                                        isa_name(host_isa())));
   }
   return o;
 }
 
 namespace {
 
-py::object numpy() { return py::module_::import("numpy"); }
+py::object numpy() {
+  return py::module_::import("numpy");
+}
 
-std::string dtype_text(const py::dtype& d) { return py::str(static_cast<const py::handle&>(d)).cast<std::string>(); }
+std::string dtype_text(const py::dtype& d) {
+  return py::str(static_cast<const py::handle&>(d)).cast<std::string>();
+}
 
 py::dtype hit_dtype() {
   py::dict spec;
@@ -67,8 +76,10 @@ std::span<const Ray> ray_span(const py::array_t<float, py::array::c_style>& rays
 
 // A caller's out= array (checked: dtype, shape (n,), C-contiguous, writeable) or a new one.
 py::array output_records(py::object out, const py::dtype& dtype, size_t n, const char* what) {
-  if (out.is_none()) return py::array(dtype, std::vector<py::ssize_t>{py::ssize_t(n)}, std::vector<py::ssize_t>{});
-  if (!py::isinstance<py::array>(out)) throw py::type_error(fmt::format("out: expected a numpy array of {}", what));
+  if (out.is_none())
+    return py::array(dtype, std::vector<py::ssize_t>{py::ssize_t(n)}, std::vector<py::ssize_t>{});
+  if (!py::isinstance<py::array>(out))
+    throw py::type_error(fmt::format("out: expected a numpy array of {}", what));
   auto a = py::reinterpret_borrow<py::array>(out);
   if (!a.dtype().equal(dtype))
     throw py::type_error(fmt::format("out: expected dtype {} ({}), got {}", dtype_text(dtype), what,
@@ -86,7 +97,8 @@ py::array output_records(py::object out, const py::dtype& dtype, size_t n, const
 // in place by query(rays, records, options) with the GIL released.
 template <class Record, class Query>
 py::array ray_query(py::handle rays, py::object out, const py::dtype& dtype, const char* what,
-                    const std::optional<std::string>& isa, std::optional<bool> packets, int threads, Query&& query) {
+                    const std::optional<std::string>& isa, std::optional<bool> packets, int threads,
+                    Query&& query) {
   clear_inputs();
   const auto r = input_array<float>(rays, "rays", {-1, 8});
   const TraceOptions options = trace_options(isa, packets);
@@ -118,25 +130,32 @@ py::dict report_dict(const ValidationReport& r) {
 }
 
 py::tuple bounds_tuple(const Bounds3& b) {
-  return py::make_tuple(py::make_tuple(b.lo.x, b.lo.y, b.lo.z), py::make_tuple(b.hi.x, b.hi.y, b.hi.z));
+  return py::make_tuple(py::make_tuple(b.lo.x, b.lo.y, b.lo.z),
+                        py::make_tuple(b.hi.x, b.hi.y, b.hi.z));
 }
 
-BuildConfig build_config(const std::optional<std::string>& builder, const std::optional<std::string>& quality,
-                         const std::string& layout, uint32_t max_leaf_size, float traversal_cost,
-                         float intersection_cost, uint32_t bins, uint32_t morton_bits, double expected_rays) {
+BuildConfig build_config(const std::optional<std::string>& builder,
+                         const std::optional<std::string>& quality, const std::string& layout,
+                         uint32_t max_leaf_size, float traversal_cost, float intersection_cost,
+                         uint32_t bins, uint32_t morton_bits, double expected_rays) {
   BuildConfig c;
   if (builder) {
     c.builder = builder_from_name(*builder);
     if (!c.builder)
-      throw py::value_error(fmt::format("builder: unknown builder '{}' (median, sweep, binned, lbvh, treelet)", *builder));
+      throw py::value_error(fmt::format(
+          "builder: unknown builder '{}' (median, sweep, binned, lbvh, treelet)", *builder));
   }
   if (quality) {
     auto q = quality_from_name(*quality);
-    if (!q) throw py::value_error(fmt::format("quality: unknown quality '{}' (fast, balanced, high, auto)", *quality));
+    if (!q)
+      throw py::value_error(
+          fmt::format("quality: unknown quality '{}' (fast, balanced, high, auto)", *quality));
     c.quality = *q;
   }
   auto l = layout_from_name(layout);
-  if (!l) throw py::value_error(fmt::format("layout: unknown layout '{}' (auto, bvh2, bvh4, bvh8)", layout));
+  if (!l)
+    throw py::value_error(
+        fmt::format("layout: unknown layout '{}' (auto, bvh2, bvh4, bvh8)", layout));
   c.layout = *l;
   c.max_leaf_size = max_leaf_size;
   c.traversal_cost = traversal_cost;
@@ -150,14 +169,16 @@ BuildConfig build_config(const std::optional<std::string>& builder, const std::o
 
 // A mesh from numpy arrays. Out-of-range indices are a ValueError (a user's array, not a
 // file: nothing to skip silently); non-finite vertices follow nan_policy.
-TriangleMesh mesh_from_arrays(py::handle vertices, py::handle indices, py::handle normals, py::handle uvs,
-                              const std::string& name, const std::string& nan_policy, uint32_t material) {
+TriangleMesh mesh_from_arrays(py::handle vertices, py::handle indices, py::handle normals,
+                              py::handle uvs, const std::string& name,
+                              const std::string& nan_policy, uint32_t material) {
   if (nan_policy != "warn" && nan_policy != "raise" && nan_policy != "ignore")
     throw py::value_error(fmt::format("nan_policy: '{}' is not warn, raise or ignore", nan_policy));
   auto v = input_array<float>(vertices, "vertices", {-1, 3});
   auto i = input_array<uint32_t>(indices, "indices", {-1, 3});
   const size_t vertex_count = size_t(v.shape(0)), triangle_count = size_t(i.shape(0));
-  if (vertex_count >= size_t(invalid_id)) throw py::value_error("vertices: more than 2^32 - 1 vertices");
+  if (vertex_count >= size_t(invalid_id))
+    throw py::value_error("vertices: more than 2^32 - 1 vertices");
   TriangleMesh mesh;
   mesh.name = name;
   mesh.positions.resize(vertex_count);
@@ -165,8 +186,9 @@ TriangleMesh mesh_from_arrays(py::handle vertices, py::handle indices, py::handl
   mesh.indices.assign(i.data(), i.data() + 3 * triangle_count);
   for (size_t k = 0; k < mesh.indices.size(); ++k)
     if (mesh.indices[k] >= vertex_count)
-      throw py::value_error(fmt::format("indices: row {} refers to vertex {}, but there are {} vertices", k / 3,
-                                        mesh.indices[k], vertex_count));
+      throw py::value_error(
+          fmt::format("indices: row {} refers to vertex {}, but there are {} vertices", k / 3,
+                      mesh.indices[k], vertex_count));
   if (!normals.is_none()) {
     auto n = input_array<float>(normals, "normals", {py::ssize_t(vertex_count), 3});
     mesh.normals.resize(vertex_count);
@@ -180,10 +202,13 @@ TriangleMesh mesh_from_arrays(py::handle vertices, py::handle indices, py::handl
   mesh.material_ids.assign(triangle_count, material);
   if (nan_policy != "ignore") {
     size_t bad = 0;
-    for (const Vec3& p : mesh.positions) bad += !(std::isfinite(p.x) && std::isfinite(p.y) && std::isfinite(p.z));
+    for (const Vec3& p : mesh.positions)
+      bad += !(std::isfinite(p.x) && std::isfinite(p.y) && std::isfinite(p.z));
     if (bad > 0) {
       const std::string what = fmt::format(
-          "vertices: {} of {} vertices have a NaN or Inf coordinate; triangles using them are skipped", bad, vertex_count);
+          "vertices: {} of {} vertices have a NaN or Inf coordinate; triangles using them are "
+          "skipped",
+          bad, vertex_count);
       if (nan_policy == "raise") throw py::value_error(what);
       PyErr_WarnEx(PyExc_RuntimeWarning, what.c_str(), 1);
     }
@@ -200,7 +225,8 @@ py::array_t<T> copy_rows(const std::vector<T>& values, py::ssize_t rows, py::ssi
 
 const TriangleMesh& mesh_at(const Scene& s, size_t mesh) {
   if (mesh >= s.meshes.size())
-    throw py::index_error(fmt::format("mesh: index {} out of range ({} meshes)", mesh, s.meshes.size()));
+    throw py::index_error(
+        fmt::format("mesh: index {} out of range ({} meshes)", mesh, s.meshes.size()));
   return s.meshes[mesh];
 }
 
@@ -221,7 +247,8 @@ Affine3 affine_from(py::handle object, const char* name) {
     throw py::value_error(fmt::format("{}: expected shape (3, 4) or (4, 4)", name));
   const float* p = a.data();
   if (a.shape(0) == 4 && !(p[12] == 0 && p[13] == 0 && p[14] == 0 && p[15] == 1))
-    throw py::value_error(fmt::format("{}: the last row of a (4, 4) transform must be (0, 0, 0, 1)", name));
+    throw py::value_error(
+        fmt::format("{}: the last row of a (4, 4) transform must be (0, 0, 0, 1)", name));
   Affine3 t;
   std::memcpy(t.m, p, sizeof(t.m));  // row-major 3 x 4, as Affine3
   const std::string problem = transform_problem(t);
@@ -254,57 +281,65 @@ void bind_geometry(py::module_& m) {
   m.attr("instance_hit_dtype") = instance_hit_dtype();
   m.attr("invalid_id") = invalid_id;
 
-  py::class_<Scene, std::shared_ptr<Scene>>(m, "Scene", "Triangle meshes, materials and textures (kestrel::Scene).")
+  py::class_<Scene, std::shared_ptr<Scene>>(
+      m, "Scene", "Triangle meshes, materials and textures (kestrel::Scene).")
       .def(py::init<>(), "An empty scene; add meshes with add_mesh.")
       .def_static(
           "from_arrays",
-          [](py::handle vertices, py::handle indices, py::handle normals, py::handle uvs, const std::string& name,
-             const std::string& nan_policy) {
+          [](py::handle vertices, py::handle indices, py::handle normals, py::handle uvs,
+             const std::string& name, const std::string& nan_policy) {
             auto s = std::make_shared<Scene>();
             s->source = "arrays";
             s->materials.push_back(Material{.name = "default"});
-            s->meshes.push_back(mesh_from_arrays(vertices, indices, normals, uvs, name, nan_policy, 0));
+            s->meshes.push_back(
+                mesh_from_arrays(vertices, indices, normals, uvs, name, nan_policy, 0));
             return s;
           },
-          py::arg("vertices"), py::arg("indices"), py::arg("normals") = py::none(), py::arg("uvs") = py::none(),
-          py::arg("name") = "mesh", py::arg("nan_policy") = "warn",
-          "A one-mesh scene from vertices (N, 3) float32 and indices (M, 3) uint32 (copied into the scene).")
+          py::arg("vertices"), py::arg("indices"), py::arg("normals") = py::none(),
+          py::arg("uvs") = py::none(), py::arg("name") = "mesh", py::arg("nan_policy") = "warn",
+          "A one-mesh scene from vertices (N, 3) float32 and indices (M, 3) uint32 (copied into "
+          "the scene).")
       .def(
           "add_mesh",
           [](Scene& s, py::handle vertices, py::handle indices, py::handle normals, py::handle uvs,
              const std::string& name, int material, const std::string& nan_policy) {
             if (s.materials.empty()) s.materials.push_back(Material{.name = "default"});
             if (material < 0 || size_t(material) >= s.materials.size())
-              throw py::value_error(fmt::format("material: {} is not a material index (0..{})", material,
-                                                s.materials.size() - 1));
-            s.meshes.push_back(mesh_from_arrays(vertices, indices, normals, uvs, name, nan_policy, uint32_t(material)));
+              throw py::value_error(fmt::format("material: {} is not a material index (0..{})",
+                                                material, s.materials.size() - 1));
+            s.meshes.push_back(mesh_from_arrays(vertices, indices, normals, uvs, name, nan_policy,
+                                                uint32_t(material)));
             return s.meshes.size() - 1;
           },
-          py::arg("vertices"), py::arg("indices"), py::arg("normals") = py::none(), py::arg("uvs") = py::none(),
-          py::arg("name") = "mesh", py::arg("material") = 0, py::arg("nan_policy") = "warn",
+          py::arg("vertices"), py::arg("indices"), py::arg("normals") = py::none(),
+          py::arg("uvs") = py::none(), py::arg("name") = "mesh", py::arg("material") = 0,
+          py::arg("nan_policy") = "warn",
           "Appends a mesh (prim ids continue after the previous meshes'); returns its index.")
       .def(
           "add_material",
-          [](Scene& s, const std::string& name, py::handle base_color, float metallic, float roughness, float specular,
-             py::handle emission) {
+          [](Scene& s, const std::string& name, py::handle base_color, float metallic,
+             float roughness, float specular, py::handle emission) {
             Material mat{.name = name};
             mat.base_color = vec3_from(base_color, "base_color");
             mat.emission = vec3_from(emission, "emission");
             mat.metallic = metallic;
             mat.roughness = roughness;
             mat.specular = specular;
-            for (float x : {mat.base_color.x, mat.base_color.y, mat.base_color.z, mat.emission.x, mat.emission.y,
-                            mat.emission.z, metallic, roughness, specular})
+            for (float x : {mat.base_color.x, mat.base_color.y, mat.base_color.z, mat.emission.x,
+                            mat.emission.y, mat.emission.z, metallic, roughness, specular})
               if (!std::isfinite(x) || x < 0)
-                throw py::value_error(fmt::format("material '{}': values must be finite and >= 0", name));
+                throw py::value_error(
+                    fmt::format("material '{}': values must be finite and >= 0", name));
             if (metallic > 1 || roughness > 1 || specular > 1)
-              throw py::value_error(fmt::format("material '{}': metallic, roughness and specular are in [0, 1]", name));
+              throw py::value_error(fmt::format(
+                  "material '{}': metallic, roughness and specular are in [0, 1]", name));
             if (s.materials.empty()) s.materials.push_back(Material{.name = "default"});
             s.materials.push_back(mat);
             return s.materials.size() - 1;
           },
-          py::arg("name"), py::arg("base_color") = py::make_tuple(0.8, 0.8, 0.8), py::arg("metallic") = 0.0f,
-          py::arg("roughness") = 1.0f, py::arg("specular") = 0.0f, py::arg("emission") = py::make_tuple(0, 0, 0),
+          py::arg("name"), py::arg("base_color") = py::make_tuple(0.8, 0.8, 0.8),
+          py::arg("metallic") = 0.0f, py::arg("roughness") = 1.0f, py::arg("specular") = 0.0f,
+          py::arg("emission") = py::make_tuple(0, 0, 0),
           "Appends a metallic-roughness material; returns its index for add_mesh(material=...).")
       .def_readonly("source", &Scene::source)
       .def_readonly("warnings", &Scene::warnings)
@@ -318,10 +353,15 @@ void bind_geometry(py::module_& m) {
                                for (const auto& mesh : s.meshes) n.push_back(mesh.name);
                                return n;
                              })
-      .def("vertices", [](const Scene& s, size_t mesh) { return copy_vec3s(mesh_at(s, mesh).positions); },
-           py::arg("mesh") = 0, "A copy of a mesh's positions, (N, 3) float32.")
-      .def("normals", [](const Scene& s, size_t mesh) { return copy_vec3s(mesh_at(s, mesh).normals); },
-           py::arg("mesh") = 0, "A copy of a mesh's per-vertex normals, (N, 3) float32 (N = 0 when it has none).")
+      .def(
+          "vertices",
+          [](const Scene& s, size_t mesh) { return copy_vec3s(mesh_at(s, mesh).positions); },
+          py::arg("mesh") = 0, "A copy of a mesh's positions, (N, 3) float32.")
+      .def(
+          "normals",
+          [](const Scene& s, size_t mesh) { return copy_vec3s(mesh_at(s, mesh).normals); },
+          py::arg("mesh") = 0,
+          "A copy of a mesh's per-vertex normals, (N, 3) float32 (N = 0 when it has none).")
       .def(
           "uvs",
           [](const Scene& s, size_t mesh) {
@@ -330,7 +370,8 @@ void bind_geometry(py::module_& m) {
             if (!uv.empty()) std::memcpy(a.mutable_data(), uv.data(), uv.size() * sizeof(Vec2));
             return a;
           },
-          py::arg("mesh") = 0, "A copy of a mesh's texture coordinates, (N, 2) float32 (glTF convention).")
+          py::arg("mesh") = 0,
+          "A copy of a mesh's texture coordinates, (N, 2) float32 (glTF convention).")
       .def(
           "indices",
           [](const Scene& s, size_t mesh) {
@@ -347,12 +388,15 @@ void bind_geometry(py::module_& m) {
             return a;
           },
           py::arg("mesh") = 0, "A copy of a mesh's per-triangle material indices, (M,) uint32.")
-      .def("validation", [](const Scene& s) { return report_dict(validate_scene(s).report); },
-           "Counts of valid, non-finite, bad-index and degenerate triangles.")
-      .def("bounds", [](const Scene& s) { return bounds_tuple(scene_bounds(s)); },
-           "((lo x, y, z), (hi x, y, z)) of the finite vertices used by triangles.")
+      .def(
+          "validation", [](const Scene& s) { return report_dict(validate_scene(s).report); },
+          "Counts of valid, non-finite, bad-index and degenerate triangles.")
+      .def(
+          "bounds", [](const Scene& s) { return bounds_tuple(scene_bounds(s)); },
+          "((lo x, y, z), (hi x, y, z)) of the finite vertices used by triangles.")
       .def("__repr__", [](const Scene& s) {
-        return fmt::format("<kestrel.Scene '{}': {} meshes, {} triangles>", s.source, s.meshes.size(), s.triangle_count());
+        return fmt::format("<kestrel.Scene '{}': {} meshes, {} triangles>", s.source,
+                           s.meshes.size(), s.triangle_count());
       });
 
   m.def(
@@ -362,47 +406,61 @@ void bind_geometry(py::module_& m) {
         py::gil_scoped_release release;
         return std::make_shared<Scene>(load_scene(path));
       },
-      py::arg("path"), "Loads an OBJ (+MTL), glTF/GLB file or builtin:NAME (OSError / ValueError naming the file).");
+      py::arg("path"),
+      "Loads an OBJ (+MTL), glTF/GLB file or builtin:NAME (OSError / ValueError naming the file).");
   m.def("builtin_scene_names", &builtin_scene_names);
 
-  py::class_<Accel, std::shared_ptr<Accel>>(m, "Accel", "A scene ready to trace: a BVH over its valid triangles.")
-      .def_property_readonly("layout", [](const Accel& a) { return std::string(layout_name(a.layout)); })
+  py::class_<Accel, std::shared_ptr<Accel>>(
+      m, "Accel", "A scene ready to trace: a BVH over its valid triangles.")
+      .def_property_readonly("layout",
+                             [](const Accel& a) { return std::string(layout_name(a.layout)); })
       .def_readonly("prim_count", &Accel::prim_count)
-      .def_property_readonly("builder", [](const Accel& a) { return std::string(builder_name(a.builder)); },
-                             "The builder that made the tree (median when an SAH tree was too deep: depth_fallback).")
+      .def_property_readonly(
+          "builder", [](const Accel& a) { return std::string(builder_name(a.builder)); },
+          "The builder that made the tree (median when an SAH tree was too deep: depth_fallback).")
       .def_readonly("depth_fallback", &Accel::depth_fallback)
       .def_readonly("build_ms", &Accel::build_ms)
       .def_property_readonly("memory_bytes", &Accel::memory_bytes)
       .def_property_readonly("bytes_per_prim",
-                             [](const Accel& a) { return a.prim_count ? double(a.memory_bytes()) / double(a.prim_count) : 0.0; })
+                             [](const Accel& a) {
+                               return a.prim_count ? double(a.memory_bytes()) / double(a.prim_count)
+                                                   : 0.0;
+                             })
       .def_property_readonly("bounds", [](const Accel& a) { return bounds_tuple(a.bounds); })
-      .def_property_readonly("validation", [](const Accel& a) { return report_dict(a.validation.report); })
+      .def_property_readonly("validation",
+                             [](const Accel& a) { return report_dict(a.validation.report); })
       .def("__repr__", [](const Accel& a) {
-        return fmt::format("<kestrel.Accel {} over {} triangles, {:.1f} ms>", layout_name(a.layout), a.prim_count, a.build_ms);
+        return fmt::format("<kestrel.Accel {} over {} triangles, {:.1f} ms>", layout_name(a.layout),
+                           a.prim_count, a.build_ms);
       });
 
   m.def(
       "build_accel",
-      [](std::shared_ptr<Scene> scene, std::optional<std::string> builder, std::optional<std::string> quality,
-         int threads, const std::string& layout, uint32_t max_leaf_size, float traversal_cost, float intersection_cost,
-         uint32_t bins, uint32_t morton_bits, double expected_rays) {
-        const BuildConfig config = build_config(builder, quality, layout, max_leaf_size, traversal_cost,
-                                                intersection_cost, bins, morton_bits, expected_rays);
-        return without_gil(threads, [&] { return std::make_shared<Accel>(build_accel(*scene, config)); });
+      [](std::shared_ptr<Scene> scene, std::optional<std::string> builder,
+         std::optional<std::string> quality, int threads, const std::string& layout,
+         uint32_t max_leaf_size, float traversal_cost, float intersection_cost, uint32_t bins,
+         uint32_t morton_bits, double expected_rays) {
+        const BuildConfig config =
+            build_config(builder, quality, layout, max_leaf_size, traversal_cost, intersection_cost,
+                         bins, morton_bits, expected_rays);
+        return without_gil(threads,
+                           [&] { return std::make_shared<Accel>(build_accel(*scene, config)); });
       },
-      py::arg("scene"), py::arg("builder") = py::none(), py::arg("quality") = py::none(), py::arg("threads") = 0,
-      py::arg("layout") = "auto", py::arg("max_leaf_size") = 8, py::arg("traversal_cost") = 1.0f,
-      py::arg("intersection_cost") = 1.0f, py::arg("bins") = 32, py::arg("morton_bits") = 30,
-      py::arg("expected_rays") = 1e6,
+      py::arg("scene"), py::arg("builder") = py::none(), py::arg("quality") = py::none(),
+      py::arg("threads") = 0, py::arg("layout") = "auto", py::arg("max_leaf_size") = 8,
+      py::arg("traversal_cost") = 1.0f, py::arg("intersection_cost") = 1.0f, py::arg("bins") = 32,
+      py::arg("morton_bits") = 30, py::arg("expected_rays") = 1e6,
       "Builds the BVH (builder None = by quality; quality None = balanced, i.e. binned SAH).");
 
   m.def(
       "bvh_metrics",
-      [](std::shared_ptr<Scene> scene, std::optional<std::string> builder, std::optional<std::string> quality,
-         int threads, uint32_t max_leaf_size, float traversal_cost, float intersection_cost, uint32_t bins,
-         uint32_t morton_bits, double expected_rays) {
-        const BuildConfig config = build_config(builder, quality, "bvh2", max_leaf_size, traversal_cost,
-                                                intersection_cost, bins, morton_bits, expected_rays);
+      [](std::shared_ptr<Scene> scene, std::optional<std::string> builder,
+         std::optional<std::string> quality, int threads, uint32_t max_leaf_size,
+         float traversal_cost, float intersection_cost, uint32_t bins, uint32_t morton_bits,
+         double expected_rays) {
+        const BuildConfig config =
+            build_config(builder, quality, "bvh2", max_leaf_size, traversal_cost, intersection_cost,
+                         bins, morton_bits, expected_rays);
         struct Out {
           SceneValidation validation;
           BvhMetrics metrics;
@@ -442,45 +500,50 @@ void bind_geometry(py::module_& m) {
         d["problem"] = o.problem;
         return d;
       },
-      py::arg("scene"), py::arg("builder") = py::none(), py::arg("quality") = py::none(), py::arg("threads") = 0,
-      py::arg("max_leaf_size") = 8, py::arg("traversal_cost") = 1.0f, py::arg("intersection_cost") = 1.0f,
-      py::arg("bins") = 32, py::arg("morton_bits") = 30, py::arg("expected_rays") = 1e6,
-      "Builds the binary BVH and returns what `kestrel bvh --json` reports (SAH cost, counts, depth, ...).");
+      py::arg("scene"), py::arg("builder") = py::none(), py::arg("quality") = py::none(),
+      py::arg("threads") = 0, py::arg("max_leaf_size") = 8, py::arg("traversal_cost") = 1.0f,
+      py::arg("intersection_cost") = 1.0f, py::arg("bins") = 32, py::arg("morton_bits") = 30,
+      py::arg("expected_rays") = 1e6,
+      "Builds the binary BVH and returns what `kestrel bvh --json` reports (SAH cost, counts, "
+      "depth, ...).");
 
   m.def(
       "trace",
-      [](std::shared_ptr<Accel> accel, py::handle rays, bool any_hit, std::optional<std::string> isa,
-         std::optional<bool> packets, int threads, py::object out) {
-        return fields_of(ray_query<Hit>(rays, out, hit_dtype(), "kestrel.hit_dtype", isa, packets, threads,
-                                        [&](std::span<const Ray> r, std::span<Hit> hits, const TraceOptions& o) {
-                                          trace(*accel, r, hits, any_hit, o);
-                                        }));
+      [](std::shared_ptr<Accel> accel, py::handle rays, bool any_hit,
+         std::optional<std::string> isa, std::optional<bool> packets, int threads, py::object out) {
+        return fields_of(
+            ray_query<Hit>(rays, out, hit_dtype(), "kestrel.hit_dtype", isa, packets, threads,
+                           [&](std::span<const Ray> r, std::span<Hit> hits, const TraceOptions& o) {
+                             trace(*accel, r, hits, any_hit, o);
+                           }));
       },
       py::arg("accel"), py::arg("rays"), py::arg("any_hit") = false, py::arg("isa") = py::none(),
       py::arg("packets") = py::none(), py::arg("threads") = 0, py::arg("out") = py::none(),
-      "Closest (or any) hits of (N, 8) float32 rays (org, dir, tmin, tmax): a dict of t, prim_id, u, v "
-      "(views of one record array of kestrel.hit_dtype, or of out=). A miss: t = inf, prim_id = invalid_id.");
+      "Closest (or any) hits of (N, 8) float32 rays (org, dir, tmin, tmax): a dict of t, prim_id, "
+      "u, v "
+      "(views of one record array of kestrel.hit_dtype, or of out=). A miss: t = inf, prim_id = "
+      "invalid_id.");
 
   m.def(
       "occluded",
-      [](std::shared_ptr<Accel> accel, py::handle rays, std::optional<std::string> isa, std::optional<bool> packets,
-         int threads, py::object out) {
+      [](std::shared_ptr<Accel> accel, py::handle rays, std::optional<std::string> isa,
+         std::optional<bool> packets, int threads, py::object out) {
         return ray_query<uint8_t>(rays, out, py::dtype("?"), "bool", isa, packets, threads,
-                                  [&](std::span<const Ray> r, std::span<uint8_t> flags, const TraceOptions& o) {
-                                    occluded(*accel, r, flags, o);
-                                  });
+                                  [&](std::span<const Ray> r, std::span<uint8_t> flags,
+                                      const TraceOptions& o) { occluded(*accel, r, flags, o); });
       },
-      py::arg("accel"), py::arg("rays"), py::arg("isa") = py::none(), py::arg("packets") = py::none(),
-      py::arg("threads") = 0, py::arg("out") = py::none(),
+      py::arg("accel"), py::arg("rays"), py::arg("isa") = py::none(),
+      py::arg("packets") = py::none(), py::arg("threads") = 0, py::arg("out") = py::none(),
       "Whether each ray hits anything in (tmin, tmax): a bool array (N,) (or out=).");
 
   py::class_<PyInstancedScene, std::shared_ptr<PyInstancedScene>>(
-      m, "InstancedScene", "A two-level scene: meshes (one BVH each) placed by instances; commit() builds what changed.")
+      m, "InstancedScene",
+      "A two-level scene: meshes (one BVH each) placed by instances; commit() builds what changed.")
       .def(py::init([]() { return std::make_shared<PyInstancedScene>(); }))
       .def_static(
           "load_gltf",
           [](const std::filesystem::path& path_, size_t clip) {
-        const std::string path = path_.string();
+            const std::string path = path_.string();
             auto s = std::make_shared<PyInstancedScene>();
             py::gil_scoped_release release;
             s->gltf.emplace(GltfInstances::load(path, clip));
@@ -489,24 +552,34 @@ void bind_geometry(py::module_& m) {
             s->scene.set_source(path);
             return s;
           },
-          py::arg("path"), py::arg("clip") = 0, "A glTF/GLB file as instances, posed at t = 0 (commit() before tracing).")
+          py::arg("path"), py::arg("clip") = 0,
+          "A glTF/GLB file as instances, posed at t = 0 (commit() before tracing).")
       .def(
           "add_mesh",
           [](PyInstancedScene& s, py::handle vertices, py::handle indices, const std::string& name,
              const std::string& nan_policy) {
-            return s.scene.add_mesh(mesh_from_arrays(vertices, indices, py::none(), py::none(), name, nan_policy, 0));
+            return s.scene.add_mesh(
+                mesh_from_arrays(vertices, indices, py::none(), py::none(), name, nan_policy, 0));
           },
-          py::arg("vertices"), py::arg("indices"), py::arg("name") = "mesh", py::arg("nan_policy") = "warn",
-          "Adds a mesh in object space from (N, 3) float32 vertices and (M, 3) uint32 indices; returns its id.")
+          py::arg("vertices"), py::arg("indices"), py::arg("name") = "mesh",
+          py::arg("nan_policy") = "warn",
+          "Adds a mesh in object space from (N, 3) float32 vertices and (M, 3) uint32 indices; "
+          "returns its id.")
       .def(
           "add_scene_mesh",
-          [](PyInstancedScene& s, const Scene& scene, size_t mesh) { return s.scene.add_mesh(mesh_at(scene, mesh)); },
-          py::arg("scene"), py::arg("mesh") = 0, "Adds a copy of one of a Scene's meshes; returns its id.")
+          [](PyInstancedScene& s, const Scene& scene, size_t mesh) {
+            return s.scene.add_mesh(mesh_at(scene, mesh));
+          },
+          py::arg("scene"), py::arg("mesh") = 0,
+          "Adds a copy of one of a Scene's meshes; returns its id.")
       .def(
           "set_materials_from",
-          [](PyInstancedScene& s, const Scene& scene) { s.scene.set_materials(scene.materials, scene.textures); },
+          [](PyInstancedScene& s, const Scene& scene) {
+            s.scene.set_materials(scene.materials, scene.textures);
+          },
           py::arg("scene"),
-          "Takes a Scene's materials and textures (what meshes added with add_scene_mesh index); next commit().")
+          "Takes a Scene's materials and textures (what meshes added with add_scene_mesh index); "
+          "next commit().")
       .def(
           "add_instance",
           [](PyInstancedScene& s, MeshId mesh, py::handle transform, uint32_t mask) {
@@ -514,33 +587,40 @@ void bind_geometry(py::module_& m) {
             return s.scene.add_instance(mesh, t, mask);
           },
           py::arg("mesh"), py::arg("transform") = py::none(), py::arg("mask") = 0xFFFFFFFFu,
-          "Places a mesh with a (3, 4) or (4, 4) affine transform (None = identity); returns the instance id.")
+          "Places a mesh with a (3, 4) or (4, 4) affine transform (None = identity); returns the "
+          "instance id.")
       .def(
           "set_transform",
           [](PyInstancedScene& s, InstanceId id, py::handle transform) {
             s.scene.set_transform(id, affine_from(transform, "transform"));
           },
           py::arg("instance"), py::arg("transform"))
-      .def("set_mask", [](PyInstancedScene& s, InstanceId id, uint32_t mask) { s.scene.set_mask(id, mask); },
-           py::arg("instance"), py::arg("mask"))
+      .def(
+          "set_mask",
+          [](PyInstancedScene& s, InstanceId id, uint32_t mask) { s.scene.set_mask(id, mask); },
+          py::arg("instance"), py::arg("mask"))
       .def(
           "update_vertices",
           [](PyInstancedScene& s, MeshId mesh, py::handle vertices) {
             auto v = input_array<float>(vertices, "vertices", {-1, 3});
-            s.scene.update_vertices(mesh, {reinterpret_cast<const Vec3*>(v.data()), size_t(v.shape(0))});
+            s.scene.update_vertices(mesh,
+                                    {reinterpret_cast<const Vec3*>(v.data()), size_t(v.shape(0))});
           },
           py::arg("mesh"), py::arg("vertices"))
-      .def("remove_instance", [](PyInstancedScene& s, InstanceId id) { s.scene.remove_instance(id); })
+      .def("remove_instance",
+           [](PyInstancedScene& s, InstanceId id) { s.scene.remove_instance(id); })
       .def("remove_mesh", [](PyInstancedScene& s, MeshId id) { s.scene.remove_mesh(id); })
       .def(
           "set_time",
           [](PyInstancedScene& s, double t) {
-            if (!s.gltf) throw py::value_error("set_time: this scene was not loaded from a glTF file");
+            if (!s.gltf)
+              throw py::value_error("set_time: this scene was not loaded from a glTF file");
             if (!std::isfinite(t)) throw py::value_error("time: must be finite");
             s.gltf->set_time(s.scene, t);
           },
           py::arg("time"), "Poses a glTF scene at time t (seconds); commit() afterwards.")
-      .def_property_readonly("duration", [](const PyInstancedScene& s) { return s.gltf ? s.gltf->duration() : 0.0; })
+      .def_property_readonly(
+          "duration", [](const PyInstancedScene& s) { return s.gltf ? s.gltf->duration() : 0.0; })
       .def(
           "commit",
           [](PyInstancedScene& s, int threads) {
@@ -549,37 +629,51 @@ void bind_geometry(py::module_& m) {
           py::arg("threads") = 0, "Builds what changed; returns the timings.")
       .def(
           "trace",
-          [](const PyInstancedScene& s, py::handle rays, uint32_t ray_mask, std::optional<std::string> isa,
-             std::optional<bool> packets, int threads, py::object out) {
+          [](const PyInstancedScene& s, py::handle rays, uint32_t ray_mask,
+             std::optional<std::string> isa, std::optional<bool> packets, int threads,
+             py::object out) {
             return fields_of(ray_query<InstanceHit>(
-                rays, out, instance_hit_dtype(), "kestrel.instance_hit_dtype", isa, packets, threads,
+                rays, out, instance_hit_dtype(), "kestrel.instance_hit_dtype", isa, packets,
+                threads,
                 [&](std::span<const Ray> r, std::span<InstanceHit> hits, const TraceOptions& o) {
                   s.scene.trace(r, hits, ray_mask, o);
                 }));
           },
-          py::arg("rays"), py::arg("ray_mask") = 0xFFFFFFFFu, py::arg("isa") = py::none(), py::arg("packets") = py::none(),
-          py::arg("threads") = 0, py::arg("out") = py::none(),
+          py::arg("rays"), py::arg("ray_mask") = 0xFFFFFFFFu, py::arg("isa") = py::none(),
+          py::arg("packets") = py::none(), py::arg("threads") = 0, py::arg("out") = py::none(),
           "Closest hits: a dict of t, prim_id (in its mesh), instance_id, u, v.")
       .def(
           "occluded",
-          [](const PyInstancedScene& s, py::handle rays, uint32_t ray_mask, std::optional<std::string> isa,
-             std::optional<bool> packets, int threads, py::object out) {
-            return ray_query<uint8_t>(rays, out, py::dtype("?"), "bool", isa, packets, threads,
-                                      [&](std::span<const Ray> r, std::span<uint8_t> flags, const TraceOptions& o) {
-                                        s.scene.occluded(r, flags, ray_mask, o);
-                                      });
+          [](const PyInstancedScene& s, py::handle rays, uint32_t ray_mask,
+             std::optional<std::string> isa, std::optional<bool> packets, int threads,
+             py::object out) {
+            return ray_query<uint8_t>(
+                rays, out, py::dtype("?"), "bool", isa, packets, threads,
+                [&](std::span<const Ray> r, std::span<uint8_t> flags, const TraceOptions& o) {
+                  s.scene.occluded(r, flags, ray_mask, o);
+                });
           },
-          py::arg("rays"), py::arg("ray_mask") = 0xFFFFFFFFu, py::arg("isa") = py::none(), py::arg("packets") = py::none(),
-          py::arg("threads") = 0, py::arg("out") = py::none())
-      .def("transform", [](const PyInstancedScene& s, InstanceId id) { return affine_array(s.scene.transform(id)); },
-           py::arg("instance"), "The instance's transform, (3, 4) float32.")
-      .def("instance_mesh", [](const PyInstancedScene& s, InstanceId id) { return s.scene.instance_mesh(id); })
-      .def_property_readonly("instance_count", [](const PyInstancedScene& s) { return s.scene.instance_count(); })
-      .def_property_readonly("mesh_count", [](const PyInstancedScene& s) { return s.scene.mesh_count(); })
-      .def_property_readonly("memory_bytes", [](const PyInstancedScene& s) { return s.scene.memory_bytes(); })
+          py::arg("rays"), py::arg("ray_mask") = 0xFFFFFFFFu, py::arg("isa") = py::none(),
+          py::arg("packets") = py::none(), py::arg("threads") = 0, py::arg("out") = py::none())
       .def(
-          "flatten", [](const PyInstancedScene& s) { return std::make_shared<Scene>(s.scene.flatten()); },
-          "The committed scene as one Scene: a mesh per instance, world-space vertices, instance-id order.");
+          "transform",
+          [](const PyInstancedScene& s, InstanceId id) {
+            return affine_array(s.scene.transform(id));
+          },
+          py::arg("instance"), "The instance's transform, (3, 4) float32.")
+      .def("instance_mesh",
+           [](const PyInstancedScene& s, InstanceId id) { return s.scene.instance_mesh(id); })
+      .def_property_readonly("instance_count",
+                             [](const PyInstancedScene& s) { return s.scene.instance_count(); })
+      .def_property_readonly("mesh_count",
+                             [](const PyInstancedScene& s) { return s.scene.mesh_count(); })
+      .def_property_readonly("memory_bytes",
+                             [](const PyInstancedScene& s) { return s.scene.memory_bytes(); })
+      .def(
+          "flatten",
+          [](const PyInstancedScene& s) { return std::make_shared<Scene>(s.scene.flatten()); },
+          "The committed scene as one Scene: a mesh per instance, world-space vertices, "
+          "instance-id order.");
 }
 
 }  // namespace kestrel::python

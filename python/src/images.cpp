@@ -18,8 +18,9 @@ namespace {
 std::vector<std::string> default_channel_names(const std::string& layer, int channels) {
   if (channels == 1) return {layer == "depth" ? "Z" : "Y"};
   if (channels == 2) return {"X", "Y"};
-  if (channels == 3) return layer == "normal" ? std::vector<std::string>{"X", "Y", "Z"}
-                                              : std::vector<std::string>{"R", "G", "B"};
+  if (channels == 3)
+    return layer == "normal" ? std::vector<std::string>{"X", "Y", "Z"}
+                             : std::vector<std::string>{"R", "G", "B"};
   if (channels == 4) return {"R", "G", "B", "A"};
   std::vector<std::string> n;
   for (int c = 0; c < channels; ++c) n.push_back(fmt::format("C{}", c));
@@ -42,10 +43,12 @@ void bind_images(py::module_& m) {
         for (ImageLayer& l : layers) d[py::str(l.name)] = take_image(std::move(l.image));
         return d;
       },
-      py::arg("path"), "Every layer of an EXR as float32 (H, W, C) arrays, by layer name (bare R, G, B: 'color').");
+      py::arg("path"),
+      "Every layer of an EXR as float32 (H, W, C) arrays, by layer name (bare R, G, B: 'color').");
   m.def(
       "write_exr",
-      [](const std::filesystem::path& path_, py::dict layers, std::optional<std::map<std::string, std::vector<std::string>>> channels) {
+      [](const std::filesystem::path& path_, py::dict layers,
+         std::optional<std::map<std::string, std::vector<std::string>>> channels) {
         const std::string path = path_.string();
         std::vector<ImageLayer> out;
         for (auto [key, value] : layers) {
@@ -62,9 +65,11 @@ void bind_images(py::module_& m) {
           } else {
             l.channel_names = default_channel_names(name, l.image.channels);
           }
-          if (!out.empty() && (l.image.width != out[0].image.width || l.image.height != out[0].image.height))
-            throw py::value_error(fmt::format("{}: size {}x{} differs from layer '{}' ({}x{})", arg, l.image.width,
-                                              l.image.height, out[0].name, out[0].image.width, out[0].image.height));
+          if (!out.empty() &&
+              (l.image.width != out[0].image.width || l.image.height != out[0].image.height))
+            throw py::value_error(fmt::format("{}: size {}x{} differs from layer '{}' ({}x{})", arg,
+                                              l.image.width, l.image.height, out[0].name,
+                                              out[0].image.width, out[0].image.height));
           out.push_back(std::move(l));
         }
         if (out.empty()) throw py::value_error("layers: no layer to write");
@@ -91,11 +96,13 @@ void bind_images(py::module_& m) {
         const std::string path = path_.string();
         const FloatImage img = image_from_array(image, "image");
         if (img.channels < 1 || img.channels > 3)
-          throw py::value_error(fmt::format("image: PFM holds 1 to 3 channels, got {}", img.channels));
+          throw py::value_error(
+              fmt::format("image: PFM holds 1 to 3 channels, got {}", img.channels));
         py::gil_scoped_release release;
         write_pfm(path, img);
       },
-      py::arg("path"), py::arg("image"), "Writes (H, W, 1|2|3) float32 as PFM (2 channels padded with zeros).");
+      py::arg("path"), py::arg("image"),
+      "Writes (H, W, 1|2|3) float32 as PFM (2 channels padded with zeros).");
   m.def(
       "read_image",
       [](const std::filesystem::path& path_) {
@@ -107,7 +114,8 @@ void bind_images(py::module_& m) {
         }
         return take_image(std::move(image));
       },
-      py::arg("path"), "Any float image kestrel reads (.pfm, .exr, .hdr, 8-bit sRGB-decoded PNG/JPEG).");
+      py::arg("path"),
+      "Any float image kestrel reads (.pfm, .exr, .hdr, 8-bit sRGB-decoded PNG/JPEG).");
   m.def(
       "write_png",
       [](const std::filesystem::path& path_, py::handle rgb) {
@@ -125,7 +133,8 @@ void bind_images(py::module_& m) {
         return take_vector(std::move(rgb), {img.height, img.width, 3});
       },
       py::arg("color"), py::arg("exposure") = 0.0f,
-      "The documented tone map (2^exposure, ACES fit, sRGB) of (H, W, 3) float32 into uint8 (H, W, 3).");
+      "The documented tone map (2^exposure, ACES fit, sRGB) of (H, W, 3) float32 into uint8 (H, W, "
+      "3).");
 
   m.def(
       "read_rays",

@@ -16,16 +16,26 @@ namespace py = pybind11;
 using namespace kestrel;
 
 PYBIND11_MODULE(_kestrel, m) {
-  m.doc() = "kestrel: CPU ray tracing (BVHs, SIMD traversal, path tracing, denoising, upsampling) from numpy.";
+  m.doc() =
+      "kestrel: CPU ray tracing (BVHs, SIMD traversal, path tracing, denoising, upsampling) from "
+      "numpy.";
   py::register_exception_translator([](std::exception_ptr p) {
     try {
       if (p) std::rethrow_exception(p);
     } catch (const Error& e) {
       switch (e.code()) {
-        case ErrorCode::file_not_found: PyErr_SetString(PyExc_FileNotFoundError, e.what()); break;
-        case ErrorCode::io_error: PyErr_SetString(PyExc_OSError, e.what()); break;
-        case ErrorCode::unsupported: PyErr_SetString(PyExc_NotImplementedError, e.what()); break;
-        default: PyErr_SetString(PyExc_ValueError, e.what()); break;
+        case ErrorCode::file_not_found:
+          PyErr_SetString(PyExc_FileNotFoundError, e.what());
+          break;
+        case ErrorCode::io_error:
+          PyErr_SetString(PyExc_OSError, e.what());
+          break;
+        case ErrorCode::unsupported:
+          PyErr_SetString(PyExc_NotImplementedError, e.what());
+          break;
+        default:
+          PyErr_SetString(PyExc_ValueError, e.what());
+          break;
       }
     } catch (const std::bad_alloc&) {
       PyErr_SetString(PyExc_MemoryError, "kestrel: out of memory");
@@ -37,7 +47,9 @@ PYBIND11_MODULE(_kestrel, m) {
   python::bind_images(m);
 
   m.def("hardware_thread_count", &hardware_thread_count);
-  m.def("host_isa", [] { return std::string(isa_name(host_isa())); }, "The best instruction set of this CPU.");
+  m.def(
+      "host_isa", [] { return std::string(isa_name(host_isa())); },
+      "The best instruction set of this CPU.");
   m.def("default_isa", [] { return std::string(isa_name(default_isa())); });
   m.def(
       "set_default_isa",
@@ -53,5 +65,6 @@ PYBIND11_MODULE(_kestrel, m) {
     return isa_supported(*isa);
   });
   m.def("_last_inputs", &python::last_inputs,
-        "Addresses the last trace/occluded call read its arrays from (tests check zero-copy with it).");
+        "Addresses the last trace/occluded call read its arrays from (tests check zero-copy with "
+        "it).");
 }

@@ -22,7 +22,9 @@ namespace kestrel::python {
 
 namespace {
 
-py::tuple vec3_tuple(Vec3 v) { return py::make_tuple(v.x, v.y, v.z); }
+py::tuple vec3_tuple(Vec3 v) {
+  return py::make_tuple(v.x, v.y, v.z);
+}
 
 std::pair<int, int> resolution(py::handle res) {
   std::pair<int, int> wh;
@@ -55,28 +57,35 @@ py::dict frame_dict(Frame&& frame) {
 }
 
 struct PyRenderer {
-  std::optional<Asset> asset;                    // a Scene given: its copy as the one scene model
-  std::shared_ptr<PyInstancedScene> instanced;   // an InstancedScene given: kept alive, referenced
+  std::optional<Asset> asset;                   // a Scene given: its copy as the one scene model
+  std::shared_ptr<PyInstancedScene> instanced;  // an InstancedScene given: kept alive, referenced
   std::unique_ptr<Renderer> renderer;
   RenderStats last_stats;
   float jitter_x = 0.5f, jitter_y = 0.5f;
 };
 
-DenoiserOptions denoiser_options(const std::string& method, const std::string& weights, bool recurrent) {
+DenoiserOptions denoiser_options(const std::string& method, const std::string& weights,
+                                 bool recurrent) {
   DenoiserOptions o;
   auto m = denoise_method_from_name(method);
-  if (!m) throw py::value_error(fmt::format("method: unknown denoiser '{}' (neural, svgf, atrous)", method));
+  if (!m)
+    throw py::value_error(
+        fmt::format("method: unknown denoiser '{}' (neural, svgf, atrous)", method));
   o.method = *m;
   o.weights = weights;
   o.recurrent = recurrent;
   return o;
 }
 
-UpscalerOptions upscaler_options(const std::string& method, int factor, const std::string& weights) {
+UpscalerOptions upscaler_options(const std::string& method, int factor,
+                                 const std::string& weights) {
   UpscalerOptions o;
   auto m = upscale_method_from_name(method);
-  if (!m) throw py::value_error(fmt::format("method: unknown upsampler '{}' (neural, taau, bicubic, bilinear)", method));
-  if (factor != 2 && factor != 4) throw py::value_error(fmt::format("factor: must be 2 or 4, got {}", factor));
+  if (!m)
+    throw py::value_error(
+        fmt::format("method: unknown upsampler '{}' (neural, taau, bicubic, bilinear)", method));
+  if (factor != 2 && factor != 4)
+    throw py::value_error(fmt::format("factor: must be 2 or 4, got {}", factor));
   o.method = *m;
   o.factor = factor;
   o.weights = weights;
@@ -89,15 +98,16 @@ struct DenoiseImages {
   DenoiseInput input;
 };
 
-void load_optional(py::handle object, const char* name, int channels, bool finite, const FloatImage& color,
-                   FloatImage& image, const FloatImage*& slot) {
+void load_optional(py::handle object, const char* name, int channels, bool finite,
+                   const FloatImage& color, FloatImage& image, const FloatImage*& slot) {
   if (object.is_none()) return;
   image = image_from_array(object, name, channels, finite);
   if (channels == 0 && image.channels != 2 && image.channels != 3)
-    throw py::value_error(fmt::format("{}: expected 2 or 3 channels, got {}", name, image.channels));
+    throw py::value_error(
+        fmt::format("{}: expected 2 or 3 channels, got {}", name, image.channels));
   if (image.width != color.width || image.height != color.height)
-    throw py::value_error(fmt::format("{}: size {}x{} differs from color's {}x{}", name, image.width, image.height,
-                                      color.width, color.height));
+    throw py::value_error(fmt::format("{}: size {}x{} differs from color's {}x{}", name,
+                                      image.width, image.height, color.width, color.height));
   slot = &image;
 }
 
@@ -106,8 +116,10 @@ void check_nan_policy(const std::string& policy) {
     throw py::value_error(fmt::format("nan_policy: '{}' is not zero or raise", policy));
 }
 
-std::unique_ptr<DenoiseImages> denoise_images(py::handle color, py::handle albedo, py::handle normal, py::handle depth,
-                                              py::handle roughness, py::handle motion, const std::string& nan_policy) {
+std::unique_ptr<DenoiseImages> denoise_images(py::handle color, py::handle albedo,
+                                              py::handle normal, py::handle depth,
+                                              py::handle roughness, py::handle motion,
+                                              const std::string& nan_policy) {
   check_nan_policy(nan_policy);
   const bool finite = nan_policy == "raise";
   auto in = std::make_unique<DenoiseImages>();
@@ -127,7 +139,8 @@ struct UpscaleImages {
 };
 
 std::unique_ptr<UpscaleImages> upscale_images(py::handle color, py::handle depth, py::handle motion,
-                                              std::pair<float, float> jitter, const std::string& nan_policy) {
+                                              std::pair<float, float> jitter,
+                                              const std::string& nan_policy) {
   check_nan_policy(nan_policy);
   const bool finite = nan_policy == "raise";
   auto in = std::make_unique<UpscaleImages>();
@@ -162,8 +175,9 @@ py::dict pipeline_frame_dict(const PipelineFrame& f) {
   return d;
 }
 
-PipelineSettings pipeline_settings(std::pair<int, int> res, int factor, std::optional<std::string> denoiser,
-                                   const std::string& upscaler, int spp, int max_depth, float clamp, float exposure,
+PipelineSettings pipeline_settings(std::pair<int, int> res, int factor,
+                                   std::optional<std::string> denoiser, const std::string& upscaler,
+                                   int spp, int max_depth, float clamp, float exposure,
                                    double target_ms, uint64_t seed) {
   PipelineSettings s;
   s.width = res.first;
@@ -172,11 +186,15 @@ PipelineSettings pipeline_settings(std::pair<int, int> res, int factor, std::opt
   s.denoise = denoiser.has_value() && *denoiser != "none";
   if (s.denoise) {
     auto m = denoise_method_from_name(*denoiser);
-    if (!m) throw py::value_error(fmt::format("denoiser: unknown denoiser '{}' (neural, svgf, atrous, None)", *denoiser));
+    if (!m)
+      throw py::value_error(
+          fmt::format("denoiser: unknown denoiser '{}' (neural, svgf, atrous, None)", *denoiser));
     s.denoiser = *m;
   }
   auto u = upscale_method_from_name(upscaler);
-  if (!u) throw py::value_error(fmt::format("upscaler: unknown upsampler '{}' (neural, taau, bicubic, bilinear)", upscaler));
+  if (!u)
+    throw py::value_error(fmt::format(
+        "upscaler: unknown upsampler '{}' (neural, taau, bicubic, bilinear)", upscaler));
   s.upscaler = *u;
   s.spp = spp;
   s.max_depth = max_depth;
@@ -190,8 +208,10 @@ PipelineSettings pipeline_settings(std::pair<int, int> res, int factor, std::opt
 }  // namespace
 
 void bind_render(py::module_& m) {
-  py::class_<Camera>(m, "Camera", "A pinhole or thin-lens camera looking from eye at target (+Y up).")
-      .def(py::init([](py::handle eye, py::handle target, float vfov, float aperture, float focus_distance) {
+  py::class_<Camera>(m, "Camera",
+                     "A pinhole or thin-lens camera looking from eye at target (+Y up).")
+      .def(py::init([](py::handle eye, py::handle target, float vfov, float aperture,
+                       float focus_distance) {
              Camera c;
              c.eye = vec3_from(eye, "eye");
              c.target = vec3_from(target, "target");
@@ -210,8 +230,9 @@ void bind_render(py::module_& m) {
       .def_readonly("focus_distance", &Camera::focus_distance)
       .def("__eq__", [](const Camera& a, const Camera& b) { return a == b; })
       .def("__repr__", [](const Camera& c) {
-        return fmt::format("kestrel.Camera(eye=({}, {}, {}), target=({}, {}, {}), vfov={})", c.eye.x, c.eye.y, c.eye.z,
-                           c.target.x, c.target.y, c.target.z, c.vfov_degrees);
+        return fmt::format("kestrel.Camera(eye=({}, {}, {}), target=({}, {}, {}), vfov={})",
+                           c.eye.x, c.eye.y, c.eye.z, c.target.x, c.target.y, c.target.z,
+                           c.vfov_degrees);
       });
 
   m.def(
@@ -220,23 +241,30 @@ void bind_render(py::module_& m) {
         // As `kestrel render`: the scene's "front" view where it has one, else "framing".
         if (!name) name = find_view(scene, "front") ? "front" : "framing";
         auto cam = find_view(scene, *name);
-        if (!cam) throw py::value_error(fmt::format("view: {} has no view named '{}'", scene.source, *name));
+        if (!cam)
+          throw py::value_error(
+              fmt::format("view: {} has no view named '{}'", scene.source, *name));
         return *cam;
       },
       py::arg("scene"), py::arg("name") = py::none(),
-      "A named view of the scene (None: 'front' where the scene has one, else 'framing', as `kestrel render`; "
+      "A named view of the scene (None: 'front' where the scene has one, else 'framing', as "
+      "`kestrel render`; "
       "'framing' always exists; Sponza has 'inside').");
 
   py::class_<CameraPath>(m, "CameraPath", "A keyframed camera path (JSON) or a turntable orbit.")
-      .def_static("load", [](const std::filesystem::path& path) { return CameraPath::load(path.string()); }, py::arg("path"))
-      .def_static("orbit", &CameraPath::orbit, py::arg("start"), py::arg("degrees"), py::arg("seconds") = 1.0)
+      .def_static(
+          "load", [](const std::filesystem::path& path) { return CameraPath::load(path.string()); },
+          py::arg("path"))
+      .def_static("orbit", &CameraPath::orbit, py::arg("start"), py::arg("degrees"),
+                  py::arg("seconds") = 1.0)
       .def_property_readonly("start", &CameraPath::start)
       .def_property_readonly("end", &CameraPath::end)
       .def("at", &CameraPath::at, py::arg("time"));
 
-  py::class_<PyRenderer>(m, "Renderer",
-                         "The path tracer (NEE + MIS, every AOV) over a Scene (copied: each mesh one identity "
-                         "instance) or a committed InstancedScene (referenced: each render sees its last commit).")
+  py::class_<PyRenderer>(
+      m, "Renderer",
+      "The path tracer (NEE + MIS, every AOV) over a Scene (copied: each mesh one identity "
+      "instance) or a committed InstancedScene (referenced: each render sees its last commit).")
       .def(py::init([](std::shared_ptr<Scene> scene, std::optional<std::string> environment) {
              std::optional<Environment> env;
              if (environment) env = Environment::parse(*environment);
@@ -248,23 +276,25 @@ void bind_render(py::module_& m) {
              return r;
            }),
            py::arg("scene"), py::arg("environment") = py::none(),
-           "environment: None = the scene's default (a sky without emitters), 'none', 'sky', 'constant:R,G,B' or an "
+           "environment: None = the scene's default (a sky without emitters), 'none', 'sky', "
+           "'constant:R,G,B' or an "
            "image file.")
-      .def(py::init([](std::shared_ptr<PyInstancedScene> scene, std::optional<std::string> environment) {
-             std::optional<Environment> env;
-             if (environment) env = Environment::parse(*environment);
-             auto r = std::make_unique<PyRenderer>();
-             r->instanced = scene;
-             py::gil_scoped_release release;
-             r->renderer = std::make_unique<Renderer>(scene->scene, std::move(env));
-             return r;
-           }),
+      .def(py::init(
+               [](std::shared_ptr<PyInstancedScene> scene, std::optional<std::string> environment) {
+                 std::optional<Environment> env;
+                 if (environment) env = Environment::parse(*environment);
+                 auto r = std::make_unique<PyRenderer>();
+                 r->instanced = scene;
+                 py::gil_scoped_release release;
+                 r->renderer = std::make_unique<Renderer>(scene->scene, std::move(env));
+                 return r;
+               }),
            py::arg("scene"), py::arg("environment") = py::none())
       .def(
           "render",
-          [](PyRenderer& r, const Camera& camera, int spp, py::handle res, uint64_t seed, int max_depth, int rr_depth,
-             float clamp, uint32_t frame, bool jitter, bool fixed_jitter, double time_limit, int threads,
-             std::optional<Camera> prev_camera) {
+          [](PyRenderer& r, const Camera& camera, int spp, py::handle res, uint64_t seed,
+             int max_depth, int rr_depth, float clamp, uint32_t frame, bool jitter,
+             bool fixed_jitter, double time_limit, int threads, std::optional<Camera> prev_camera) {
             RenderSettings s;
             std::tie(s.width, s.height) = resolution(res);
             s.spp = spp;
@@ -284,15 +314,21 @@ void bind_render(py::module_& m) {
             r.jitter_y = f.jitter_y;
             return frame_dict(std::move(f));
           },
-          py::arg("camera"), py::arg("spp") = 1, py::arg("res") = py::make_tuple(640, 360), py::arg("seed") = 0,
-          py::arg("max_depth") = 8, py::arg("rr_depth") = 3, py::arg("clamp") = 0.0f, py::arg("frame") = 0,
-          py::arg("jitter") = true, py::arg("fixed_jitter") = false, py::arg("time_limit") = 0.0,
-          py::arg("threads") = 0, py::arg("prev_camera") = py::none(),
-          "Renders one frame: a dict of AOVs color, albedo, normal, depth, roughness, motion, spp, variance, each a "
-          "float32 (H, W, C) array (the same bits as `kestrel render` writes for the same settings).")
-      .def_property_readonly("last_stats", [](const PyRenderer& r) { return stats_dict(r.last_stats); })
-      .def_property_readonly("last_jitter", [](const PyRenderer& r) { return py::make_tuple(r.jitter_x, r.jitter_y); })
-      .def_property_readonly("light_count", [](const PyRenderer& r) { return r.renderer->light_count(); });
+          py::arg("camera"), py::arg("spp") = 1, py::arg("res") = py::make_tuple(640, 360),
+          py::arg("seed") = 0, py::arg("max_depth") = 8, py::arg("rr_depth") = 3,
+          py::arg("clamp") = 0.0f, py::arg("frame") = 0, py::arg("jitter") = true,
+          py::arg("fixed_jitter") = false, py::arg("time_limit") = 0.0, py::arg("threads") = 0,
+          py::arg("prev_camera") = py::none(),
+          "Renders one frame: a dict of AOVs color, albedo, normal, depth, roughness, motion, spp, "
+          "variance, each a "
+          "float32 (H, W, C) array (the same bits as `kestrel render` writes for the same "
+          "settings).")
+      .def_property_readonly("last_stats",
+                             [](const PyRenderer& r) { return stats_dict(r.last_stats); })
+      .def_property_readonly(
+          "last_jitter", [](const PyRenderer& r) { return py::make_tuple(r.jitter_x, r.jitter_y); })
+      .def_property_readonly("light_count",
+                             [](const PyRenderer& r) { return r.renderer->light_count(); });
 
   m.attr("aov_names") = [] {
     std::vector<std::string> n;
@@ -300,7 +336,9 @@ void bind_render(py::module_& m) {
     return n;
   }();
 
-  py::class_<Denoiser>(m, "Denoiser", "A denoiser for one sequence of frames (recurrent state; reset() starts anew).")
+  py::class_<Denoiser>(
+      m, "Denoiser",
+      "A denoiser for one sequence of frames (recurrent state; reset() starts anew).")
       .def(py::init([](const std::string& method, const std::string& weights, bool recurrent) {
              return std::make_unique<Denoiser>(denoiser_options(method, weights, recurrent));
            }),
@@ -308,23 +346,26 @@ void bind_render(py::module_& m) {
       .def(
           "denoise",
           [](Denoiser& d, py::handle color, py::handle albedo, py::handle normal, py::handle depth,
-             py::handle roughness, py::handle motion, int threads, const std::string& nan_policy, py::object out) {
+             py::handle roughness, py::handle motion, int threads, const std::string& nan_policy,
+             py::object out) {
             auto in = denoise_images(color, albedo, normal, depth, roughness, motion, nan_policy);
             FloatImage result = without_gil(threads, [&] { return d.denoise(in->input); });
             return image_out(std::move(result), out, "out");
           },
           py::arg("color"), py::arg("albedo") = py::none(), py::arg("normal") = py::none(),
-          py::arg("depth") = py::none(), py::arg("roughness") = py::none(), py::arg("motion") = py::none(),
-          py::arg("threads") = 0, py::arg("nan_policy") = "zero", py::arg("out") = py::none())
+          py::arg("depth") = py::none(), py::arg("roughness") = py::none(),
+          py::arg("motion") = py::none(), py::arg("threads") = 0, py::arg("nan_policy") = "zero",
+          py::arg("out") = py::none())
       .def("reset", &Denoiser::reset)
-      .def_property_readonly("method", [](const Denoiser& d) { return std::string(denoise_method_name(d.method())); })
+      .def_property_readonly(
+          "method", [](const Denoiser& d) { return std::string(denoise_method_name(d.method())); })
       .def_property_readonly("parameter_count", &Denoiser::parameter_count);
 
   m.def(
       "denoise",
-      [](py::handle color, py::handle albedo, py::handle normal, py::handle depth, py::handle roughness,
-         py::handle motion, const std::string& method, const std::string& weights, int threads,
-         const std::string& nan_policy, py::object out) {
+      [](py::handle color, py::handle albedo, py::handle normal, py::handle depth,
+         py::handle roughness, py::handle motion, const std::string& method,
+         const std::string& weights, int threads, const std::string& nan_policy, py::object out) {
         auto in = denoise_images(color, albedo, normal, depth, roughness, motion, nan_policy);
         const DenoiserOptions options = denoiser_options(method, weights, true);
         FloatImage result = without_gil(threads, [&] {
@@ -333,21 +374,26 @@ void bind_render(py::module_& m) {
         });
         return image_out(std::move(result), out, "out");
       },
-      py::arg("color"), py::arg("albedo") = py::none(), py::arg("normal") = py::none(), py::arg("depth") = py::none(),
-      py::arg("roughness") = py::none(), py::arg("motion") = py::none(), py::arg("method") = "neural",
-      py::arg("weights") = "", py::arg("threads") = 0, py::arg("nan_policy") = "zero", py::arg("out") = py::none(),
-      "Denoises one frame: color (H, W, 3) float32 linear HDR; optional albedo, normal (H, W, 3), depth, roughness "
+      py::arg("color"), py::arg("albedo") = py::none(), py::arg("normal") = py::none(),
+      py::arg("depth") = py::none(), py::arg("roughness") = py::none(),
+      py::arg("motion") = py::none(), py::arg("method") = "neural", py::arg("weights") = "",
+      py::arg("threads") = 0, py::arg("nan_policy") = "zero", py::arg("out") = py::none(),
+      "Denoises one frame: color (H, W, 3) float32 linear HDR; optional albedo, normal (H, W, 3), "
+      "depth, roughness "
       "(H, W) or (H, W, 1), motion (H, W, 2|3). Returns (H, W, 3) float32 (or writes out=).");
 
-  py::class_<Upscaler>(m, "Upscaler", "A temporal upsampler for one sequence (history carried; reset() starts anew).")
+  py::class_<Upscaler>(
+      m, "Upscaler",
+      "A temporal upsampler for one sequence (history carried; reset() starts anew).")
       .def(py::init([](const std::string& method, int factor, const std::string& weights) {
              return std::make_unique<Upscaler>(upscaler_options(method, factor, weights));
            }),
            py::arg("method") = "neural", py::arg("factor") = 2, py::arg("weights") = "")
       .def(
           "upscale",
-          [](Upscaler& u, py::handle color, py::handle depth, py::handle motion, std::pair<float, float> jitter,
-             int threads, const std::string& nan_policy, py::object out) {
+          [](Upscaler& u, py::handle color, py::handle depth, py::handle motion,
+             std::pair<float, float> jitter, int threads, const std::string& nan_policy,
+             py::object out) {
             auto in = upscale_images(color, depth, motion, jitter, nan_policy);
             FloatImage result = without_gil(threads, [&] { return u.upscale(in->input); });
             return image_out(std::move(result), out, "out");
@@ -356,15 +402,16 @@ void bind_render(py::module_& m) {
           py::arg("jitter") = std::pair<float, float>(0.5f, 0.5f), py::arg("threads") = 0,
           py::arg("nan_policy") = "zero", py::arg("out") = py::none())
       .def("reset", &Upscaler::reset)
-      .def_property_readonly("method", [](const Upscaler& u) { return std::string(upscale_method_name(u.method())); })
+      .def_property_readonly(
+          "method", [](const Upscaler& u) { return std::string(upscale_method_name(u.method())); })
       .def_property_readonly("factor", &Upscaler::factor)
       .def_property_readonly("parameter_count", &Upscaler::parameter_count);
 
   m.def(
       "upscale",
-      [](py::handle color, py::handle depth, py::handle motion, int factor, const std::string& method,
-         std::pair<float, float> jitter, const std::string& weights, int threads, const std::string& nan_policy,
-         py::object out) {
+      [](py::handle color, py::handle depth, py::handle motion, int factor,
+         const std::string& method, std::pair<float, float> jitter, const std::string& weights,
+         int threads, const std::string& nan_policy, py::object out) {
         auto in = upscale_images(color, depth, motion, jitter, nan_policy);
         const UpscalerOptions options = upscaler_options(method, factor, weights);
         FloatImage result = without_gil(threads, [&] {
@@ -373,41 +420,50 @@ void bind_render(py::module_& m) {
         });
         return image_out(std::move(result), out, "out");
       },
-      py::arg("color"), py::arg("depth") = py::none(), py::arg("motion") = py::none(), py::arg("factor") = 2,
-      py::arg("method") = "bicubic", py::arg("jitter") = std::pair<float, float>(0.5f, 0.5f), py::arg("weights") = "",
+      py::arg("color"), py::arg("depth") = py::none(), py::arg("motion") = py::none(),
+      py::arg("factor") = 2, py::arg("method") = "bicubic",
+      py::arg("jitter") = std::pair<float, float>(0.5f, 0.5f), py::arg("weights") = "",
       py::arg("threads") = 0, py::arg("nan_policy") = "zero", py::arg("out") = py::none(),
-      "Upsamples one point-sampled frame (H, W, 3) by factor 2 or 4. For sequences (temporal methods), use Upscaler.");
+      "Upsamples one point-sampled frame (H, W, 3) by factor 2 or 4. For sequences (temporal "
+      "methods), use Upscaler.");
 
-  py::class_<Pipeline>(m, "Pipeline", "The real-time loop: update, 1-spp render, denoise, upsample, tone map.")
-      .def(py::init([](const std::filesystem::path& scene, py::handle res, int factor, std::optional<std::string> denoiser,
-                       const std::string& upscaler, int spp, int max_depth, float clamp, float exposure,
-                       double target_ms, uint64_t seed, const std::string& environment) {
-             const PipelineSettings s = pipeline_settings(resolution(res), factor, denoiser, upscaler, spp, max_depth,
-                                                          clamp, exposure, target_ms, seed);
+  py::class_<Pipeline>(m, "Pipeline",
+                       "The real-time loop: update, 1-spp render, denoise, upsample, tone map.")
+      .def(py::init([](const std::filesystem::path& scene, py::handle res, int factor,
+                       std::optional<std::string> denoiser, const std::string& upscaler, int spp,
+                       int max_depth, float clamp, float exposure, double target_ms, uint64_t seed,
+                       const std::string& environment) {
+             const PipelineSettings s =
+                 pipeline_settings(resolution(res), factor, denoiser, upscaler, spp, max_depth,
+                                   clamp, exposure, target_ms, seed);
              py::gil_scoped_release release;
              return std::make_unique<Pipeline>(scene.string(), s, environment);
            }),
            py::arg("scene"), py::arg("res") = py::make_tuple(1280, 720), py::arg("factor") = 2,
-           py::arg("denoiser") = "neural", py::arg("upscaler") = "neural", py::arg("spp") = 1, py::arg("max_depth") = 4,
-           py::arg("clamp") = 16.0f, py::arg("exposure") = 0.0f, py::arg("target_ms") = 0.0, py::arg("seed") = 0,
-           py::arg("environment") = "")
+           py::arg("denoiser") = "neural", py::arg("upscaler") = "neural", py::arg("spp") = 1,
+           py::arg("max_depth") = 4, py::arg("clamp") = 16.0f, py::arg("exposure") = 0.0f,
+           py::arg("target_ms") = 0.0, py::arg("seed") = 0, py::arg("environment") = "")
       .def(
           "frame",
           [](Pipeline& p, const Camera& camera, double time) {
             if (!std::isfinite(time)) throw py::value_error("time: must be finite");
-            const PipelineFrame& f = without_gil(0, [&]() -> const PipelineFrame& { return p.frame(camera, time); });
+            const PipelineFrame& f =
+                without_gil(0, [&]() -> const PipelineFrame& { return p.frame(camera, time); });
             return pipeline_frame_dict(f);
           },
           py::arg("camera"), py::arg("time") = 0.0,
-          "One frame: a dict of noisy, denoised, upscaled (float32 (H, W, 3)), rgb8 (uint8 (H, W, 3)), times (ms per "
+          "One frame: a dict of noisy, denoised, upscaled (float32 (H, W, 3)), rgb8 (uint8 (H, W, "
+          "3)), times (ms per "
           "stage), stats, index, factor. The arrays are copies (the loop reuses its images).")
       .def(
           "accumulate",
           [](Pipeline& p, const Camera& camera, double time) {
-            const PipelineFrame& f = without_gil(0, [&]() -> const PipelineFrame& { return p.accumulate(camera, time); });
+            const PipelineFrame& f = without_gil(
+                0, [&]() -> const PipelineFrame& { return p.accumulate(camera, time); });
             return pipeline_frame_dict(f);
           },
-          py::arg("camera"), py::arg("time") = 0.0, "Adds one sample per pixel to the progressive reference.")
+          py::arg("camera"), py::arg("time") = 0.0,
+          "Adds one sample per pixel to the progressive reference.")
       .def_property_readonly("accumulated", &Pipeline::accumulated)
       .def("reset", &Pipeline::reset)
       .def_property_readonly("source", &Pipeline::source)

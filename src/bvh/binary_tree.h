@@ -21,20 +21,21 @@ struct BinaryTree {
   static constexpr uint32_t leaf_bit = 0x80000000u;
   static constexpr uint32_t no_parent = 0xFFFFFFFFu;
 
-  RawArray<PrimRef> leaves;         ///< leaf i holds primitive leaves[i]
-  RawArray<uint32_t> left, right;   ///< per inner node (n - 1 of them)
-  RawArray<uint32_t> parent;        ///< per inner node; no_parent for the root
-  RawArray<uint32_t> leaf_parent;   ///< per leaf; no_parent when the leaf is the root
+  RawArray<PrimRef> leaves;        ///< leaf i holds primitive leaves[i]
+  RawArray<uint32_t> left, right;  ///< per inner node (n - 1 of them)
+  RawArray<uint32_t> parent;       ///< per inner node; no_parent for the root
+  RawArray<uint32_t> leaf_parent;  ///< per leaf; no_parent when the leaf is the root
   /// Inner node box, laid out like PrimRef (lo in bytes 0-11, hi in 16-27) so a child's
   /// corners load as two aligned 16-byte vectors whether it is a leaf or an inner node.
   struct alignas(16) Box {
     float lo[4], hi[4];
   };
-  RawArray<Box> bounds;             ///< per inner node
-  RawArray<uint32_t> count;         ///< primitives below each inner node | collapse_bit
-  static constexpr uint32_t collapse_bit = 0x80000000u;  ///< set: one leaf is cheaper than the subtree
-  RawArray<float> cost;             ///< SAH cost (absolute: area x cost) of each inner node
-  uint32_t root = 0;                ///< child reference of the root
+  RawArray<Box> bounds;      ///< per inner node
+  RawArray<uint32_t> count;  ///< primitives below each inner node | collapse_bit
+  static constexpr uint32_t collapse_bit =
+      0x80000000u;       ///< set: one leaf is cheaper than the subtree
+  RawArray<float> cost;  ///< SAH cost (absolute: area x cost) of each inner node
+  uint32_t root = 0;     ///< child reference of the root
 
   size_t inner_count() const { return left.size(); }
   /// Sizes every array for n leaves (contents uninitialised).
@@ -47,7 +48,8 @@ struct BinaryTree {
 // bottom-up passes call them once per node).
 inline const float* child_corners(const BinaryTree& tree, uint32_t ref) {
   static_assert(offsetof(PrimRef, hi) == offsetof(BinaryTree::Box, hi));
-  return BinaryTree::is_leaf(ref) ? &tree.leaves[BinaryTree::leaf_index(ref)].lo.x : tree.bounds[ref].lo;
+  return BinaryTree::is_leaf(ref) ? &tree.leaves[BinaryTree::leaf_index(ref)].lo.x
+                                  : tree.bounds[ref].lo;
 }
 inline Bounds3 child_bounds(const BinaryTree& tree, uint32_t ref) {
   const float* c = child_corners(tree, ref);
@@ -65,7 +67,9 @@ inline uint32_t child_count(const BinaryTree& tree, uint32_t ref) {
   return BinaryTree::is_leaf(ref) ? 1u : tree.count[ref] & ~BinaryTree::collapse_bit;
 }
 /// Whether the SAH prefers the inner node's subtree as a single leaf (set by refit_node).
-inline bool prefers_leaf(const BinaryTree& tree, uint32_t node) { return tree.count[node] & BinaryTree::collapse_bit; }
+inline bool prefers_leaf(const BinaryTree& tree, uint32_t node) {
+  return tree.count[node] & BinaryTree::collapse_bit;
+}
 
 /// Recomputes an inner node's bounds, count and cost (and its collapse decision) from its
 /// children.
@@ -74,12 +78,15 @@ inline void refit_node(BinaryTree& tree, uint32_t node, const BuildConfig& confi
   const uint32_t l = tree.left[node], r = tree.right[node];
   const float* cl = child_corners(tree, l);
   const float* cr = child_corners(tree, r);
-  const Vec4f llo = Vec4f::load(cl), lhi = Vec4f::load(cl + 4), rlo = Vec4f::load(cr), rhi = Vec4f::load(cr + 4);
+  const Vec4f llo = Vec4f::load(cl), lhi = Vec4f::load(cl + 4), rlo = Vec4f::load(cr),
+              rhi = Vec4f::load(cr + 4);
   const Vec4f lo = min(llo, rlo), hi = max(lhi, rhi);
   const uint32_t n = child_count(tree, l) + child_count(tree, r);
   const float area = simd::half_area(lo, hi);
-  const float cost_l = BinaryTree::is_leaf(l) ? config.intersection_cost * simd::half_area(llo, lhi) : tree.cost[l];
-  const float cost_r = BinaryTree::is_leaf(r) ? config.intersection_cost * simd::half_area(rlo, rhi) : tree.cost[r];
+  const float cost_l =
+      BinaryTree::is_leaf(l) ? config.intersection_cost * simd::half_area(llo, lhi) : tree.cost[l];
+  const float cost_r =
+      BinaryTree::is_leaf(r) ? config.intersection_cost * simd::half_area(rlo, rhi) : tree.cost[r];
   const float split = config.traversal_cost * area + cost_l + cost_r;
   const float leaf = config.intersection_cost * area * float(n);
   const bool collapse = n <= config.max_leaf_size && leaf <= split;
@@ -92,8 +99,8 @@ inline void refit_node(BinaryTree& tree, uint32_t node, const BuildConfig& confi
 /// Bottom-up pass in parallel (a node is handled by whichever of its children's walks
 /// arrives second): refits every inner node and then calls visit(node) on it.
 /// visit may rewrite the subtree below the node (it is complete by then).
-void bottom_up(BinaryTree& tree, const BuildConfig& config, void (*visit)(BinaryTree&, uint32_t, const BuildConfig&, void*),
-               void* user);
+void bottom_up(BinaryTree& tree, const BuildConfig& config,
+               void (*visit)(BinaryTree&, uint32_t, const BuildConfig&, void*), void* user);
 
 /// Converts to Bvh2, collapsing subtrees of at most max_leaf_size primitives into one leaf
 /// where that is cheaper by the SAH.

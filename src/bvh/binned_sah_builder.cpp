@@ -7,8 +7,8 @@
 // results do not depend on the thread count); subtrees are built in parallel through
 // core/parallel.h with node slots fixed in advance (node_slots.h).
 #include <algorithm>
-#include <cstring>
 #include <atomic>
+#include <cstring>
 #include <limits>
 #include <vector>
 
@@ -47,9 +47,12 @@ struct RangeInfo {
   Vec4f geom_lo, geom_hi, cent_lo, cent_hi;
   size_t begin, end;
   static RangeInfo empty_at(size_t begin) {
-    return {Vec4f(std::numeric_limits<float>::infinity()), Vec4f(-std::numeric_limits<float>::infinity()),
-            Vec4f(std::numeric_limits<float>::infinity()), Vec4f(-std::numeric_limits<float>::infinity()),
-            begin, begin};
+    return {Vec4f(std::numeric_limits<float>::infinity()),
+            Vec4f(-std::numeric_limits<float>::infinity()),
+            Vec4f(std::numeric_limits<float>::infinity()),
+            Vec4f(-std::numeric_limits<float>::infinity()),
+            begin,
+            begin};
   }
   void add(Vec4f lo, Vec4f hi) {
     geom_lo = min(geom_lo, lo);
@@ -158,8 +161,8 @@ struct BinnedBuilder {
     std::vector<Bins> partial(chunks);
     parallel_for(0, chunks, 1, [&](size_t cb, size_t ce) {
       for (size_t c = cb; c < ce; ++c)
-        bin_range(map, info.begin + c * binning_chunk, std::min(info.end, info.begin + (c + 1) * binning_chunk),
-                  partial[c]);
+        bin_range(map, info.begin + c * binning_chunk,
+                  std::min(info.end, info.begin + (c + 1) * binning_chunk), partial[c]);
     });
     bins = partial[0];
     for (size_t c = 1; c < chunks; ++c) bins.merge(partial[c], map.bin_count);
@@ -170,7 +173,9 @@ struct BinnedBuilder {
     alignas(16) float lo[4], hi[4];
     info.geom_lo.store(lo);
     info.geom_hi.store(hi);
-    node = Bvh2Node{{lo[0], lo[1], lo[2]}, uint32_t(info.begin), {hi[0], hi[1], hi[2]},
+    node = Bvh2Node{{lo[0], lo[1], lo[2]},
+                    uint32_t(info.begin),
+                    {hi[0], hi[1], hi[2]},
                     uint32_t(info.end - info.begin)};
   }
 
@@ -213,7 +218,8 @@ struct BinnedBuilder {
         if (cext[a] <= 0.0f) continue;
         float right_area[max_bins];
         uint32_t right_count[max_bins];
-        Vec4f lo(std::numeric_limits<float>::infinity()), hi(-std::numeric_limits<float>::infinity());
+        Vec4f lo(std::numeric_limits<float>::infinity()),
+            hi(-std::numeric_limits<float>::infinity());
         uint32_t count = 0;
         for (int b = map.bin_count - 1; b > 0; --b) {
           lo = min(lo, bins.lo[a][b]);
@@ -247,7 +253,8 @@ struct BinnedBuilder {
         }
       }
       // A leaf is weighed against the refined split (refinement only reorders the range).
-      if (n <= config.max_leaf_size && leaf_cost(config, n) <= best_cost) return make_leaf(slot, info);
+      if (n <= config.max_leaf_size && leaf_cost(config, n) <= best_cost)
+        return make_leaf(slot, info);
       if (best_axis < 0) split_middle(info, left, right);
     }
     slots[slot] = Bvh2Node{{}, pair, {}, 0};
@@ -298,7 +305,8 @@ struct BinnedBuilder {
       for (size_t i = 0; i + 1 < n; ++i) {
         lo = min(lo, Vec4f::load(&r[o[i]].lo));
         hi = max(hi, Vec4f::load(&r[o[i]].hi));
-        const float c = split_cost(config, inv_area, simd::half_area(lo, hi), i + 1, right_area[i + 1], n - i - 1);
+        const float c = split_cost(config, inv_area, simd::half_area(lo, hi), i + 1,
+                                   right_area[i + 1], n - i - 1);
         if (c < best_cost) {
           best_cost = c;
           best_axis = a;
@@ -330,8 +338,8 @@ struct BinnedBuilder {
 
   // Hoare partition of [begin, end) into x < bound | x >= bound; swaps only misplaced
   // references and gathers the bounds of either side when asked. Returns the split point.
-  size_t hoare(size_t begin, size_t end, int axis, const BinMapping& map, float bound, RangeInfo* left_info,
-               RangeInfo* right_info) const {
+  size_t hoare(size_t begin, size_t end, int axis, const BinMapping& map, float bound,
+               RangeInfo* left_info, RangeInfo* right_info) const {
     size_t i = begin, j = end;
     while (true) {
       while (i < j && position(i, axis, map) < bound) {
@@ -363,8 +371,8 @@ struct BinnedBuilder {
   // the two bins at the boundary are gathered in the middle of the range, sorted by
   // centroid, and the exact SAH split among them is taken (the binned split is one of the
   // candidates: never worse). Returns the split's cost.
-  float refine_and_partition(int axis, int split, const BinMapping& map, float inv_area, const RangeInfo& info,
-                             RangeInfo& left, RangeInfo& right) const {
+  float refine_and_partition(int axis, int split, const BinMapping& map, float inv_area,
+                             const RangeInfo& info, RangeInfo& left, RangeInfo& right) const {
     const float below = float(split - 1), above = float(split + 1);  // middle: bins split-1, split
     // Two passes: [lower + middle | upper], then [lower | middle].
     RangeInfo lower = RangeInfo::empty_at(info.begin), upper = RangeInfo::empty_at(info.end);
@@ -417,7 +425,8 @@ struct BinnedBuilder {
     }
     left = lower;
     right = upper;
-    for (size_t k = 0; k < m; ++k) (k < best_k ? left : right).add(Vec4f::load(&mid[k].lo), Vec4f::load(&mid[k].hi));
+    for (size_t k = 0; k < m; ++k)
+      (k < best_k ? left : right).add(Vec4f::load(&mid[k].lo), Vec4f::load(&mid[k].hi));
     left.begin = info.begin;
     left.end = lt + best_k;
     right.begin = lt + best_k;

@@ -2,8 +2,8 @@
 #include <fmt/format.h>
 
 #include "bvh/builders.h"
-#include "kestrel/error.h"
 #include "bvh/cost_model.h"
+#include "kestrel/error.h"
 
 namespace kestrel {
 
@@ -18,11 +18,16 @@ std::optional<Builder> builder_from_name(const std::string& name) {
 
 const char* builder_name(Builder builder) {
   switch (builder) {
-    case Builder::median: return "median";
-    case Builder::sweep: return "sweep";
-    case Builder::binned: return "binned";
-    case Builder::lbvh: return "lbvh";
-    case Builder::treelet: return "treelet";
+    case Builder::median:
+      return "median";
+    case Builder::sweep:
+      return "sweep";
+    case Builder::binned:
+      return "binned";
+    case Builder::lbvh:
+      return "lbvh";
+    case Builder::treelet:
+      return "treelet";
   }
   return "?";
 }
@@ -38,16 +43,22 @@ std::optional<BuildQuality> quality_from_name(const std::string& name) {
 Builder resolve_builder(const BuildConfig& config, size_t prim_count) {
   if (config.builder) return *config.builder;
   switch (config.quality) {
-    case BuildQuality::fast: return Builder::lbvh;
-    case BuildQuality::balanced: return Builder::binned;
-    case BuildQuality::high: return Builder::sweep;
-    case BuildQuality::automatic: return choose_builder(prim_count, config.expected_rays);
+    case BuildQuality::fast:
+      return Builder::lbvh;
+    case BuildQuality::balanced:
+      return Builder::binned;
+    case BuildQuality::high:
+      return Builder::sweep;
+    case BuildQuality::automatic:
+      return choose_builder(prim_count, config.expected_rays);
   }
   return Builder::binned;
 }
 
 void check_build_config(const BuildConfig& c) {
-  auto bad = [](const std::string& what) { throw Error(ErrorCode::invalid_argument, "BuildConfig: " + what); };
+  auto bad = [](const std::string& what) {
+    throw Error(ErrorCode::invalid_argument, "BuildConfig: " + what);
+  };
   if (!(c.traversal_cost >= 0.0f) || !(c.traversal_cost < 1e6f))
     bad(fmt::format("traversal_cost = {} must be finite and >= 0", c.traversal_cost));
   if (!(c.intersection_cost > 0.0f) || !(c.intersection_cost < 1e6f))
@@ -60,7 +71,8 @@ void check_build_config(const BuildConfig& c) {
     bad(fmt::format("morton_bits = {} must be 30 or 63", c.morton_bits));
   if (c.treelet_leaf_count < 3 || c.treelet_leaf_count > 7)
     bad(fmt::format("treelet_leaf_count = {} must be in [3, 7]", c.treelet_leaf_count));
-  if (c.treelet_rounds > 16) bad(fmt::format("treelet_rounds = {} must be <= 16", c.treelet_rounds));
+  if (c.treelet_rounds > 16)
+    bad(fmt::format("treelet_rounds = {} must be <= 16", c.treelet_rounds));
   if (!(c.expected_rays >= 0.0) || !(c.expected_rays < 1e18))
     bad(fmt::format("expected_rays = {} must be finite and >= 0", c.expected_rays));
 }
@@ -69,13 +81,19 @@ Bvh2 build_bvh(std::span<const PrimRef> refs, const BuildConfig& config) {
   check_build_config(config);
   if (refs.empty()) return {};
   if (refs.size() >= 0x7FFFFFFFu)
-    throw Error(ErrorCode::unsupported, fmt::format("build_bvh: {} primitives exceed 2^31 - 1", refs.size()));
+    throw Error(ErrorCode::unsupported,
+                fmt::format("build_bvh: {} primitives exceed 2^31 - 1", refs.size()));
   switch (resolve_builder(config, refs.size())) {
-    case Builder::median: return build_median(refs, config);
-    case Builder::sweep: return build_sweep_sah(refs, config);
-    case Builder::binned: return build_binned_sah(refs, config);
-    case Builder::lbvh: return build_lbvh(refs, config);
-    case Builder::treelet: return build_treelet(refs, config);
+    case Builder::median:
+      return build_median(refs, config);
+    case Builder::sweep:
+      return build_sweep_sah(refs, config);
+    case Builder::binned:
+      return build_binned_sah(refs, config);
+    case Builder::lbvh:
+      return build_lbvh(refs, config);
+    case Builder::treelet:
+      return build_treelet(refs, config);
   }
   return {};
 }

@@ -5,8 +5,8 @@
 // Refit when builders or kernels change.
 #include <cmath>
 
-#include "kestrel/bvh.h"
 #include "bvh/cost_model.h"
+#include "kestrel/bvh.h"
 
 namespace kestrel {
 
@@ -30,7 +30,8 @@ double predicted_seconds(Builder builder, size_t prim_count, double rays) {
   const double n = double(prim_count);
   const double ray_ns = ray_ns_base + ray_ns_per_log2n * std::log2(std::max(2.0, n));
   for (const BuilderCost& c : costs)
-    if (c.builder == builder) return (n * c.build_ns_per_prim + rays * ray_ns * c.ray_factor) * 1e-9;
+    if (c.builder == builder)
+      return (n * c.build_ns_per_prim + rays * ray_ns * c.ray_factor) * 1e-9;
   return INFINITY;  // treelet: not in the model (patented, never chosen automatically)
 }
 

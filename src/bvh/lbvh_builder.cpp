@@ -20,9 +20,9 @@
 
 #include "bvh/binary_tree.h"
 #include "bvh/builders.h"
+#include "bvh/morton.h"
 #include "bvh/radix_sort.h"
 #include "core/parallel.h"
-#include "bvh/morton.h"
 #include "core/vec.h"
 
 namespace kestrel {
@@ -70,15 +70,17 @@ struct SortedKeys {
 constexpr uint32_t no_bound = 0xFFFFFFFFu;
 
 inline void set_parent(BinaryTree& tree, uint32_t child, uint32_t parent) {
-  if (BinaryTree::is_leaf(child)) tree.leaf_parent[BinaryTree::leaf_index(child)] = parent;
-  else tree.parent[child] = parent;
+  if (BinaryTree::is_leaf(child))
+    tree.leaf_parent[BinaryTree::leaf_index(child)] = parent;
+  else
+    tree.parent[child] = parent;
 }
 
 // One leaf's walk up the tree (see the file comment). `Exchange` swaps the outer bound left
 // at a node: an atomic exchange when walks run in parallel, a plain swap when serial.
 template <class Key, class Exchange>
-inline void walk_up(const SortedKeys<Key>& sk, BinaryTree& tree, const BuildConfig& config, uint32_t i,
-                    Exchange&& exchange) {
+inline void walk_up(const SortedKeys<Key>& sk, BinaryTree& tree, const BuildConfig& config,
+                    uint32_t i, Exchange&& exchange) {
   const uint32_t n = sk.n;
   uint32_t l = i, r = i, node = i | BinaryTree::leaf_bit;
   while (true) {
@@ -108,7 +110,8 @@ void emit_bottom_up(const SortedKeys<Key>& sk, BinaryTree& tree, const BuildConf
     RawArray<uint32_t> other(n - 1);
     std::fill(other.begin(), other.end(), no_bound);
     for (uint32_t i = 0; i < n; ++i)
-      walk_up(sk, tree, config, i, [&](uint32_t node, uint32_t bound) { return std::exchange(other[node], bound); });
+      walk_up(sk, tree, config, i,
+              [&](uint32_t node, uint32_t bound) { return std::exchange(other[node], bound); });
     return;
   }
   RawArray<std::atomic<uint32_t>> other(n - 1);
@@ -146,8 +149,11 @@ void emit_top_down(const SortedKeys<Key>& sk, BinaryTree& tree, const BuildConfi
         if (t == 1) break;
       }
       const int64_t gamma = i + s * d + std::min(d, 0);
-      const uint32_t left = std::min(i, j) == gamma ? uint32_t(gamma) | BinaryTree::leaf_bit : uint32_t(gamma);
-      const uint32_t right = std::max(i, j) == gamma + 1 ? uint32_t(gamma + 1) | BinaryTree::leaf_bit : uint32_t(gamma + 1);
+      const uint32_t left =
+          std::min(i, j) == gamma ? uint32_t(gamma) | BinaryTree::leaf_bit : uint32_t(gamma);
+      const uint32_t right = std::max(i, j) == gamma + 1
+                                 ? uint32_t(gamma + 1) | BinaryTree::leaf_bit
+                                 : uint32_t(gamma + 1);
       tree.left[i] = left;
       tree.right[i] = right;
       set_parent(tree, left, uint32_t(i));  // one parent per node: no races
@@ -160,7 +166,8 @@ void emit_top_down(const SortedKeys<Key>& sk, BinaryTree& tree, const BuildConfi
 }
 
 template <class Key>
-BinaryTree build_tree(std::span<const PrimRef> refs, const BuildConfig& config, int bits_per_axis, bool top_down) {
+BinaryTree build_tree(std::span<const PrimRef> refs, const BuildConfig& config, int bits_per_axis,
+                      bool top_down) {
   const size_t n = refs.size();
   BinaryTree tree;
   tree.allocate(n);
@@ -170,13 +177,15 @@ BinaryTree build_tree(std::span<const PrimRef> refs, const BuildConfig& config, 
   std::vector<Bounds3> partial(chunks);
   parallel_for(0, chunks, 1, [&](size_t cb, size_t ce) {
     for (size_t c = cb; c < ce; ++c)
-      for (size_t i = c * chunk; i < std::min(n, (c + 1) * chunk); ++i) extend(partial[c], refs[i].lo + refs[i].hi);
+      for (size_t i = c * chunk; i < std::min(n, (c + 1) * chunk); ++i)
+        extend(partial[c], refs[i].lo + refs[i].hi);
   });
   Bounds3 cb;
   for (const Bounds3& p : partial) extend(cb, p);
   const float cells = float(1u << bits_per_axis);
   const Vec3 ext = extent(cb);
-  const Vec3 scale{ext.x > 0 ? cells / ext.x : 0.0f, ext.y > 0 ? cells / ext.y : 0.0f, ext.z > 0 ? cells / ext.z : 0.0f};
+  const Vec3 scale{ext.x > 0 ? cells / ext.x : 0.0f, ext.y > 0 ? cells / ext.y : 0.0f,
+                   ext.z > 0 ? cells / ext.z : 0.0f};
   const float top = cells - 1.0f;
   RawArray<Key> keys(n);
   RawArray<uint32_t> order(n);
@@ -198,8 +207,10 @@ BinaryTree build_tree(std::span<const PrimRef> refs, const BuildConfig& config, 
     return tree;
   }
   const SortedKeys<Key> sk{keys.data(), uint32_t(n)};
-  if (top_down) emit_top_down(sk, tree, config);
-  else emit_bottom_up(sk, tree, config);
+  if (top_down)
+    emit_top_down(sk, tree, config);
+  else
+    emit_bottom_up(sk, tree, config);
   return tree;
 }
 

@@ -48,8 +48,8 @@ struct MedianBuilder {
                      });
     if (n <= config.max_leaf_size) {
       Bounds3 l = bounds_of(begin, mid, nullptr), r = bounds_of(mid, end, nullptr);
-      float split = split_cost(config, inverse_area(half_area(node_bounds)), half_area(l), mid - begin,
-                               half_area(r), end - mid);
+      float split = split_cost(config, inverse_area(half_area(node_bounds)), half_area(l),
+                               mid - begin, half_area(r), end - mid);
       if (leaf_cost(config, n) <= split) return make_leaf(slot, node_bounds, begin, end);
     }
     slots[slot] = Bvh2Node{node_bounds.lo, pair, node_bounds.hi, 0};

@@ -43,7 +43,8 @@ BvhMetrics compute_metrics(const Bvh2& bvh, const BuildConfig& config) {
       ++m.leaf_count;
       leaf_area_prims += area * node.count;
       depth_sum += depth;
-      if (node.count >= m.leaf_size_histogram.size()) m.leaf_size_histogram.resize(node.count + 1, 0);
+      if (node.count >= m.leaf_size_histogram.size())
+        m.leaf_size_histogram.resize(node.count + 1, 0);
       ++m.leaf_size_histogram[node.count];
     } else {
       ++m.inner_count;
@@ -54,12 +55,14 @@ BvhMetrics compute_metrics(const Bvh2& bvh, const BuildConfig& config) {
   }
   const double root_area = half_area(Bounds3{bvh.nodes[0].lo, bvh.nodes[0].hi});
   const double norm = root_area > 0 ? 1.0 / root_area : 0.0;
-  m.sah_cost = (config.traversal_cost * inner_area + config.intersection_cost * leaf_area_prims) * norm;
+  m.sah_cost =
+      (config.traversal_cost * inner_area + config.intersection_cost * leaf_area_prims) * norm;
   m.sah_cost_unit = (inner_area + leaf_area_prims) * norm;
   m.mean_leaf_depth = m.leaf_count ? depth_sum / m.leaf_count : 0.0;
-  m.bytes_per_prim = m.prim_count ? double(m.node_count * sizeof(Bvh2Node) + m.prim_count * sizeof(uint32_t)) /
-                                        double(m.prim_count)
-                                  : 0.0;
+  m.bytes_per_prim =
+      m.prim_count ? double(m.node_count * sizeof(Bvh2Node) + m.prim_count * sizeof(uint32_t)) /
+                         double(m.prim_count)
+                   : 0.0;
   return m;
 }
 

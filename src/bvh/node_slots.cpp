@@ -9,9 +9,12 @@
 namespace kestrel {
 
 NodeSlots::NodeSlots(size_t prim_count)
-    : slots_(static_cast<Bvh2Node*>(allocate_buffer(sizeof(Bvh2Node) * (2 * prim_count + 2), alignof(Bvh2Node)))) {}
+    : slots_(static_cast<Bvh2Node*>(
+          allocate_buffer(sizeof(Bvh2Node) * (2 * prim_count + 2), alignof(Bvh2Node)))) {}
 
-void NodeSlots::Free::operator()(Bvh2Node* p) const { free_buffer(p); }
+void NodeSlots::Free::operator()(Bvh2Node* p) const {
+  free_buffer(p);
+}
 
 Bvh2 compact_slots(NodeSlots& slots, std::span<const uint32_t> ordered_prim_ids) {
   Bvh2 out;

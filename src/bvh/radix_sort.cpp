@@ -42,15 +42,19 @@ void lsd_sort(RawArray<Record>& records, int first_bit, int key_bits, KeyOf key_
   const size_t n = records.size();
   if (n < 2) return;
   const int digits = (key_bits + digit_bits - 1) / digit_bits;
-  auto digit = [&](const Record& r, int shift) { return size_t(key_of(r) >> shift) & (bucket_count - 1); };
+  auto digit = [&](const Record& r, int shift) {
+    return size_t(key_of(r) >> shift) & (bucket_count - 1);
+  };
   RawArray<Record> tmp(n);
   const size_t chunks = chunk_count(n, sort_chunk);
   if (current_thread_count() == 1 || chunks == 1) {
     std::vector<uint32_t> hist(size_t(digits) * bucket_count, 0u);
     for (size_t i = 0; i < n; ++i)
-      for (int d = 0; d < digits; ++d) hist[d * bucket_count + digit(records[i], first_bit + d * digit_bits)]++;
+      for (int d = 0; d < digits; ++d)
+        hist[d * bucket_count + digit(records[i], first_bit + d * digit_bits)]++;
     for (int d = 0; d < digits; ++d) {
-      std::vector<uint32_t> offset(hist.begin() + d * bucket_count, hist.begin() + (d + 1) * bucket_count);
+      std::vector<uint32_t> offset(hist.begin() + d * bucket_count,
+                                   hist.begin() + (d + 1) * bucket_count);
       if (scan_offsets(offset, 1, n)) continue;
       const int shift = first_bit + d * digit_bits;
       for (size_t i = 0; i < n; ++i) tmp[offset[digit(records[i], shift)]++] = records[i];
@@ -73,7 +77,8 @@ void lsd_sort(RawArray<Record>& records, int first_bit, int key_bits, KeyOf key_
       for (size_t c = cb; c < ce; ++c) {
         uint32_t* offset = &hist[c * bucket_count];
         const size_t e = std::min(n, (c + 1) * sort_chunk);
-        for (size_t i = c * sort_chunk; i < e; ++i) tmp[offset[digit(records[i], shift)]++] = records[i];
+        for (size_t i = c * sort_chunk; i < e; ++i)
+          tmp[offset[digit(records[i], shift)]++] = records[i];
       }
     });
     records.swap(tmp);
@@ -116,7 +121,10 @@ void radix_sort(RawArray<uint32_t>& keys, RawArray<uint32_t>& values, int key_bi
 
 void radix_sort(RawArray<uint64_t>& keys, RawArray<uint32_t>& values, int key_bits) {
   sort_pairs<KeyValue64, uint64_t>(
-      keys, values, 0, key_bits, [](uint64_t k, uint32_t v) { return KeyValue64{k, v}; },
+      keys, values, 0, key_bits,
+      [](uint64_t k, uint32_t v) {
+        return KeyValue64{k, v};
+      },
       [](const KeyValue64& r, uint64_t& k, uint32_t& v) {
         k = r.key;
         v = r.value;

@@ -23,10 +23,10 @@ struct SweepBuilder {
   std::span<const PrimRef> refs;
   const BuildConfig& config;
   NodeSlots& slots;
-  std::vector<uint32_t> order[3];   // ref indices sorted by centroid on each axis
-  std::vector<uint8_t> goes_left;   // per ref index, set for the chosen left side
-  std::vector<uint32_t> scratch;    // stable-partition buffer, same ranges as `order`
-  std::vector<float> right_area;    // suffix areas, same ranges as `order`
+  std::vector<uint32_t> order[3];  // ref indices sorted by centroid on each axis
+  std::vector<uint8_t> goes_left;  // per ref index, set for the chosen left side
+  std::vector<uint32_t> scratch;   // stable-partition buffer, same ranges as `order`
+  std::vector<float> right_area;   // suffix areas, same ranges as `order`
 
   Bounds3 ref_bounds(uint32_t i) const { return {refs[i].lo, refs[i].hi}; }
 
@@ -36,7 +36,7 @@ struct SweepBuilder {
     for (size_t i = begin; i < end; ++i) extend(node_bounds, ref_bounds(order[0][i]));
     if (n == 1) {
       slots[slot] = Bvh2Node{node_bounds.lo, uint32_t(begin), node_bounds.hi, 1};
-        return;
+      return;
     }
     const float inv_area = inverse_area(half_area(node_bounds));
     float best_cost = std::numeric_limits<float>::infinity();
@@ -64,7 +64,7 @@ struct SweepBuilder {
     }
     if (n <= config.max_leaf_size && leaf_cost(config, n) <= best_cost) {
       slots[slot] = Bvh2Node{node_bounds.lo, uint32_t(begin), node_bounds.hi, uint32_t(n)};
-        return;
+      return;
     }
     const size_t mid = begin + best_left;
     for (size_t i = begin; i < end; ++i) goes_left[order[best_axis][i]] = i < mid;

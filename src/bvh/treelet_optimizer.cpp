@@ -25,8 +25,8 @@ constexpr int max_treelet_leaves = 7;
 constexpr int max_subsets = 1 << max_treelet_leaves;
 
 struct TreeletParams {
-  uint32_t leaf_target;    // leaves per treelet
-  uint32_t min_prims;      // only nodes with at least this many primitives are roots
+  uint32_t leaf_target;  // leaves per treelet
+  uint32_t min_prims;    // only nodes with at least this many primitives are roots
 };
 
 void restructure_node(BinaryTree& tree, uint32_t root, const BuildConfig& config, void* user) {
@@ -88,7 +88,8 @@ void restructure_node(BinaryTree& tree, uint32_t root, const BuildConfig& config
       }
     }
     float c = config.traversal_cost * area[s] + best;
-    if (prims[s] <= config.max_leaf_size) c = std::min(c, config.intersection_cost * area[s] * float(prims[s]));
+    if (prims[s] <= config.max_leaf_size)
+      c = std::min(c, config.intersection_cost * area[s] * float(prims[s]));
     best_cost[s] = c;
     best_part[s] = uint8_t(part);
   }
@@ -106,8 +107,10 @@ void restructure_node(BinaryTree& tree, uint32_t root, const BuildConfig& config
         children[k] = inner[next_inner++];
         self(self, parts[k], children[k]);
       }
-      if (BinaryTree::is_leaf(children[k])) tree.leaf_parent[BinaryTree::leaf_index(children[k])] = node;
-      else tree.parent[children[k]] = node;
+      if (BinaryTree::is_leaf(children[k]))
+        tree.leaf_parent[BinaryTree::leaf_index(children[k])] = node;
+      else
+        tree.parent[children[k]] = node;
     }
     tree.left[node] = children[0];
     tree.right[node] = children[1];

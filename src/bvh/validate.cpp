@@ -9,7 +9,8 @@
 namespace kestrel {
 
 std::string validate_bvh(const Bvh2& bvh, std::span<const PrimRef> refs, uint32_t max_leaf_size) {
-  if (bvh.empty()) return refs.empty() ? "" : fmt::format("empty BVH over {} references", refs.size());
+  if (bvh.empty())
+    return refs.empty() ? "" : fmt::format("empty BVH over {} references", refs.size());
   if (bvh.prim_ids.size() != refs.size())
     return fmt::format("{} prim ids for {} references", bvh.prim_ids.size(), refs.size());
   std::unordered_map<uint32_t, size_t> ref_of;
@@ -29,14 +30,18 @@ std::string validate_bvh(const Bvh2& bvh, std::span<const PrimRef> refs, uint32_
     const Bvh2Node& node = bvh.nodes[i];
     const Bounds3 box{node.lo, node.hi};
     if (node.is_leaf()) {
-      if (node.count > max_leaf_size) return fmt::format("leaf {} holds {} > {} primitives", i, node.count, max_leaf_size);
+      if (node.count > max_leaf_size)
+        return fmt::format("leaf {} holds {} > {} primitives", i, node.count, max_leaf_size);
       if (size_t(node.index) + node.count > bvh.prim_ids.size())
-        return fmt::format("leaf {} range [{}, +{}) past {} prim ids", i, node.index, node.count, bvh.prim_ids.size());
+        return fmt::format("leaf {} range [{}, +{}) past {} prim ids", i, node.index, node.count,
+                           bvh.prim_ids.size());
       for (uint32_t k = node.index; k < node.index + node.count; ++k) {
         if (slot_seen[k]++) return fmt::format("prim id slot {} referenced by two leaves", k);
         auto it = ref_of.find(bvh.prim_ids[k]);
-        if (it == ref_of.end()) return fmt::format("leaf {} holds unknown prim id {}", i, bvh.prim_ids[k]);
-        if (prim_seen[it->second]++) return fmt::format("prim id {} appears twice", bvh.prim_ids[k]);
+        if (it == ref_of.end())
+          return fmt::format("leaf {} holds unknown prim id {}", i, bvh.prim_ids[k]);
+        if (prim_seen[it->second]++)
+          return fmt::format("prim id {} appears twice", bvh.prim_ids[k]);
         const PrimRef& r = refs[it->second];
         if (!contains(box, Bounds3{r.lo, r.hi}))
           return fmt::format("leaf {} box does not enclose prim {}", i, r.prim_id);
@@ -53,7 +58,8 @@ std::string validate_bvh(const Bvh2& bvh, std::span<const PrimRef> refs, uint32_
       stack.push_back(c);
     }
   }
-  if (visited != bvh.nodes.size()) return fmt::format("{} of {} nodes unreachable", bvh.nodes.size() - visited, bvh.nodes.size());
+  if (visited != bvh.nodes.size())
+    return fmt::format("{} of {} nodes unreachable", bvh.nodes.size() - visited, bvh.nodes.size());
   for (size_t i = 0; i < refs.size(); ++i)
     if (!prim_seen[i]) return fmt::format("prim id {} missing", refs[i].prim_id);
   return "";

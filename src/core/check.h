@@ -4,10 +4,11 @@
 #include <string>
 
 namespace kestrel::detail {
-[[noreturn]] void check_failed(const char* expr, const char* file, int line, const std::string& msg);
+[[noreturn]] void check_failed(const char* expr, const char* file, int line,
+                               const std::string& msg);
 }
 
-#define KESTREL_CHECK(cond, ...)                                                     \
-  do {                                                                               \
+#define KESTREL_CHECK(cond, ...)                                                             \
+  do {                                                                                       \
     if (!(cond)) ::kestrel::detail::check_failed(#cond, __FILE__, __LINE__, "" __VA_ARGS__); \
   } while (0)

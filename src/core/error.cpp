@@ -8,12 +8,18 @@ namespace kestrel {
 
 const char* to_string(ErrorCode code) {
   switch (code) {
-    case ErrorCode::invalid_argument: return "invalid_argument";
-    case ErrorCode::file_not_found: return "file_not_found";
-    case ErrorCode::parse_error: return "parse_error";
-    case ErrorCode::invalid_geometry: return "invalid_geometry";
-    case ErrorCode::unsupported: return "unsupported";
-    case ErrorCode::io_error: return "io_error";
+    case ErrorCode::invalid_argument:
+      return "invalid_argument";
+    case ErrorCode::file_not_found:
+      return "file_not_found";
+    case ErrorCode::parse_error:
+      return "parse_error";
+    case ErrorCode::invalid_geometry:
+      return "invalid_geometry";
+    case ErrorCode::unsupported:
+      return "unsupported";
+    case ErrorCode::io_error:
+      return "io_error";
   }
   return "unknown";
 }

@@ -23,11 +23,16 @@ uint64_t regular_file_size(const std::string& path, std::string_view what = "fil
 
 /// A whole regular file; Error naming the file when it is larger than max_bytes (before
 /// reading it) or cannot be read.
-std::string read_bounded_file(const std::string& path, uint64_t max_bytes, std::string_view what = "file");
+std::string read_bounded_file(const std::string& path, uint64_t max_bytes,
+                              std::string_view what = "file");
 
 /// Whether a + b and a * b fit in 64 bits (for sizes read from files).
-inline bool add_fits(uint64_t a, uint64_t b, uint64_t& sum) { return !__builtin_add_overflow(a, b, &sum); }
-inline bool mul_fits(uint64_t a, uint64_t b, uint64_t& product) { return !__builtin_mul_overflow(a, b, &product); }
+inline bool add_fits(uint64_t a, uint64_t b, uint64_t& sum) {
+  return !__builtin_add_overflow(a, b, &sum);
+}
+inline bool mul_fits(uint64_t a, uint64_t b, uint64_t& product) {
+  return !__builtin_mul_overflow(a, b, &product);
+}
 
 /// Throws Error(io_error) unless `path` can be written as a regular file: its folder exists
 /// and it is not an existing folder, FIFO or device. (For commands that write several files:

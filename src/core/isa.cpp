@@ -13,9 +13,12 @@ namespace kestrel {
 
 const char* isa_name(Isa isa) {
   switch (isa) {
-    case Isa::sse2: return "sse2";
-    case Isa::avx2: return "avx2";
-    case Isa::avx512: return "avx512";
+    case Isa::sse2:
+      return "sse2";
+    case Isa::avx2:
+      return "avx2";
+    case Isa::avx512:
+      return "avx512";
   }
   return "?";
 }
@@ -31,19 +34,24 @@ bool isa_supported(Isa isa) {
   // libgcc's CPU model checks CPUID and that the OS saves the wider registers (XGETBV).
   __builtin_cpu_init();
   switch (isa) {
-    case Isa::sse2: return true;
+    case Isa::sse2:
+      return true;
     case Isa::avx2:
-      return __builtin_cpu_supports("avx2") && __builtin_cpu_supports("fma") && __builtin_cpu_supports("bmi") &&
-             __builtin_cpu_supports("bmi2") && __builtin_cpu_supports("popcnt");
+      return __builtin_cpu_supports("avx2") && __builtin_cpu_supports("fma") &&
+             __builtin_cpu_supports("bmi") && __builtin_cpu_supports("bmi2") &&
+             __builtin_cpu_supports("popcnt");
     case Isa::avx512:
-      return isa_supported(Isa::avx2) && __builtin_cpu_supports("avx512f") && __builtin_cpu_supports("avx512vl") &&
-             __builtin_cpu_supports("avx512bw") && __builtin_cpu_supports("avx512dq");
+      return isa_supported(Isa::avx2) && __builtin_cpu_supports("avx512f") &&
+             __builtin_cpu_supports("avx512vl") && __builtin_cpu_supports("avx512bw") &&
+             __builtin_cpu_supports("avx512dq");
   }
   return false;
 }
 
 Isa host_isa() {
-  static const Isa best = isa_supported(Isa::avx512) ? Isa::avx512 : isa_supported(Isa::avx2) ? Isa::avx2 : Isa::sse2;
+  static const Isa best = isa_supported(Isa::avx512) ? Isa::avx512
+                          : isa_supported(Isa::avx2) ? Isa::avx2
+                                                     : Isa::sse2;
   return best;
 }
 
@@ -53,8 +61,9 @@ std::atomic<int> g_default_isa{-1};
 
 void require_supported(Isa isa) {
   if (!isa_supported(isa))
-    throw Error(ErrorCode::invalid_argument, fmt::format("ISA '{}' is not supported by this CPU (best: {})",
-                                                         isa_name(isa), isa_name(host_isa())));
+    throw Error(ErrorCode::invalid_argument,
+                fmt::format("ISA '{}' is not supported by this CPU (best: {})", isa_name(isa),
+                            isa_name(host_isa())));
 }
 
 Isa default_isa() {
@@ -63,7 +72,9 @@ Isa default_isa() {
     Isa isa = host_isa();
     if (const char* env = std::getenv("KESTREL_ISA"); env && *env) {
       auto parsed = isa_from_name(env);
-      if (!parsed) throw Error(ErrorCode::invalid_argument, fmt::format("KESTREL_ISA='{}': expected sse2, avx2 or avx512", env));
+      if (!parsed)
+        throw Error(ErrorCode::invalid_argument,
+                    fmt::format("KESTREL_ISA='{}': expected sse2, avx2 or avx512", env));
       require_supported(*parsed);
       isa = *parsed;
     }

@@ -39,11 +39,12 @@ void parallel_for(size_t begin, size_t end, size_t grain, FunctionRef<void(size_
   }
   [[maybe_unused]] char fork = 0, join = 0;
   KESTREL_TSAN_RELEASE(&fork);
-  tbb::parallel_for(tbb::blocked_range<size_t>(begin, end, grain), [&](const tbb::blocked_range<size_t>& r) {
-    KESTREL_TSAN_ACQUIRE(&fork);
-    body(r.begin(), r.end());
-    KESTREL_TSAN_RELEASE(&join);
-  });
+  tbb::parallel_for(tbb::blocked_range<size_t>(begin, end, grain),
+                    [&](const tbb::blocked_range<size_t>& r) {
+                      KESTREL_TSAN_ACQUIRE(&fork);
+                      body(r.begin(), r.end());
+                      KESTREL_TSAN_RELEASE(&join);
+                    });
   KESTREL_TSAN_ACQUIRE(&join);
 }
 
@@ -73,7 +74,9 @@ ThreadLimit::ThreadLimit(int thread_count)
     : control_(new tbb::global_control(tbb::global_control::max_allowed_parallelism,
                                        static_cast<size_t>(thread_count < 1 ? 1 : thread_count))) {}
 
-ThreadLimit::~ThreadLimit() { delete static_cast<tbb::global_control*>(control_); }
+ThreadLimit::~ThreadLimit() {
+  delete static_cast<tbb::global_control*>(control_);
+}
 
 int hardware_thread_count() {
   unsigned n = std::thread::hardware_concurrency();

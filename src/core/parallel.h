@@ -16,7 +16,9 @@ class FunctionRef<R(Args...)> {
  public:
   template <class F, class = std::enable_if_t<!std::is_same_v<std::decay_t<F>, FunctionRef>>>
   FunctionRef(F&& f) : obj_(const_cast<void*>(static_cast<const void*>(&f))) {
-    call_ = [](void* o, Args... a) -> R { return (*static_cast<std::remove_reference_t<F>*>(o))(std::forward<Args>(a)...); };
+    call_ = [](void* o, Args... a) -> R {
+      return (*static_cast<std::remove_reference_t<F>*>(o))(std::forward<Args>(a)...);
+    };
   }
   R operator()(Args... a) const { return call_(obj_, std::forward<Args>(a)...); }
 
@@ -38,6 +40,8 @@ int current_thread_count();
 /// Splits [0, n) into `chunk_count(n, grain)` fixed chunks. Use with parallel_for over chunk
 /// indices for reductions whose result must not depend on the thread count: reduce each
 /// chunk into its own slot, then combine the slots in order.
-inline size_t chunk_count(size_t n, size_t grain) { return n == 0 ? 0 : (n + grain - 1) / grain; }
+inline size_t chunk_count(size_t n, size_t grain) {
+  return n == 0 ? 0 : (n + grain - 1) / grain;
+}
 
 }  // namespace kestrel

@@ -8,10 +8,18 @@
 
 namespace kestrel {
 
-inline Vec3 min(Vec3 a, Vec3 b) { return {std::min(a.x, b.x), std::min(a.y, b.y), std::min(a.z, b.z)}; }
-inline Vec3 max(Vec3 a, Vec3 b) { return {std::max(a.x, b.x), std::max(a.y, b.y), std::max(a.z, b.z)}; }
-inline bool is_finite(Vec3 a) { return std::isfinite(a.x) && std::isfinite(a.y) && std::isfinite(a.z); }
-inline int max_axis(Vec3 a) { return a.x >= a.y ? (a.x >= a.z ? 0 : 2) : (a.y >= a.z ? 1 : 2); }
+inline Vec3 min(Vec3 a, Vec3 b) {
+  return {std::min(a.x, b.x), std::min(a.y, b.y), std::min(a.z, b.z)};
+}
+inline Vec3 max(Vec3 a, Vec3 b) {
+  return {std::max(a.x, b.x), std::max(a.y, b.y), std::max(a.z, b.z)};
+}
+inline bool is_finite(Vec3 a) {
+  return std::isfinite(a.x) && std::isfinite(a.y) && std::isfinite(a.z);
+}
+inline int max_axis(Vec3 a) {
+  return a.x >= a.y ? (a.x >= a.z ? 0 : 2) : (a.y >= a.z ? 1 : 2);
+}
 
 inline void extend(Bounds3& b, Vec3 p) {
   b.lo = min(b.lo, p);
@@ -24,9 +32,15 @@ inline void extend(Bounds3& b, const Bounds3& o) {
 inline Bounds3 merge(const Bounds3& a, const Bounds3& b) {
   return {min(a.lo, b.lo), max(a.hi, b.hi)};
 }
-inline bool is_empty(const Bounds3& b) { return b.lo.x > b.hi.x || b.lo.y > b.hi.y || b.lo.z > b.hi.z; }
-inline Vec3 extent(const Bounds3& b) { return b.hi - b.lo; }
-inline Vec3 center(const Bounds3& b) { return (b.lo + b.hi) * 0.5f; }
+inline bool is_empty(const Bounds3& b) {
+  return b.lo.x > b.hi.x || b.lo.y > b.hi.y || b.lo.z > b.hi.z;
+}
+inline Vec3 extent(const Bounds3& b) {
+  return b.hi - b.lo;
+}
+inline Vec3 center(const Bounds3& b) {
+  return (b.lo + b.hi) * 0.5f;
+}
 /// Half the surface area (SAH uses ratios, so the factor 2 never matters); 0 when empty.
 inline float half_area(const Bounds3& b) {
   if (is_empty(b)) return 0.0f;

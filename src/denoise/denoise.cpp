@@ -27,9 +27,12 @@ namespace denoise {
 // looked up per call, not cached: a later set_default_isa takes effect, as in traversal.
 const KernelTable& host_kernels() {
   switch (default_isa()) {
-    case Isa::avx512: return kernels_avx512();
-    case Isa::avx2: return kernels_avx2();
-    default: return kernels_sse2();
+    case Isa::avx512:
+      return kernels_avx512();
+    case Isa::avx2:
+      return kernels_avx2();
+    default:
+      return kernels_sse2();
   }
 }
 }  // namespace denoise
@@ -38,9 +41,12 @@ using denoise::Planes;
 
 const char* denoise_method_name(DenoiseMethod m) {
   switch (m) {
-    case DenoiseMethod::neural: return "neural";
-    case DenoiseMethod::svgf: return "svgf";
-    case DenoiseMethod::atrous: return "atrous";
+    case DenoiseMethod::neural:
+      return "neural";
+    case DenoiseMethod::svgf:
+      return "svgf";
+    case DenoiseMethod::atrous:
+      return "atrous";
   }
   return "?";
 }
@@ -52,7 +58,8 @@ std::optional<DenoiseMethod> denoise_method_from_name(std::string_view name) {
 }
 
 std::string default_denoiser_weights() {
-  if (const char* dir = std::getenv("KESTREL_WEIGHTS_DIR"); dir && *dir) return std::string(dir) + "/denoiser.kdw";
+  if (const char* dir = std::getenv("KESTREL_WEIGHTS_DIR"); dir && *dir)
+    return std::string(dir) + "/denoiser.kdw";
   return std::string(KESTREL_SOURCE_DIR) + "/weights/denoiser.kdw";
 }
 
@@ -71,7 +78,9 @@ void replicate_edges(Planes& p, int width, int height) {
     for (int c = 0; c < p.channels; ++c)
       for (int y = r0; y < r1; ++y) {
         float* dst = p.ch(c) + size_t(y) * size_t(p.width);
-        if (y >= height) std::memcpy(dst, p.ch(c) + size_t(height - 1) * size_t(p.width), sizeof(float) * size_t(width));
+        if (y >= height)
+          std::memcpy(dst, p.ch(c) + size_t(height - 1) * size_t(p.width),
+                      sizeof(float) * size_t(width));
         std::fill(dst + width, dst + p.width, dst[width - 1]);
       }
   });
@@ -83,16 +92,24 @@ void replicate_edges(Planes& p, int width, int height) {
 void gather(const DenoiseInput& in, int align, Planes& p) {
   if (!in.color) throw Error(ErrorCode::invalid_argument, "denoise: no colour image");
   const FloatImage& c = *in.color;
-  if (c.width <= 0 || c.height <= 0 || c.pixels.size() != size_t(c.width) * size_t(c.height) * size_t(c.channels))
-    throw Error(ErrorCode::invalid_argument, fmt::format("denoise: colour image is empty or malformed ({}x{})", c.width, c.height));
-  if (c.channels < 3) throw Error(ErrorCode::invalid_argument, fmt::format("denoise: colour has {} channels, needs 3", c.channels));
+  if (c.width <= 0 || c.height <= 0 ||
+      c.pixels.size() != size_t(c.width) * size_t(c.height) * size_t(c.channels))
+    throw Error(
+        ErrorCode::invalid_argument,
+        fmt::format("denoise: colour image is empty or malformed ({}x{})", c.width, c.height));
+  if (c.channels < 3)
+    throw Error(ErrorCode::invalid_argument,
+                fmt::format("denoise: colour has {} channels, needs 3", c.channels));
   auto check = [&](const FloatImage* img, const char* name, int min_channels) {
     if (!img) return;
     if (img->width != c.width || img->height != c.height)
-      throw Error(ErrorCode::invalid_argument, fmt::format("denoise: {} is {}x{}, colour is {}x{}", name, img->width,
-                                                           img->height, c.width, c.height));
-    if (img->channels < min_channels || img->pixels.size() != size_t(img->width) * size_t(img->height) * size_t(img->channels))
-      throw Error(ErrorCode::invalid_argument, fmt::format("denoise: {} has {} channels, needs {}", name, img->channels, min_channels));
+      throw Error(ErrorCode::invalid_argument,
+                  fmt::format("denoise: {} is {}x{}, colour is {}x{}", name, img->width,
+                              img->height, c.width, c.height));
+    if (img->channels < min_channels ||
+        img->pixels.size() != size_t(img->width) * size_t(img->height) * size_t(img->channels))
+      throw Error(ErrorCode::invalid_argument, fmt::format("denoise: {} has {} channels, needs {}",
+                                                           name, img->channels, min_channels));
   };
   check(in.albedo, "albedo", 3);
   check(in.normal, "normal", 3);
@@ -106,8 +123,9 @@ void gather(const DenoiseInput& in, int align, Planes& p) {
     int first, count;
     float fallback;
   };
-  const Source sources[] = {{in.color, 0, 3, 0.0f},     {in.albedo, 3, 3, 1.0f}, {in.normal, 6, 3, 0.0f},
-                            {in.depth, 9, 1, 1.0f},     {in.roughness, 10, 1, 0.0f}, {in.motion, 11, 2, 0.0f}};
+  const Source sources[] = {{in.color, 0, 3, 0.0f},      {in.albedo, 3, 3, 1.0f},
+                            {in.normal, 6, 3, 0.0f},     {in.depth, 9, 1, 1.0f},
+                            {in.roughness, 10, 1, 0.0f}, {in.motion, 11, 2, 0.0f}};
   const int cw = c.width;
   rows(c.height, [&](int r0, int r1) {
     for (int y = r0; y < r1; ++y) {
@@ -120,11 +138,12 @@ void gather(const DenoiseInput& in, int align, Planes& p) {
             continue;
           }
           const int stride = s.img->channels;
-          const float* src = s.img->pixels.data() + size_t(y) * size_t(cw) * size_t(stride) + size_t(k);
+          const float* src =
+              s.img->pixels.data() + size_t(y) * size_t(cw) * size_t(stride) + size_t(k);
           const bool colour = s.first == 0;
           for (int x = 0; x < cw; ++x) {
             const float v = src[size_t(x) * size_t(stride)];
-            const float finite = v - v == 0.0f ? v : 0.0f;  // NaN and +-Inf to 0
+            const float finite = v - v == 0.0f ? v : 0.0f;     // NaN and +-Inf to 0
             dst[x] = colour && finite < 0.0f ? 0.0f : finite;  // negative colour to 0
           }
         }
@@ -134,7 +153,8 @@ void gather(const DenoiseInput& in, int align, Planes& p) {
 }
 
 void to_image(const Planes& p, int width, int height, FloatImage& out) {
-  if (out.width != width || out.height != height || out.channels != 3) out = FloatImage(width, height, 3);
+  if (out.width != width || out.height != height || out.channels != 3)
+    out = FloatImage(width, height, 3);
   rows(height, [&](int r0, int r1) {
     for (int y = r0; y < r1; ++y) {
       const size_t row = size_t(y) * size_t(p.width);
@@ -156,13 +176,15 @@ Planes gather(const DenoiseInput& in, int align) {
 constexpr float kEps = denoise::kAlbedoEps;
 const float kB3[5] = {1.0f / 16, 1.0f / 4, 3.0f / 8, 1.0f / 4, 1.0f / 16};
 
-float luminance(float r, float g, float b) { return 0.2126f * r + 0.7152f * g + 0.0722f * b; }
+float luminance(float r, float g, float b) {
+  return 0.2126f * r + 0.7152f * g + 0.0722f * b;
+}
 
 // One 5x5 edge-avoiding a-trous pass (B3 spline) over planar irradiance `x` (3 channels) and
 // optionally a variance plane; weights from the caller's per-pixel edge function.
 template <class Weight>
-void atrous_pass(const Planes& in, Planes& out, const Planes& g, int dilation, const float* var_in, float* var_out,
-                 Weight&& weight) {
+void atrous_pass(const Planes& in, Planes& out, const Planes& g, int dilation, const float* var_in,
+                 float* var_out, Weight&& weight) {
   const int W = in.width, H = in.height;
   rows(H, [&](int r0, int r1) {
     for (int y = r0; y < r1; ++y)
@@ -206,22 +228,27 @@ float rel_depth(const Planes& g, size_t p, size_t q) {
 struct DepthGradient {
   std::vector<float> gx, gy;
   int width = 0;
-  explicit DepthGradient(const Planes& g) : gx(size_t(g.width) * size_t(g.height)), gy(gx.size()), width(g.width) {
+  explicit DepthGradient(const Planes& g)
+      : gx(size_t(g.width) * size_t(g.height)), gy(gx.size()), width(g.width) {
     const int W = g.width, H = g.height;
     const float* z = g.ch(9);
     for (int y = 0; y < H; ++y)
       for (int x = 0; x < W; ++x) {
         const size_t p = size_t(y) * size_t(W) + size_t(x);
-        const int xl = std::max(x - 1, 0), xr = std::min(x + 1, W - 1), yu = std::max(y - 1, 0), yd = std::min(y + 1, H - 1);
-        gx[p] = (z[size_t(y) * size_t(W) + size_t(xr)] - z[size_t(y) * size_t(W) + size_t(xl)]) / float(std::max(xr - xl, 1));
-        gy[p] = (z[size_t(yd) * size_t(W) + size_t(x)] - z[size_t(yu) * size_t(W) + size_t(x)]) / float(std::max(yd - yu, 1));
+        const int xl = std::max(x - 1, 0), xr = std::min(x + 1, W - 1), yu = std::max(y - 1, 0),
+                  yd = std::min(y + 1, H - 1);
+        gx[p] = (z[size_t(y) * size_t(W) + size_t(xr)] - z[size_t(y) * size_t(W) + size_t(xl)]) /
+                float(std::max(xr - xl, 1));
+        gy[p] = (z[size_t(yd) * size_t(W) + size_t(x)] - z[size_t(yu) * size_t(W) + size_t(x)]) /
+                float(std::max(yd - yu, 1));
       }
   }
   float weight(const Planes& g, size_t p, size_t q, float sigma) const {
     const float dx = float(int(q % size_t(width)) - int(p % size_t(width)));
     const float dy = float(int(q / size_t(width)) - int(p / size_t(width)));
     const float predicted = std::abs(gx[p] * dx + gy[p] * dy);
-    return std::abs(g.ch(9)[p] - g.ch(9)[q]) / (sigma * predicted + 1e-3f * std::max(g.ch(9)[p], denoise::kMinDepth));
+    return std::abs(g.ch(9)[p] - g.ch(9)[q]) /
+           (sigma * predicted + 1e-3f * std::max(g.ch(9)[p], denoise::kMinDepth));
   }
 };
 
@@ -258,15 +285,17 @@ Planes atrous_filter(const Planes& g) {
   for (int it = 0; it < 5; ++it) {
     for (size_t p = 0; p < x.data.size(); ++p) logx.data[p] = std::log1p(std::max(x.data[p], 0.0f));
     const float sc = sigma_c * std::ldexp(1.0f, -it);
-    atrous_pass(x, t, g, 1 << it, nullptr, nullptr, [&](size_t p, size_t q, const Planes&, const Planes& gg) {
-      float d2 = 0;
-      for (int c = 0; c < 3; ++c) {
-        const float d = logx.ch(c)[p] - logx.ch(c)[q];
-        d2 += d * d;
-      }
-      const float nd = std::max(0.0f, 1.0f - normal_dot(gg, p, q));
-      return std::exp(-d2 / (sc * sc) - nd / (sigma_n * sigma_n) - dz.weight(gg, p, q, sigma_z));
-    });
+    atrous_pass(x, t, g, 1 << it, nullptr, nullptr,
+                [&](size_t p, size_t q, const Planes&, const Planes& gg) {
+                  float d2 = 0;
+                  for (int c = 0; c < 3; ++c) {
+                    const float d = logx.ch(c)[p] - logx.ch(c)[q];
+                    d2 += d * d;
+                  }
+                  const float nd = std::max(0.0f, 1.0f - normal_dot(gg, p, q));
+                  return std::exp(-d2 / (sc * sc) - nd / (sigma_n * sigma_n) -
+                                  dz.weight(gg, p, q, sigma_z));
+                });
     std::swap(x, t);
   }
   return remodulate(x, g);
@@ -303,8 +332,10 @@ struct Svgf {
               if (sx < 0 || sy < 0 || sx >= W || sy >= H) continue;
               const size_t q = size_t(sy) * size_t(W) + size_t(sx);
               const float zq = history.ch(6)[q], z = g.ch(9)[p];
-              const float nd = g.ch(6)[p] * history.ch(7)[q] + g.ch(7)[p] * history.ch(8)[q] + g.ch(8)[p] * history.ch(9)[q];
-              const bool normals = (g.ch(6)[p] == 0 && g.ch(7)[p] == 0 && g.ch(8)[p] == 0) || nd > 0.9f;
+              const float nd = g.ch(6)[p] * history.ch(7)[q] + g.ch(7)[p] * history.ch(8)[q] +
+                               g.ch(8)[p] * history.ch(9)[q];
+              const bool normals =
+                  (g.ch(6)[p] == 0 && g.ch(7)[p] == 0 && g.ch(8)[p] == 0) || nd > 0.9f;
               if (std::abs(zq - z) > 0.1f * std::max(z, denoise::kMinDepth) || !normals) continue;
               const float w = ((k & 1) ? fx : 1 - fx) * ((k >> 1) ? fy : 1 - fy);
               for (int c = 0; c < 5; ++c) h[c] += w * history.ch(c)[q];
@@ -320,7 +351,8 @@ struct Svgf {
           }
           const float n = std::min(hl, 254.0f) + 1.0f;
           const float a = std::max(1.0f / n, 0.2f);
-          for (int c = 0; c < 3; ++c) acc.ch(c)[p] = hl > 0 ? h[c] + a * (x.ch(c)[p] - h[c]) : x.ch(c)[p];
+          for (int c = 0; c < 3; ++c)
+            acc.ch(c)[p] = hl > 0 ? h[c] + a * (x.ch(c)[p] - h[c]) : x.ch(c)[p];
           m1[p] = hl > 0 ? h[3] + a * (l - h[3]) : l;
           m2[p] = hl > 0 ? h[4] + a * (l * l - h[4]) : l * l;
           len[p] = n;
@@ -340,7 +372,8 @@ struct Svgf {
               const int sy = y + j, sx = i + k;
               if (sx < 0 || sy < 0 || sx >= W || sy >= H) continue;
               const size_t q = size_t(sy) * size_t(W) + size_t(sx);
-              const float w = std::exp(-rel_depth(g, p, q) / 0.05f) * pow2k(std::max(0.0f, normal_dot(g, p, q)), 5) +
+              const float w = std::exp(-rel_depth(g, p, q) / 0.05f) *
+                                  pow2k(std::max(0.0f, normal_dot(g, p, q)), 5) +
                               (q == p ? 1.0f : 0.0f);
               s1 += w * m1[q], s2 += w * m2[q], ws += w;
             }
@@ -369,15 +402,18 @@ struct Svgf {
             gvar[size_t(y) * size_t(W) + size_t(i)] = s / ws;
           }
       });
-      atrous_pass(acc, t, g, 1 << it, var.data(), var_next.data(), [&](size_t p, size_t q, const Planes& a, const Planes& gg) {
-        const float lp = luminance(a.ch(0)[p], a.ch(1)[p], a.ch(2)[p]);
-        const float lq = luminance(a.ch(0)[q], a.ch(1)[q], a.ch(2)[q]);
-        const float wl = std::abs(lp - lq) / (sigma_l * std::sqrt(gvar[p]) + 1e-4f);
-        const float wz = dz.weight(gg, p, q, sigma_z);
-        const bool no_normal = gg.ch(6)[p] == 0 && gg.ch(7)[p] == 0 && gg.ch(8)[p] == 0;
-        const float wn = no_normal ? 1.0f : pow2k(std::max(0.0f, normal_dot(gg, p, q)), 7);  // ^sigma_n = ^128
-        return wn * std::exp(-wl - wz);
-      });
+      atrous_pass(acc, t, g, 1 << it, var.data(), var_next.data(),
+                  [&](size_t p, size_t q, const Planes& a, const Planes& gg) {
+                    const float lp = luminance(a.ch(0)[p], a.ch(1)[p], a.ch(2)[p]);
+                    const float lq = luminance(a.ch(0)[q], a.ch(1)[q], a.ch(2)[q]);
+                    const float wl = std::abs(lp - lq) / (sigma_l * std::sqrt(gvar[p]) + 1e-4f);
+                    const float wz = dz.weight(gg, p, q, sigma_z);
+                    const bool no_normal = gg.ch(6)[p] == 0 && gg.ch(7)[p] == 0 && gg.ch(8)[p] == 0;
+                    const float wn = no_normal ? 1.0f
+                                               : pow2k(std::max(0.0f, normal_dot(gg, p, q)),
+                                                       7);  // ^sigma_n = ^128
+                    return wn * std::exp(-wl - wz);
+                  });
       std::swap(acc, t);
       std::swap(var, var_next);
       if (it == 0) first = acc;
@@ -407,7 +443,8 @@ struct Denoiser::Impl {
 Denoiser::Denoiser(const DenoiserOptions& options) : impl_(std::make_unique<Impl>()) {
   impl_->options = options;
   if (options.method == DenoiseMethod::neural)
-    impl_->weights = denoise::NeuralWeights::load(options.weights.empty() ? default_denoiser_weights() : options.weights);
+    impl_->weights = denoise::NeuralWeights::load(
+        options.weights.empty() ? default_denoiser_weights() : options.weights);
 }
 Denoiser::~Denoiser() = default;
 Denoiser::Denoiser(Denoiser&&) noexcept = default;
@@ -418,8 +455,12 @@ void Denoiser::reset() {
   impl_->svgf = Svgf();
 }
 
-DenoiseMethod Denoiser::method() const { return impl_->options.method; }
-size_t Denoiser::parameter_count() const { return impl_->weights ? impl_->weights->parameters : 0; }
+DenoiseMethod Denoiser::method() const {
+  return impl_->options.method;
+}
+size_t Denoiser::parameter_count() const {
+  return impl_->weights ? impl_->weights->parameters : 0;
+}
 
 FloatImage Denoiser::denoise(const DenoiseInput& input) {
   FloatImage out;
@@ -428,7 +469,8 @@ FloatImage Denoiser::denoise(const DenoiseInput& input) {
 }
 
 void Denoiser::denoise(const DenoiseInput& input, FloatImage& out) {
-  const int width = input.color ? input.color->width : 0, height = input.color ? input.color->height : 0;
+  const int width = input.color ? input.color->width : 0,
+            height = input.color ? input.color->height : 0;
   switch (impl_->options.method) {
     case DenoiseMethod::neural: {
       Planes& g = impl_->inputs;
@@ -436,13 +478,18 @@ void Denoiser::denoise(const DenoiseInput& input, FloatImage& out) {
       // The state is kept at the padded size of this sequence's frames; a size change restarts it.
       if (impl_->state.width != g.width || impl_->state.height != g.height) impl_->state = Planes();
       // Re-pad the state as the reference does: the previous output's edges replicated.
-      else if (!impl_->state.data.empty()) replicate_edges(impl_->state, width, height);
+      else if (!impl_->state.data.empty())
+        replicate_edges(impl_->state, width, height);
       denoise::StageTimes times;
-      const Planes& result = denoise::run_network(*impl_->weights, g, impl_->state, impl_->options.recurrent, impl_->workspace,
-                                                  impl_->profile ? &times : nullptr);
+      const Planes& result =
+          denoise::run_network(*impl_->weights, g, impl_->state, impl_->options.recurrent,
+                               impl_->workspace, impl_->profile ? &times : nullptr);
       if (impl_->profile)
-        fmt::print(stderr, "denoise stages (ms): prepare {:.1f}  features {:.1f}  cnn {:.1f}  temporal {:.1f}  filter {:.1f}  output {:.1f}\n",
-                   times.prepare, times.features, times.cnn, times.temporal, times.filter, times.output);
+        fmt::print(stderr,
+                   "denoise stages (ms): prepare {:.1f}  features {:.1f}  cnn {:.1f}  temporal "
+                   "{:.1f}  filter {:.1f}  output {:.1f}\n",
+                   times.prepare, times.features, times.cnn, times.temporal, times.filter,
+                   times.output);
       to_image(result, width, height, out);
       return;
     }

@@ -26,8 +26,8 @@ struct AtrousArgs {
 };
 
 struct KernelTable {
-  const Planes& (*network)(const NeuralWeights& w, const Planes& in, Planes& state, bool recurrent, Workspace& ws,
-                           StageTimes* times);
+  const Planes& (*network)(const NeuralWeights& w, const Planes& in, Planes& state, bool recurrent,
+                           Workspace& ws, StageTimes* times);
   const char* isa;
 };
 

@@ -21,8 +21,6 @@ static inline float exp_neg(float x) {
   return tiny ? 0.0f : p * __builtin_bit_cast(float, (n + 127) << 23);
 }
 
-
-
 struct UpTap {
   int i0, i1;
   float f;
@@ -51,9 +49,12 @@ struct ParamRows {
   float fy;
 };
 
-static inline float param_at(const ParamRows& r, int k, int i) { return r.top[k][i] * (1 - r.fy) + r.bot[k][i] * r.fy; }
+static inline float param_at(const ParamRows& r, int k, int i) {
+  return r.top[k][i] * (1 - r.fy) + r.bot[k][i] * r.fy;
+}
 
-static inline void atrous_pixel(const AtrousArgs& a, size_t p, int i, const ParamRows& pr, const TapSet& taps) {
+static inline void atrous_pixel(const AtrousArgs& a, size_t p, int i, const ParamRows& pr,
+                                const TapSet& taps) {
   const float x0 = a.x[0][p], x1 = a.x[1][p], x2 = a.x[2][p];
   const float g0 = a.g[0][p], g1 = a.g[1][p], g2 = a.g[2][p];
   const float n0 = a.n[0][p], n1 = a.n[1][p], n2 = a.n[2][p], z = a.z[p];
@@ -85,14 +86,15 @@ static inline void atrous_pixel(const AtrousArgs& a, size_t p, int i, const Para
 // The interior pixels [i0, i1) of a row: every tap inside the image, fixed offsets. The
 // arrays are restrict-qualified parameters (GCC's dependence analysis honours restrict on
 // parameters, not on locals), so the loop vectorises across pixels.
-static void atrous_interior_impl(size_t row, int i0, int i1, float fy, const long* off, const float* h,
-                                 const float* __restrict X0, const float* __restrict X1, const float* __restrict X2,
-                                 const float* __restrict G0, const float* __restrict G1, const float* __restrict G2,
-                                 const float* __restrict N0, const float* __restrict N1, const float* __restrict N2,
-                                 const float* __restrict Z, const float* __restrict SCt, const float* __restrict SCb,
-                                 const float* __restrict SNt, const float* __restrict SNb, const float* __restrict SZt,
-                                 const float* __restrict SZb, const float* __restrict Bt, const float* __restrict Bb,
-                                 float* __restrict O0, float* __restrict O1, float* __restrict O2) {
+static void atrous_interior_impl(
+    size_t row, int i0, int i1, float fy, const long* off, const float* h,
+    const float* __restrict X0, const float* __restrict X1, const float* __restrict X2,
+    const float* __restrict G0, const float* __restrict G1, const float* __restrict G2,
+    const float* __restrict N0, const float* __restrict N1, const float* __restrict N2,
+    const float* __restrict Z, const float* __restrict SCt, const float* __restrict SCb,
+    const float* __restrict SNt, const float* __restrict SNb, const float* __restrict SZt,
+    const float* __restrict SZb, const float* __restrict Bt, const float* __restrict Bb,
+    float* __restrict O0, float* __restrict O1, float* __restrict O2) {
   long o[8];
   float hh[8];
   for (int t = 0; t < 8; ++t) o[t] = off[t], hh[t] = h[t];
@@ -128,9 +130,11 @@ static void atrous_interior_impl(size_t row, int i0, int i1, float fy, const lon
   }
 }
 
-static void atrous_interior(const AtrousArgs& a, size_t row, int i0, int i1, const ParamRows& r, const TapSet& taps) {
-  atrous_interior_impl(row, i0, i1, r.fy, taps.off, taps.h, a.x[0], a.x[1], a.x[2], a.g[0], a.g[1], a.g[2], a.n[0], a.n[1], a.n[2], a.z, r.top[0],
-                       r.bot[0], r.top[1], r.bot[1], r.top[2], r.bot[2], r.top[3], r.bot[3], a.out[0], a.out[1], a.out[2]);
+static void atrous_interior(const AtrousArgs& a, size_t row, int i0, int i1, const ParamRows& r,
+                            const TapSet& taps) {
+  atrous_interior_impl(row, i0, i1, r.fy, taps.off, taps.h, a.x[0], a.x[1], a.x[2], a.g[0], a.g[1],
+                       a.g[2], a.n[0], a.n[1], a.n[2], a.z, r.top[0], r.bot[0], r.top[1], r.bot[1],
+                       r.top[2], r.bot[2], r.top[3], r.bot[3], a.out[0], a.out[1], a.out[2]);
 }
 
 static void atrous_rows(const AtrousArgs& a, int row0, int row1) {
@@ -157,7 +161,8 @@ static void atrous_rows(const AtrousArgs& a, int row0, int row1) {
     ParamRows pr;
     pr.fy = ty.f;
     for (int k = 0; k < 4; ++k)
-      pr.top[k] = a.param[k] + size_t(ty.i0) * size_t(w), pr.bot[k] = a.param[k] + size_t(ty.i1) * size_t(w);
+      pr.top[k] = a.param[k] + size_t(ty.i0) * size_t(w),
+      pr.bot[k] = a.param[k] + size_t(ty.i1) * size_t(w);
     const int i0 = d < w ? d : w, i1 = w - d > i0 ? w - d : i0;
     auto border = [&](int i) {  // columns clamped per pixel
       TapSet c = inner;
@@ -190,7 +195,8 @@ static inline float log1p_pos(float v) {
   m = big ? m * 0.5f : m;
   e = big ? e + 1 : e;
   const float s = (m - 1.0f) / (m + 1.0f), s2 = s * s;
-  const float series = s * (2.0f + s2 * (0.6666667f + s2 * (0.4f + s2 * (0.2857143f + s2 * 0.2222222f))));
+  const float series =
+      s * (2.0f + s2 * (0.6666667f + s2 * (0.4f + s2 * (0.2857143f + s2 * 0.2222222f))));
   return float(e) * 0.69314718f + series;
 }
 
@@ -218,8 +224,8 @@ static void parallel_rows(int h, int grain, F&& f) {
 }
 
 // The convolutions run on src/nn's kernel of this file's instruction set.
-static void conv_layer(const ConvLayer& l, const std::vector<float>& in, int w, int h, std::vector<float>& out, bool relu,
-                       std::vector<float>& scratch) {
+static void conv_layer(const ConvLayer& l, const std::vector<float>& in, int w, int h,
+                       std::vector<float>& out, bool relu, std::vector<float>& scratch) {
   nn::conv_kernels(kThisIsa).conv(l, in, w, h, out, relu, scratch);
 }
 
@@ -227,8 +233,8 @@ static void ensure(Planes& p, int w, int h, int c) {
   if (p.width != w || p.height != h || p.channels != c) p = Planes(w, h, c);
 }
 
-static const Planes& network(const NeuralWeights& nw, const Planes& in, Planes& state, bool recurrent, Workspace& ws,
-                             StageTimes* times) {
+static const Planes& network(const NeuralWeights& nw, const Planes& in, Planes& state,
+                             bool recurrent, Workspace& ws, StageTimes* times) {
   using clock = std::chrono::steady_clock;
   auto t = clock::now();
   auto lap = [&](double* slot) {
@@ -272,11 +278,14 @@ static const Planes& network(const NeuralWeights& nw, const Planes& in, Planes& 
           xo[i] = log1p_pos(xl[i]);
         }
       }
-      for (int i = 0; i < W; ++i) ws.zc[row + size_t(i)] = z[row + size_t(i)] > kMinDepth ? z[row + size_t(i)] : kMinDepth;
+      for (int i = 0; i < W; ++i)
+        ws.zc[row + size_t(i)] = z[row + size_t(i)] > kMinDepth ? z[row + size_t(i)] : kMinDepth;
       if (!have_state) {
-        for (int c = 0; c < 3; ++c) std::memcpy(ws.yw.ch(c) + row, ws.xlin.ch(c) + row, sizeof(float) * size_t(W));
+        for (int c = 0; c < 3; ++c)
+          std::memcpy(ws.yw.ch(c) + row, ws.xlin.ch(c) + row, sizeof(float) * size_t(W));
         std::memcpy(ws.zw.data() + row, z + row, sizeof(float) * size_t(W));
-        std::fill(ws.valid.begin() + std::ptrdiff_t(row), ws.valid.begin() + std::ptrdiff_t(row + size_t(W)), 0.0f);
+        std::fill(ws.valid.begin() + std::ptrdiff_t(row),
+                  ws.valid.begin() + std::ptrdiff_t(row + size_t(W)), 0.0f);
         continue;
       }
       // Bilinear taps of p + motion (clamped), then the four planes gathered.
@@ -290,7 +299,9 @@ static const Planes& network(const NeuralWeights& nw, const Planes& in, Planes& 
       float* valid = ws.valid.data() + row;
       for (int i = 0; i < W; ++i) {
         const float px = float(i) + mx[i], py = float(y) + my[i];
-        valid[i] = (px >= -0.5f && px <= float(W) - 0.5f && py >= -0.5f && py <= float(H) - 0.5f) ? 1.0f : 0.0f;
+        valid[i] = (px >= -0.5f && px <= float(W) - 0.5f && py >= -0.5f && py <= float(H) - 0.5f)
+                       ? 1.0f
+                       : 0.0f;
         const float cx = px < 0.0f ? 0.0f : (px > float(W - 1) ? float(W - 1) : px);
         const float cy = py < 0.0f ? 0.0f : (py > float(H - 1) ? float(H - 1) : py);
         const int x0 = int(cx), y0 = int(cy);
@@ -352,12 +363,15 @@ static const Planes& network(const NeuralWeights& nw, const Planes& in, Planes& 
         for (int k = 0; k < kFeatures; ++k) {
           const float* src = k < 10 ? planes[k] + row : tmp.data() + size_t(k - 10) * size_t(W);
           float* acc = sum.data() + size_t(k) * size_t(Wq);
-          for (int qx = 0; qx < Wq; ++qx) acc[qx] += src[4 * qx] + src[4 * qx + 1] + src[4 * qx + 2] + src[4 * qx + 3];
+          for (int qx = 0; qx < Wq; ++qx)
+            acc[qx] += src[4 * qx] + src[4 * qx + 1] + src[4 * qx + 2] + src[4 * qx + 3];
         }
       }
       float* out = &ws.feat[size_t(qy) * size_t(Wq) * kFeatures];
       for (int qx = 0; qx < Wq; ++qx)
-        for (int k = 0; k < kFeatures; ++k) out[size_t(qx) * kFeatures + size_t(k)] = sum[size_t(k) * size_t(Wq) + size_t(qx)] * (1.0f / 16.0f);
+        for (int k = 0; k < kFeatures; ++k)
+          out[size_t(qx) * kFeatures + size_t(k)] =
+              sum[size_t(k) * size_t(Wq) + size_t(qx)] * (1.0f / 16.0f);
     }
   });
   lap(&st.features);
@@ -366,13 +380,13 @@ static const Planes& network(const NeuralWeights& nw, const Planes& in, Planes& 
   const int We = Wq / 2, He = Hq / 2;
   ws.pooled.resize(size_t(We) * size_t(He) * 16);
   parallel_rows(He, 4, [&](int r0, int r1) {
-  for (int y = r0; y < r1; ++y)
-    for (int i = 0; i < We; ++i) {
-      const float* a = &ws.e1[(size_t(2 * y) * size_t(Wq) + size_t(2 * i)) * 16];
-      const float* b = a + size_t(Wq) * 16;
-      float* o = &ws.pooled[(size_t(y) * size_t(We) + size_t(i)) * 16];
-      for (int c = 0; c < 16; ++c) o[c] = (a[c] + a[16 + c] + b[c] + b[16 + c]) * 0.25f;
-    }
+    for (int y = r0; y < r1; ++y)
+      for (int i = 0; i < We; ++i) {
+        const float* a = &ws.e1[(size_t(2 * y) * size_t(Wq) + size_t(2 * i)) * 16];
+        const float* b = a + size_t(Wq) * 16;
+        float* o = &ws.pooled[(size_t(y) * size_t(We) + size_t(i)) * 16];
+        for (int c = 0; c < 16; ++c) o[c] = (a[c] + a[16 + c] + b[c] + b[16 + c]) * 0.25f;
+      }
   });
   conv_layer(nw.enc2, ws.pooled, We, He, ws.e2, true, ws.padded);
   conv_layer(nw.enc3, ws.e2, We, He, ws.e3, true, ws.padded);
@@ -381,7 +395,8 @@ static const Planes& network(const NeuralWeights& nw, const Planes& in, Planes& 
     for (int y = r0; y < r1; ++y)
       for (int i = 0; i < Wq; ++i) {
         float* c = &ws.cat[(size_t(y) * size_t(Wq) + size_t(i)) * 48];
-        std::memcpy(c, &ws.e3[(size_t(y / 2) * size_t(We) + size_t(i / 2)) * 32], 32 * sizeof(float));
+        std::memcpy(c, &ws.e3[(size_t(y / 2) * size_t(We) + size_t(i / 2)) * 32],
+                    32 * sizeof(float));
         std::memcpy(c + 32, &ws.e1[(size_t(y) * size_t(Wq) + size_t(i)) * 16], 16 * sizeof(float));
       }
   });
@@ -397,7 +412,8 @@ static const Planes& network(const NeuralWeights& nw, const Planes& in, Planes& 
       const float* v = ws.o.data() + size_t(k);
       float* out = ws.act.data() + size_t(k) * Nq;
       if (k == 0 || k % 4 == 0) {  // alpha and the betas: sigmoid
-        for (size_t p = range_begin; p < range_end; ++p) out[p] = 1.0f / (1.0f + exp_any(-v[p * ostride]));
+        for (size_t p = range_begin; p < range_end; ++p)
+          out[p] = 1.0f / (1.0f + exp_any(-v[p * ostride]));
       } else {  // the edge-stopping strengths: softplus
         for (size_t p = range_begin; p < range_end; ++p) {
           const float x = v[p * ostride];
@@ -423,7 +439,8 @@ static const Planes& network(const NeuralWeights& nw, const Planes& in, Planes& 
       const int k = r / Hq, y = r % Hq;
       const float* a = &ws.act[size_t(k) * Nq + size_t(y) * size_t(Wq)];
       float* o = ws.hrows.data() + size_t(k) * hplane + size_t(y) * size_t(W);
-      for (int i = 0; i < W; ++i) o[i] = a[c0[size_t(i)]] * (1 - cf[size_t(i)]) + a[c1[size_t(i)]] * cf[size_t(i)];
+      for (int i = 0; i < W; ++i)
+        o[i] = a[c0[size_t(i)]] * (1 - cf[size_t(i)]) + a[c1[size_t(i)]] * cf[size_t(i)];
     }
   });
   ensure(ws.xi, W, H, 3);
@@ -459,7 +476,8 @@ static const Planes& network(const NeuralWeights& nw, const Planes& in, Planes& 
       }
     });
     AtrousArgs a;
-    for (int c = 0; c < 3; ++c) a.x[c] = ws.xi.ch(c), a.g[c] = ws.lg.ch(c), a.n[c] = in.ch(6 + c), a.out[c] = ws.xo.ch(c);
+    for (int c = 0; c < 3; ++c)
+      a.x[c] = ws.xi.ch(c), a.g[c] = ws.lg.ch(c), a.n[c] = in.ch(6 + c), a.out[c] = ws.xo.ch(c);
     a.z = z;
     for (int k = 0; k < 4; ++k) a.param[k] = ws.hrows.data() + size_t(1 + 4 * l + k) * hplane;
     a.param_rows = Hq;
@@ -483,7 +501,8 @@ static const Planes& network(const NeuralWeights& nw, const Planes& in, Planes& 
       }
       std::memcpy(ws.next_state.ch(c) + b, xi + b, sizeof(float) * (e - b));
     }
-    std::memcpy(ws.next_state.ch(3) + size_t(r0) * size_t(W), z + size_t(r0) * size_t(W), sizeof(float) * size_t(r1 - r0) * size_t(W));
+    std::memcpy(ws.next_state.ch(3) + size_t(r0) * size_t(W), z + size_t(r0) * size_t(W),
+                sizeof(float) * size_t(r1 - r0) * size_t(W));
   });
   std::swap(state, ws.next_state);
   lap(&st.output);

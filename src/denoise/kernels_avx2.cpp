@@ -1,6 +1,6 @@
 // The denoiser's kernels built for avx2 (flags in CMakeLists.txt).
-#include "core/parallel.h"
 #include <xmmintrin.h>
+#include "core/parallel.h"
 
 #include <algorithm>
 #include <chrono>

@@ -7,8 +7,8 @@
 #include <cmath>
 #include <cstring>
 
-#include "denoise/kernels.h"
 #include "core/file_io.h"
+#include "denoise/kernels.h"
 #include "kestrel/error.h"
 
 namespace kestrel::denoise {
@@ -20,18 +20,22 @@ constexpr uint32_t kArchitecture = 2;  // 2: linear-space filter (model.py)
 
 NeuralWeights NeuralWeights::load(const std::string& path) {
   std::vector<ConvLayer> l = load_layers(path, kMagic, kArchitecture,
-                                         {{"enc1", 16, kFeatures, 3}, {"enc2", 32, 16, 3}, {"enc3", 32, 32, 3},
-                                          {"dec1", 16, 48, 3}, {"head", kOutputs, 16, 1}},
+                                         {{"enc1", 16, kFeatures, 3},
+                                          {"enc2", 32, 16, 3},
+                                          {"enc3", 32, 32, 3},
+                                          {"dec1", 16, 48, 3},
+                                          {"head", kOutputs, 16, 1}},
                                          "denoiser");
   NeuralWeights w;
-  w.enc1 = std::move(l[0]), w.enc2 = std::move(l[1]), w.enc3 = std::move(l[2]), w.dec1 = std::move(l[3]), w.head = std::move(l[4]);
+  w.enc1 = std::move(l[0]), w.enc2 = std::move(l[1]), w.enc3 = std::move(l[2]),
+  w.dec1 = std::move(l[3]), w.head = std::move(l[4]);
   for (const ConvLayer* c : {&w.enc1, &w.enc2, &w.enc3, &w.dec1, &w.head})
     w.parameters += size_t(c->outputs) * (size_t(c->cin) * size_t(c->ksize * c->ksize) + 1);
   return w;
 }
 
-const Planes& run_network(const NeuralWeights& w, const Planes& in, Planes& state, bool recurrent, Workspace& ws,
-                          StageTimes* times) {
+const Planes& run_network(const NeuralWeights& w, const Planes& in, Planes& state, bool recurrent,
+                          Workspace& ws, StageTimes* times) {
   return host_kernels().network(w, in, state, recurrent, ws, times);
 }
 

@@ -1,10 +1,10 @@
 // The neural denoiser's weights and per-frame network (see scripts/denoise/model.py, the
 // reference definition, and docs/denoiser.md).
 #pragma once
-#include <string>
-#include <vector>
 #include <cstddef>
 #include <cstdint>
+#include <string>
+#include <vector>
 
 #include "nn/weights.h"
 
@@ -16,7 +16,8 @@ struct Planes {
   std::vector<float> data;  ///< channel-major: channel c at data[c * width * height]
   int channels = 0;
   Planes() = default;
-  Planes(int w, int h, int c) : width(w), height(h), data(size_t(w) * size_t(h) * size_t(c), 0.0f), channels(c) {}
+  Planes(int w, int h, int c)
+      : width(w), height(h), data(size_t(w) * size_t(h) * size_t(c), 0.0f), channels(c) {}
   float* ch(int c) { return data.data() + size_t(c) * size_t(width) * size_t(height); }
   const float* ch(int c) const { return data.data() + size_t(c) * size_t(width) * size_t(height); }
 };
@@ -52,7 +53,7 @@ struct StageTimes {
 /// Inputs of one frame as planes (padded): color 0-2, albedo 3-5, normal 6-8, depth 9,
 /// roughness 10, motion 11-12. state: y 0-2, z 3 (empty on the first frame).
 /// Returns the output colour planes (3, in ws.out) and replaces state.
-const Planes& run_network(const NeuralWeights& w, const Planes& in, Planes& state, bool recurrent, Workspace& ws,
-                          StageTimes* times = nullptr);
+const Planes& run_network(const NeuralWeights& w, const Planes& in, Planes& state, bool recurrent,
+                          Workspace& ws, StageTimes* times = nullptr);
 
 }  // namespace kestrel::denoise

@@ -3,7 +3,8 @@
 // Protocol (MPI_COMM_WORLD, point to point):
 //   worker -> 0  tag_request  int32 want                first ask, with how many tiles it takes
 //   0 -> worker  tag_work     uint32 tiles[k]           k = 0: the frame is done
-//   worker -> 0  tag_result   float pixels[...]          the tiles it was given, in order; asks again
+//   worker -> 0  tag_result   float pixels[...]          the tiles it was given, in order; asks
+//   again
 // The result of tile list L is, tile by tile, AOV by AOV, the tile's pixels row by row with
 // their channels: both sides compute the layout from the list and the frame size, so nothing
 // else crosses. At the end MPI_Gather brings every rank's RankStats to rank 0.
@@ -57,13 +58,16 @@ void tile_pixels(uint32_t t, int width, int height, F&& f) {
     for (int x = x0; x < std::min(x0 + s, width); ++x) f(size_t(y) * size_t(width) + size_t(x));
 }
 
-[[maybe_unused]] void pack(const Frame& f, const std::vector<uint32_t>& tiles, std::vector<float>& out) {
+[[maybe_unused]] void pack(const Frame& f, const std::vector<uint32_t>& tiles,
+                           std::vector<float>& out) {
   out.clear();
   for (uint32_t t : tiles)
     for (int a = 0; a < aov_count; ++a) {
       const FloatImage& img = f.aov[a];
       const size_t c = size_t(img.channels);
-      tile_pixels(t, f.width, f.height, [&](size_t p) { out.insert(out.end(), &img.pixels[p * c], &img.pixels[p * c] + c); });
+      tile_pixels(t, f.width, f.height, [&](size_t p) {
+        out.insert(out.end(), &img.pixels[p * c], &img.pixels[p * c] + c);
+      });
     }
 }
 
@@ -74,7 +78,8 @@ void tile_pixels(uint32_t t, int width, int height, F&& f) {
   return pixels * channels;
 }
 
-[[maybe_unused]] void unpack(Frame& f, const std::vector<uint32_t>& tiles, const std::vector<float>& in) {
+[[maybe_unused]] void unpack(Frame& f, const std::vector<uint32_t>& tiles,
+                             const std::vector<float>& in) {
   size_t at = 0;
   for (uint32_t t : tiles)
     for (int a = 0; a < aov_count; ++a) {
@@ -105,8 +110,12 @@ bool built_with_mpi() {
 #endif
 }
 
-int rank() { return world_rank; }
-int size() { return world_size; }
+int rank() {
+  return world_rank;
+}
+int size() {
+  return world_size;
+}
 
 void init(int* argc, char*** argv) {
 #ifdef KESTREL_HAVE_MPI
@@ -139,19 +148,21 @@ void abort_all(const std::string& message) {
   std::exit(1);
 }
 
-Frame render(Renderer& renderer, const Camera& camera, const RenderSettings& s, std::optional<Camera> prev_camera,
-             std::vector<RankStats>* per_rank) {
+Frame render(Renderer& renderer, const Camera& camera, const RenderSettings& s,
+             std::optional<Camera> prev_camera, std::vector<RankStats>* per_rank) {
   if (world_size == 1) {
     Timer t;
     Frame f = renderer.render(camera, s, prev_camera);
-    if (per_rank) *per_rank = {RankStats{t.ms(), t.ms(), render_tile_count(s.width, s.height), f.stats.rays()}};
+    if (per_rank)
+      *per_rank = {RankStats{t.ms(), t.ms(), render_tile_count(s.width, s.height), f.stats.rays()}};
     return f;
   }
 #ifndef KESTREL_HAVE_MPI
   throw Error(ErrorCode::unsupported, "distributed render without MPI");
 #else
   if (s.time_limit_s > 0)
-    throw Error(ErrorCode::invalid_argument, "render: --time-limit needs one process (every tile needs every pass)");
+    throw Error(ErrorCode::invalid_argument,
+                "render: --time-limit needs one process (every tile needs every pass)");
   RenderSettings local = s;
   local.progress = false;
   Timer wall;
@@ -178,7 +189,7 @@ Frame render(Renderer& renderer, const Camera& camera, const RenderSettings& s, 
     std::exception_ptr service_error;
     std::thread service([&] {
       try {
-        std::vector<std::vector<uint32_t>> assigned(static_cast<size_t>(world_size));
+        std::vector<std::vector<uint32_t> > assigned(static_cast<size_t>(world_size));
         std::vector<int> want(static_cast<size_t>(world_size), 1);
         std::vector<float> buffer;
         int open = world_size - 1;
@@ -192,22 +203,26 @@ Frame render(Renderer& renderer, const Camera& camera, const RenderSettings& s, 
           }
           const int src = st.MPI_SOURCE;
           if (st.MPI_TAG == tag_request) {
-            MPI_Recv(&want[size_t(src)], 1, MPI_INT, src, tag_request, MPI_COMM_WORLD, MPI_STATUS_IGNORE);
+            MPI_Recv(&want[size_t(src)], 1, MPI_INT, src, tag_request, MPI_COMM_WORLD,
+                     MPI_STATUS_IGNORE);
           } else if (st.MPI_TAG == tag_result) {
             int count = 0;
             MPI_Get_count(&st, MPI_FLOAT, &count);
             const size_t expected = packed_size(assigned[size_t(src)], s.width, s.height);
             if (size_t(count) != expected)
-              throw Error(ErrorCode::io_error, fmt::format("rank {} sent {} values for {} expected", src, count, expected));
+              throw Error(ErrorCode::io_error, fmt::format("rank {} sent {} values for {} expected",
+                                                           src, count, expected));
             buffer.resize(size_t(count));
-            MPI_Recv(buffer.data(), count, MPI_FLOAT, src, tag_result, MPI_COMM_WORLD, MPI_STATUS_IGNORE);
+            MPI_Recv(buffer.data(), count, MPI_FLOAT, src, tag_result, MPI_COMM_WORLD,
+                     MPI_STATUS_IGNORE);
             unpack(frame, assigned[size_t(src)], buffer);
           } else {
-            throw Error(ErrorCode::io_error, fmt::format("unexpected message (tag {}) from rank {}", st.MPI_TAG, src));
+            throw Error(ErrorCode::io_error,
+                        fmt::format("unexpected message (tag {}) from rank {}", st.MPI_TAG, src));
           }
           assigned[size_t(src)] = take(want[size_t(src)]);
-          MPI_Send(assigned[size_t(src)].data(), int(assigned[size_t(src)].size()), MPI_UINT32_T, src, tag_work,
-                   MPI_COMM_WORLD);
+          MPI_Send(assigned[size_t(src)].data(), int(assigned[size_t(src)].size()), MPI_UINT32_T,
+                   src, tag_work, MPI_COMM_WORLD);
           if (assigned[size_t(src)].empty()) --open;
         }
       } catch (...) {
@@ -215,7 +230,8 @@ Frame render(Renderer& renderer, const Camera& camera, const RenderSettings& s, 
       }
     });
     try {
-      for (std::vector<uint32_t> tiles = take(chunk_tiles(s)); !tiles.empty(); tiles = take(chunk_tiles(s)))
+      for (std::vector<uint32_t> tiles = take(chunk_tiles(s)); !tiles.empty();
+           tiles = take(chunk_tiles(s)))
         render_chunk(tiles);
     } catch (...) {
       service.join();
@@ -243,8 +259,13 @@ Frame render(Renderer& renderer, const Camera& camera, const RenderSettings& s, 
   mine.wall_ms = wall.ms();
   mine.rays = frame.stats.rays();
   // Every rank's figures to rank 0: the frame's stats are the sums.
-  double local_figures[8] = {mine.busy_ms, mine.wall_ms, double(mine.tiles), double(frame.stats.camera_rays),
-                             double(frame.stats.bounce_rays), double(frame.stats.shadow_rays), frame.stats.trace_ms,
+  double local_figures[8] = {mine.busy_ms,
+                             mine.wall_ms,
+                             double(mine.tiles),
+                             double(frame.stats.camera_rays),
+                             double(frame.stats.bounce_rays),
+                             double(frame.stats.shadow_rays),
+                             frame.stats.trace_ms,
                              frame.stats.total_thread_ms};
   std::vector<double> all(world_rank == 0 ? 8 * size_t(world_size) : 0);
   MPI_Gather(local_figures, 8, MPI_DOUBLE, all.data(), 8, MPI_DOUBLE, 0, MPI_COMM_WORLD);
@@ -259,7 +280,8 @@ Frame render(Renderer& renderer, const Camera& camera, const RenderSettings& s, 
     frame.stats.shadow_rays += uint64_t(v[5]);
     frame.stats.trace_ms += v[6];
     frame.stats.total_thread_ms += v[7];
-    if (per_rank) per_rank->push_back(RankStats{v[0], v[1], uint64_t(v[2]), uint64_t(v[3] + v[4] + v[5])});
+    if (per_rank)
+      per_rank->push_back(RankStats{v[0], v[1], uint64_t(v[2]), uint64_t(v[3] + v[4] + v[5])});
   }
   frame.stats.ms = wall.ms();
   frame.stats.passes = s.spp;

@@ -30,8 +30,8 @@ bool built_with_mpi();
 
 /// What one rank did for a frame.
 struct RankStats {
-  double busy_ms = 0;    ///< time in render_tiles
-  double wall_ms = 0;    ///< the frame, start to end, on that rank
+  double busy_ms = 0;  ///< time in render_tiles
+  double wall_ms = 0;  ///< the frame, start to end, on that rank
   uint64_t tiles = 0, rays = 0;
 };
 
@@ -40,6 +40,7 @@ struct RankStats {
 /// (width 0). `per_rank` (rank 0): one entry per rank. With one rank: Renderer::render.
 /// A time limit needs one rank (every tile needs every pass): an Error otherwise.
 Frame render(Renderer& renderer, const Camera& camera, const RenderSettings& settings,
-             std::optional<Camera> prev_camera = std::nullopt, std::vector<RankStats>* per_rank = nullptr);
+             std::optional<Camera> prev_camera = std::nullopt,
+             std::vector<RankStats>* per_rank = nullptr);
 
 }  // namespace kestrel::distributed

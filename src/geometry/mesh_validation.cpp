@@ -29,10 +29,18 @@ void tally(std::span<const uint8_t> kind, SceneValidation& out) {
   for (size_t i = 0; i < kind.size(); ++i) {
     out.valid[i] = kind[i] == tri_valid;
     switch (kind[i]) {
-      case tri_valid: ++r.valid_triangle_count; break;
-      case tri_nonfinite: ++r.nonfinite_triangle_count; break;
-      case tri_bad_index: ++r.bad_index_triangle_count; break;
-      default: ++r.degenerate_triangle_count; break;
+      case tri_valid:
+        ++r.valid_triangle_count;
+        break;
+      case tri_nonfinite:
+        ++r.nonfinite_triangle_count;
+        break;
+      case tri_bad_index:
+        ++r.bad_index_triangle_count;
+        break;
+      default:
+        ++r.degenerate_triangle_count;
+        break;
     }
   }
 }

@@ -113,7 +113,8 @@ Buffer<Triangle> gather_triangles(const Scene& scene, std::span<const uint32_t> 
     offset += mesh.triangle_count();
   }
   auto locate = [&](uint32_t gid) -> std::pair<const TriangleMesh*, size_t> {
-    const size_t m = size_t(std::upper_bound(first.begin(), first.end(), size_t(gid)) - first.begin()) - 1;
+    const size_t m =
+        size_t(std::upper_bound(first.begin(), first.end(), size_t(gid)) - first.begin()) - 1;
     return {&scene.meshes[m], gid - first[m]};
   };
   Buffer<Triangle> tris(prim_ids.size());

@@ -2,12 +2,12 @@
 // and Radiance HDR / 8-bit images (stb_image) for environments.
 #include <fmt/format.h>
 
+#include <Iex.h>
 #include <ImfChannelList.h>
 #include <ImfFrameBuffer.h>
 #include <ImfHeader.h>
 #include <ImfInputFile.h>
 #include <ImfOutputFile.h>
-#include <Iex.h>
 
 #include <algorithm>
 #include <bit>
@@ -30,8 +30,9 @@ namespace {
 void check_image(const std::string& path, const FloatImage& image) {
   if (image.width <= 0 || image.height <= 0 || image.channels <= 0 ||
       image.pixels.size() != size_t(image.width) * size_t(image.height) * size_t(image.channels))
-    throw Error(ErrorCode::invalid_argument, fmt::format("{}: {} floats is not a {}x{}x{} image", path, image.pixels.size(),
-                                                         image.width, image.height, image.channels));
+    throw Error(ErrorCode::invalid_argument,
+                fmt::format("{}: {} floats is not a {}x{}x{} image", path, image.pixels.size(),
+                            image.width, image.height, image.channels));
 }
 
 }  // namespace
@@ -41,7 +42,8 @@ void check_decoded_size(const std::string& path, uint64_t decoded_bytes, uint64_
   const uint64_t limit = std::max<uint64_t>(uint64_t(64) << 20, file_bytes * 1100);
   if (decoded_bytes > limit)
     throw Error(ErrorCode::parse_error,
-                fmt::format("{}: the image would decode to {} MiB from a {}-byte file (limit {} MiB): corrupt or hostile",
+                fmt::format("{}: the image would decode to {} MiB from a {}-byte file (limit {} "
+                            "MiB): corrupt or hostile",
                             path, decoded_bytes >> 20, file_bytes, limit >> 20));
 }
 
@@ -58,14 +60,17 @@ std::string lower_extension(const std::string& path) {
 void write_pfm(const std::string& path, const FloatImage& image) {
   check_image(path, image);
   if (image.channels > 3)
-    throw Error(ErrorCode::invalid_argument, fmt::format("{}: PFM holds 1 or 3 channels, not {}", path, image.channels));
+    throw Error(ErrorCode::invalid_argument,
+                fmt::format("{}: PFM holds 1 or 3 channels, not {}", path, image.channels));
   const int out_channels = image.channels == 1 ? 1 : 3;
   AtomicFile f(path);
-  f.write(fmt::format("{}\n{} {}\n-1.0\n", out_channels == 1 ? "Pf" : "PF", image.width, image.height));
+  f.write(
+      fmt::format("{}\n{} {}\n-1.0\n", out_channels == 1 ? "Pf" : "PF", image.width, image.height));
   std::vector<float> row(size_t(image.width) * size_t(out_channels), 0.0f);
   for (int y = image.height - 1; y >= 0; --y) {
     for (int x = 0; x < image.width; ++x)
-      for (int c = 0; c < image.channels; ++c) row[size_t(x) * size_t(out_channels) + size_t(c)] = image.at(x, y)[c];
+      for (int c = 0; c < image.channels; ++c)
+        row[size_t(x) * size_t(out_channels) + size_t(c)] = image.at(x, y)[c];
     f.write(row.data(), row.size() * sizeof(float));
   }
   f.commit();
@@ -79,13 +84,17 @@ FloatImage read_pfm(const std::string& path) {
   double scale = 0;
   f >> magic >> w >> h >> scale;
   if (!f || (magic != "PF" && magic != "Pf"))
-    throw Error(ErrorCode::parse_error, fmt::format("{}: not a PFM file (header '{}')", path, magic));
+    throw Error(ErrorCode::parse_error,
+                fmt::format("{}: not a PFM file (header '{}')", path, magic));
   if (w <= 0 || h <= 0 || w > (1 << 16) || h > (1 << 16) || scale == 0 || !std::isfinite(scale))
-    throw Error(ErrorCode::parse_error, fmt::format("{}: bad PFM header ({} x {}, scale {})", path, w, h, scale));
+    throw Error(ErrorCode::parse_error,
+                fmt::format("{}: bad PFM header ({} x {}, scale {})", path, w, h, scale));
   f.get();  // the single whitespace after the scale
-  const uint64_t pixel_bytes = uint64_t(w) * uint64_t(h) * (magic == "PF" ? 3u : 1u) * sizeof(float);
+  const uint64_t pixel_bytes =
+      uint64_t(w) * uint64_t(h) * (magic == "PF" ? 3u : 1u) * sizeof(float);
   if (uint64_t(f.tellg()) + pixel_bytes > file_bytes)  // before allocating what the header claims
-    throw Error(ErrorCode::parse_error, fmt::format("{}: truncated PFM: the header says {} x {} ({} bytes of pixels), the file has {} bytes",
+    throw Error(ErrorCode::parse_error, fmt::format("{}: truncated PFM: the header says {} x {} "
+                                                    "({} bytes of pixels), the file has {} bytes",
                                                     path, w, h, pixel_bytes, file_bytes));
   FloatImage image(int(w), int(h), magic == "PF" ? 3 : 1);
   const size_t row_floats = size_t(w) * size_t(image.channels);
@@ -94,7 +103,9 @@ FloatImage read_pfm(const std::string& path) {
   for (int y = int(h) - 1; y >= 0; --y) {
     f.read(reinterpret_cast<char*>(row.data()), std::streamsize(row_floats * sizeof(float)));
     if (f.gcount() != std::streamsize(row_floats * sizeof(float)))
-      throw Error(ErrorCode::parse_error, fmt::format("{}: truncated PFM ({} x {} x {} floats expected)", path, w, h, image.channels));
+      throw Error(ErrorCode::parse_error,
+                  fmt::format("{}: truncated PFM ({} x {} x {} floats expected)", path, w, h,
+                              image.channels));
     if (swap)
       for (float& v : row) v = std::bit_cast<float>(__builtin_bswap32(std::bit_cast<uint32_t>(v)));
     std::memcpy(image.at(0, y), row.data(), row_floats * sizeof(float));
@@ -103,16 +114,19 @@ FloatImage read_pfm(const std::string& path) {
 }
 
 void write_exr(const std::string& path, std::span<const ImageLayer> layers) {
-  if (layers.empty()) throw Error(ErrorCode::invalid_argument, fmt::format("{}: no layer to write", path));
+  if (layers.empty())
+    throw Error(ErrorCode::invalid_argument, fmt::format("{}: no layer to write", path));
   const int w = layers[0].image.width, h = layers[0].image.height;
   for (const ImageLayer& l : layers) {
     check_image(path, l.image);
     if (l.image.width != w || l.image.height != h)
-      throw Error(ErrorCode::invalid_argument, fmt::format("{}: layer '{}' is {}x{}, the first layer {}x{}", path, l.name,
-                                                           l.image.width, l.image.height, w, h));
+      throw Error(ErrorCode::invalid_argument,
+                  fmt::format("{}: layer '{}' is {}x{}, the first layer {}x{}", path, l.name,
+                              l.image.width, l.image.height, w, h));
     if (l.channel_names.size() != size_t(l.image.channels))
-      throw Error(ErrorCode::invalid_argument, fmt::format("{}: layer '{}' names {} channels for {}", path, l.name,
-                                                           l.channel_names.size(), l.image.channels));
+      throw Error(ErrorCode::invalid_argument,
+                  fmt::format("{}: layer '{}' names {} channels for {}", path, l.name,
+                              l.channel_names.size(), l.image.channels));
   }
   try {
     Imf::Header header(w, h);
@@ -121,10 +135,12 @@ void write_exr(const std::string& path, std::span<const ImageLayer> layers) {
     for (const ImageLayer& l : layers) {
       for (int c = 0; c < l.image.channels; ++c) {
         const bool bare = l.name.empty() || l.name == "color";
-        const std::string name = bare ? l.channel_names[size_t(c)] : l.name + "." + l.channel_names[size_t(c)];
+        const std::string name =
+            bare ? l.channel_names[size_t(c)] : l.name + "." + l.channel_names[size_t(c)];
         header.channels().insert(name, Imf::Channel(Imf::FLOAT));
         const size_t xs = sizeof(float) * size_t(l.image.channels);
-        fb.insert(name, Imf::Slice(Imf::FLOAT, (char*)(l.image.pixels.data() + c), xs, xs * size_t(w)));
+        fb.insert(name,
+                  Imf::Slice(Imf::FLOAT, (char*)(l.image.pixels.data() + c), xs, xs * size_t(w)));
       }
     }
     AtomicFile out(path);
@@ -158,7 +174,8 @@ std::vector<ImageLayer> read_exr(const std::string& path) {
     if (w <= 0 || h <= 0 || w > max_image_side || h > max_image_side)
       throw Error(ErrorCode::parse_error, fmt::format("{}: bad EXR data window {}x{}", path, w, h));
     size_t channel_count = 0;
-    for (auto it = file.header().channels().begin(); it != file.header().channels().end(); ++it) ++channel_count;
+    for (auto it = file.header().channels().begin(); it != file.header().channels().end(); ++it)
+      ++channel_count;
     check_decoded_size(path, uint64_t(w) * uint64_t(h) * channel_count * sizeof(float), file_bytes);
     std::map<std::string, size_t> layer_of;
     std::vector<std::vector<std::string>> full_names;
@@ -189,7 +206,8 @@ std::vector<ImageLayer> read_exr(const std::string& path) {
         return rank(layers[i].channel_names[a]) < rank(layers[i].channel_names[b]);
       });
       std::vector<std::string> names, fulls;
-      for (size_t k : idx) names.push_back(layers[i].channel_names[k]), fulls.push_back(full_names[i][k]);
+      for (size_t k : idx)
+        names.push_back(layers[i].channel_names[k]), fulls.push_back(full_names[i][k]);
       layers[i].channel_names = names;
       full_names[i] = fulls;
     }
@@ -211,7 +229,8 @@ std::vector<ImageLayer> read_exr(const std::string& path) {
   } catch (const std::exception& e) {
     throw Error(ErrorCode::parse_error, fmt::format("{}: cannot read EXR: {}", path, e.what()));
   }
-  if (layers.empty()) throw Error(ErrorCode::parse_error, fmt::format("{}: EXR has no channel", path));
+  if (layers.empty())
+    throw Error(ErrorCode::parse_error, fmt::format("{}: EXR has no channel", path));
   return layers;
 }
 

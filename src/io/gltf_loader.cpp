@@ -41,17 +41,20 @@ Scene load_gltf(const std::string& path) {
   if (size_t(scene_index) < model.scenes.size()) {
     roots = model.scenes[scene_index].nodes;
   } else {
-    for (size_t i = 0; i < model.nodes.size(); ++i) roots.push_back(int(i));  // no scene: every node
+    for (size_t i = 0; i < model.nodes.size(); ++i)
+      roots.push_back(int(i));  // no scene: every node
   }
   // Depth-first over the hierarchy; the depth cap rejects cycles in malformed files.
   auto visit = [&](auto&& self, int node_index, const Mat4& parent, int depth) -> void {
     if (node_index < 0 || size_t(node_index) >= model.nodes.size())
       reader.fail(fmt::format("node {} does not exist", node_index));
-    if (depth > 256) reader.fail(fmt::format("node {}: hierarchy deeper than 256 (cycle?)", node_index));
+    if (depth > 256)
+      reader.fail(fmt::format("node {}: hierarchy deeper than 256 (cycle?)", node_index));
     const tinygltf::Node& node = model.nodes[node_index];
     const Mat4 world = mul(parent, node_matrix(node));
     if (node.mesh >= 0) {
-      if (size_t(node.mesh) >= model.meshes.size()) reader.fail(fmt::format("node {} names missing mesh {}", node_index, node.mesh));
+      if (size_t(node.mesh) >= model.meshes.size())
+        reader.fail(fmt::format("node {} names missing mesh {}", node_index, node.mesh));
       const tinygltf::Mesh& gm = model.meshes[node.mesh];
       TriangleMesh mesh;
       mesh.name = gm.name.empty() ? fmt::format("mesh{}", node.mesh) : gm.name;
@@ -59,7 +62,8 @@ Scene load_gltf(const std::string& path) {
       for (const tinygltf::Primitive& prim : gm.primitives) {
         std::vector<Vec3> positions;
         std::vector<uint32_t> indices;
-        if (!reader.read_triangles(prim, positions, indices)) continue;  // points/lines/strips skipped
+        if (!reader.read_triangles(prim, positions, indices))
+          continue;  // points/lines/strips skipped
         std::vector<Vec3> normals;
         std::vector<Vec2> uvs;
         reader.read_normals_uvs(prim, positions.size(), normals, uvs);
@@ -67,15 +71,18 @@ Scene load_gltf(const std::string& path) {
         all_uvs &= uvs.size() == positions.size();
         const uint32_t base = uint32_t(mesh.positions.size());
         for (Vec3 p : positions) mesh.positions.push_back(transform_point(world, p));
-        if (all_normals) for (Vec3 n : normals) mesh.normals.push_back(transform_normal(world, n));
+        if (all_normals)
+          for (Vec3 n : normals) mesh.normals.push_back(transform_normal(world, n));
         if (all_uvs) mesh.uvs.insert(mesh.uvs.end(), uvs.begin(), uvs.end());
-        const uint32_t material = prim.material >= 0 && size_t(prim.material) < model.materials.size()
-                                      ? uint32_t(prim.material)
-                                      : default_material;
+        const uint32_t material =
+            prim.material >= 0 && size_t(prim.material) < model.materials.size()
+                ? uint32_t(prim.material)
+                : default_material;
         // Out-of-range indices stay out of range after the offset (validation counts them).
         for (size_t i = 0; i + 2 < indices.size(); i += 3) {
           for (int k = 0; k < 3; ++k)
-            mesh.indices.push_back(indices[i + k] < positions.size() ? base + indices[i + k] : 0xFFFFFFFFu);
+            mesh.indices.push_back(indices[i + k] < positions.size() ? base + indices[i + k]
+                                                                     : 0xFFFFFFFFu);
           mesh.material_ids.push_back(material);
         }
       }
@@ -98,25 +105,35 @@ void check_node_tree(const std::string& path, const tinygltf::Model& model) {
   std::vector<int> parent(n, -1);
   for (size_t i = 0; i < n; ++i)
     for (int c : model.nodes[i].children) {
-      if (c < 0 || size_t(c) >= n) throw Error(ErrorCode::parse_error, fmt::format("{}: node {}: child {} does not exist", path, i, c));
+      if (c < 0 || size_t(c) >= n)
+        throw Error(ErrorCode::parse_error,
+                    fmt::format("{}: node {}: child {} does not exist", path, i, c));
       if (parent[size_t(c)] >= 0)
-        throw Error(ErrorCode::parse_error, fmt::format("{}: node {} is a child of both node {} and node {} (the node graph "
-                                                        "must be a tree)", path, c, parent[size_t(c)], i));
+        throw Error(
+            ErrorCode::parse_error,
+            fmt::format("{}: node {} is a child of both node {} and node {} (the node graph "
+                        "must be a tree)",
+                        path, c, parent[size_t(c)], i));
       parent[size_t(c)] = int(i);
     }
   for (size_t i = 0; i < n; ++i) {  // walk up: a chain longer than n is a cycle
     size_t steps = 0;
     for (int p = parent[i]; p >= 0; p = parent[size_t(p)])
       if (++steps > n || size_t(p) == i)
-        throw Error(ErrorCode::parse_error, fmt::format("{}: node {} is its own ancestor (a cycle)", path, i));
+        throw Error(ErrorCode::parse_error,
+                    fmt::format("{}: node {} is its own ancestor (a cycle)", path, i));
   }
   for (size_t s = 0; s < model.scenes.size(); ++s) {
     std::vector<char> listed(n, 0);
     for (int r : model.scenes[s].nodes) {
-      if (r < 0 || size_t(r) >= n) throw Error(ErrorCode::parse_error, fmt::format("{}: scene {}: node {} does not exist", path, s, r));
+      if (r < 0 || size_t(r) >= n)
+        throw Error(ErrorCode::parse_error,
+                    fmt::format("{}: scene {}: node {} does not exist", path, s, r));
       if (parent[size_t(r)] >= 0 || listed[size_t(r)]++)
-        throw Error(ErrorCode::parse_error, fmt::format("{}: scene {}: node {} is listed as a root twice or also has a parent",
-                                                        path, s, r));
+        throw Error(
+            ErrorCode::parse_error,
+            fmt::format("{}: scene {}: node {} is listed as a root twice or also has a parent",
+                        path, s, r));
     }
   }
 }
@@ -126,7 +143,8 @@ Material convert_material(const tinygltf::Material& m, const tinygltf::Model& mo
   out.name = m.name;
   const auto& pbr = m.pbrMetallicRoughness;
   if (pbr.baseColorFactor.size() >= 3)
-    out.base_color = {float(pbr.baseColorFactor[0]), float(pbr.baseColorFactor[1]), float(pbr.baseColorFactor[2])};
+    out.base_color = {float(pbr.baseColorFactor[0]), float(pbr.baseColorFactor[1]),
+                      float(pbr.baseColorFactor[2])};
   out.metallic = float(pbr.metallicFactor);
   out.roughness = float(pbr.roughnessFactor);
   out.specular = 1.0f;  // glTF dielectrics: Fresnel with F0 = 0.04 (IOR 1.5)
@@ -137,7 +155,9 @@ Material convert_material(const tinygltf::Material& m, const tinygltf::Model& mo
   if (m.emissiveFactor.size() == 3)
     out.emission = {float(m.emissiveFactor[0]) * strength, float(m.emissiveFactor[1]) * strength,
                     float(m.emissiveFactor[2]) * strength};
-  auto texture = [&](int index) { return index >= 0 && size_t(index) < model.textures.size() ? index : -1; };
+  auto texture = [&](int index) {
+    return index >= 0 && size_t(index) < model.textures.size() ? index : -1;
+  };
   out.base_color_texture = texture(pbr.baseColorTexture.index);
   out.metallic_roughness_texture = texture(pbr.metallicRoughnessTexture.index);
   out.emission_texture = texture(m.emissiveTexture.index);
@@ -151,8 +171,8 @@ Texture convert_texture(const tinygltf::Texture& t, const tinygltf::Model& model
   if (t.source < 0 || size_t(t.source) >= model.images.size()) return out;
   const tinygltf::Image& img = model.images[t.source];
   if (out.name.empty()) out.name = img.name.empty() ? img.uri : img.name;
-  if (img.bits != 8 || img.component < 1 || img.component > 4 || img.width <= 0 || img.height <= 0 ||
-      img.image.size() < size_t(img.width) * img.height * img.component)
+  if (img.bits != 8 || img.component < 1 || img.component > 4 || img.width <= 0 ||
+      img.height <= 0 || img.image.size() < size_t(img.width) * img.height * img.component)
     return out;
   out.width = img.width;
   out.height = img.height;
@@ -178,10 +198,14 @@ bool file_exists(const std::string& path, void*) {
   struct stat st {};
   return ::stat(path.c_str(), &st) == 0;
 }
-std::string expand_path(const std::string& path, void*) { return path; }
-bool read_whole_file(std::vector<unsigned char>* out, std::string* err, const std::string& path, void*) {
+std::string expand_path(const std::string& path, void*) {
+  return path;
+}
+bool read_whole_file(std::vector<unsigned char>* out, std::string* err, const std::string& path,
+                     void*) {
   try {
-    const std::string data = read_bounded_file(path, max_gltf_file_bytes, "glTF file, buffer or image");
+    const std::string data =
+        read_bounded_file(path, max_gltf_file_bytes, "glTF file, buffer or image");
     out->assign(data.begin(), data.end());
     return true;
   } catch (const Error& e) {
@@ -212,7 +236,8 @@ bool load_image(tinygltf::Image* image, const int index, std::string* err, std::
 tinygltf::Model load_model(const std::string& path) {
   require_readable_file(path);
   tinygltf::TinyGLTF loader;
-  loader.SetFsCallbacks(tinygltf::FsCallbacks{&file_exists, &expand_path, &read_whole_file, &tinygltf::WriteWholeFile, nullptr});
+  loader.SetFsCallbacks(tinygltf::FsCallbacks{&file_exists, &expand_path, &read_whole_file,
+                                              &tinygltf::WriteWholeFile, nullptr});
   loader.SetImageLoader(&load_image, nullptr);
   tinygltf::Model model;
   std::string err, warn;
@@ -220,19 +245,24 @@ tinygltf::Model load_model(const std::string& path) {
   for (char& c : ext) c = char(std::tolower(static_cast<unsigned char>(c)));
   const bool binary = ext == ".glb";
   if (binary && regular_file_size(path, "glTF file") < 20)
-    throw Error(ErrorCode::parse_error, fmt::format("{}: too short for a GLB file (header and one chunk take 20 bytes)", path));
+    throw Error(
+        ErrorCode::parse_error,
+        fmt::format("{}: too short for a GLB file (header and one chunk take 20 bytes)", path));
   bool ok = false;
   try {  // tinygltf throws (e.g. std::out_of_range) on some malformed files
-    ok = binary ? loader.LoadBinaryFromFile(&model, &err, &warn, path) : loader.LoadASCIIFromFile(&model, &err, &warn, path);
+    ok = binary ? loader.LoadBinaryFromFile(&model, &err, &warn, path)
+                : loader.LoadASCIIFromFile(&model, &err, &warn, path);
   } catch (const Error&) {
     throw;
   } catch (const std::exception&) {
-    throw Error(ErrorCode::parse_error, fmt::format("{}: not a valid {} file (its reader stopped on malformed data)", path,
-                                                    binary ? "GLB" : "glTF"));
+    throw Error(ErrorCode::parse_error,
+                fmt::format("{}: not a valid {} file (its reader stopped on malformed data)", path,
+                            binary ? "GLB" : "glTF"));
   }
   if (!ok) {
     while (!err.empty() && (err.back() == '\n' || err.back() == '\r')) err.pop_back();
-    throw Error(ErrorCode::parse_error, fmt::format("{}: {}", path, err.empty() ? "not a valid glTF file" : err));
+    throw Error(ErrorCode::parse_error,
+                fmt::format("{}: {}", path, err.empty() ? "not a valid glTF file" : err));
   }
   check_node_tree(path, model);
   return model;

@@ -28,10 +28,11 @@ void check_node_tree(const std::string& path, const tinygltf::Model& model);
 Material convert_material(const tinygltf::Material& m, const tinygltf::Model& model);
 Texture convert_texture(const tinygltf::Texture& t, const tinygltf::Model& model);
 
-
 using Mat4 = std::array<double, 16>;  // column-major, as glTF stores it
 
-inline Mat4 identity() { return {1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1}; }
+inline Mat4 identity() {
+  return {1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1};
+}
 
 inline Mat4 mul(const Mat4& a, const Mat4& b) {
   Mat4 r{};
@@ -57,11 +58,24 @@ inline Mat4 node_matrix(const tinygltf::Node& node) {
     t[14] = node.translation[2];
   }
   if (node.rotation.size() == 4) {
-    const double x = node.rotation[0], y = node.rotation[1], z = node.rotation[2], w = node.rotation[3];
-    r = {1 - 2 * (y * y + z * z), 2 * (x * y + z * w),     2 * (x * z - y * w),     0,
-         2 * (x * y - z * w),     1 - 2 * (x * x + z * z), 2 * (y * z + x * w),     0,
-         2 * (x * z + y * w),     2 * (y * z - x * w),     1 - 2 * (x * x + y * y), 0,
-         0,                       0,                       0,                       1};
+    const double x = node.rotation[0], y = node.rotation[1], z = node.rotation[2],
+                 w = node.rotation[3];
+    r = {1 - 2 * (y * y + z * z),
+         2 * (x * y + z * w),
+         2 * (x * z - y * w),
+         0,
+         2 * (x * y - z * w),
+         1 - 2 * (x * x + z * z),
+         2 * (y * z + x * w),
+         0,
+         2 * (x * z + y * w),
+         2 * (y * z - x * w),
+         1 - 2 * (x * x + y * y),
+         0,
+         0,
+         0,
+         0,
+         1};
   }
   if (node.scale.size() == 3) {
     s[0] = node.scale[0];
@@ -80,7 +94,8 @@ inline Vec3 transform_point(const Mat4& m, Vec3 p) {
 // Normals go through the inverse transpose; the cofactor matrix is proportional to it,
 // and the result is renormalised anyway.
 inline Vec3 transform_normal(const Mat4& m, Vec3 n) {
-  const double a = m[0], b = m[4], c = m[8], d = m[1], e = m[5], f = m[9], g = m[2], h = m[6], i = m[10];
+  const double a = m[0], b = m[4], c = m[8], d = m[1], e = m[5], f = m[9], g = m[2], h = m[6],
+               i = m[10];
   const double cof[9] = {e * i - f * h, f * g - d * i, d * h - e * g, c * h - b * i, a * i - c * g,
                          b * g - a * h, b * f - c * e, c * d - a * f, a * e - b * d};
   double x = cof[0] * n.x + cof[3] * n.y + cof[6] * n.z;
@@ -108,9 +123,10 @@ struct GltfReader {
     const int components = tinygltf::GetNumComponentsInType(uint32_t(acc.type));
     const int component_size = tinygltf::GetComponentSizeInBytes(uint32_t(acc.componentType));
     if (components != want_components || component_size <= 0)
-      fail(fmt::format("accessor {} has type {} x {}, expected {} components", accessor_index, acc.type,
-                       acc.componentType, want_components));
-    if (acc.sparse.isSparse) fail(fmt::format("accessor {}: sparse accessors are not supported", accessor_index));
+      fail(fmt::format("accessor {} has type {} x {}, expected {} components", accessor_index,
+                       acc.type, acc.componentType, want_components));
+    if (acc.sparse.isSparse)
+      fail(fmt::format("accessor {}: sparse accessors are not supported", accessor_index));
     if (acc.bufferView < 0 || size_t(acc.bufferView) >= model.bufferViews.size())
       fail(fmt::format("accessor {} has no buffer view", accessor_index));
     const tinygltf::BufferView& bv = model.bufferViews[acc.bufferView];
@@ -122,12 +138,17 @@ struct GltfReader {
     count = acc.count;
     // Every sum and product checked: offsets and counts near 2^64 must not wrap past the test.
     uint64_t view_end = 0, begin = 0, span = 0, need = 0;
-    const bool fits = add_fits(bv.byteOffset, bv.byteLength, view_end) && add_fits(bv.byteOffset, acc.byteOffset, begin) &&
-                      (count == 0 || (mul_fits(count - 1, stride, span) && add_fits(span, element, span))) &&
-                      add_fits(begin, count ? span : 0, need);
+    const bool fits =
+        add_fits(bv.byteOffset, bv.byteLength, view_end) &&
+        add_fits(bv.byteOffset, acc.byteOffset, begin) &&
+        (count == 0 || (mul_fits(count - 1, stride, span) && add_fits(span, element, span))) &&
+        add_fits(begin, count ? span : 0, need);
     if (!fits || view_end > buf.data.size() || need > view_end)
-      fail(fmt::format("accessor {} ({} elements at byte {} of buffer view {}) reads past the end of buffer {} ({} bytes; "
-                       "file truncated?)", accessor_index, count, acc.byteOffset, acc.bufferView, bv.buffer, buf.data.size()));
+      fail(fmt::format(
+          "accessor {} ({} elements at byte {} of buffer view {}) reads past the end of buffer {} "
+          "({} bytes; "
+          "file truncated?)",
+          accessor_index, count, acc.byteOffset, acc.bufferView, bv.buffer, buf.data.size()));
     component_type = acc.componentType;
     return buf.data.data() + begin;
   }
@@ -137,15 +158,18 @@ struct GltfReader {
     size_t count, stride;
     int type;
     const unsigned char* p = view(accessor_index, components, count, stride, type);
-    if (type != TINYGLTF_COMPONENT_TYPE_FLOAT) fail(fmt::format("accessor {} must hold floats", accessor_index));
+    if (type != TINYGLTF_COMPONENT_TYPE_FLOAT)
+      fail(fmt::format("accessor {} must hold floats", accessor_index));
     std::vector<float> out(count * size_t(components));  // view() bounded count by the buffer
-    for (size_t i = 0; i < count; ++i) std::memcpy(&out[i * components], p + i * stride, sizeof(float) * size_t(components));
+    for (size_t i = 0; i < count; ++i)
+      std::memcpy(&out[i * components], p + i * stride, sizeof(float) * size_t(components));
     return out;
   }
 
   // A triangle-list primitive's positions and indices (0, 1, 2, ... when it has none);
   // false for points / lines / strips and primitives without positions (skipped).
-  bool read_triangles(const tinygltf::Primitive& prim, std::vector<Vec3>& positions, std::vector<uint32_t>& indices) const {
+  bool read_triangles(const tinygltf::Primitive& prim, std::vector<Vec3>& positions,
+                      std::vector<uint32_t>& indices) const {
     if (prim.mode != TINYGLTF_MODE_TRIANGLES && prim.mode != -1) return false;
     auto pos = prim.attributes.find("POSITION");
     if (pos == prim.attributes.end()) return false;
@@ -160,11 +184,13 @@ struct GltfReader {
   }
 
   // A primitive's NORMAL and TEXCOORD_0, each left empty unless it has one per vertex.
-  void read_normals_uvs(const tinygltf::Primitive& prim, size_t vertex_count, std::vector<Vec3>& normals,
-                        std::vector<Vec2>& uvs) const {
+  void read_normals_uvs(const tinygltf::Primitive& prim, size_t vertex_count,
+                        std::vector<Vec3>& normals, std::vector<Vec2>& uvs) const {
     normals.clear(), uvs.clear();
-    if (auto it = prim.attributes.find("NORMAL"); it != prim.attributes.end()) normals = read_vec3(it->second);
-    if (auto it = prim.attributes.find("TEXCOORD_0"); it != prim.attributes.end()) uvs = read_vec2(it->second);
+    if (auto it = prim.attributes.find("NORMAL"); it != prim.attributes.end())
+      normals = read_vec3(it->second);
+    if (auto it = prim.attributes.find("TEXCOORD_0"); it != prim.attributes.end())
+      uvs = read_vec2(it->second);
     if (normals.size() != vertex_count) normals.clear();
     if (uvs.size() != vertex_count) uvs.clear();
   }
@@ -173,7 +199,8 @@ struct GltfReader {
     size_t count, stride;
     int type;
     const unsigned char* p = view(accessor_index, 3, count, stride, type);
-    if (type != TINYGLTF_COMPONENT_TYPE_FLOAT) fail(fmt::format("accessor {} must be float vec3", accessor_index));
+    if (type != TINYGLTF_COMPONENT_TYPE_FLOAT)
+      fail(fmt::format("accessor {} must be float vec3", accessor_index));
     std::vector<Vec3> out(count);
     for (size_t i = 0; i < count; ++i) std::memcpy(&out[i], p + i * stride, sizeof(Vec3));
     return out;
@@ -195,7 +222,8 @@ struct GltfReader {
         std::memcpy(v, e, 4);
         out[i] = {v[0] / 65535.0f, v[1] / 65535.0f};
       } else {
-        fail(fmt::format("accessor {}: unsupported texcoord component type {}", accessor_index, type));
+        fail(fmt::format("accessor {}: unsupported texcoord component type {}", accessor_index,
+                         type));
       }
     }
     return out;
@@ -217,12 +245,12 @@ struct GltfReader {
       } else if (type == TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT) {
         std::memcpy(&out[i], e, 4);
       } else {
-        fail(fmt::format("accessor {}: index component type {} is not an unsigned integer", accessor_index, type));
+        fail(fmt::format("accessor {}: index component type {} is not an unsigned integer",
+                         accessor_index, type));
       }
     }
     return out;
   }
 };
-
 
 }  // namespace kestrel::gltf

@@ -18,8 +18,8 @@ void write_text_file(const std::string& path, std::string_view text) {
 
 void write_png(const std::string& path, int width, int height, std::span<const uint8_t> rgb) {
   if (width <= 0 || height <= 0 || rgb.size() != size_t(width) * height * 3)
-    throw Error(ErrorCode::invalid_argument,
-                fmt::format("{}: {} bytes is not a {}x{} RGB image", path, rgb.size(), width, height));
+    throw Error(ErrorCode::invalid_argument, fmt::format("{}: {} bytes is not a {}x{} RGB image",
+                                                         path, rgb.size(), width, height));
   // Encoded in memory, then written through an AtomicFile (checked writes, renamed at the end).
   AtomicFile file(path);
   std::string png;

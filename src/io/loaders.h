@@ -22,8 +22,8 @@ Texture load_texture(const std::string& path);
 
 /// Decodes an encoded image (PNG, JPEG, ...) in memory to RGBA8 after checking its size;
 /// false with `problem` set when it cannot.
-bool decode_rgba8(const unsigned char* bytes, size_t size, int& width, int& height, std::vector<unsigned char>& rgba,
-                  std::string& problem);
+bool decode_rgba8(const unsigned char* bytes, size_t size, int& width, int& height,
+                  std::vector<unsigned char>& rgba, std::string& problem);
 
 /// Decodes a Radiance .hdr (linear) or an 8-bit image (sRGB decoded) to float RGB.
 FloatImage load_float_image_stb(const std::string& path);

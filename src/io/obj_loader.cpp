@@ -50,7 +50,8 @@ constexpr int max_face_corners = 255;
 
 struct ObjCheck {
   std::vector<size_t> nonfinite;  // vertex ids with a NaN or Inf coordinate
-  std::vector<std::pair<size_t, size_t>> long_faces;  // [begin, end) byte ranges of faces over max_face_corners
+  std::vector<std::pair<size_t, size_t>>
+      long_faces;  // [begin, end) byte ranges of faces over max_face_corners
 };
 
 // Checks `v x y z [w]` and `f a b c ...` (each a, a/b, a//c or a/b/c, non-zero integers that
@@ -93,22 +94,35 @@ ObjCheck check_obj_lines(const std::string& path, const std::string& text) {
           }
           long long v = 0;
           auto [next, ec] = std::from_chars(q, eol, v);
-          if (ec == std::errc::result_out_of_range || (ec == std::errc() && (v > INT32_MAX || v < -INT32_MAX)))
-            malformed(path, line, fmt::format("face index '{}' is out of range (at most {})",
-                                              std::string(q, size_t(std::find_if(q, eol, [](char c) {
-                                                                      return c == ' ' || c == '/' || c == '\t' || c == '\r';
-                                                                    }) - q)),
-                                              INT32_MAX));
-          if (ec != std::errc() || v == 0) malformed(path, line, "face index must be a non-zero integer");
+          if (ec == std::errc::result_out_of_range ||
+              (ec == std::errc() && (v > INT32_MAX || v < -INT32_MAX)))
+            malformed(path, line,
+                      fmt::format("face index '{}' is out of range (at most {})",
+                                  std::string(q, size_t(std::find_if(q, eol,
+                                                                     [](char c) {
+                                                                       return c == ' ' ||
+                                                                              c == '/' ||
+                                                                              c == '\t' ||
+                                                                              c == '\r';
+                                                                     }) -
+                                                        q)),
+                                  INT32_MAX));
+          if (ec != std::errc() || v == 0)
+            malformed(path, line, "face index must be a non-zero integer");
           q = next;
-          if (q < eol && *q == '/') ++q;
-          else break;
+          if (q < eol && *q == '/')
+            ++q;
+          else
+            break;
         }
-        if (q < eol && *q != ' ' && *q != '\t' && *q != '\r') malformed(path, line, "malformed face corner");
+        if (q < eol && *q != ' ' && *q != '\t' && *q != '\r')
+          malformed(path, line, "malformed face corner");
         ++corners;
       }
-      if (corners < 3) malformed(path, line, fmt::format("face has {} corners, needs at least 3", corners));
-      if (corners > max_face_corners) result.long_faces.emplace_back(size_t(p - text.data()), size_t(eol - text.data()));
+      if (corners < 3)
+        malformed(path, line, fmt::format("face has {} corners, needs at least 3", corners));
+      if (corners > max_face_corners)
+        result.long_faces.emplace_back(size_t(p - text.data()), size_t(eol - text.data()));
     }
     p = eol + 1;
   }
@@ -118,7 +132,8 @@ ObjCheck check_obj_lines(const std::string& path, const std::string& text) {
 // The OBJ with every face of more than 255 corners written as several faces that continue
 // its fan: (v0, v1 .. v254), (v0, v254 .. v508), ... give the triangles (v0, vi, vi+1) in the
 // same order, so prim ids are those of the one long face.
-std::string split_long_faces(const std::string& text, const std::vector<std::pair<size_t, size_t>>& faces) {
+std::string split_long_faces(const std::string& text,
+                             const std::vector<std::pair<size_t, size_t>>& faces) {
   std::string out;
   out.reserve(text.size() + faces.size() * 64);
   size_t at = 0;
@@ -131,7 +146,8 @@ std::string split_long_faces(const std::string& text, const std::vector<std::pai
     while (line >> token) corners.push_back(token);
     for (size_t first = 1; first + 1 < corners.size(); first += max_face_corners - 2) {
       out += "f " + corners[0];
-      for (size_t k = first; k < std::min(corners.size(), first + max_face_corners - 1); ++k) out += " " + corners[k];
+      for (size_t k = first; k < std::min(corners.size(), first + max_face_corners - 1); ++k)
+        out += " " + corners[k];
       out += "\n";
     }
     at = end;
@@ -145,8 +161,9 @@ std::string split_long_faces(const std::string& text, const std::vector<std::pai
 // checked first, so `Kd abc` is an error naming the file and line.
 void check_mtl_lines(const std::string& path, const std::string& text) {
   static const std::map<std::string, int> numbers = {
-      {"Ka", 3}, {"Kd", 3}, {"Ks", 3}, {"Ke", 3}, {"Kt", 3}, {"Tf", 3}, {"Ns", 1}, {"Ni", 1}, {"d", 1},
-      {"Tr", 1}, {"illum", 1}, {"Pr", 1}, {"Pm", 1}, {"Ps", 1}, {"Pc", 1}, {"Pcr", 1}, {"aniso", 1}, {"anisor", 1}};
+      {"Ka", 3}, {"Kd", 3}, {"Ks", 3}, {"Ke", 3},  {"Kt", 3},    {"Tf", 3},
+      {"Ns", 1}, {"Ni", 1}, {"d", 1},  {"Tr", 1},  {"illum", 1}, {"Pr", 1},
+      {"Pm", 1}, {"Ps", 1}, {"Pc", 1}, {"Pcr", 1}, {"aniso", 1}, {"anisor", 1}};
   std::istringstream in(text);
   std::string line_text;
   size_t line = 0;
@@ -162,14 +179,16 @@ void check_mtl_lines(const std::string& path, const std::string& text) {
     while (words >> word) {
       float v;
       const char* b = word.data();
-      if (given == 0 && (word == "spectral" || word == "xyz")) break;  // other forms of colours: left to the library
+      if (given == 0 && (word == "spectral" || word == "xyz"))
+        break;  // other forms of colours: left to the library
       if (!parse_float(b, word.data() + word.size(), v))
         malformed(path, line, fmt::format("'{}' needs numbers, got '{}'", key, word));
       ++given;
     }
     if (given != 0 && given != 1 && given != it->second)
       malformed(path, line, fmt::format("'{}' takes {} numbers, got {}", key, it->second, given));
-    if (given == 0 && word != "spectral" && word != "xyz") malformed(path, line, fmt::format("'{}' needs a value", key));
+    if (given == 0 && word != "spectral" && word != "xyz")
+      malformed(path, line, fmt::format("'{}' needs a value", key));
   }
 }
 
@@ -228,10 +247,12 @@ Scene load_obj(const std::string& path) {
       const std::string mtl_path = (dir / name).string();
       struct stat st {};
       if (name.empty() || ::stat(mtl_path.c_str(), &st) != 0) {
-        warnings.push_back(fmt::format("{}: material library '{}' not found; its materials use the default", path, name));
+        warnings.push_back(fmt::format(
+            "{}: material library '{}' not found; its materials use the default", path, name));
         continue;
       }
-      const std::string mtl = read_bounded_file(mtl_path, max_obj_bytes, "material library (mtllib)");
+      const std::string mtl =
+          read_bounded_file(mtl_path, max_obj_bytes, "material library (mtllib)");
       check_mtl_lines(mtl_path, mtl);
       mtl_text.append(mtl).append("\n");
     }
@@ -256,8 +277,9 @@ Scene load_obj(const std::string& path) {
   scene.source = path;
   scene.warnings = std::move(warnings);
   if (!check.long_faces.empty())
-    scene.warnings.push_back(fmt::format("{}: {} faces of more than {} corners fan-triangulated in pieces (same triangles)",
-                                         path, check.long_faces.size(), max_face_corners));
+    scene.warnings.push_back(fmt::format(
+        "{}: {} faces of more than {} corners fan-triangulated in pieces (same triangles)", path,
+        check.long_faces.size(), max_face_corners));
   // Texture maps named by the MTL (map_Kd, map_Ke), each file decoded once. A missing or
   // undecodable image leaves the material untextured and a warning naming the file and the
   // problem in Scene::warnings; it does not fail the scene.
@@ -270,7 +292,8 @@ Scene load_obj(const std::string& path) {
         scene.textures.push_back(load_texture((dir / name).string()));
         it->second = int(scene.textures.size() - 1);
       } catch (const Error& e) {
-        scene.warnings.push_back(fmt::format("{}: texture '{}' not used: {}", path, name, e.what()));
+        scene.warnings.push_back(
+            fmt::format("{}: texture '{}' not used: {}", path, name, e.what()));
       }
     }
     return it->second;
@@ -299,17 +322,20 @@ Scene load_obj(const std::string& path) {
   auto corner_index = [&](const tinyobj::index_t& c) -> uint32_t {
     if (c.vertex_index < 0 || size_t(c.vertex_index) >= vertex_count) return bad_index;
     if (!has_extra) return uint32_t(c.vertex_index);
-    auto [it, fresh] = corner_of.try_emplace(CornerKey{c.vertex_index, c.texcoord_index, c.normal_index},
-                                             uint32_t(mesh.positions.size()));
+    auto [it, fresh] =
+        corner_of.try_emplace(CornerKey{c.vertex_index, c.texcoord_index, c.normal_index},
+                              uint32_t(mesh.positions.size()));
     if (fresh) {
-      const size_t v = size_t(c.vertex_index);  // in range (checked above); size_t: no int overflow in 3 v
+      const size_t v =
+          size_t(c.vertex_index);  // in range (checked above); size_t: no int overflow in 3 v
       mesh.positions.push_back({vertices[3 * v], vertices[3 * v + 1], vertices[3 * v + 2]});
       if (!attrib.normals.empty()) {
         // Indices in size_t: 3 * n overflows an int for n near 2^31 (found by fuzz_obj).
         const size_t n = c.normal_index >= 0 ? size_t(c.normal_index) : SIZE_MAX / 4;
-        mesh.normals.push_back(3 * n + 2 < attrib.normals.size()
-                                   ? Vec3{attrib.normals[3 * n], attrib.normals[3 * n + 1], attrib.normals[3 * n + 2]}
-                                   : Vec3{0, 0, 0});
+        mesh.normals.push_back(
+            3 * n + 2 < attrib.normals.size()
+                ? Vec3{attrib.normals[3 * n], attrib.normals[3 * n + 1], attrib.normals[3 * n + 2]}
+                : Vec3{0, 0, 0});
       }
       if (!attrib.texcoords.empty()) {
         const size_t t = c.texcoord_index >= 0 ? size_t(c.texcoord_index) : SIZE_MAX / 4;
@@ -325,7 +351,8 @@ Scene load_obj(const std::string& path) {
     for (size_t f = 0; f < shape.mesh.num_face_vertices.size(); ++f) {
       const size_t k = shape.mesh.num_face_vertices[f];
       const int mat = f < shape.mesh.material_ids.size() ? shape.mesh.material_ids[f] : -1;
-      const uint32_t material = mat >= 0 && size_t(mat) < materials.size() ? uint32_t(mat) : default_material;
+      const uint32_t material =
+          mat >= 0 && size_t(mat) < materials.size() ? uint32_t(mat) : default_material;
       const uint32_t first = corner_index(shape.mesh.indices[offset]);
       for (size_t j = 1; j + 1 < k; ++j) {
         mesh.indices.push_back(first);

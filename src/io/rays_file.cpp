@@ -25,7 +25,8 @@ struct Header {
 static_assert(sizeof(Header) == 16);
 
 template <class Record>
-std::vector<Record> read_records(const std::string& path, const char (&magic)[5], size_t record_size,
+std::vector<Record> read_records(const std::string& path, const char (&magic)[5],
+                                 size_t record_size,
                                  void (*decode)(const unsigned char*, Record&)) {
   require_readable_file(path);
   std::ifstream f(path, std::ios::binary);
@@ -34,14 +35,18 @@ std::vector<Record> read_records(const std::string& path, const char (&magic)[5]
   f.seekg(0);
   Header h{};
   if (size < sizeof(Header) || !f.read(reinterpret_cast<char*>(&h), sizeof(h)))
-    throw Error(ErrorCode::parse_error, fmt::format("{}: {} bytes, too short for a header", path, size));
+    throw Error(ErrorCode::parse_error,
+                fmt::format("{}: {} bytes, too short for a header", path, size));
   if (std::memcmp(h.magic, magic, 4) != 0)
     throw Error(ErrorCode::parse_error, fmt::format("{}: magic is not \"{}\"", path, magic));
-  if (h.version != 1) throw Error(ErrorCode::parse_error, fmt::format("{}: version {} (expected 1)", path, h.version));
+  if (h.version != 1)
+    throw Error(ErrorCode::parse_error,
+                fmt::format("{}: version {} (expected 1)", path, h.version));
   const uint64_t expected = sizeof(Header) + h.count * record_size;
   if (h.count > (uint64_t(1) << 40) || size != expected)
-    throw Error(ErrorCode::parse_error, fmt::format("{}: header says {} records ({} bytes) but the file has {} bytes",
-                                                    path, h.count, expected, size));
+    throw Error(ErrorCode::parse_error,
+                fmt::format("{}: header says {} records ({} bytes) but the file has {} bytes", path,
+                            h.count, expected, size));
   std::vector<unsigned char> bytes(h.count * record_size);
   if (!f.read(reinterpret_cast<char*>(bytes.data()), std::streamsize(bytes.size())))
     throw Error(ErrorCode::parse_error, fmt::format("{}: read failed", path));
@@ -50,7 +55,8 @@ std::vector<Record> read_records(const std::string& path, const char (&magic)[5]
   return out;
 }
 
-void write_bytes(const std::string& path, const char (&magic)[5], uint64_t count, const void* data, size_t bytes) {
+void write_bytes(const std::string& path, const char (&magic)[5], uint64_t count, const void* data,
+                 size_t bytes) {
   AtomicFile f(path);
   Header h{};
   std::memcpy(h.magic, magic, 4);

@@ -40,11 +40,14 @@ bool drop_empty_png_idat(const unsigned char* p, size_t n, std::string& out) {
   size_t at = 8;
   std::string kept(reinterpret_cast<const char*>(p), 8);
   while (at + 12 <= n) {
-    const size_t length = (size_t(p[at]) << 24) | (size_t(p[at + 1]) << 16) | (size_t(p[at + 2]) << 8) | p[at + 3];
+    const size_t length =
+        (size_t(p[at]) << 24) | (size_t(p[at + 1]) << 16) | (size_t(p[at + 2]) << 8) | p[at + 3];
     if (length > n - at - 12) break;  // malformed: the rest goes as it is and stb_image reports it
     const bool empty_idat = length == 0 && std::memcmp(p + at + 4, "IDAT", 4) == 0;
-    if (empty_idat) dropped = true;
-    else kept.append(reinterpret_cast<const char*>(p + at), 12 + length);
+    if (empty_idat)
+      dropped = true;
+    else
+      kept.append(reinterpret_cast<const char*>(p + at), 12 + length);
     at += 12 + length;
   }
   if (!dropped) return false;
@@ -103,23 +106,29 @@ struct Encoded {
 Encoded read_image_file(const std::string& path, int bytes_per_pixel) {
   Encoded e;
   e.bytes = read_bounded_file(path, max_image_file_bytes, "image");
-  if (std::string cleaned; drop_empty_png_idat(e.data(), e.bytes.size(), cleaned)) e.bytes = std::move(cleaned);
+  if (std::string cleaned; drop_empty_png_idat(e.data(), e.bytes.size(), cleaned))
+    e.bytes = std::move(cleaned);
   int channels = 0;
   if (!jpeg_huffman_tables_ok(e.data(), e.bytes.size()))
-    throw Error(ErrorCode::parse_error, fmt::format("{}: corrupt JPEG (a Huffman table declares more than 256 codes)", path));
+    throw Error(
+        ErrorCode::parse_error,
+        fmt::format("{}: corrupt JPEG (a Huffman table declares more than 256 codes)", path));
   if (!stbi_info_from_memory(e.data(), e.size(), &e.width, &e.height, &channels))
-    throw Error(ErrorCode::parse_error, fmt::format("{}: not an image kestrel can decode ({})", path, stbi_failure_reason()));
+    throw Error(ErrorCode::parse_error, fmt::format("{}: not an image kestrel can decode ({})",
+                                                    path, stbi_failure_reason()));
   if (e.width <= 0 || e.height <= 0 || e.width > max_image_side || e.height > max_image_side)
-    throw Error(ErrorCode::parse_error, fmt::format("{}: image size {}x{} is out of range", path, e.width, e.height));
-  check_decoded_size(path, uint64_t(e.width) * uint64_t(e.height) * uint64_t(bytes_per_pixel), e.bytes.size());
+    throw Error(ErrorCode::parse_error,
+                fmt::format("{}: image size {}x{} is out of range", path, e.width, e.height));
+  check_decoded_size(path, uint64_t(e.width) * uint64_t(e.height) * uint64_t(bytes_per_pixel),
+                     e.bytes.size());
   e.hdr = stbi_is_hdr_from_memory(e.data(), e.size()) != 0;
   return e;
 }
 
 }  // namespace
 
-bool decode_rgba8(const unsigned char* bytes, size_t size, int& width, int& height, std::vector<unsigned char>& rgba,
-                  std::string& problem) {
+bool decode_rgba8(const unsigned char* bytes, size_t size, int& width, int& height,
+                  std::vector<unsigned char>& rgba, std::string& problem) {
   if (size > size_t(max_image_file_bytes)) {
     problem = "larger than 1 GiB";
     return false;
@@ -141,14 +150,15 @@ bool decode_rgba8(const unsigned char* bytes, size_t size, int& width, int& heig
   }
   try {
     if (width <= 0 || height <= 0 || width > max_image_side || height > max_image_side)
-      throw Error(ErrorCode::parse_error, fmt::format("image size {}x{} is out of range", width, height));
+      throw Error(ErrorCode::parse_error,
+                  fmt::format("image size {}x{} is out of range", width, height));
     check_decoded_size("image", uint64_t(width) * uint64_t(height) * 4, size);
   } catch (const Error& e) {
     problem = e.what();
     return false;
   }
-  std::unique_ptr<stbi_uc, void (*)(void*)> px(stbi_load_from_memory(data, int(size), &width, &height, &channels, 4),
-                                               stbi_image_free);
+  std::unique_ptr<stbi_uc, void (*)(void*)> px(
+      stbi_load_from_memory(data, int(size), &width, &height, &channels, 4), stbi_image_free);
   if (!px) {
     problem = fmt::format("cannot decode image ({})", stbi_failure_reason());
     return false;
@@ -160,10 +170,11 @@ bool decode_rgba8(const unsigned char* bytes, size_t size, int& width, int& heig
 Texture load_texture(const std::string& path) {
   const Encoded e = read_image_file(path, 4);
   int w = 0, h = 0, channels = 0;
-  std::unique_ptr<stbi_uc, void (*)(void*)> pixels(stbi_load_from_memory(e.data(), e.size(), &w, &h, &channels, 4),
-                                                   stbi_image_free);
+  std::unique_ptr<stbi_uc, void (*)(void*)> pixels(
+      stbi_load_from_memory(e.data(), e.size(), &w, &h, &channels, 4), stbi_image_free);
   if (!pixels)
-    throw Error(ErrorCode::parse_error, fmt::format("{}: cannot decode image ({})", path, stbi_failure_reason()));
+    throw Error(ErrorCode::parse_error,
+                fmt::format("{}: cannot decode image ({})", path, stbi_failure_reason()));
   Texture t;
   t.name = path;
   t.width = w;
@@ -177,14 +188,20 @@ FloatImage load_float_image_stb(const std::string& path) {
   int w = 0, h = 0, n = 0;
   FloatImage image;
   if (e.hdr) {
-    std::unique_ptr<float, void (*)(void*)> px(stbi_loadf_from_memory(e.data(), e.size(), &w, &h, &n, 3), stbi_image_free);
-    if (!px) throw Error(ErrorCode::parse_error, fmt::format("{}: cannot decode image ({})", path, stbi_failure_reason()));
+    std::unique_ptr<float, void (*)(void*)> px(
+        stbi_loadf_from_memory(e.data(), e.size(), &w, &h, &n, 3), stbi_image_free);
+    if (!px)
+      throw Error(ErrorCode::parse_error,
+                  fmt::format("{}: cannot decode image ({})", path, stbi_failure_reason()));
     image = FloatImage(w, h, 3);
     std::memcpy(image.pixels.data(), px.get(), image.pixels.size() * sizeof(float));
     return image;
   }
-  std::unique_ptr<stbi_uc, void (*)(void*)> px(stbi_load_from_memory(e.data(), e.size(), &w, &h, &n, 3), stbi_image_free);
-  if (!px) throw Error(ErrorCode::parse_error, fmt::format("{}: cannot decode image ({})", path, stbi_failure_reason()));
+  std::unique_ptr<stbi_uc, void (*)(void*)> px(
+      stbi_load_from_memory(e.data(), e.size(), &w, &h, &n, 3), stbi_image_free);
+  if (!px)
+    throw Error(ErrorCode::parse_error,
+                fmt::format("{}: cannot decode image ({})", path, stbi_failure_reason()));
   image = FloatImage(w, h, 3);
   for (size_t i = 0; i < image.pixels.size(); ++i) {
     const float c = px.get()[i] / 255.0f;  // sRGB decode

@@ -23,8 +23,8 @@ struct ConvArgs {
 struct ConvKernels {
   /// One convolution on a channels-last image (w x h x l.cin) -> out (w x h x l.cout), on the
   /// thread pool; scratch holds the zero-padded input.
-  void (*conv)(const ConvLayer& l, const std::vector<float>& in, int w, int h, std::vector<float>& out, bool relu,
-               std::vector<float>& scratch);
+  void (*conv)(const ConvLayer& l, const std::vector<float>& in, int w, int h,
+               std::vector<float>& out, bool relu, std::vector<float>& scratch);
   const char* isa;
 };
 

@@ -26,8 +26,11 @@ static void conv_rows_padded(const ConvArgs& a, const float* padded, int row0, i
         for (int b = 0; b < 8; ++b) acc[b] = bias;
         for (int ky = 0; ky < k; ++ky)
           for (int kx = 0; kx < k; ++kx) {
-            const float* in = padded + (size_t(y + ky + 1 - r) * size_t(pw) + size_t(x0 + kx + 1 - r)) * size_t(cin);
-            const float* wk = a.weights + size_t(ky * k + kx) * size_t(cin) * size_t(cout) + size_t(cb);
+            const float* in =
+                padded +
+                (size_t(y + ky + 1 - r) * size_t(pw) + size_t(x0 + kx + 1 - r)) * size_t(cin);
+            const float* wk =
+                a.weights + size_t(ky * k + kx) * size_t(cin) * size_t(cout) + size_t(cb);
             for (int ci = 0; ci < cin; ++ci) {
               V16 wv;
               __builtin_memcpy(&wv, wk + size_t(ci) * size_t(cout), sizeof wv);
@@ -40,7 +43,9 @@ static void conv_rows_padded(const ConvArgs& a, const float* padded, int row0, i
         for (int b = 0; b < 8; ++b) {
           if (x0 + b >= w) break;
           V16 v = a.relu ? (acc[b] > zero ? acc[b] : zero) : acc[b];
-          __builtin_memcpy(a.out + (size_t(y) * size_t(w) + size_t(x0 + b)) * size_t(cout) + size_t(cb), &v, sizeof v);
+          __builtin_memcpy(
+              a.out + (size_t(y) * size_t(w) + size_t(x0 + b)) * size_t(cout) + size_t(cb), &v,
+              sizeof v);
         }
       }
 }
@@ -57,19 +62,21 @@ static void pad_for_conv(const float* in, int w, int h, int c, std::vector<float
     for (int y = int(begin); y < int(end); ++y) {
       float* dst = &out[size_t(y + 1) * row_floats];
       std::fill(dst, dst + c, 0.0f);
-      std::memcpy(dst + c, in + size_t(y) * size_t(w) * size_t(c), sizeof(float) * size_t(w) * size_t(c));
+      std::memcpy(dst + c, in + size_t(y) * size_t(w) * size_t(c),
+                  sizeof(float) * size_t(w) * size_t(c));
       std::fill(dst + size_t(w + 1) * size_t(c), dst + row_floats, 0.0f);
     }
   });
 }
 
-static void conv_layer(const ConvLayer& l, const std::vector<float>& in, int w, int h, std::vector<float>& out, bool relu,
-                       std::vector<float>& scratch) {
+static void conv_layer(const ConvLayer& l, const std::vector<float>& in, int w, int h,
+                       std::vector<float>& out, bool relu, std::vector<float>& scratch) {
   out.resize(size_t(w) * size_t(h) * size_t(l.cout));
   ConvArgs a;
   a.in = in.data(), a.weights = l.weights.data(), a.bias = l.bias.data(), a.out = out.data();
   a.width = w, a.height = h, a.cin = l.cin, a.cout = l.cout, a.ksize = l.ksize, a.relu = relu;
-  pad_for_conv(in.data(), w, h, l.cin, scratch);  // l.cout is a multiple of 16 (NeuralWeights::load)
+  pad_for_conv(in.data(), w, h, l.cin,
+               scratch);  // l.cout is a multiple of 16 (NeuralWeights::load)
   parallel_for(0, size_t(h), 2, [&](size_t r0, size_t r1) {
     FlushDenormals ftz;
     conv_rows_padded(a, scratch.data(), int(r0), int(r1));

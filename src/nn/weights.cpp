@@ -29,7 +29,8 @@ struct Reader {
   template <class T>
   T get(const char* what) {
     if (end - at < sizeof(T))
-      throw Error(ErrorCode::parse_error, fmt::format("{}: truncated weights file (reading {})", path, what));
+      throw Error(ErrorCode::parse_error,
+                  fmt::format("{}: truncated weights file (reading {})", path, what));
     T v;
     std::memcpy(&v, bytes.data() + at, sizeof v);
     at += sizeof v;
@@ -45,28 +46,36 @@ ConvLayer read_layer(Reader& r, const std::string& name, int cout, int cin, int 
     const std::string want = name + (is_bias ? ".bias" : ".weight");
     const uint32_t len = r.get<uint32_t>("a tensor name length");
     if (len > 256 || r.end - r.at < len)
-      throw Error(ErrorCode::parse_error, fmt::format("{}: corrupt tensor name (expected '{}')", r.path, want));
+      throw Error(ErrorCode::parse_error,
+                  fmt::format("{}: corrupt tensor name (expected '{}')", r.path, want));
     const std::string got(reinterpret_cast<const char*>(r.bytes.data() + r.at), len);
     r.at += len;
     if (got != want)
-      throw Error(ErrorCode::parse_error, fmt::format("{}: expected tensor '{}', found '{}' (not this network's weights)", r.path, want, got));
+      throw Error(ErrorCode::parse_error,
+                  fmt::format("{}: expected tensor '{}', found '{}' (not this network's weights)",
+                              r.path, want, got));
     const uint32_t ndim = r.get<uint32_t>("a tensor rank");
     std::vector<uint32_t> dims;
     for (uint32_t i = 0; i < ndim && i < 8; ++i) dims.push_back(r.get<uint32_t>("a tensor shape"));
-    const std::vector<uint32_t> expect = is_bias ? std::vector<uint32_t>{uint32_t(cout)}
-                                                 : std::vector<uint32_t>{uint32_t(cout), uint32_t(cin), uint32_t(k), uint32_t(k)};
+    const std::vector<uint32_t> expect =
+        is_bias ? std::vector<uint32_t>{uint32_t(cout)}
+                : std::vector<uint32_t>{uint32_t(cout), uint32_t(cin), uint32_t(k), uint32_t(k)};
     if (dims != expect)
-      throw Error(ErrorCode::parse_error, fmt::format("{}: tensor '{}' has shape [{}], this network needs [{}]", r.path, want,
-                                                      fmt::join(dims, ","), fmt::join(expect, ",")));
+      throw Error(ErrorCode::parse_error,
+                  fmt::format("{}: tensor '{}' has shape [{}], this network needs [{}]", r.path,
+                              want, fmt::join(dims, ","), fmt::join(expect, ",")));
     size_t count = 1;
     for (uint32_t d : dims) count *= d;
     if ((r.end - r.at) / sizeof(float) < count)
-      throw Error(ErrorCode::parse_error, fmt::format("{}: truncated weights file (tensor '{}')", r.path, want));
+      throw Error(ErrorCode::parse_error,
+                  fmt::format("{}: truncated weights file (tensor '{}')", r.path, want));
     std::vector<float> v(count);
     std::memcpy(v.data(), r.bytes.data() + r.at, count * sizeof(float));
     r.at += count * sizeof(float);
     for (float f : v)
-      if (!std::isfinite(f)) throw Error(ErrorCode::parse_error, fmt::format("{}: tensor '{}' holds NaN or Inf", r.path, want));
+      if (!std::isfinite(f))
+        throw Error(ErrorCode::parse_error,
+                    fmt::format("{}: tensor '{}' holds NaN or Inf", r.path, want));
     if (is_bias) {
       layer.bias = std::move(v);
       layer.bias.resize(size_t(stride), 0.0f);
@@ -84,30 +93,41 @@ ConvLayer read_layer(Reader& r, const std::string& name, int cout, int cin, int 
 
 }  // namespace
 
-std::vector<ConvLayer> load_layers(const std::string& path, const char (&magic)[9], uint32_t architecture,
-                                   const std::vector<LayerSpec>& specs, const char* what) {
+std::vector<ConvLayer> load_layers(const std::string& path, const char (&magic)[9],
+                                   uint32_t architecture, const std::vector<LayerSpec>& specs,
+                                   const char* what) {
   // Only a regular file of sane size: a FIFO would block, /dev/zero would never end.
-  const std::string text = read_bounded_file(path, uint64_t(256) << 20, fmt::format("{} weights file", what));
+  const std::string text =
+      read_bounded_file(path, uint64_t(256) << 20, fmt::format("{} weights file", what));
   const std::vector<uint8_t> bytes(text.begin(), text.end());
   if (bytes.size() < 8 + 12 + 8 || std::memcmp(bytes.data(), magic, 8) != 0)
-    throw Error(ErrorCode::parse_error, fmt::format("{}: not a kestrel {} weights file (bad magic)", path, what));
+    throw Error(ErrorCode::parse_error,
+                fmt::format("{}: not a kestrel {} weights file (bad magic)", path, what));
   Reader r{path, bytes, 8, bytes.size() - 8};
   const uint32_t version = r.get<uint32_t>("the version");
   if (version != kVersion)
-    throw Error(ErrorCode::parse_error, fmt::format("{}: weights format version {}, this build reads version {}", path, version, kVersion));
+    throw Error(ErrorCode::parse_error,
+                fmt::format("{}: weights format version {}, this build reads version {}", path,
+                            version, kVersion));
   const uint32_t arch = r.get<uint32_t>("the architecture");
   if (arch != architecture)
-    throw Error(ErrorCode::parse_error, fmt::format("{}: architecture {}, this build runs architecture {}", path, arch, architecture));
+    throw Error(ErrorCode::parse_error,
+                fmt::format("{}: architecture {}, this build runs architecture {}", path, arch,
+                            architecture));
   uint64_t stored;
   std::memcpy(&stored, bytes.data() + bytes.size() - 8, 8);
   if (stored != fnv1a(bytes.data(), bytes.size() - 8))
-    throw Error(ErrorCode::parse_error, fmt::format("{}: checksum mismatch (the file is corrupt or truncated)", path));
+    throw Error(ErrorCode::parse_error,
+                fmt::format("{}: checksum mismatch (the file is corrupt or truncated)", path));
   const uint32_t tensors = r.get<uint32_t>("the tensor count");
   if (tensors != 2 * specs.size())
-    throw Error(ErrorCode::parse_error, fmt::format("{}: {} tensors, this network has {}", path, tensors, 2 * specs.size()));
+    throw Error(ErrorCode::parse_error, fmt::format("{}: {} tensors, this network has {}", path,
+                                                    tensors, 2 * specs.size()));
   std::vector<ConvLayer> layers;
   for (const LayerSpec& s : specs) layers.push_back(read_layer(r, s.name, s.cout, s.cin, s.ksize));
-  if (r.at != r.end) throw Error(ErrorCode::parse_error, fmt::format("{}: {} unexpected bytes after the tensors", path, r.end - r.at));
+  if (r.at != r.end)
+    throw Error(ErrorCode::parse_error,
+                fmt::format("{}: {} unexpected bytes after the tensors", path, r.end - r.at));
   return layers;
 }
 

@@ -10,7 +10,7 @@ namespace kestrel::nn {
 struct ConvLayer {
   int cin = 0, cout = 0, ksize = 3;  ///< cout: stored outputs, a multiple of 16
   int outputs = 0;                   ///< the layer's real outputs (<= cout; the rest are zero)
-  std::vector<float> weights;  ///< [ky][kx][cin][cout]
+  std::vector<float> weights;        ///< [ky][kx][cin][cout]
   std::vector<float> bias;
 };
 
@@ -24,7 +24,8 @@ struct LayerSpec {
 /// Reads a kestrel weights file (format v1, docs/denoiser.md): `magic`, version 1,
 /// `architecture`, exactly the tensors of `specs` in order, the FNV-1a 64 checksum. `what`
 /// names the network in errors. Throws Error naming the file and the problem.
-std::vector<ConvLayer> load_layers(const std::string& path, const char (&magic)[9], uint32_t architecture,
-                                   const std::vector<LayerSpec>& specs, const char* what);
+std::vector<ConvLayer> load_layers(const std::string& path, const char (&magic)[9],
+                                   uint32_t architecture, const std::vector<LayerSpec>& specs,
+                                   const char* what);
 
 }  // namespace kestrel::nn

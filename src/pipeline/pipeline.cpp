@@ -17,14 +17,19 @@ namespace {
 
 void check(const PipelineSettings& s) {
   if (s.width <= 0 || s.height <= 0 || s.width > 16384 || s.height > 16384)
-    throw Error(ErrorCode::invalid_argument, fmt::format("pipeline: output {}x{} is out of range", s.width, s.height));
+    throw Error(ErrorCode::invalid_argument,
+                fmt::format("pipeline: output {}x{} is out of range", s.width, s.height));
   if (s.factor != 1 && s.factor != 2 && s.factor != 4)
-    throw Error(ErrorCode::invalid_argument, fmt::format("pipeline: factor must be 1, 2 or 4, got {}", s.factor));
+    throw Error(ErrorCode::invalid_argument,
+                fmt::format("pipeline: factor must be 1, 2 or 4, got {}", s.factor));
   if (s.width % s.factor || s.height % s.factor)
     throw Error(ErrorCode::invalid_argument,
-                fmt::format("pipeline: output {}x{} is not divisible by the factor {}", s.width, s.height, s.factor));
-  if (s.spp <= 0 || s.max_depth <= 0 || !(s.clamp >= 0) || !std::isfinite(s.exposure) || !(s.target_ms >= 0))
-    throw Error(ErrorCode::invalid_argument, "pipeline: spp and max depth must be positive, clamp and target time >= 0");
+                fmt::format("pipeline: output {}x{} is not divisible by the factor {}", s.width,
+                            s.height, s.factor));
+  if (s.spp <= 0 || s.max_depth <= 0 || !(s.clamp >= 0) || !std::isfinite(s.exposure) ||
+      !(s.target_ms >= 0))
+    throw Error(ErrorCode::invalid_argument,
+                "pipeline: spp and max depth must be positive, clamp and target time >= 0");
 }
 
 }  // namespace
@@ -72,13 +77,15 @@ struct Pipeline::Impl {
   RenderSettings render_settings(int w, int h, uint32_t frame) const {
     RenderSettings rs;
     rs.width = w, rs.height = h, rs.spp = settings.spp, rs.seed = settings.seed, rs.frame = frame;
-    rs.max_depth = settings.max_depth, rs.clamp = settings.clamp, rs.fixed_jitter = settings.fixed_jitter;
+    rs.max_depth = settings.max_depth, rs.clamp = settings.clamp,
+    rs.fixed_jitter = settings.fixed_jitter;
     rs.jitter = settings.jitter, rs.threads = settings.threads;
     return rs;
   }
 };
 
-Pipeline::Pipeline(const std::string& scene, const PipelineSettings& settings, const std::string& environment)
+Pipeline::Pipeline(const std::string& scene, const PipelineSettings& settings,
+                   const std::string& environment)
     : Pipeline((check(settings), Asset::load(scene)), settings, environment) {}
 
 Pipeline::Pipeline(Asset asset, const PipelineSettings& settings, const std::string& environment)
@@ -101,26 +108,45 @@ void Pipeline::set_settings(const PipelineSettings& s) {
   check(s);
   const PipelineSettings old = impl_->settings;
   impl_->settings = s;
-  if (s.factor != old.factor || s.width != old.width || s.height != old.height || s.denoise != old.denoise ||
-      s.denoiser != old.denoiser || s.upscaler != old.upscaler)
+  if (s.factor != old.factor || s.width != old.width || s.height != old.height ||
+      s.denoise != old.denoise || s.denoiser != old.denoiser || s.upscaler != old.upscaler)
     impl_->make_filters();
-  if (s.width != old.width || s.height != old.height || s.max_depth != old.max_depth || s.clamp != old.clamp)
+  if (s.width != old.width || s.height != old.height || s.max_depth != old.max_depth ||
+      s.clamp != old.clamp)
     impl_->samples = 0;
 }
 
-const PipelineSettings& Pipeline::settings() const { return impl_->settings; }
+const PipelineSettings& Pipeline::settings() const {
+  return impl_->settings;
+}
 void Pipeline::reset() {
   impl_->make_filters();
   impl_->samples = 0;
 }
-Bounds3 Pipeline::bounds() const { return impl_->renderer->bounds(); }
-const std::string& Pipeline::source() const { return impl_->asset.source(); }
-double Pipeline::animation_duration() const { return impl_->asset.duration(); }
-size_t Pipeline::triangle_count() const { return impl_->asset.triangle_count(); }
-void Pipeline::set_render_function(PipelineRenderFn render) { impl_->render_fn = std::move(render); }
-const Asset& Pipeline::asset() const { return impl_->asset; }
-const Renderer& Pipeline::renderer() const { return *impl_->renderer; }
-int Pipeline::accumulated() const { return impl_->samples; }
+Bounds3 Pipeline::bounds() const {
+  return impl_->renderer->bounds();
+}
+const std::string& Pipeline::source() const {
+  return impl_->asset.source();
+}
+double Pipeline::animation_duration() const {
+  return impl_->asset.duration();
+}
+size_t Pipeline::triangle_count() const {
+  return impl_->asset.triangle_count();
+}
+void Pipeline::set_render_function(PipelineRenderFn render) {
+  impl_->render_fn = std::move(render);
+}
+const Asset& Pipeline::asset() const {
+  return impl_->asset;
+}
+const Renderer& Pipeline::renderer() const {
+  return *impl_->renderer;
+}
+int Pipeline::accumulated() const {
+  return impl_->samples;
+}
 
 const PipelineFrame& Pipeline::frame(const Camera& camera, double time) {
   Impl& m = *impl_;
@@ -131,7 +157,8 @@ const PipelineFrame& Pipeline::frame(const Camera& camera, double time) {
   const double t1 = clock.ms();
   const int iw = s.width / s.factor, ih = s.height / s.factor;
   const RenderSettings rs = m.render_settings(iw, ih, o.index);
-  Frame f = m.render_fn ? m.render_fn(*m.renderer, camera, rs, m.prev_camera) : m.renderer->render(camera, rs, m.prev_camera);
+  Frame f = m.render_fn ? m.render_fn(*m.renderer, camera, rs, m.prev_camera)
+                        : m.renderer->render(camera, rs, m.prev_camera);
   m.prev_camera = camera;
   const double t2 = clock.ms();
   if (f.width == 0) {  // a worker of a distributed render: the frame is elsewhere
@@ -142,17 +169,22 @@ const PipelineFrame& Pipeline::frame(const Camera& camera, double time) {
   }
   o.noisy = std::move(f.aov[int(Aov::color)]);
   if (m.denoiser)
-    m.denoiser->denoise({&o.noisy, &f[Aov::albedo], &f[Aov::normal], &f[Aov::depth], &f[Aov::roughness], &f[Aov::motion]},
+    m.denoiser->denoise({&o.noisy, &f[Aov::albedo], &f[Aov::normal], &f[Aov::depth],
+                         &f[Aov::roughness], &f[Aov::motion]},
                         o.denoised);
   else
     o.denoised = o.noisy;
   const double t3 = clock.ms();
-  if (m.upscaler) m.upscaler->upscale({&o.denoised, &f[Aov::depth], &f[Aov::motion], f.jitter_x, f.jitter_y}, o.upscaled);
-  else o.upscaled = o.denoised;
+  if (m.upscaler)
+    m.upscaler->upscale({&o.denoised, &f[Aov::depth], &f[Aov::motion], f.jitter_x, f.jitter_y},
+                        o.upscaled);
+  else
+    o.upscaled = o.denoised;
   const double t4 = clock.ms();
   o.rgb8 = tonemap_srgb8(o.upscaled, s.exposure);
   const double t5 = clock.ms(), t0 = 0;
-  o.width = s.width, o.height = s.height, o.internal_width = iw, o.internal_height = ih, o.factor = s.factor;
+  o.width = s.width, o.height = s.height, o.internal_width = iw, o.internal_height = ih,
+  o.factor = s.factor;
   o.times = {t1 - t0, t2 - t1, t3 - t2, t4 - t3, t5 - t4, t5 - t0};
   o.stats = f.stats;
   o.render = std::move(f);
@@ -160,9 +192,12 @@ const PipelineFrame& Pipeline::frame(const Camera& camera, double time) {
   // Hold the target frame time: a coarser factor when slow, a finer one when well under.
   if (s.target_ms > 0) {
     PipelineSettings next = s;
-    if (o.times.total > 1.15 * s.target_ms && s.factor < 4) next.factor = s.factor * 2;
-    else if (o.times.total < 0.3 * s.target_ms && s.factor > 1) next.factor = s.factor / 2;
-    if (next.factor != s.factor && s.width % next.factor == 0 && s.height % next.factor == 0) set_settings(next);
+    if (o.times.total > 1.15 * s.target_ms && s.factor < 4)
+      next.factor = s.factor * 2;
+    else if (o.times.total < 0.3 * s.target_ms && s.factor > 1)
+      next.factor = s.factor / 2;
+    if (next.factor != s.factor && s.width % next.factor == 0 && s.height % next.factor == 0)
+      set_settings(next);
   }
   return o;
 }
@@ -184,7 +219,8 @@ const PipelineFrame& Pipeline::accumulate(const Camera& camera, double time) {
   const double t2 = clock.ms();
   if (m.samples == 0) m.sum.assign(size_t(s.width) * size_t(s.height) * 3, 0.0);
   const FloatImage& c = f[Aov::color];
-  for (size_t i = 0; i < m.sum.size(); ++i) m.sum[i] += std::isfinite(c.pixels[i]) ? double(c.pixels[i]) : 0.0;
+  for (size_t i = 0; i < m.sum.size(); ++i)
+    m.sum[i] += std::isfinite(c.pixels[i]) ? double(c.pixels[i]) : 0.0;
   ++m.samples;
   m.acc_camera = camera, m.acc_time = time;
   if (o.upscaled.width != s.width || o.upscaled.height != s.height || o.upscaled.channels != 3)
@@ -192,7 +228,8 @@ const PipelineFrame& Pipeline::accumulate(const Camera& camera, double time) {
   for (size_t i = 0; i < m.sum.size(); ++i) o.upscaled.pixels[i] = float(m.sum[i] / m.samples);
   o.rgb8 = tonemap_srgb8(o.upscaled, s.exposure);
   const double t3 = clock.ms(), t0 = 0;
-  o.width = s.width, o.height = s.height, o.internal_width = s.width, o.internal_height = s.height, o.factor = 1;
+  o.width = s.width, o.height = s.height, o.internal_width = s.width, o.internal_height = s.height,
+  o.factor = 1;
   o.times = {t1 - t0, t2 - t1, 0, 0, t3 - t2, t3 - t0};
   o.stats = f.stats;
   m.prev_camera.reset();  // the real-time history is stale after a rest

@@ -24,7 +24,9 @@ struct BsdfParams {
   float specular = 0;  ///< dielectric coat weight
 };
 
-inline float luminance(Vec3 c) { return 0.2126f * c.x + 0.7152f * c.y + 0.0722f * c.z; }
+inline float luminance(Vec3 c) {
+  return 0.2126f * c.x + 0.7152f * c.y + 0.0722f * c.z;
+}
 inline float schlick_weight(float c) {
   const float m = std::clamp(1.0f - c, 0.0f, 1.0f);
   const float m2 = m * m;
@@ -42,7 +44,9 @@ inline float ggx_lambda(float alpha, Vec3 w) {
   const float tan2 = std::max(0.0f, 1.0f - z2) / z2;
   return 0.5f * (-1.0f + std::sqrt(1.0f + alpha * alpha * tan2));
 }
-inline float ggx_g1(float alpha, Vec3 w) { return 1.0f / (1.0f + ggx_lambda(alpha, w)); }
+inline float ggx_g1(float alpha, Vec3 w) {
+  return 1.0f / (1.0f + ggx_lambda(alpha, w));
+}
 
 /// Visible-normal sample (Heitz 2018, "Sampling the GGX Distribution of Visible Normals").
 inline Vec3 sample_ggx_vndf(float alpha, Vec3 wo, float u1, float u2) {
@@ -69,7 +73,8 @@ inline Vec3 fresnel(const BsdfParams& p, float cos_theta) {
 /// Probability of sampling the specular lobe for this wo (a function of wo only).
 inline float specular_probability(const BsdfParams& p, Vec3 wo) {
   const float ws = luminance(fresnel(p, wo.z));
-  const float wd = (1.0f - p.metallic) * luminance(p.base) * (1.0f - p.specular * (0.04f + 0.96f * schlick_weight(wo.z)));
+  const float wd = (1.0f - p.metallic) * luminance(p.base) *
+                   (1.0f - p.specular * (0.04f + 0.96f * schlick_weight(wo.z)));
   if (ws <= 0) return 0.0f;
   if (wd <= 0) return 1.0f;
   return std::clamp(ws / (ws + wd), 0.1f, 0.9f);

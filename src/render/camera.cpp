@@ -7,9 +7,9 @@
 #include <filesystem>
 #include <fstream>
 
+#include "core/file_io.h"
 #include "core/vec.h"
 #include "io/loaders.h"
-#include "core/file_io.h"
 #include "kestrel/error.h"
 #include "kestrel/render.h"
 
@@ -32,27 +32,35 @@ json read_json(const std::string& path) {
   }
 }
 
-Vec3 vec3_field(const std::string& path, const std::string& where, const json& obj, const char* key) {
-  if (!obj.contains(key)) throw Error(ErrorCode::parse_error, fmt::format("{}: {} has no \"{}\"", path, where, key));
+Vec3 vec3_field(const std::string& path, const std::string& where, const json& obj,
+                const char* key) {
+  if (!obj.contains(key))
+    throw Error(ErrorCode::parse_error, fmt::format("{}: {} has no \"{}\"", path, where, key));
   const json& v = obj[key];
   if (!v.is_array() || v.size() != 3 || !v[0].is_number() || !v[1].is_number() || !v[2].is_number())
-    throw Error(ErrorCode::parse_error, fmt::format("{}: {}: \"{}\" must be an array of 3 numbers", path, where, key));
+    throw Error(ErrorCode::parse_error,
+                fmt::format("{}: {}: \"{}\" must be an array of 3 numbers", path, where, key));
   // Bounded so the spline through the keys (squared distances, in float) stays finite.
   for (int k = 0; k < 3; ++k)
     if (!(std::fabs(v[k].get<double>()) <= 1e18))
-      throw Error(ErrorCode::parse_error, fmt::format("{}: {}: \"{}\" has a coordinate beyond 1e18 ({})", path, where, key,
-                                                      v[k].dump()));
+      throw Error(ErrorCode::parse_error,
+                  fmt::format("{}: {}: \"{}\" has a coordinate beyond 1e18 ({})", path, where, key,
+                              v[k].dump()));
   return {v[0].get<float>(), v[1].get<float>(), v[2].get<float>()};
 }
 
-float number_field(const std::string& path, const std::string& where, const json& obj, const char* key, float fallback) {
+float number_field(const std::string& path, const std::string& where, const json& obj,
+                   const char* key, float fallback) {
   if (!obj.contains(key)) return fallback;
-  if (!obj[key].is_number()) throw Error(ErrorCode::parse_error, fmt::format("{}: {}: \"{}\" must be a number", path, where, key));
+  if (!obj[key].is_number())
+    throw Error(ErrorCode::parse_error,
+                fmt::format("{}: {}: \"{}\" must be a number", path, where, key));
   return obj[key].get<float>();
 }
 
 Camera camera_from_json(const std::string& path, const std::string& where, const json& obj) {
-  if (!obj.is_object()) throw Error(ErrorCode::parse_error, fmt::format("{}: {} must be an object", path, where));
+  if (!obj.is_object())
+    throw Error(ErrorCode::parse_error, fmt::format("{}: {} must be an object", path, where));
   Camera c;
   c.eye = vec3_field(path, where, obj, "eye");
   c.target = vec3_field(path, where, obj, "target");
@@ -74,11 +82,16 @@ std::string scene_stem(const std::string& source) {
 
 Vec3 catmull_rom(Vec3 p0, Vec3 p1, Vec3 p2, Vec3 p3, float t) {
   // Centripetal parameterisation (alpha = 0.5), Barry-Goldman pyramid.
-  auto knot = [](float ti, Vec3 a, Vec3 b) { return ti + std::max(std::sqrt(length(b - a)), 1e-4f); };
+  auto knot = [](float ti, Vec3 a, Vec3 b) {
+    return ti + std::max(std::sqrt(length(b - a)), 1e-4f);
+  };
   const float t0 = 0, t1 = knot(t0, p0, p1), t2 = knot(t1, p1, p2), t3 = knot(t2, p2, p3);
   const float u = t1 + (t2 - t1) * t;
-  auto lerp = [](Vec3 a, Vec3 b, float ta, float tb, float x) { return a * ((tb - x) / (tb - ta)) + b * ((x - ta) / (tb - ta)); };
-  const Vec3 a1 = lerp(p0, p1, t0, t1, u), a2 = lerp(p1, p2, t1, t2, u), a3 = lerp(p2, p3, t2, t3, u);
+  auto lerp = [](Vec3 a, Vec3 b, float ta, float tb, float x) {
+    return a * ((tb - x) / (tb - ta)) + b * ((x - ta) / (tb - ta));
+  };
+  const Vec3 a1 = lerp(p0, p1, t0, t1, u), a2 = lerp(p1, p2, t1, t2, u),
+             a3 = lerp(p2, p3, t2, t3, u);
   const Vec3 b1 = lerp(a1, a2, t0, t2, u), b2 = lerp(a2, a3, t1, t3, u);
   return lerp(b1, b2, t1, t2, u);
 }
@@ -88,14 +101,20 @@ Vec3 catmull_rom(Vec3 p0, Vec3 p1, Vec3 p2, Vec3 p3, float t) {
 void check_camera(const Camera& c) {
   if (!is_finite(c.eye) || !is_finite(c.target))
     throw Error(ErrorCode::invalid_argument, "camera: eye and target must be finite");
-  if (!(length(c.target - c.eye) > 0)) throw Error(ErrorCode::invalid_argument, "camera: eye and target coincide");
+  if (!(length(c.target - c.eye) > 0))
+    throw Error(ErrorCode::invalid_argument, "camera: eye and target coincide");
   if (!(c.vfov_degrees > 0 && c.vfov_degrees < 180))
-    throw Error(ErrorCode::invalid_argument, fmt::format("camera: vfov {} is not in (0, 180) degrees", c.vfov_degrees));
-  if (!(c.aperture_radius >= 0 && std::isfinite(c.aperture_radius)) || !(c.focus_distance >= 0 && std::isfinite(c.focus_distance)))
-    throw Error(ErrorCode::invalid_argument, "camera: aperture and focus distance must be finite and >= 0");
+    throw Error(ErrorCode::invalid_argument,
+                fmt::format("camera: vfov {} is not in (0, 180) degrees", c.vfov_degrees));
+  if (!(c.aperture_radius >= 0 && std::isfinite(c.aperture_radius)) ||
+      !(c.focus_distance >= 0 && std::isfinite(c.focus_distance)))
+    throw Error(ErrorCode::invalid_argument,
+                "camera: aperture and focus distance must be finite and >= 0");
 }
 
-Camera framing_camera(const Scene& scene) { return framing_camera(scene_bounds(scene)); }
+Camera framing_camera(const Scene& scene) {
+  return framing_camera(scene_bounds(scene));
+}
 
 Camera framing_camera(const Bounds3& b) {
   Camera cam;
@@ -110,9 +129,11 @@ Camera framing_camera(const Bounds3& b) {
 std::map<std::string, Camera> load_views(const std::string& path) {
   const json j = read_json(path);
   if (!j.is_object() || !j.contains("views") || !j["views"].is_object())
-    throw Error(ErrorCode::parse_error, fmt::format("{}: expected an object with \"views\": {{NAME: {{...}}}}", path));
+    throw Error(ErrorCode::parse_error,
+                fmt::format("{}: expected an object with \"views\": {{NAME: {{...}}}}", path));
   std::map<std::string, Camera> views;
-  for (const auto& [name, v] : j["views"].items()) views[name] = camera_from_json(path, "view '" + name + "'", v);
+  for (const auto& [name, v] : j["views"].items())
+    views[name] = camera_from_json(path, "view '" + name + "'", v);
   return views;
 }
 
@@ -122,12 +143,14 @@ std::vector<std::string> view_files_for(const std::string& scene_path) {
     std::filesystem::path p(scene_path);
     files.push_back((p.parent_path() / (p.stem().string() + ".views.json")).string());
   }
-  files.push_back(std::string(KESTREL_DATA_DIR) + "/views/" + scene_stem(scene_path) + ".views.json");
+  files.push_back(std::string(KESTREL_DATA_DIR) + "/views/" + scene_stem(scene_path) +
+                  ".views.json");
   return files;
 }
 
 namespace {
-std::optional<Camera> find_view(const std::string& source, const Bounds3& bounds, const std::string& name) {
+std::optional<Camera> find_view(const std::string& source, const Bounds3& bounds,
+                                const std::string& name) {
   if (name.empty() || name == "framing") return framing_camera(bounds);
   for (const std::string& file : view_files_for(source)) {
     if (!std::filesystem::is_regular_file(file)) continue;
@@ -149,8 +172,10 @@ std::optional<Camera> find_view(const Asset& asset, const std::string& name) {
 
 CameraPath CameraPath::load(const std::string& path) {
   const json j = read_json(path);
-  if (!j.is_object() || !j.contains("keyframes") || !j["keyframes"].is_array() || j["keyframes"].empty())
-    throw Error(ErrorCode::parse_error, fmt::format("{}: expected an object with a non-empty \"keyframes\" array", path));
+  if (!j.is_object() || !j.contains("keyframes") || !j["keyframes"].is_array() ||
+      j["keyframes"].empty())
+    throw Error(ErrorCode::parse_error,
+                fmt::format("{}: expected an object with a non-empty \"keyframes\" array", path));
   CameraPath out;
   for (size_t i = 0; i < j["keyframes"].size(); ++i) {
     const json& k = j["keyframes"][i];
@@ -158,12 +183,16 @@ CameraPath CameraPath::load(const std::string& path) {
     Key key;
     key.camera = camera_from_json(path, where, k);
     if (!k.contains("time") || !k["time"].is_number())
-      throw Error(ErrorCode::parse_error, fmt::format("{}: {} has no numeric \"time\"", path, where));
-    key.time = k["time"].get<double>();
-    if (!(std::fabs(key.time) <= 1e9) || (!out.keys.empty() && !(key.time >= out.keys.back().time + 1e-6)))
       throw Error(ErrorCode::parse_error,
-                  fmt::format("{}: {}: time {}: times must be increasing (by at least 1e-6 s) and within +-1e9 s", path, where,
-                              k["time"].dump()));
+                  fmt::format("{}: {} has no numeric \"time\"", path, where));
+    key.time = k["time"].get<double>();
+    if (!(std::fabs(key.time) <= 1e9) ||
+        (!out.keys.empty() && !(key.time >= out.keys.back().time + 1e-6)))
+      throw Error(
+          ErrorCode::parse_error,
+          fmt::format(
+              "{}: {}: time {}: times must be increasing (by at least 1e-6 s) and within +-1e9 s",
+              path, where, k["time"].dump()));
     out.keys.push_back(key);
   }
   return out;
@@ -171,9 +200,12 @@ CameraPath CameraPath::load(const std::string& path) {
 
 CameraPath CameraPath::orbit(const Camera& start, double degrees, double seconds) {
   check_camera(start);
-  if (!std::isfinite(degrees) || !std::isfinite(seconds) || !(seconds > 0) || std::abs(degrees) > 3600)
-    throw Error(ErrorCode::invalid_argument,
-                fmt::format("orbit: expected finite degrees (|d| <= 3600) and seconds > 0, got {} and {}", degrees, seconds));
+  if (!std::isfinite(degrees) || !std::isfinite(seconds) || !(seconds > 0) ||
+      std::abs(degrees) > 3600)
+    throw Error(
+        ErrorCode::invalid_argument,
+        fmt::format("orbit: expected finite degrees (|d| <= 3600) and seconds > 0, got {} and {}",
+                    degrees, seconds));
   const int steps = std::max(1, int(std::ceil(std::abs(degrees) / 15.0)));
   CameraPath out;
   const Vec3 arm = start.eye - start.target;
@@ -203,7 +235,9 @@ Camera CameraPath::at(double time) const {
   Camera c;
   // End segments repeat their end key as the outer control point: extrapolate it instead,
   // so the curve keeps its tangent.
-  auto outer = [](Vec3 inner, Vec3 end, bool real, Vec3 given) { return real ? given : end + (end - inner); };
+  auto outer = [](Vec3 inner, Vec3 end, bool real, Vec3 given) {
+    return real ? given : end + (end - inner);
+  };
   const Vec3 e0 = outer(k2.camera.eye, k1.camera.eye, i > 0, c0.eye);
   const Vec3 e3 = outer(k1.camera.eye, k2.camera.eye, i + 2 < keys.size(), c3.eye);
   const Vec3 t0 = outer(k2.camera.target, k1.camera.target, i > 0, c0.target);
@@ -229,26 +263,30 @@ Environment Environment::parse(const std::string& spec) {
   float r, g, b;
   char c1, c2;
   int consumed = 0;
-  if (std::sscanf(values.c_str(), "%f %c %f %c %f%n", &r, &c1, &g, &c2, &b, &consumed) == 5 && c1 == ',' && c2 == ',' &&
-      size_t(consumed) == values.size()) {
+  if (std::sscanf(values.c_str(), "%f %c %f %c %f%n", &r, &c1, &g, &c2, &b, &consumed) == 5 &&
+      c1 == ',' && c2 == ',' && size_t(consumed) == values.size()) {
     if (!(std::isfinite(r) && std::isfinite(g) && std::isfinite(b) && r >= 0 && g >= 0 && b >= 0))
-      throw Error(ErrorCode::invalid_argument, fmt::format("environment '{}': radiance must be finite and >= 0", spec));
+      throw Error(ErrorCode::invalid_argument,
+                  fmt::format("environment '{}': radiance must be finite and >= 0", spec));
     env.color = {r, g, b};
     return env;
   }
   if (spec.rfind("constant:", 0) == 0)
-    throw Error(ErrorCode::invalid_argument, fmt::format("environment '{}': expected constant:R,G,B", spec));
+    throw Error(ErrorCode::invalid_argument,
+                fmt::format("environment '{}': expected constant:R,G,B", spec));
   env.image = read_float_image(spec);
   if (env.image.channels != 3) {
     FloatImage rgb(env.image.width, env.image.height, 3);
     for (int y = 0; y < rgb.height; ++y)
       for (int x = 0; x < rgb.width; ++x)
-        for (int c = 0; c < 3; ++c) rgb.at(x, y)[c] = env.image.at(x, y)[std::min(c, env.image.channels - 1)];
+        for (int c = 0; c < 3; ++c)
+          rgb.at(x, y)[c] = env.image.at(x, y)[std::min(c, env.image.channels - 1)];
     env.image = std::move(rgb);
   }
   for (float& v : env.image.pixels)
     if (!std::isfinite(v) || v < 0)
-      throw Error(ErrorCode::parse_error, fmt::format("{}: environment has a negative, NaN or Inf pixel", spec));
+      throw Error(ErrorCode::parse_error,
+                  fmt::format("{}: environment has a negative, NaN or Inf pixel", spec));
   return env;
 }
 

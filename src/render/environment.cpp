@@ -11,8 +11,10 @@ using namespace render;
 
 // After the lights are known: the given environment, else the sky when nothing emits.
 void Renderer::Impl::choose_environment(std::optional<Environment> environment) {
-  if (environment) env = std::move(*environment);
-  else env = Environment::parse(lights.empty() ? "sky" : "none");
+  if (environment)
+    env = std::move(*environment);
+  else
+    env = Environment::parse(lights.empty() ? "sky" : "none");
   setup_environment();
 }
 
@@ -49,7 +51,8 @@ float Renderer::Impl::env_pdf(Vec3 d, Vec3 n) const {
   const int y = std::clamp(int(theta / pi * float(h)), 0, h - 1);
   const float sin_theta = std::sin(theta);
   if (sin_theta <= 0) return 0;
-  const float pdf_uv = env_rows.pmf(size_t(y)) * env_cols[size_t(y)].pmf(size_t(x)) * float(w) * float(h);
+  const float pdf_uv =
+      env_rows.pmf(size_t(y)) * env_cols[size_t(y)].pmf(size_t(x)) * float(w) * float(h);
   return pdf_uv / (2 * pi * pi * sin_theta);
 }
 

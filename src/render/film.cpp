@@ -13,7 +13,8 @@
 namespace kestrel {
 
 const char* aov_name(Aov aov) {
-  static const char* names[aov_count] = {"color", "albedo", "normal", "depth", "roughness", "motion", "spp", "variance"};
+  static const char* names[aov_count] = {"color",     "albedo", "normal", "depth",
+                                         "roughness", "motion", "spp",    "variance"};
   return names[int(aov)];
 }
 
@@ -29,11 +30,21 @@ std::vector<ImageLayer> Frame::layers() const {
     std::vector<std::string> names;
     switch (aov) {
       case Aov::color:
-      case Aov::albedo: names = {"R", "G", "B"}; break;
-      case Aov::normal: names = {"X", "Y", "Z"}; break;
-      case Aov::depth: names = {"Z"}; break;
-      case Aov::motion: names = {"X", "Y"}; break;
-      default: names = {"Y"}; break;
+      case Aov::albedo:
+        names = {"R", "G", "B"};
+        break;
+      case Aov::normal:
+        names = {"X", "Y", "Z"};
+        break;
+      case Aov::depth:
+        names = {"Z"};
+        break;
+      case Aov::motion:
+        names = {"X", "Y"};
+        break;
+      default:
+        names = {"Y"};
+        break;
     }
     out.push_back(ImageLayer{aov_name(aov), names, this->aov[a]});
   }
@@ -48,9 +59,12 @@ void write_frame_exr(const std::string& path, const Frame& frame) {
 void write_frame_pfms(const std::string& dir, const Frame& frame) {
   std::error_code ec;
   std::filesystem::create_directories(dir, ec);
-  if (ec) throw Error(ErrorCode::io_error, fmt::format("{}: cannot create directory: {}", dir, ec.message()));
+  if (ec)
+    throw Error(ErrorCode::io_error,
+                fmt::format("{}: cannot create directory: {}", dir, ec.message()));
   for (int a = 0; a < aov_count; ++a)
-    write_pfm((std::filesystem::path(dir) / (std::string(aov_name(Aov(a))) + ".pfm")).string(), frame.aov[a]);
+    write_pfm((std::filesystem::path(dir) / (std::string(aov_name(Aov(a))) + ".pfm")).string(),
+              frame.aov[a]);
 }
 
 namespace {
@@ -61,14 +75,19 @@ inline float aces_fit(float x) {
   return std::clamp((x * (2.51f * x + 0.03f)) / (x * (2.43f * x + 0.59f) + 0.14f), 0.0f, 1.0f);
 }
 
-inline float srgb_oetf(float y) { return y <= 0.0031308f ? 12.92f * y : 1.055f * std::pow(y, 1.0f / 2.4f) - 0.055f; }
+inline float srgb_oetf(float y) {
+  return y <= 0.0031308f ? 12.92f * y : 1.055f * std::pow(y, 1.0f / 2.4f) - 0.055f;
+}
 
 }  // namespace
 
-float tonemap_aces_srgb(float x) { return srgb_oetf(aces_fit(x)); }
+float tonemap_aces_srgb(float x) {
+  return srgb_oetf(aces_fit(x));
+}
 
 std::vector<uint8_t> tonemap_srgb8(const FloatImage& color, float exposure_stops) {
-  if (color.channels < 3) throw Error(ErrorCode::invalid_argument, "tone map: the image needs 3 channels");
+  if (color.channels < 3)
+    throw Error(ErrorCode::invalid_argument, "tone map: the image needs 3 channels");
   // The sRGB OETF of the ACES output y in [0, 1], quantised to 8 bits, from a table of y
   // (2^16 steps: under 0.06 of a code value from the exact curve where it is steepest).
   static const std::vector<uint8_t> oetf = [] {
@@ -84,7 +103,8 @@ std::vector<uint8_t> tonemap_srgb8(const FloatImage& color, float exposure_stops
   std::vector<uint8_t> out(n * 3);
   parallel_for(0, n, 16384, [&](size_t b, size_t e) {
     for (size_t p = b; p < e; ++p)
-      for (size_t c = 0; c < 3; ++c) out[3 * p + c] = oetf[size_t(aces_fit(color.pixels[p * ch + c] * scale) * 65535.0f + 0.5f)];
+      for (size_t c = 0; c < 3; ++c)
+        out[3 * p + c] = oetf[size_t(aces_fit(color.pixels[p * ch + c] * scale) * 65535.0f + 0.5f)];
   });
   return out;
 }

@@ -16,17 +16,20 @@ void Renderer::Impl::trace(std::span<const Ray> rays, std::span<SurfaceHit> hits
   thread_local std::vector<InstanceHit> h;  // scratch, reused by every batch of this thread
   h.resize(rays.size());
   scene->trace(rays, std::span<InstanceHit>(h.data(), rays.size()));
-  for (size_t i = 0; i < rays.size(); ++i) hits[i] = {h[i].t, h[i].instance_id, h[i].prim_id, h[i].u, h[i].v};
+  for (size_t i = 0; i < rays.size(); ++i)
+    hits[i] = {h[i].t, h[i].instance_id, h[i].prim_id, h[i].u, h[i].v};
 }
 
-void Renderer::Impl::occluded(std::span<const Ray> rays, std::span<uint8_t> out) const { scene->occluded(rays, out); }
+void Renderer::Impl::occluded(std::span<const Ray> rays, std::span<uint8_t> out) const {
+  scene->occluded(rays, out);
+}
 
 namespace {
 
 struct PathState {
   Vec3 throughput{1, 1, 1}, radiance{0, 0, 0};
-  uint32_t pixel;      // index into the tile's pixel list
-  float bsdf_pdf = 0;  // pdf of the direction that led here (solid angle)
+  uint32_t pixel;             // index into the tile's pixel list
+  float bsdf_pdf = 0;         // pdf of the direction that led here (solid angle)
   Vec3 prev_normal{0, 0, 1};  // shading normal where that direction was sampled
   bool aov_pending = true;
 };
@@ -48,8 +51,9 @@ Vec3 offset_origin(Vec3 p, Vec3 n) {
 
 }  // namespace
 
-void Renderer::Impl::render_tile(const CameraModel& cam, const CameraModel& prev_cam, const RenderSettings& s, int tx,
-                                 int ty, int pass, float jx, float jy, Accumulator& acc, double& trace_ms,
+void Renderer::Impl::render_tile(const CameraModel& cam, const CameraModel& prev_cam,
+                                 const RenderSettings& s, int tx, int ty, int pass, float jx,
+                                 float jy, Accumulator& acc, double& trace_ms,
                                  uint64_t ray_counts[3]) const {
   const int x0 = tx * tile_size, y0 = ty * tile_size;
   const int x1 = std::min(x0 + tile_size, s.width), y1 = std::min(y0 + tile_size, s.height);
@@ -82,9 +86,14 @@ void Renderer::Impl::render_tile(const CameraModel& cam, const CameraModel& prev
   };
   auto capture_batch = [&](int kind, std::span<const Ray> r) {
     if (!capture) return;
-    std::vector<Ray>& dst = kind == 0 ? capture->camera : kind == 1 ? capture->bounce : capture->shadow;
+    std::vector<Ray>& dst = kind == 0   ? capture->camera
+                            : kind == 1 ? capture->bounce
+                                        : capture->shadow;
     dst.insert(dst.end(), r.begin(), r.end());
-    (kind == 0 ? capture->camera_batches : kind == 1 ? capture->bounce_batches : capture->shadow_batches).push_back(r.size());
+    (kind == 0   ? capture->camera_batches
+     : kind == 1 ? capture->bounce_batches
+                 : capture->shadow_batches)
+        .push_back(r.size());
   };
 
   for (int depth = 0; !active.empty(); ++depth) {
@@ -125,11 +134,13 @@ void Renderer::Impl::render_tile(const CameraModel& cam, const CameraModel& prev
       if (!t) return;
       const Vec2 uv = uv_at(m, h.prim, h.u, h.v);
       const float u = uv.x, v = uv.y;
-      const float x = (u - std::floor(u)) * float(t->width), y = (v - std::floor(v)) * float(t->height);
+      const float x = (u - std::floor(u)) * float(t->width),
+                  y = (v - std::floor(v)) * float(t->height);
       if (!(x >= 0 && x < float(t->width) && y >= 0 && y < float(t->height))) return;
       const size_t row = size_t(y) * size_t(t->width);
       __builtin_prefetch(&t->rgba[(row + size_t(x)) * 4]);
-      if (size_t(y) + 1 < size_t(t->height)) __builtin_prefetch(&t->rgba[(row + size_t(t->width) + size_t(x)) * 4]);
+      if (size_t(y) + 1 < size_t(t->height))
+        __builtin_prefetch(&t->rgba[(row + size_t(t->width) + size_t(x)) * 4]);
     };
     constexpr size_t index_distance = 48, vertex_distance = 24, texel_distance = 12;
     for (size_t k = 0; k < std::min(n, index_distance); ++k) prefetch_indices(k);
@@ -162,7 +173,8 @@ void Renderer::Impl::render_tile(const CameraModel& cam, const CameraModel& prev
       // Surface interaction.
       const InstanceShade& is = instances[h.instance];
       const TriangleMesh& mesh = *is.mesh;
-      const uint32_t i0 = mesh.indices[3 * h.prim], i1 = mesh.indices[3 * h.prim + 1], i2 = mesh.indices[3 * h.prim + 2];
+      const uint32_t i0 = mesh.indices[3 * h.prim], i1 = mesh.indices[3 * h.prim + 1],
+                     i2 = mesh.indices[3 * h.prim + 2];
       const float b0 = 1 - h.u - h.v;
       Vec3 p0 = mesh.positions[i0], p1 = mesh.positions[i1], p2 = mesh.positions[i2];
       const Vec3 p_obj = p0 * b0 + p1 * h.u + p2 * h.v;
@@ -212,7 +224,8 @@ void Renderer::Impl::render_tile(const CameraModel& cam, const CameraModel& prev
         out.depth = dot(p - cam.eye, cam.forward);
         const Vec3 p_prev = is.identity ? p : is.prev_xf.point(p_obj);
         float fx, fy, gx, gy;
-        if (cam.project(p, fx, fy) && prev_cam.project(p_prev, gx, gy)) out.mx = gx - fx, out.my = gy - fy;
+        if (cam.project(p, fx, fy) && prev_cam.project(p_prev, gx, gy))
+          out.mx = gx - fx, out.my = gy - fy;
       }
       const bool specular_surface = bp.metallic >= 0.5f && bp.alpha < specular_alpha;
       if (ps.aov_pending) {
@@ -248,7 +261,8 @@ void Renderer::Impl::render_tile(const CameraModel& cam, const CameraModel& prev
           le = env_radiance(wi);
           dir = wi;
         } else {
-          const size_t li = light_dist.sample(lights.size() == 1 ? 0.5f : (ul - p_env) / (1 - p_env));
+          const size_t li =
+              light_dist.sample(lights.size() == 1 ? 0.5f : (ul - p_env) / (1 - p_env));
           const LightTri& l = lights[li];
           const float su = std::sqrt(u1);
           const float lb1 = u2 * su, lb2 = 1 - su;  // weights of vertices 1 and 2
@@ -285,7 +299,8 @@ void Renderer::Impl::render_tile(const CameraModel& cam, const CameraModel& prev
       ps.bsdf_pdf = bs.pdf;
       ps.prev_normal = ns;
       if (depth + 1 >= s.rr_depth) {
-        const float q = std::min(0.95f, std::max({ps.throughput.x, ps.throughput.y, ps.throughput.z}));
+        const float q =
+            std::min(0.95f, std::max({ps.throughput.x, ps.throughput.y, ps.throughput.z}));
         if (!(rng.uniform() < q)) continue;
         ps.throughput = ps.throughput * (1.0f / q);
       }
@@ -297,7 +312,9 @@ void Renderer::Impl::render_tile(const CameraModel& cam, const CameraModel& prev
       capture_batch(2, shadow_rays);
       timed([&] { occluded(shadow_rays, blocked); }, 2, shadow_rays.size());
       for (size_t i = 0; i < shadows.size(); ++i)
-        if (!blocked[i]) paths[shadows[i].path].radiance = paths[shadows[i].path].radiance + shadows[i].contribution;
+        if (!blocked[i])
+          paths[shadows[i].path].radiance =
+              paths[shadows[i].path].radiance + shadows[i].contribution;
     }
     rays.swap(next_rays);
     active.swap(next_active);

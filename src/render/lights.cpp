@@ -14,13 +14,16 @@ using namespace render;
 
 // A trailing "default" material (what out-of-range ids fall back to), every one checked.
 void Renderer::Impl::check_materials(const std::string& source) {
-  if (materials.empty() || materials.back().name != "default") materials.push_back(Material{.name = "default"});
+  if (materials.empty() || materials.back().name != "default")
+    materials.push_back(Material{.name = "default"});
   for (size_t i = 0; i < materials.size(); ++i) {
     const Material& m = materials[i];
-    if (!is_finite(m.base_color) || !is_finite(m.emission) || !std::isfinite(m.metallic) || !std::isfinite(m.roughness) ||
-        !std::isfinite(m.specular) || m.emission.x < 0 || m.emission.y < 0 || m.emission.z < 0)
+    if (!is_finite(m.base_color) || !is_finite(m.emission) || !std::isfinite(m.metallic) ||
+        !std::isfinite(m.roughness) || !std::isfinite(m.specular) || m.emission.x < 0 ||
+        m.emission.y < 0 || m.emission.z < 0)
       throw Error(ErrorCode::invalid_argument,
-                  fmt::format("{}: material {} '{}': a non-finite or negative parameter", source, i, m.name));
+                  fmt::format("{}: material {} '{}': a non-finite or negative parameter", source, i,
+                              m.name));
   }
 }
 
@@ -53,7 +56,8 @@ void Renderer::Impl::sync_lights() {
       world_triangle(is, p, p0, p1, p2);
       const float area = 0.5f * length(cross(p1 - p0, p2 - p0));
       lights.push_back({i, p, p0, p1 - p0, p2 - p0, area});
-      power.push_back(area > 0 ? luminance(material_of(*is.mesh, p).emission) * area * 2 * pi : 0.0f);
+      power.push_back(area > 0 ? luminance(material_of(*is.mesh, p).emission) * area * 2 * pi
+                               : 0.0f);
     }
     const TriangleMesh& m = *is.mesh;
     for (uint32_t t = 0; t < m.triangle_count(); ++t) {

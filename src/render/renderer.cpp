@@ -19,12 +19,14 @@ using namespace render;
 
 // ---- the renderer ------------------------------------------------------------------------------
 
-Renderer::Renderer(const InstancedScene& scene, std::optional<Environment> environment) : impl_(new Impl) {
+Renderer::Renderer(const InstancedScene& scene, std::optional<Environment> environment)
+    : impl_(new Impl) {
   Impl& r = *impl_;
   r.scene = &scene;
   const ValidationReport report = scene.validation();
   if (report.valid_triangle_count == 0)
-    throw Error(ErrorCode::invalid_geometry, fmt::format("{}: no valid triangle to render ({})", r.source(), report.summary()));
+    throw Error(ErrorCode::invalid_geometry,
+                fmt::format("{}: no valid triangle to render ({})", r.source(), report.summary()));
   r.sync();  // the first sync: every previous transform is the current one
   r.choose_environment(std::move(environment));
 }
@@ -33,7 +35,9 @@ Renderer::~Renderer() = default;
 Renderer::Renderer(Renderer&&) noexcept = default;
 Renderer& Renderer::operator=(Renderer&&) noexcept = default;
 
-std::string Renderer::Impl::source() const { return scene->source().empty() ? "the scene" : scene->source(); }
+std::string Renderer::Impl::source() const {
+  return scene->source().empty() ? "the scene" : scene->source();
+}
 
 // The scene's materials, transforms and lights as of its last commit; the transforms seen at
 // the previous sync become the previous frame's (motion vectors).
@@ -51,16 +55,20 @@ void Renderer::Impl::sync() {
     is.mesh = &s.mesh(s.instance_mesh(i));
     const TriangleMesh& m = *is.mesh;
     if (!m.material_ids.empty() && m.material_ids.size() != m.triangle_count())
-      throw Error(ErrorCode::invalid_argument, fmt::format("{}: mesh '{}' has {} material ids for {} triangles", source(),
-                                                           m.name, m.material_ids.size(), m.triangle_count()));
+      throw Error(ErrorCode::invalid_argument,
+                  fmt::format("{}: mesh '{}' has {} material ids for {} triangles", source(),
+                              m.name, m.material_ids.size(), m.triangle_count()));
     for (uint32_t id : m.material_ids)
       if (id >= given)
-        throw Error(ErrorCode::invalid_argument, fmt::format("{}: mesh '{}' names material {} of {}", source(), m.name, id, given));
+        throw Error(
+            ErrorCode::invalid_argument,
+            fmt::format("{}: mesh '{}' names material {} of {}", source(), m.name, id, given));
     is.xf = s.transform(i);
     is.prev_xf = i < old.size() && old[i].mesh ? old[i].xf : is.xf;
     const Affine3 identity;
-    is.identity = std::equal(std::begin(is.xf.m), std::end(is.xf.m), std::begin(identity.m)) &&
-                  std::equal(std::begin(is.prev_xf.m), std::end(is.prev_xf.m), std::begin(identity.m));
+    is.identity =
+        std::equal(std::begin(is.xf.m), std::end(is.xf.m), std::begin(identity.m)) &&
+        std::equal(std::begin(is.prev_xf.m), std::end(is.prev_xf.m), std::begin(identity.m));
     const Affine3 inv = inverse(is.xf);
     // inverse transpose of the linear part: row r of the result = column r of inv
     for (int row = 0; row < 3; ++row)
@@ -69,10 +77,18 @@ void Renderer::Impl::sync() {
   sync_lights();
 }
 
-Bounds3 Renderer::bounds() const { return impl_->bounds; }
-size_t Renderer::light_count() const { return impl_->lights.size(); }
-const Environment& Renderer::environment() const { return impl_->env; }
-void RendererTesting::set_capture(Renderer& renderer, RayCapture* capture) { renderer.impl_->capture = capture; }
+Bounds3 Renderer::bounds() const {
+  return impl_->bounds;
+}
+size_t Renderer::light_count() const {
+  return impl_->lights.size();
+}
+const Environment& Renderer::environment() const {
+  return impl_->env;
+}
+void RendererTesting::set_capture(Renderer& renderer, RayCapture* capture) {
+  renderer.impl_->capture = capture;
+}
 
 std::array<double, 3> RendererTesting::retrace(const Renderer& renderer, const RayCapture& c) {
   const Renderer::Impl* impl_ = renderer.impl_.get();
@@ -107,14 +123,21 @@ void frame_jitter(uint32_t index, float& jx, float& jy) {
 
 namespace {
 
-void check_render_settings(const Camera& camera, const RenderSettings& s, const std::optional<Camera>& prev_camera) {
+void check_render_settings(const Camera& camera, const RenderSettings& s,
+                           const std::optional<Camera>& prev_camera) {
   check_camera(camera);
   if (prev_camera) check_camera(*prev_camera);
   if (s.width <= 0 || s.height <= 0 || s.width > 32768 || s.height > 32768)
-    throw Error(ErrorCode::invalid_argument, fmt::format("render: resolution {}x{} is out of range", s.width, s.height));
-  if (s.spp <= 0) throw Error(ErrorCode::invalid_argument, fmt::format("render: spp must be positive, got {}", s.spp));
-  if (s.max_depth <= 0) throw Error(ErrorCode::invalid_argument, fmt::format("render: max depth must be positive, got {}", s.max_depth));
-  if (!(s.time_limit_s >= 0) || !(s.clamp >= 0)) throw Error(ErrorCode::invalid_argument, "render: time limit and clamp must be >= 0");
+    throw Error(ErrorCode::invalid_argument,
+                fmt::format("render: resolution {}x{} is out of range", s.width, s.height));
+  if (s.spp <= 0)
+    throw Error(ErrorCode::invalid_argument,
+                fmt::format("render: spp must be positive, got {}", s.spp));
+  if (s.max_depth <= 0)
+    throw Error(ErrorCode::invalid_argument,
+                fmt::format("render: max depth must be positive, got {}", s.max_depth));
+  if (!(s.time_limit_s >= 0) || !(s.clamp >= 0))
+    throw Error(ErrorCode::invalid_argument, "render: time limit and clamp must be >= 0");
 }
 
 // The frame's AOVs at pixel p: the means of the accumulated sums.
@@ -130,12 +153,15 @@ void finish_pixel(const Accumulator& acc, Frame& frame, size_t p) {
   frame.aov[int(Aov::motion)].pixels[2 * p] = acc.motion[2 * p] * inv;
   frame.aov[int(Aov::motion)].pixels[2 * p + 1] = acc.motion[2 * p + 1] * inv;
   frame.aov[int(Aov::spp)].pixels[p] = float(acc.n[p]);
-  frame.aov[int(Aov::variance)].pixels[p] = acc.n[p] > 1 ? float(acc.lum_m2[p] / (acc.n[p] - 1) / acc.n[p]) : 0.0f;
+  frame.aov[int(Aov::variance)].pixels[p] =
+      acc.n[p] > 1 ? float(acc.lum_m2[p] / (acc.n[p] - 1) / acc.n[p]) : 0.0f;
 }
 
 }  // namespace
 
-int render_tile_size() { return tile_size; }
+int render_tile_size() {
+  return tile_size;
+}
 
 size_t render_tile_count(int width, int height) {
   return size_t((width + tile_size - 1) / tile_size) * size_t((height + tile_size - 1) / tile_size);
@@ -143,8 +169,10 @@ size_t render_tile_count(int width, int height) {
 
 // One render over a list of tiles (every tile when `only` is null): passes outside, tiles
 // inside, so each pixel sums its samples in pass order whichever tiles run together.
-void Renderer::Impl::render_passes(const Camera& camera, const RenderSettings& s, const std::optional<Camera>& prev_camera,
-                                   const std::vector<uint32_t>* only, Accumulator& acc, Frame& frame) {
+void Renderer::Impl::render_passes(const Camera& camera, const RenderSettings& s,
+                                   const std::optional<Camera>& prev_camera,
+                                   const std::vector<uint32_t>* only, Accumulator& acc,
+                                   Frame& frame) {
   std::optional<ThreadLimit> limit;
   if (s.threads > 0 || capture) limit.emplace(capture ? 1 : s.threads);
   const CameraModel cam(camera, s.width, s.height);
@@ -158,7 +186,8 @@ void Renderer::Impl::render_passes(const Camera& camera, const RenderSettings& s
   std::atomic<size_t> tiles_done{0};
   for (int pass = 0; pass < s.spp; ++pass) {
     float jx = 0.5f, jy = 0.5f;
-    if (s.jitter) frame_jitter(s.fixed_jitter ? s.frame : s.frame * uint32_t(s.spp) + uint32_t(pass), jx, jy);
+    if (s.jitter)
+      frame_jitter(s.fixed_jitter ? s.frame : s.frame * uint32_t(s.spp) + uint32_t(pass), jx, jy);
     if (pass == 0) frame.jitter_x = jx, frame.jitter_y = jy;
     parallel_for(0, tiles, 1, [&](size_t b, size_t e) {
       for (size_t i = b; i < e; ++i) {
@@ -166,7 +195,8 @@ void Renderer::Impl::render_passes(const Camera& camera, const RenderSettings& s
         const double t0 = now_ms();
         uint64_t counts[3] = {0, 0, 0};
         double tms = 0;
-        render_tile(cam, prev, s, int(t % size_t(tiles_x)), int(t / size_t(tiles_x)), pass, jx, jy, acc, tms, counts);
+        render_tile(cam, prev, s, int(t % size_t(tiles_x)), int(t / size_t(tiles_x)), pass, jx, jy,
+                    acc, tms, counts);
         tile_trace[i] += tms;
         tile_total[i] += now_ms() - t0;
         for (int k = 0; k < 3; ++k) tile_rays[i][size_t(k)] += counts[k];
@@ -174,8 +204,9 @@ void Renderer::Impl::render_passes(const Camera& camera, const RenderSettings& s
         if (s.progress && (done % 16 == 0 || done == tiles * size_t(s.spp))) {
           const double f = double(done) / double(tiles * size_t(s.spp));
           const int bar = int(f * 40);
-          std::fprintf(stderr, "\rrender [%.*s%*s] %5.1f%%  %.1f s", bar, "########################################",
-                       40 - bar, "", 100 * f, (now_ms() - start) / 1000);
+          std::fprintf(stderr, "\rrender [%.*s%*s] %5.1f%%  %.1f s", bar,
+                       "########################################", 40 - bar, "", 100 * f,
+                       (now_ms() - start) / 1000);
         }
       }
     });
@@ -194,7 +225,8 @@ void Renderer::Impl::render_passes(const Camera& camera, const RenderSettings& s
   }
 }
 
-Frame Renderer::render(const Camera& camera, const RenderSettings& s, std::optional<Camera> prev_camera) {
+Frame Renderer::render(const Camera& camera, const RenderSettings& s,
+                       std::optional<Camera> prev_camera) {
   check_render_settings(camera, s, prev_camera);
   if (impl_->scene->generation() != impl_->generation) impl_->sync();
   Accumulator acc(s.width, s.height);
@@ -202,37 +234,46 @@ Frame Renderer::render(const Camera& camera, const RenderSettings& s, std::optio
   impl_->render_passes(camera, s, prev_camera, nullptr, acc, frame);
   // Means of the sums.
   frame.width = s.width, frame.height = s.height;
-  for (int a = 0; a < aov_count; ++a) frame.aov[a] = FloatImage(s.width, s.height, aov_channels(Aov(a)));
+  for (int a = 0; a < aov_count; ++a)
+    frame.aov[a] = FloatImage(s.width, s.height, aov_channels(Aov(a)));
   for (size_t p = 0; p < size_t(s.width) * size_t(s.height); ++p) finish_pixel(acc, frame, p);
   return frame;
 }
 
-void Renderer::render_tiles(const Camera& camera, const RenderSettings& s, std::span<const uint32_t> tiles, Frame& frame,
+void Renderer::render_tiles(const Camera& camera, const RenderSettings& s,
+                            std::span<const uint32_t> tiles, Frame& frame,
                             std::optional<Camera> prev_camera) {
   check_render_settings(camera, s, prev_camera);
   if (s.time_limit_s > 0)
-    throw Error(ErrorCode::invalid_argument, "render: a time limit cannot be split into tiles (every tile needs every pass)");
+    throw Error(ErrorCode::invalid_argument,
+                "render: a time limit cannot be split into tiles (every tile needs every pass)");
   const size_t count = render_tile_count(s.width, s.height);
   for (uint32_t t : tiles)
-    if (t >= count) throw Error(ErrorCode::invalid_argument, fmt::format("render: tile {} of {}", t, count));
+    if (t >= count)
+      throw Error(ErrorCode::invalid_argument, fmt::format("render: tile {} of {}", t, count));
   if (impl_->scene->generation() != impl_->generation) impl_->sync();
   if (frame.width != s.width || frame.height != s.height) {
     frame = Frame{};
     frame.width = s.width, frame.height = s.height;
-    for (int a = 0; a < aov_count; ++a) frame.aov[a] = FloatImage(s.width, s.height, aov_channels(Aov(a)));
+    for (int a = 0; a < aov_count; ++a)
+      frame.aov[a] = FloatImage(s.width, s.height, aov_channels(Aov(a)));
   }
   auto& acc = impl_->tile_acc;
-  if (!acc || acc->width != s.width || acc->height != s.height) acc = std::make_unique<Accumulator>(s.width, s.height);
+  if (!acc || acc->width != s.width || acc->height != s.height)
+    acc = std::make_unique<Accumulator>(s.width, s.height);
   const int tiles_x = (s.width + tile_size - 1) / tile_size;
   auto for_pixels = [&](uint32_t t, auto&& f) {
-    const int x0 = int(t % uint32_t(tiles_x)) * tile_size, y0 = int(t / uint32_t(tiles_x)) * tile_size;
+    const int x0 = int(t % uint32_t(tiles_x)) * tile_size,
+              y0 = int(t / uint32_t(tiles_x)) * tile_size;
     for (int y = y0; y < std::min(y0 + tile_size, s.height); ++y)
-      for (int x = x0; x < std::min(x0 + tile_size, s.width); ++x) f(size_t(y) * size_t(s.width) + size_t(x));
+      for (int x = x0; x < std::min(x0 + tile_size, s.width); ++x)
+        f(size_t(y) * size_t(s.width) + size_t(x));
   };
   for (uint32_t t : tiles)  // this render's sums start from zero, as render()'s
     for_pixels(t, [&](size_t p) {
       for (int c = 0; c < 3; ++c)
-        acc->color[3 * p + size_t(c)] = acc->albedo[3 * p + size_t(c)] = acc->normal[3 * p + size_t(c)] = 0;
+        acc->color[3 * p + size_t(c)] = acc->albedo[3 * p + size_t(c)] =
+            acc->normal[3 * p + size_t(c)] = 0;
       acc->depth[p] = acc->rough[p] = acc->motion[2 * p] = acc->motion[2 * p + 1] = 0;
       acc->lum_mean[p] = acc->lum_m2[p] = 0;
       acc->n[p] = 0;

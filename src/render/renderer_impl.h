@@ -21,7 +21,8 @@ namespace kestrel {
 namespace render {
 
 constexpr int tile_size = 32;
-constexpr float specular_alpha = 0.01f;  // surfaces below this alpha (and metallic) are "specular" for the AOVs
+constexpr float specular_alpha =
+    0.01f;  // surfaces below this alpha (and metallic) are "specular" for the AOVs
 
 /// Bilinear, repeat-wrapped texture fetch; sRGB-decoded per texel when `srgb` (texture.cpp).
 void sample_texture(const Texture& tex, Vec2 uv, bool srgb, float out[4]);
@@ -29,7 +30,8 @@ void sample_texture(const Texture& tex, Vec2 uv, bool srgb, float out[4]);
 Vec2 uv_at(const TriangleMesh& m, uint32_t prim, float b1, float b2);
 
 inline Vec3 normal_transform(const float n[9], Vec3 v) {
-  return {n[0] * v.x + n[1] * v.y + n[2] * v.z, n[3] * v.x + n[4] * v.y + n[5] * v.z, n[6] * v.x + n[7] * v.y + n[8] * v.z};
+  return {n[0] * v.x + n[1] * v.y + n[2] * v.z, n[3] * v.x + n[4] * v.y + n[5] * v.z,
+          n[6] * v.x + n[7] * v.y + n[8] * v.z};
 }
 
 // Camera basis and projection, shared by ray generation and motion vectors.
@@ -59,10 +61,13 @@ struct CameraModel {
     const float a = 2 * lu - 1, b = 2 * lv - 1;
     float r = 0, phi = 0;
     if (a != 0 || b != 0) {
-      if (std::fabs(a) > std::fabs(b)) r = a, phi = (pi / 4) * (b / a);
-      else r = b, phi = pi / 2 - (pi / 4) * (a / b);
+      if (std::fabs(a) > std::fabs(b))
+        r = a, phi = (pi / 4) * (b / a);
+      else
+        r = b, phi = pi / 2 - (pi / 4) * (a / b);
     }
-    const Vec3 o = eye + right * (aperture * r * std::cos(phi)) + up * (aperture * r * std::sin(phi));
+    const Vec3 o =
+        eye + right * (aperture * r * std::cos(phi)) + up * (aperture * r * std::sin(phi));
     const Vec3 focus_point = eye + d * focus;
     return Ray{o, normalize(focus_point - o), 0.0f, INFINITY};
   }
@@ -80,7 +85,9 @@ struct CameraModel {
 };
 
 inline double now_ms() {
-  return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now().time_since_epoch()).count();
+  return std::chrono::duration<double, std::milli>(
+             std::chrono::steady_clock::now().time_since_epoch())
+      .count();
 }
 
 }  // namespace render
@@ -90,11 +97,12 @@ using namespace render;  // this private header's users are the renderer's own f
 struct Accumulator {
   int width, height;
   std::vector<float> color, albedo, normal, depth, rough, motion;  // sums
-  std::vector<double> lum_mean, lum_m2;                             // Welford on luminance
+  std::vector<double> lum_mean, lum_m2;                            // Welford on luminance
   std::vector<int> n;
   Accumulator(int w, int h) : width(w), height(h) {
     const size_t p = size_t(w) * size_t(h);
-    color.assign(3 * p, 0), albedo.assign(3 * p, 0), normal.assign(3 * p, 0), depth.assign(p, 0), rough.assign(p, 0);
+    color.assign(3 * p, 0), albedo.assign(3 * p, 0), normal.assign(3 * p, 0), depth.assign(p, 0),
+        rough.assign(p, 0);
     motion.assign(2 * p, 0), lum_mean.assign(p, 0), lum_m2.assign(p, 0), n.assign(p, 0);
   }
 };
@@ -124,8 +132,8 @@ struct Renderer::Impl {
   };
 
   const InstancedScene* scene = nullptr;  // referenced: it outlives the renderer
-  uint64_t generation = 0;                 // the scene's commit the shading data are of
-  std::vector<Material> materials;         // the scene's, plus a trailing "default"
+  uint64_t generation = 0;                // the scene's commit the shading data are of
+  std::vector<Material> materials;        // the scene's, plus a trailing "default"
   std::vector<InstanceShade> instances;
   std::vector<std::vector<int32_t>> emissive_rank;  // per mesh key, per triangle: rank or -1
   std::vector<LightTri> lights;
@@ -138,18 +146,22 @@ struct Renderer::Impl {
   Bounds3 bounds;
   RayCapture* capture = nullptr;
   std::unique_ptr<Accumulator> tile_acc;  // render_tiles: sums kept between calls of one size
-  void render_passes(const Camera& camera, const RenderSettings& s, const std::optional<Camera>& prev_camera,
-                     const std::vector<uint32_t>* only, Accumulator& acc, Frame& frame);
+  void render_passes(const Camera& camera, const RenderSettings& s,
+                     const std::optional<Camera>& prev_camera, const std::vector<uint32_t>* only,
+                     Accumulator& acc, Frame& frame);
 
   const Material& material_of(const TriangleMesh& m, uint32_t prim) const {
-    const uint32_t id = prim < m.material_ids.size() ? m.material_ids[prim] : uint32_t(materials.size() - 1);
+    const uint32_t id =
+        prim < m.material_ids.size() ? m.material_ids[prim] : uint32_t(materials.size() - 1);
     return materials[std::min<size_t>(id, materials.size() - 1)];
   }
   const Texture* texture(int index) const {
     const std::vector<Texture>& textures = scene->textures();
     if (index < 0 || size_t(index) >= textures.size()) return nullptr;
     const Texture& t = textures[size_t(index)];
-    return t.width > 0 && t.height > 0 && t.rgba.size() == size_t(t.width) * size_t(t.height) * 4 ? &t : nullptr;
+    return t.width > 0 && t.height > 0 && t.rgba.size() == size_t(t.width) * size_t(t.height) * 4
+               ? &t
+               : nullptr;
   }
   Vec3 emission_at(const Material& m, Vec2 uv) const {
     Vec3 e = m.emission;
@@ -161,15 +173,13 @@ struct Renderer::Impl {
     return e;
   }
 
-
-
-
   Vec3 env_radiance(Vec3 d) const {
     if (!env_on) return {0, 0, 0};
     if (env.image.pixels.empty()) {
       if (!env.overcast) return env.color * env.scale;
       const float cos_theta = d.y / std::sqrt(dot(d, d));
-      return env.color * (env.scale * (cos_theta > 0 ? (1.0f + 2.0f * cos_theta) * (1.0f / 3.0f) : 0.1f));
+      return env.color *
+             (env.scale * (cos_theta > 0 ? (1.0f + 2.0f * cos_theta) * (1.0f / 3.0f) : 0.1f));
     }
     const float u = 0.5f + std::atan2(d.x, -d.z) / (2 * pi);
     const float v = std::acos(std::clamp(d.y, -1.0f, 1.0f)) / pi;
@@ -195,7 +205,6 @@ struct Renderer::Impl {
     }
     return true;
   }
-
 
   // Probability (solid angle) that NEE picked this point on light triangle (instance, prim).
   float light_pdf(uint32_t instance, uint32_t prim, float dist2, float cos_light) const {
@@ -226,8 +235,9 @@ struct Renderer::Impl {
   void trace(std::span<const Ray> rays, std::span<SurfaceHit> hits) const;
   void occluded(std::span<const Ray> rays, std::span<uint8_t> out) const;
   // integrator.cpp
-  void render_tile(const CameraModel& cam, const CameraModel& prev_cam, const RenderSettings& s, int tx, int ty, int pass,
-                   float jx, float jy, Accumulator& acc, double& trace_ms, uint64_t ray_counts[3]) const;
+  void render_tile(const CameraModel& cam, const CameraModel& prev_cam, const RenderSettings& s,
+                   int tx, int ty, int pass, float jx, float jy, Accumulator& acc, double& trace_ms,
+                   uint64_t ray_counts[3]) const;
 };
 
 }  // namespace kestrel

@@ -76,7 +76,8 @@ class Distribution1D {
     i = std::min(i, n - 1);
     while (pmf(i) <= 0 && i + 1 < n) ++i;  // u landed exactly on a zero-width cell
     while (pmf(i) <= 0 && i > 0) --i;
-    if (remapped) *remapped = std::clamp((u - cdf_[i]) / std::max(pmf(i), 1e-30f), 0.0f, 0x1.fffffep-1f);
+    if (remapped)
+      *remapped = std::clamp((u - cdf_[i]) / std::max(pmf(i), 1e-30f), 0.0f, 0x1.fffffep-1f);
     return i;
   }
 

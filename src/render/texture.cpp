@@ -6,7 +6,9 @@
 namespace kestrel::render {
 
 namespace {
-float srgb_to_linear(float c) { return c <= 0.04045f ? c / 12.92f : std::pow((c + 0.055f) / 1.055f, 2.4f); }
+float srgb_to_linear(float c) {
+  return c <= 0.04045f ? c / 12.92f : std::pow((c + 0.055f) / 1.055f, 2.4f);
+}
 
 struct SrgbTable {
   float v[256];
@@ -21,7 +23,8 @@ const SrgbTable srgb_table;
 void sample_texture(const Texture& tex, Vec2 uv, bool srgb, float out[4]) {
   float x = (uv.x - std::floor(uv.x)) * float(tex.width) - 0.5f;
   float y = (uv.y - std::floor(uv.y)) * float(tex.height) - 0.5f;
-  if (!(x >= -1.0f && x < float(tex.width)) || !(y >= -1.0f && y < float(tex.height))) x = 0, y = 0;  // NaN uv
+  if (!(x >= -1.0f && x < float(tex.width)) || !(y >= -1.0f && y < float(tex.height)))
+    x = 0, y = 0;  // NaN uv
   const float fx = std::floor(x), fy = std::floor(y);
   const float wx = x - fx, wy = y - fy;
   // x in [-0.5, w - 0.5): the left texel is -1 (wraps to w - 1) .. w - 1, the right one 0 .. w.
@@ -40,17 +43,23 @@ void sample_texture(const Texture& tex, Vec2 uv, bool srgb, float out[4]) {
   const float w00 = (1 - wx) * (1 - wy), w10 = wx * (1 - wy), w01 = (1 - wx) * wy, w11 = wx * wy;
   if (srgb) {
     const float* lut = srgb_table.v;
-    for (int c = 0; c < 3; ++c) out[c] = lut[t00[c]] * w00 + lut[t10[c]] * w10 + lut[t01[c]] * w01 + lut[t11[c]] * w11;
+    for (int c = 0; c < 3; ++c)
+      out[c] = lut[t00[c]] * w00 + lut[t10[c]] * w10 + lut[t01[c]] * w01 + lut[t11[c]] * w11;
   } else {
-    for (int c = 0; c < 3; ++c) out[c] = (float(t00[c]) * w00 + float(t10[c]) * w10 + float(t01[c]) * w01 + float(t11[c]) * w11) * (1.0f / 255.0f);
+    for (int c = 0; c < 3; ++c)
+      out[c] =
+          (float(t00[c]) * w00 + float(t10[c]) * w10 + float(t01[c]) * w01 + float(t11[c]) * w11) *
+          (1.0f / 255.0f);
   }
-  out[3] = (float(t00[3]) * w00 + float(t10[3]) * w10 + float(t01[3]) * w01 + float(t11[3]) * w11) * (1.0f / 255.0f);
+  out[3] = (float(t00[3]) * w00 + float(t10[3]) * w10 + float(t01[3]) * w01 + float(t11[3]) * w11) *
+           (1.0f / 255.0f);
 }
 
 Vec2 uv_at(const TriangleMesh& m, uint32_t prim, float b1, float b2) {
   if (m.uvs.empty()) return {0, 0};
   const size_t tri = 3 * size_t(prim);
-  const Vec2 a = m.uvs[m.indices[tri]], b = m.uvs[m.indices[tri + 1]], c = m.uvs[m.indices[tri + 2]];
+  const Vec2 a = m.uvs[m.indices[tri]], b = m.uvs[m.indices[tri + 1]],
+             c = m.uvs[m.indices[tri + 2]];
   const float b0 = 1 - b1 - b2;
   return {a.x * b0 + b.x * b1 + c.x * b2, a.y * b0 + b.y * b1 + c.y * b2};
 }

@@ -41,10 +41,11 @@ struct Asset::Impl {
   void warn_about_skipped_triangles() {
     const ValidationReport r = scene.validation();
     if (r.valid_triangle_count != r.triangle_count)
-      warnings.push_back(fmt::format("{}: {} of {} triangles skipped ({} with a NaN or Inf vertex, {} with an index past "
-                                     "the vertices, {} of zero area)",
-                                     source, r.triangle_count - r.valid_triangle_count, r.triangle_count,
-                                     r.nonfinite_triangle_count, r.bad_index_triangle_count, r.degenerate_triangle_count));
+      warnings.push_back(fmt::format(
+          "{}: {} of {} triangles skipped ({} with a NaN or Inf vertex, {} with an index past "
+          "the vertices, {} of zero area)",
+          source, r.triangle_count - r.valid_triangle_count, r.triangle_count,
+          r.nonfinite_triangle_count, r.bad_index_triangle_count, r.degenerate_triangle_count));
   }
 };
 
@@ -59,7 +60,8 @@ Asset Asset::from_scene(Scene scene, SceneConfig config) {
   Impl& m = *a.impl_;
   m.source = scene.source;
   m.warnings = std::move(scene.warnings);
-  for (TriangleMesh& mesh : scene.meshes) m.scene.add_instance(m.scene.add_mesh(std::move(mesh)), Affine3{});
+  for (TriangleMesh& mesh : scene.meshes)
+    m.scene.add_instance(m.scene.add_mesh(std::move(mesh)), Affine3{});
   m.scene.set_materials(std::move(scene.materials), std::move(scene.textures));
   m.scene.set_source(m.source);
   m.scene.commit();
@@ -81,12 +83,24 @@ Asset Asset::load(const std::string& path, size_t clip, SceneConfig config) {
   return a;
 }
 
-InstancedScene& Asset::scene() { return impl_->scene; }
-const InstancedScene& Asset::scene() const { return impl_->scene; }
-bool Asset::animated() const { return impl_->gltf && impl_->gltf->duration() > 0; }
-double Asset::duration() const { return impl_->gltf ? impl_->gltf->duration() : 0.0; }
-const std::string& Asset::source() const { return impl_->source; }
-const std::vector<std::string>& Asset::warnings() const { return impl_->warnings; }
+InstancedScene& Asset::scene() {
+  return impl_->scene;
+}
+const InstancedScene& Asset::scene() const {
+  return impl_->scene;
+}
+bool Asset::animated() const {
+  return impl_->gltf && impl_->gltf->duration() > 0;
+}
+double Asset::duration() const {
+  return impl_->gltf ? impl_->gltf->duration() : 0.0;
+}
+const std::string& Asset::source() const {
+  return impl_->source;
+}
+const std::vector<std::string>& Asset::warnings() const {
+  return impl_->warnings;
+}
 Bounds3 Asset::bounds() const {
   impl_->update_bounds();
   return impl_->bounds;
@@ -94,7 +108,9 @@ Bounds3 Asset::bounds() const {
 
 CommitStats Asset::update(double time, bool force) {
   Impl& m = *impl_;
-  if (!std::isfinite(time)) throw Error(ErrorCode::invalid_argument, fmt::format("{}: time {} is not finite", m.source, time));
+  if (!std::isfinite(time))
+    throw Error(ErrorCode::invalid_argument,
+                fmt::format("{}: time {} is not finite", m.source, time));
   if (!m.gltf && !force) return {};
   if (m.gltf) m.gltf->set_time(m.scene, time);
   return m.scene.commit();

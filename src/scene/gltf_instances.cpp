@@ -35,7 +35,7 @@ struct Channel {
   int node;
   Path path;
   std::vector<float> times, values;
-  int components;        // per keyframe value (weights: the target count)
+  int components;  // per keyframe value (weights: the target count)
   bool step = false, cubic = false;
 };
 
@@ -69,7 +69,9 @@ Affine3 to_affine(const Mat4& m) {  // column-major 4x4 -> row-major 3x4
 void sample(const Channel& ch, double t, double* out) {
   const size_t n = ch.times.size();
   const int c = ch.components;
-  auto value = [&](size_t k, int i) { return double(ch.values[(ch.cubic ? 3 * k + 1 : k) * size_t(c) + size_t(i)]); };
+  auto value = [&](size_t k, int i) {
+    return double(ch.values[(ch.cubic ? 3 * k + 1 : k) * size_t(c) + size_t(i)]);
+  };
   if (t <= ch.times[0] || n == 1) {
     for (int i = 0; i < c; ++i) out[i] = value(0, i);
     return;
@@ -78,18 +80,23 @@ void sample(const Channel& ch, double t, double* out) {
     for (int i = 0; i < c; ++i) out[i] = value(n - 1, i);
     return;
   }
-  const size_t k = size_t(std::upper_bound(ch.times.begin(), ch.times.end(), float(t)) - ch.times.begin()) - 1;
+  const size_t k =
+      size_t(std::upper_bound(ch.times.begin(), ch.times.end(), float(t)) - ch.times.begin()) - 1;
   const double t0 = ch.times[k], t1 = ch.times[k + 1];
   const double u = ch.step || t1 <= t0 ? 0.0 : (t - t0) / (t1 - t0);
   if (ch.cubic && !ch.step) {
     // Keys are stored (in-tangent a, value v, out-tangent b): p = h00 v_k + h10 dt b_k +
     // h01 v_k+1 + h11 dt a_k+1 (glTF 2.0, Appendix C).
     const double dt = t1 - t0, u2 = u * u, u3 = u2 * u;
-    const double h00 = 2 * u3 - 3 * u2 + 1, h10 = u3 - 2 * u2 + u, h01 = -2 * u3 + 3 * u2, h11 = u3 - u2;
-    auto at = [&](size_t key, int part, int i) { return double(ch.values[(3 * key + size_t(part)) * size_t(c) + size_t(i)]); };
+    const double h00 = 2 * u3 - 3 * u2 + 1, h10 = u3 - 2 * u2 + u, h01 = -2 * u3 + 3 * u2,
+                 h11 = u3 - u2;
+    auto at = [&](size_t key, int part, int i) {
+      return double(ch.values[(3 * key + size_t(part)) * size_t(c) + size_t(i)]);
+    };
     double len = 0;
     for (int i = 0; i < c; ++i) {
-      out[i] = h00 * at(k, 1, i) + h10 * dt * at(k, 2, i) + h01 * at(k + 1, 1, i) + h11 * dt * at(k + 1, 0, i);
+      out[i] = h00 * at(k, 1, i) + h10 * dt * at(k, 2, i) + h01 * at(k + 1, 1, i) +
+               h11 * dt * at(k + 1, 0, i);
       len += out[i] * out[i];
     }
     if (ch.path == Path::rotation && len > 0)
@@ -134,14 +141,16 @@ struct GltfInstances::Impl {
   // Filled by add_to().
   std::vector<MeshId> mesh_ids;
   std::vector<std::pair<int, InstanceId>> node_instances;  // (node, instance)
-  std::vector<std::vector<float>> posed_weights;          // per mesh, last weights applied
+  std::vector<std::vector<float>> posed_weights;           // per mesh, last weights applied
   std::vector<uint8_t> hidden;                             // per node_instances entry
   bool added = false;
 
   std::vector<Mat4> world_matrices(const std::vector<Node>& posed) const {
     std::vector<Mat4> world(posed.size(), gltf::identity());
     auto visit = [&](auto&& self, int n, const Mat4& parent, int depth) -> void {
-      if (depth > 256) throw Error(ErrorCode::parse_error, fmt::format("{}: node {}: hierarchy deeper than 256 (cycle?)", path, n));
+      if (depth > 256)
+        throw Error(ErrorCode::parse_error,
+                    fmt::format("{}: node {}: hierarchy deeper than 256 (cycle?)", path, n));
       world[size_t(n)] = gltf::mul(parent, trs_matrix(posed[size_t(n)]));
       for (int c : posed[size_t(n)].children) self(self, c, world[size_t(n)], depth + 1);
     };
@@ -169,7 +178,8 @@ GltfInstances GltfInstances::load(const std::string& path, size_t clip) {
     MorphMesh mm;
     mm.base.name = gm.name;
     size_t target_count = 0;
-    for (const tinygltf::Primitive& p : gm.primitives) target_count = std::max(target_count, p.targets.size());
+    for (const tinygltf::Primitive& p : gm.primitives)
+      target_count = std::max(target_count, p.targets.size());
     mm.targets.resize(target_count);
     bool all_normals = true, all_uvs = true;
     for (const tinygltf::Primitive& prim : gm.primitives) {
@@ -181,7 +191,8 @@ GltfInstances GltfInstances::load(const std::string& path, size_t clip) {
       reader.read_normals_uvs(prim, positions.size(), normals, uvs);
       all_normals &= normals.size() == positions.size();
       all_uvs &= uvs.size() == positions.size();
-      if (all_normals) mm.base.normals.insert(mm.base.normals.end(), normals.begin(), normals.end());
+      if (all_normals)
+        mm.base.normals.insert(mm.base.normals.end(), normals.begin(), normals.end());
       if (all_uvs) mm.base.uvs.insert(mm.base.uvs.end(), uvs.begin(), uvs.end());
       const uint32_t material = prim.material >= 0 && size_t(prim.material) < model.materials.size()
                                     ? uint32_t(prim.material)
@@ -189,7 +200,9 @@ GltfInstances GltfInstances::load(const std::string& path, size_t clip) {
       const uint32_t base = uint32_t(mm.base.positions.size());
       mm.base.positions.insert(mm.base.positions.end(), positions.begin(), positions.end());
       for (size_t i = 0; i + 2 < indices.size(); i += 3) {
-        for (int k = 0; k < 3; ++k) mm.base.indices.push_back(indices[i + k] < positions.size() ? base + indices[i + k] : 0xFFFFFFFFu);
+        for (int k = 0; k < 3; ++k)
+          mm.base.indices.push_back(indices[i + k] < positions.size() ? base + indices[i + k]
+                                                                      : 0xFFFFFFFFu);
         mm.base.material_ids.push_back(material);
       }
       for (size_t k = 0; k < target_count; ++k) {
@@ -198,8 +211,8 @@ GltfInstances GltfInstances::load(const std::string& path, size_t clip) {
           if (auto it = prim.targets[k].find("POSITION"); it != prim.targets[k].end()) {
             delta = reader.read_vec3(it->second);
             if (delta.size() != positions.size())
-              reader.fail(fmt::format("mesh '{}': morph target {} has {} positions for {} vertices", gm.name, k, delta.size(),
-                                      positions.size()));
+              reader.fail(fmt::format("mesh '{}': morph target {} has {} positions for {} vertices",
+                                      gm.name, k, delta.size(), positions.size()));
           }
         }
         mm.targets[k].insert(mm.targets[k].end(), delta.begin(), delta.end());
@@ -208,7 +221,8 @@ GltfInstances GltfInstances::load(const std::string& path, size_t clip) {
     if (!all_normals) mm.base.normals.clear();
     if (!all_uvs) mm.base.uvs.clear();
     mm.weights.assign(target_count, 0.0f);
-    for (size_t k = 0; k < std::min(target_count, gm.weights.size()); ++k) mm.weights[k] = float(gm.weights[k]);
+    for (size_t k = 0; k < std::min(target_count, gm.weights.size()); ++k)
+      mm.weights[k] = float(gm.weights[k]);
     g.meshes.push_back(std::move(mm));
   }
   for (size_t i = 0; i < model.nodes.size(); ++i) {
@@ -221,22 +235,26 @@ GltfInstances GltfInstances::load(const std::string& path, size_t clip) {
     if (n.translation.size() == 3) std::copy(n.translation.begin(), n.translation.end(), node.t);
     if (n.rotation.size() == 4) std::copy(n.rotation.begin(), n.rotation.end(), node.r);
     if (n.scale.size() == 3) std::copy(n.scale.begin(), n.scale.end(), node.s);
-    if (n.mesh >= 0 && size_t(n.mesh) >= model.meshes.size()) reader.fail(fmt::format("node {} names missing mesh {}", i, n.mesh));
+    if (n.mesh >= 0 && size_t(n.mesh) >= model.meshes.size())
+      reader.fail(fmt::format("node {} names missing mesh {}", i, n.mesh));
     node.mesh = n.mesh;
     for (int c : n.children) {
-      if (c < 0 || size_t(c) >= model.nodes.size()) reader.fail(fmt::format("node {} names missing child {}", i, c));
+      if (c < 0 || size_t(c) >= model.nodes.size())
+        reader.fail(fmt::format("node {} names missing child {}", i, c));
       node.children.push_back(c);
     }
     if (node.mesh >= 0) {
       node.weights = g.meshes[size_t(node.mesh)].weights;
-      for (size_t k = 0; k < std::min(node.weights.size(), n.weights.size()); ++k) node.weights[k] = float(n.weights[k]);
+      for (size_t k = 0; k < std::min(node.weights.size(), n.weights.size()); ++k)
+        node.weights[k] = float(n.weights[k]);
     }
     g.nodes.push_back(std::move(node));
   }
   const int scene_index = model.defaultScene >= 0 ? model.defaultScene : 0;
   if (size_t(scene_index) < model.scenes.size()) {
     for (int r : model.scenes[size_t(scene_index)].nodes) {
-      if (r < 0 || size_t(r) >= model.nodes.size()) reader.fail(fmt::format("scene names missing node {}", r));
+      if (r < 0 || size_t(r) >= model.nodes.size())
+        reader.fail(fmt::format("scene names missing node {}", r));
       g.roots.push_back(r);
     }
   } else {
@@ -248,15 +266,20 @@ GltfInstances GltfInstances::load(const std::string& path, size_t clip) {
     if (a != clip) continue;  // clips may drive the same targets: one at a time
     const tinygltf::Animation& anim = model.animations[a];
     for (const tinygltf::AnimationChannel& c : anim.channels) {
-      if (c.target_node < 0 || size_t(c.target_node) >= model.nodes.size()) continue;  // glTF allows untargeted channels
+      if (c.target_node < 0 || size_t(c.target_node) >= model.nodes.size())
+        continue;  // glTF allows untargeted channels
       if (c.sampler < 0 || size_t(c.sampler) >= anim.samplers.size())
-        reader.fail(fmt::format("animation '{}': channel names missing sampler {}", anim.name, c.sampler));
+        reader.fail(
+            fmt::format("animation '{}': channel names missing sampler {}", anim.name, c.sampler));
       const tinygltf::AnimationSampler& s = anim.samplers[size_t(c.sampler)];
       Channel ch;
       ch.node = c.target_node;
-      if (c.target_path == "translation") ch.path = Path::translation, ch.components = 3;
-      else if (c.target_path == "rotation") ch.path = Path::rotation, ch.components = 4;
-      else if (c.target_path == "scale") ch.path = Path::scale, ch.components = 3;
+      if (c.target_path == "translation")
+        ch.path = Path::translation, ch.components = 3;
+      else if (c.target_path == "rotation")
+        ch.path = Path::rotation, ch.components = 4;
+      else if (c.target_path == "scale")
+        ch.path = Path::scale, ch.components = 3;
       else if (c.target_path == "weights") {
         const int mesh = g.nodes[size_t(c.target_node)].mesh;
         if (mesh < 0) continue;
@@ -270,16 +293,20 @@ GltfInstances GltfInstances::load(const std::string& path, size_t clip) {
       ch.step = s.interpolation == "STEP";
       ch.cubic = s.interpolation == "CUBICSPLINE";
       // Weights are SCALAR accessors of count keyframes x targets; the others VEC3 / VEC4.
-      ch.values = ch.path == Path::weights ? reader.read_floats(s.output, 1) : reader.read_floats(s.output, ch.components);
+      ch.values = ch.path == Path::weights ? reader.read_floats(s.output, 1)
+                                           : reader.read_floats(s.output, ch.components);
       const size_t per_key = size_t(ch.components) * (ch.cubic ? 3 : 1);
       if (ch.times.empty() || ch.values.size() != ch.times.size() * per_key)
-        reader.fail(fmt::format("animation '{}': sampler {} has {} keyframes but {} values", anim.name, c.sampler, ch.times.size(),
-                                ch.values.size()));
+        reader.fail(fmt::format("animation '{}': sampler {} has {} keyframes but {} values",
+                                anim.name, c.sampler, ch.times.size(), ch.values.size()));
       for (size_t k = 0; k < ch.times.size(); ++k)
         if (!std::isfinite(ch.times[k]) || (k > 0 && ch.times[k] < ch.times[k - 1]))
-          reader.fail(fmt::format("animation '{}': sampler {} keyframe times are not increasing", anim.name, c.sampler));
+          reader.fail(fmt::format("animation '{}': sampler {} keyframe times are not increasing",
+                                  anim.name, c.sampler));
       for (float v : ch.values)
-        if (!std::isfinite(v)) reader.fail(fmt::format("animation '{}': sampler {} has a NaN/Inf value", anim.name, c.sampler));
+        if (!std::isfinite(v))
+          reader.fail(
+              fmt::format("animation '{}': sampler {} has a NaN/Inf value", anim.name, c.sampler));
       g.duration = std::max(g.duration, double(ch.times.back()));
       g.channels.push_back(std::move(ch));
     }
@@ -297,15 +324,26 @@ GltfInstances GltfInstances::load(const std::string& path, size_t clip) {
   return out;
 }
 
-size_t GltfInstances::mesh_count() const { return impl_->meshes.size(); }
-const std::vector<Material>& GltfInstances::materials() const { return impl_->materials; }
-const std::vector<Texture>& GltfInstances::textures() const { return impl_->textures; }
-size_t GltfInstances::instance_count() const { return impl_->node_instances.size(); }
-double GltfInstances::duration() const { return impl_->duration; }
+size_t GltfInstances::mesh_count() const {
+  return impl_->meshes.size();
+}
+const std::vector<Material>& GltfInstances::materials() const {
+  return impl_->materials;
+}
+const std::vector<Texture>& GltfInstances::textures() const {
+  return impl_->textures;
+}
+size_t GltfInstances::instance_count() const {
+  return impl_->node_instances.size();
+}
+double GltfInstances::duration() const {
+  return impl_->duration;
+}
 
 void GltfInstances::add_to(InstancedScene& scene) {
   Impl& g = *impl_;
-  if (g.added) throw Error(ErrorCode::invalid_argument, fmt::format("{}: already added to a scene", g.path));
+  if (g.added)
+    throw Error(ErrorCode::invalid_argument, fmt::format("{}: already added to a scene", g.path));
   for (const MorphMesh& m : g.meshes) g.mesh_ids.push_back(scene.add_mesh(m.base));
   g.posed_weights.assign(g.meshes.size(), {});
   const std::vector<Mat4> world = g.world_matrices(g.nodes);
@@ -315,7 +353,8 @@ void GltfInstances::add_to(InstancedScene& scene) {
     Affine3 a = to_affine(world[size_t(node)]);
     const bool singular = !transform_problem(a).empty();
     if (singular) a = Affine3{};
-    id = scene.add_instance(g.mesh_ids[size_t(g.nodes[size_t(node)].mesh)], a, singular ? 0u : 0xFFFFFFFFu);
+    id = scene.add_instance(g.mesh_ids[size_t(g.nodes[size_t(node)].mesh)], a,
+                            singular ? 0u : 0xFFFFFFFFu);
     g.hidden[k] = singular;
   }
   g.added = true;
@@ -324,7 +363,8 @@ void GltfInstances::add_to(InstancedScene& scene) {
 
 void GltfInstances::set_time(InstancedScene& scene, double t) {
   Impl& g = *impl_;
-  if (!g.added) throw Error(ErrorCode::invalid_argument, fmt::format("{}: set_time before add_to", g.path));
+  if (!g.added)
+    throw Error(ErrorCode::invalid_argument, fmt::format("{}: set_time before add_to", g.path));
   if (g.duration > 0 && std::isfinite(t)) t = std::fmod(std::max(0.0, t), g.duration);
   std::vector<Node> posed = g.nodes;
   for (const Channel& ch : g.channels) {
@@ -333,9 +373,15 @@ void GltfInstances::set_time(InstancedScene& scene, double t) {
     if (ch.components > 64) continue;
     sample(ch, t, v);
     switch (ch.path) {
-      case Path::translation: std::copy(v, v + 3, n.t), n.has_matrix = false; break;
-      case Path::rotation: std::copy(v, v + 4, n.r), n.has_matrix = false; break;
-      case Path::scale: std::copy(v, v + 3, n.s), n.has_matrix = false; break;
+      case Path::translation:
+        std::copy(v, v + 3, n.t), n.has_matrix = false;
+        break;
+      case Path::rotation:
+        std::copy(v, v + 4, n.r), n.has_matrix = false;
+        break;
+      case Path::scale:
+        std::copy(v, v + 3, n.s), n.has_matrix = false;
+        break;
       case Path::weights:
         for (int k = 0; k < ch.components; ++k) n.weights[size_t(k)] = float(v[k]);
         break;
@@ -355,13 +401,15 @@ void GltfInstances::set_time(InstancedScene& scene, double t) {
     // Morph targets: the mesh follows its (first) node's weights.
     const int mesh = posed[size_t(node)].mesh;
     const MorphMesh& mm = g.meshes[size_t(mesh)];
-    if (mm.targets.empty() || posed[size_t(node)].weights == g.posed_weights[size_t(mesh)]) continue;
+    if (mm.targets.empty() || posed[size_t(node)].weights == g.posed_weights[size_t(mesh)])
+      continue;
     std::vector<Vec3> p = mm.base.positions;
     const std::vector<float>& w = posed[size_t(node)].weights;
     for (size_t j = 0; j < mm.targets.size(); ++j) {
       if (w[j] == 0.0f) continue;
       for (size_t i = 0; i < p.size(); ++i)
-        p[i] = {p[i].x + w[j] * mm.targets[j][i].x, p[i].y + w[j] * mm.targets[j][i].y, p[i].z + w[j] * mm.targets[j][i].z};
+        p[i] = {p[i].x + w[j] * mm.targets[j][i].x, p[i].y + w[j] * mm.targets[j][i].y,
+                p[i].z + w[j] * mm.targets[j][i].z};
     }
     scene.update_vertices(g.mesh_ids[size_t(mesh)], p);
     g.posed_weights[size_t(mesh)] = w;

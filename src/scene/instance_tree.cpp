@@ -24,7 +24,8 @@ struct TreeBuilder {
     const uint32_t x = keys[b] ^ keys[e - 1];
     if (x == 0) return b + (e - b) / 2;
     const uint32_t bit = 31u - uint32_t(__builtin_clz(x));
-    const uint32_t* it = std::partition_point(keys + b, keys + e, [&](uint32_t k) { return !((k >> bit) & 1u); });
+    const uint32_t* it =
+        std::partition_point(keys + b, keys + e, [&](uint32_t k) { return !((k >> bit) & 1u); });
     return uint32_t(it - keys);
   }
 
@@ -59,8 +60,10 @@ struct TreeBuilder {
           nodes.emplace_back();
           box = build(ref, lo[j], hi[j]);
         }
-        total.lo = {std::min(total.lo.x, box.lo.x), std::min(total.lo.y, box.lo.y), std::min(total.lo.z, box.lo.z)};
-        total.hi = {std::max(total.hi.x, box.hi.x), std::max(total.hi.y, box.hi.y), std::max(total.hi.z, box.hi.z)};
+        total.lo = {std::min(total.lo.x, box.lo.x), std::min(total.lo.y, box.lo.y),
+                    std::min(total.lo.z, box.lo.z)};
+        total.hi = {std::max(total.hi.x, box.hi.x), std::max(total.hi.y, box.hi.y),
+                    std::max(total.hi.z, box.hi.z)};
       } else {
         const float inf = INFINITY;
         box = {{inf, inf, inf}, {-inf, -inf, -inf}};
@@ -88,7 +91,8 @@ void build(std::span<const PrimRef> refs, Buffer<Node>& nodes, InstanceTreeScrat
   }
   const float cells = 1024.0f, top = 1023.0f;
   const Vec3 ext{cb.hi.x - cb.lo.x, cb.hi.y - cb.lo.y, cb.hi.z - cb.lo.z};
-  const Vec3 scale{ext.x > 0 ? cells / ext.x : 0.0f, ext.y > 0 ? cells / ext.y : 0.0f, ext.z > 0 ? cells / ext.z : 0.0f};
+  const Vec3 scale{ext.x > 0 ? cells / ext.x : 0.0f, ext.y > 0 ? cells / ext.y : 0.0f,
+                   ext.z > 0 ? cells / ext.z : 0.0f};
   RawArray<uint32_t>& keys = scratch.keys;
   RawArray<uint32_t>& order = scratch.order;
   if (keys.size() != n) keys.resize(n);  // the sort takes the whole array
@@ -135,10 +139,12 @@ void build(std::span<const PrimRef> refs, Buffer<Node>& nodes, InstanceTreeScrat
 
 }  // namespace
 
-void build_instance_tree(std::span<const PrimRef> refs, Buffer<Bvh4Node>& nodes, InstanceTreeScratch& scratch) {
+void build_instance_tree(std::span<const PrimRef> refs, Buffer<Bvh4Node>& nodes,
+                         InstanceTreeScratch& scratch) {
   build<4, Bvh4Node>(refs, nodes, scratch);
 }
-void build_instance_tree(std::span<const PrimRef> refs, Buffer<Bvh8Node>& nodes, InstanceTreeScratch& scratch) {
+void build_instance_tree(std::span<const PrimRef> refs, Buffer<Bvh8Node>& nodes,
+                         InstanceTreeScratch& scratch) {
   build<8, Bvh8Node>(refs, nodes, scratch);
 }
 

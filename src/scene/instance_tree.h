@@ -21,7 +21,9 @@ struct InstanceTreeScratch {
   Buffer<PrimRef> sorted;
 };
 
-void build_instance_tree(std::span<const PrimRef> refs, Buffer<Bvh4Node>& nodes, InstanceTreeScratch& scratch);
-void build_instance_tree(std::span<const PrimRef> refs, Buffer<Bvh8Node>& nodes, InstanceTreeScratch& scratch);
+void build_instance_tree(std::span<const PrimRef> refs, Buffer<Bvh4Node>& nodes,
+                         InstanceTreeScratch& scratch);
+void build_instance_tree(std::span<const PrimRef> refs, Buffer<Bvh8Node>& nodes,
+                         InstanceTreeScratch& scratch);
 
 }  // namespace kestrel

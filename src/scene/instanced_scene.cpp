@@ -7,15 +7,15 @@
 #include <fstream>
 #include <sstream>
 
+#include "core/file_io.h"
 #include "core/parallel.h"
 #include "core/timer.h"
 #include "geometry/triangle_intersect.h"
-#include "core/file_io.h"
 #include "kestrel/error.h"
 #include "kestrel/instances.h"
+#include "scene/instance_tree.h"
 #include "traverse/batches.h"
 #include "traverse/kernels.h"
-#include "scene/instance_tree.h"
 #include "traverse/wide_bvh.h"
 
 namespace kestrel {
@@ -61,13 +61,15 @@ Vec3 Affine3::point(Vec3 p) const {
 }
 
 Vec3 Affine3::vector(Vec3 v) const {
-  return {m[0] * v.x + m[1] * v.y + m[2] * v.z, m[4] * v.x + m[5] * v.y + m[6] * v.z, m[8] * v.x + m[9] * v.y + m[10] * v.z};
+  return {m[0] * v.x + m[1] * v.y + m[2] * v.z, m[4] * v.x + m[5] * v.y + m[6] * v.z,
+          m[8] * v.x + m[9] * v.y + m[10] * v.z};
 }
 
 namespace {
 double determinant(const Affine3& a) {
   const float* m = a.m;
-  return double(m[0]) * (double(m[5]) * m[10] - double(m[6]) * m[9]) - double(m[1]) * (double(m[4]) * m[10] - double(m[6]) * m[8]) +
+  return double(m[0]) * (double(m[5]) * m[10] - double(m[6]) * m[9]) -
+         double(m[1]) * (double(m[4]) * m[10] - double(m[6]) * m[8]) +
          double(m[2]) * (double(m[4]) * m[9] - double(m[5]) * m[8]);
 }
 }  // namespace
@@ -78,7 +80,8 @@ std::string transform_problem(const Affine3& a) {
   // Singular relative to the size of its columns: |det| tiny against the product of norms.
   double scale = 1;
   for (int c = 0; c < 3; ++c)
-    scale *= std::sqrt(double(a.m[c]) * a.m[c] + double(a.m[4 + c]) * a.m[4 + c] + double(a.m[8 + c]) * a.m[8 + c]);
+    scale *= std::sqrt(double(a.m[c]) * a.m[c] + double(a.m[4 + c]) * a.m[4 + c] +
+                       double(a.m[8 + c]) * a.m[8 + c]);
   const double det = determinant(a);
   if (!(scale > 0) || !(std::fabs(det) > 1e-12 * scale))
     return fmt::format("transform is singular (determinant {:g})", det);
@@ -114,7 +117,8 @@ Affine3 inverse_of_valid(const Affine3& a) {
 }  // namespace
 
 Affine3 inverse(const Affine3& a) {
-  if (const std::string p = transform_problem(a); !p.empty()) throw Error(ErrorCode::invalid_argument, p);
+  if (const std::string p = transform_problem(a); !p.empty())
+    throw Error(ErrorCode::invalid_argument, p);
   return inverse_of_valid(a);
 }
 
@@ -129,10 +133,15 @@ std::vector<Affine3> load_instance_transforms(const std::string& path) {
     float v[7];
     for (float& x : v)
       if (!(ss >> x))
-        throw Error(ErrorCode::parse_error, fmt::format("{}:{}: expected 7 numbers 'sx sy sz tx ty tz rot_y_deg'", path, number));
+        throw Error(
+            ErrorCode::parse_error,
+            fmt::format("{}:{}: expected 7 numbers 'sx sy sz tx ty tz rot_y_deg'", path, number));
     std::string extra;
-    if (ss >> extra) throw Error(ErrorCode::parse_error, fmt::format("{}:{}: unexpected '{}' after 7 numbers", path, number, extra));
-    const Affine3 a = Affine3::translation({v[3], v[4], v[5]}) * Affine3::rotation_y(v[6]) * Affine3::scaling({v[0], v[1], v[2]});
+    if (ss >> extra)
+      throw Error(ErrorCode::parse_error,
+                  fmt::format("{}:{}: unexpected '{}' after 7 numbers", path, number, extra));
+    const Affine3 a = Affine3::translation({v[3], v[4], v[5]}) * Affine3::rotation_y(v[6]) *
+                      Affine3::scaling({v[0], v[1], v[2]});
     if (const std::string p = transform_problem(a); !p.empty())
       throw Error(ErrorCode::invalid_geometry, fmt::format("{}:{}: {}", path, number, p));
     out.push_back(a);
@@ -147,7 +156,7 @@ Layout resolve_layout(Layout layout);  // accel.cpp
 struct InstancedScene::Impl {
   struct MeshSlot {
     bool live = false, built = false, dirty = false;
-    Scene scene;           // one mesh: what build_accel / refit_accel take
+    Scene scene;  // one mesh: what build_accel / refit_accel take
     Accel blas;
     double sah_built = 0;  // SAH cost right after the last full build
   };
@@ -167,7 +176,8 @@ struct InstancedScene::Impl {
   // mask bit set (traced as a single-level Accel), else null.
   uint32_t direct_mesh = invalid_id, direct_id = invalid_id;
   const Accel* direct() const {
-    return direct_mesh < meshes.size() && meshes[direct_mesh].built ? &meshes[direct_mesh].blas : nullptr;
+    return direct_mesh < meshes.size() && meshes[direct_mesh].built ? &meshes[direct_mesh].blas
+                                                                    : nullptr;
   }
   std::vector<MeshSlot> meshes;
   std::vector<InstanceSlot> instances;
@@ -179,7 +189,8 @@ struct InstancedScene::Impl {
   InstanceTreeScratch tree_scratch;
 
   MeshSlot& mesh(MeshId id, const char* what) {
-    if (id >= meshes.size() || !meshes[id].live) throw Error(ErrorCode::invalid_argument, fmt::format("{}: no mesh {}", what, id));
+    if (id >= meshes.size() || !meshes[id].live)
+      throw Error(ErrorCode::invalid_argument, fmt::format("{}: no mesh {}", what, id));
     return meshes[id];
   }
   InstanceSlot& instance(InstanceId id, const char* what) {
@@ -195,13 +206,15 @@ struct InstancedScene::Impl {
     BuildConfig c = config.blas;
     c.layout = layout;
     m.blas = build_accel(m.scene, c);
-    m.sah_built = layout == Layout::bvh4 ? wide_sah_cost(m.blas.nodes->bvh4) : wide_sah_cost(m.blas.nodes->bvh8);
+    m.sah_built = layout == Layout::bvh4 ? wide_sah_cost(m.blas.nodes->bvh4)
+                                         : wide_sah_cost(m.blas.nodes->bvh8);
     m.built = true;
     m.dirty = false;
   }
   bool empty_tlas() const { return layout == Layout::bvh4 ? tlas4.empty() : tlas8.empty(); }
   const void* tlas_data() const {
-    return layout == Layout::bvh4 ? static_cast<const void*>(tlas4.data()) : static_cast<const void*>(tlas8.data());
+    return layout == Layout::bvh4 ? static_cast<const void*>(tlas4.data())
+                                  : static_cast<const void*>(tlas8.data());
   }
 };
 
@@ -209,7 +222,9 @@ InstancedScene::InstancedScene(SceneConfig config) : impl_(new Impl) {
   check_build_config(config.blas);
   check_build_config(config.tlas);
   if (!(config.refit_sah_factor >= 1.0f))
-    throw Error(ErrorCode::invalid_argument, fmt::format("SceneConfig: refit_sah_factor = {} must be >= 1", config.refit_sah_factor));
+    throw Error(
+        ErrorCode::invalid_argument,
+        fmt::format("SceneConfig: refit_sah_factor = {} must be >= 1", config.refit_sah_factor));
   config.tlas.max_leaf_size = 1;
   impl_->config = config;
   // The TLAS and every BLAS share one width, the kernels' (bvh2 is a reference layout for
@@ -252,25 +267,31 @@ void InstancedScene::set_transform(InstanceId id, const Affine3& transform) {
   slot.inverse = inverse_of_valid(transform);
 }
 
-void InstancedScene::set_mask(InstanceId id, uint32_t mask) { impl_->instance(id, "set_mask").mask = mask; }
+void InstancedScene::set_mask(InstanceId id, uint32_t mask) {
+  impl_->instance(id, "set_mask").mask = mask;
+}
 
 void InstancedScene::update_vertices(MeshId id, std::span<const Vec3> positions) {
   Impl::MeshSlot& m = impl_->mesh(id, "update_vertices");
   std::vector<Vec3>& p = m.scene.meshes[0].positions;
   if (positions.size() != p.size())
     throw Error(ErrorCode::invalid_argument,
-                fmt::format("update_vertices: mesh {} has {} vertices, got {}", id, p.size(), positions.size()));
+                fmt::format("update_vertices: mesh {} has {} vertices, got {}", id, p.size(),
+                            positions.size()));
   std::copy(positions.begin(), positions.end(), p.begin());
   m.dirty = true;
 }
 
-void InstancedScene::remove_instance(InstanceId id) { impl_->instance(id, "remove_instance").live = false; }
+void InstancedScene::remove_instance(InstanceId id) {
+  impl_->instance(id, "remove_instance").live = false;
+}
 
 void InstancedScene::remove_mesh(MeshId id) {
   Impl::MeshSlot& m = impl_->mesh(id, "remove_mesh");
   for (size_t i = 0; i < impl_->instances.size(); ++i)
     if (impl_->instances[i].live && impl_->instances[i].mesh == id)
-      throw Error(ErrorCode::invalid_argument, fmt::format("remove_mesh: mesh {} is used by instance {}", id, i));
+      throw Error(ErrorCode::invalid_argument,
+                  fmt::format("remove_mesh: mesh {} is used by instance {}", id, i));
   m = Impl::MeshSlot{};
 }
 
@@ -290,7 +311,8 @@ CommitStats InstancedScene::commit() {
     bool rebuild = false;
     try {
       refit_accel(m.blas, m.scene);
-      const double sah = s.layout == Layout::bvh4 ? wide_sah_cost(m.blas.nodes->bvh4) : wide_sah_cost(m.blas.nodes->bvh8);
+      const double sah = s.layout == Layout::bvh4 ? wide_sah_cost(m.blas.nodes->bvh4)
+                                                  : wide_sah_cost(m.blas.nodes->bvh8);
       rebuild = sah > double(s.config.refit_sah_factor) * m.sah_built;
     } catch (const Error&) {
       rebuild = true;  // a triangle became invalid (or valid): the tree must be rebuilt
@@ -321,13 +343,16 @@ CommitStats InstancedScene::commit() {
     // half extent through |M|; widened by a few ulps so rounding never makes it too small.
     const Bounds3& b = m.blas.bounds;
     const float* M = inst.transform.m;
-    const float c[3] = {0.5f * (b.lo.x + b.hi.x), 0.5f * (b.lo.y + b.hi.y), 0.5f * (b.lo.z + b.hi.z)};
-    const float e[3] = {0.5f * (b.hi.x - b.lo.x), 0.5f * (b.hi.y - b.lo.y), 0.5f * (b.hi.z - b.lo.z)};
+    const float c[3] = {0.5f * (b.lo.x + b.hi.x), 0.5f * (b.lo.y + b.hi.y),
+                        0.5f * (b.lo.z + b.hi.z)};
+    const float e[3] = {0.5f * (b.hi.x - b.lo.x), 0.5f * (b.hi.y - b.lo.y),
+                        0.5f * (b.hi.z - b.lo.z)};
     float lo[3], hi[3];
     for (int r = 0; r < 3; ++r) {
       const float* row = M + 4 * r;
       const float wc = row[0] * c[0] + row[1] * c[1] + row[2] * c[2] + row[3];
-      const float we = std::fabs(row[0]) * e[0] + std::fabs(row[1]) * e[1] + std::fabs(row[2]) * e[2];
+      const float we =
+          std::fabs(row[0]) * e[0] + std::fabs(row[1]) * e[1] + std::fabs(row[2]) * e[2];
       const float pad = 1e-6f * (std::fabs(wc) + we);
       lo[r] = wc - we - pad;
       hi[r] = wc + we + pad;
@@ -370,7 +395,8 @@ CommitStats InstancedScene::commit() {
   if (s.data.size() == 1) {
     const Impl::InstanceSlot& inst = s.instances[s.data[0].id];
     const Affine3 identity;
-    if (std::equal(std::begin(inst.transform.m), std::end(inst.transform.m), std::begin(identity.m)) &&
+    if (std::equal(std::begin(inst.transform.m), std::end(inst.transform.m),
+                   std::begin(identity.m)) &&
         inst.mask == 0xFFFFFFFFu) {
       s.direct_mesh = inst.mesh;
       s.direct_id = s.data[0].id;
@@ -389,29 +415,34 @@ struct TlasQuery {
 };
 
 // Checks a query's sizes and ISA and picks its two-level kernel.
-TlasQuery prepare_query(const char* what, size_t rays, size_t results, const TraceOptions& options, bool any_hit,
-                               Layout layout, const void* tlas, bool empty) {
+TlasQuery prepare_query(const char* what, size_t rays, size_t results, const TraceOptions& options,
+                        bool any_hit, Layout layout, const void* tlas, bool empty) {
   if (rays != results)
-    throw Error(ErrorCode::invalid_argument, fmt::format("{}: {} rays but room for {} results", what, rays, results));
+    throw Error(ErrorCode::invalid_argument,
+                fmt::format("{}: {} rays but room for {} results", what, rays, results));
   const Isa isa = options.isa.value_or(default_isa());
-  if (!isa_supported(isa)) throw Error(ErrorCode::invalid_argument, fmt::format("ISA '{}' is not supported by this CPU", isa_name(isa)));
+  if (!isa_supported(isa))
+    throw Error(ErrorCode::invalid_argument,
+                fmt::format("ISA '{}' is not supported by this CPU", isa_name(isa)));
   if (empty) return {};
   const kernels::Table& k = kernels::table_for(isa);
   const bool four = layout == Layout::bvh4;
-  return {any_hit ? (four ? k.tlas_any4 : k.tlas_any8) : (four ? k.tlas_closest4 : k.tlas_closest8), tlas};
+  return {any_hit ? (four ? k.tlas_any4 : k.tlas_any8) : (four ? k.tlas_closest4 : k.tlas_closest8),
+          tlas};
 }
 }  // namespace
 
-void InstancedScene::trace(std::span<const Ray> rays, std::span<InstanceHit> hits, uint32_t ray_mask,
-                           const TraceOptions& options) const {
+void InstancedScene::trace(std::span<const Ray> rays, std::span<InstanceHit> hits,
+                           uint32_t ray_mask, const TraceOptions& options) const {
   const Impl& s = *impl_;
-  const TlasQuery q = prepare_query("trace", rays.size(), hits.size(), options, false, s.layout, s.tlas_data(),
-                                    s.data.empty() || s.empty_tlas());
+  const TlasQuery q = prepare_query("trace", rays.size(), hits.size(), options, false, s.layout,
+                                    s.tlas_data(), s.data.empty() || s.empty_tlas());
   if (!q.fn) {
     for (InstanceHit& h : hits) h = InstanceHit{};
     return;
   }
-  if (const Accel* direct = s.direct(); direct && ray_mask != 0) {  // one identity instance: its BLAS alone
+  if (const Accel* direct = s.direct();
+      direct && ray_mask != 0) {  // one identity instance: its BLAS alone
     thread_local std::vector<Hit> scratch;
     scratch.resize(rays.size());
     kestrel::trace(*direct, rays, std::span<Hit>(scratch.data(), rays.size()), options);
@@ -423,15 +454,17 @@ void InstancedScene::trace(std::span<const Ray> rays, std::span<InstanceHit> hit
   }
   parallel_for(0, rays.size(), 1024, [&](size_t b, size_t e) {
     kernels::for_each_traceable_run(rays.subspan(b, e - b), hits.data() + b,
-                                    [&](const Ray* r, InstanceHit* h, size_t n) { q.fn(q.tlas, s.data.data(), r, h, n, ray_mask); });
+                                    [&](const Ray* r, InstanceHit* h, size_t n) {
+                                      q.fn(q.tlas, s.data.data(), r, h, n, ray_mask);
+                                    });
   });
 }
 
 void InstancedScene::occluded(std::span<const Ray> rays, std::span<uint8_t> out, uint32_t ray_mask,
                               const TraceOptions& options) const {
   const Impl& s = *impl_;
-  const TlasQuery q = prepare_query("occluded", rays.size(), out.size(), options, true, s.layout, s.tlas_data(),
-                                    s.data.empty() || s.empty_tlas());
+  const TlasQuery q = prepare_query("occluded", rays.size(), out.size(), options, true, s.layout,
+                                    s.tlas_data(), s.data.empty() || s.empty_tlas());
   if (!q.fn) {
     std::fill(out.begin(), out.end(), uint8_t(0));
     return;
@@ -445,7 +478,9 @@ void InstancedScene::occluded(std::span<const Ray> rays, std::span<uint8_t> out,
     for (size_t i = b; i < e; i += 256) {
       const size_t n = std::min<size_t>(256, e - i);
       kernels::for_each_traceable_run(rays.subspan(i, n), local,
-                                      [&](const Ray* r, InstanceHit* h, size_t m) { q.fn(q.tlas, s.data.data(), r, h, m, ray_mask); });
+                                      [&](const Ray* r, InstanceHit* h, size_t m) {
+                                        q.fn(q.tlas, s.data.data(), r, h, m, ray_mask);
+                                      });
       for (size_t j = 0; j < n; ++j) out[i + j] = local[j].hit();
     }
   });
@@ -455,11 +490,21 @@ void InstancedScene::set_materials(std::vector<Material> materials, std::vector<
   impl_->materials = std::move(materials);
   impl_->textures = std::move(textures);
 }
-const std::vector<Material>& InstancedScene::materials() const { return impl_->materials; }
-const std::vector<Texture>& InstancedScene::textures() const { return impl_->textures; }
-void InstancedScene::set_source(std::string source) { impl_->source = std::move(source); }
-const std::string& InstancedScene::source() const { return impl_->source; }
-uint64_t InstancedScene::generation() const { return impl_->generation; }
+const std::vector<Material>& InstancedScene::materials() const {
+  return impl_->materials;
+}
+const std::vector<Texture>& InstancedScene::textures() const {
+  return impl_->textures;
+}
+void InstancedScene::set_source(std::string source) {
+  impl_->source = std::move(source);
+}
+const std::string& InstancedScene::source() const {
+  return impl_->source;
+}
+uint64_t InstancedScene::generation() const {
+  return impl_->generation;
+}
 
 ValidationReport InstancedScene::validation() const {
   ValidationReport r;
@@ -488,12 +533,24 @@ size_t InstancedScene::mesh_count() const {
   return n;
 }
 
-size_t InstancedScene::instance_capacity() const { return impl_->instances.size(); }
-bool InstancedScene::has_instance(InstanceId id) const { return id < impl_->instances.size() && impl_->instances[id].live; }
-MeshId InstancedScene::instance_mesh(InstanceId id) const { return impl_->instance(id, "instance_mesh").mesh; }
-Affine3 InstancedScene::transform(InstanceId id) const { return impl_->instance(id, "transform").transform; }
-uint32_t InstancedScene::mask(InstanceId id) const { return impl_->instance(id, "mask").mask; }
-const TriangleMesh& InstancedScene::mesh(MeshId id) const { return impl_->mesh(id, "mesh").scene.meshes[0]; }
+size_t InstancedScene::instance_capacity() const {
+  return impl_->instances.size();
+}
+bool InstancedScene::has_instance(InstanceId id) const {
+  return id < impl_->instances.size() && impl_->instances[id].live;
+}
+MeshId InstancedScene::instance_mesh(InstanceId id) const {
+  return impl_->instance(id, "instance_mesh").mesh;
+}
+Affine3 InstancedScene::transform(InstanceId id) const {
+  return impl_->instance(id, "transform").transform;
+}
+uint32_t InstancedScene::mask(InstanceId id) const {
+  return impl_->instance(id, "mask").mask;
+}
+const TriangleMesh& InstancedScene::mesh(MeshId id) const {
+  return impl_->mesh(id, "mesh").scene.meshes[0];
+}
 
 size_t InstancedScene::memory_bytes() const {
   size_t bytes = impl_->tlas4.size() * sizeof(Bvh4Node) + impl_->tlas8.size() * sizeof(Bvh8Node) +

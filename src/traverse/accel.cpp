@@ -7,8 +7,8 @@
 
 #include "core/parallel.h"
 #include "core/timer.h"
-#include "geometry/prim_ref.h"
 #include "core/vec.h"
+#include "geometry/prim_ref.h"
 #include "kestrel/error.h"
 #include "traverse/traverse_bvh2.h"
 #include "traverse/wide_bvh.h"
@@ -25,10 +25,14 @@ std::optional<Layout> layout_from_name(const std::string& name) {
 
 const char* layout_name(Layout layout) {
   switch (layout) {
-    case Layout::automatic: return "auto";
-    case Layout::bvh2: return "bvh2";
-    case Layout::bvh4: return "bvh4";
-    case Layout::bvh8: return "bvh8";
+    case Layout::automatic:
+      return "auto";
+    case Layout::bvh2:
+      return "bvh2";
+    case Layout::bvh4:
+      return "bvh4";
+    case Layout::bvh8:
+      return "bvh8";
   }
   return "?";
 }
@@ -48,8 +52,10 @@ Accel& Accel::operator=(Accel&&) noexcept = default;
 size_t Accel::memory_bytes() const {
   const detail::AccelNodes& n = *nodes;
   switch (layout) {
-    case Layout::bvh4: return n.bvh4.nodes.size() * sizeof(Bvh4Node) + n.bvh4.blocks.size() * sizeof(TriangleBlock);
-    case Layout::bvh8: return n.bvh8.nodes.size() * sizeof(Bvh8Node) + n.bvh8.blocks.size() * sizeof(TriangleBlock);
+    case Layout::bvh4:
+      return n.bvh4.nodes.size() * sizeof(Bvh4Node) + n.bvh4.blocks.size() * sizeof(TriangleBlock);
+    case Layout::bvh8:
+      return n.bvh8.nodes.size() * sizeof(Bvh8Node) + n.bvh8.blocks.size() * sizeof(TriangleBlock);
     default:
       return n.bvh.nodes.size() * sizeof(Bvh2Node) + n.bvh.prim_ids.size() * sizeof(uint32_t) +
              n.triangles.size() * sizeof(Triangle);
@@ -81,8 +87,12 @@ Accel build_accel(const Scene& scene, const BuildConfig& config) {
   if (!bvh.empty()) accel.bounds = {bvh.nodes[0].lo, bvh.nodes[0].hi};
   Buffer<Triangle> triangles = gather_triangles(scene, bvh.prim_ids);
   switch (accel.layout) {
-    case Layout::bvh4: accel.nodes->bvh4 = collapse_to_bvh4(bvh, triangles, config.max_leaf_size); break;
-    case Layout::bvh8: accel.nodes->bvh8 = collapse_to_bvh8(bvh, triangles, config.max_leaf_size); break;
+    case Layout::bvh4:
+      accel.nodes->bvh4 = collapse_to_bvh4(bvh, triangles, config.max_leaf_size);
+      break;
+    case Layout::bvh8:
+      accel.nodes->bvh8 = collapse_to_bvh8(bvh, triangles, config.max_leaf_size);
+      break;
     default:
       accel.nodes->triangles = std::move(triangles);
       accel.nodes->bvh = std::move(bvh);
@@ -107,12 +117,17 @@ class BlockRewriter {
   void operator()(TriangleBlock& blk) const {
     for (int lane = 0; lane < 4; ++lane) {
       const uint32_t id = blk.prim_id[lane] & ~block_last_bit;
-      if (lane > 0 && id == (blk.prim_id[lane - 1] & ~block_last_bit)) {  // padding: repeat the lane
+      if (lane > 0 &&
+          id == (blk.prim_id[lane - 1] & ~block_last_bit)) {  // padding: repeat the lane
         for (int k = 0; k < 3; ++k)
           for (int a = 0; a < 3; ++a) blk.v[k][a][lane] = blk.v[k][a][lane - 1];
         continue;
       }
-      const size_t m = one_mesh_ ? 0 : size_t(std::upper_bound(first_.begin(), first_.end(), size_t(id)) - first_.begin()) - 1;
+      const size_t m = one_mesh_
+                           ? 0
+                           : size_t(std::upper_bound(first_.begin(), first_.end(), size_t(id)) -
+                                    first_.begin()) -
+                                 1;
       const TriangleMesh& mesh = scene_.meshes[m];
       const size_t t = id - first_[m];
       // A triangle that became NaN/Inf or lost a vertex cannot stay; one that became
@@ -121,9 +136,13 @@ class BlockRewriter {
       const size_t nv = mesh.positions.size();
       if (idx[0] >= nv || idx[1] >= nv || idx[2] >= nv || !is_finite(mesh.positions[idx[0]]) ||
           !is_finite(mesh.positions[idx[1]]) || !is_finite(mesh.positions[idx[2]]))
-        throw Error(ErrorCode::invalid_argument,
-                    fmt::format("refit: triangle {} is no longer valid (NaN/Inf vertex or bad index); rebuild", id));
-      write_block_lane(blk, lane, {mesh.positions[idx[0]], mesh.positions[idx[1]], mesh.positions[idx[2]]});
+        throw Error(
+            ErrorCode::invalid_argument,
+            fmt::format(
+                "refit: triangle {} is no longer valid (NaN/Inf vertex or bad index); rebuild",
+                id));
+      write_block_lane(blk, lane,
+                       {mesh.positions[idx[0]], mesh.positions[idx[1]], mesh.positions[idx[2]]});
     }
   }
 
@@ -137,21 +156,29 @@ class BlockRewriter {
 void refit_accel(Accel& accel, const Scene& scene) {
   const size_t count = scene.triangle_count();
   if (count != accel.validation.valid.size())
-    throw Error(ErrorCode::invalid_argument,
-                fmt::format("refit: the scene has {} triangles, the accel was built over {}; rebuild", count,
-                            accel.validation.valid.size()));
+    throw Error(
+        ErrorCode::invalid_argument,
+        fmt::format("refit: the scene has {} triangles, the accel was built over {}; rebuild",
+                    count, accel.validation.valid.size()));
   Bounds3 box;
   switch (accel.layout) {
-    case Layout::bvh4: refit_wide(accel.nodes->bvh4, BlockRewriter(scene)); break;
-    case Layout::bvh8: refit_wide(accel.nodes->bvh8, BlockRewriter(scene)); break;
+    case Layout::bvh4:
+      refit_wide(accel.nodes->bvh4, BlockRewriter(scene));
+      break;
+    case Layout::bvh8:
+      refit_wide(accel.nodes->bvh8, BlockRewriter(scene));
+      break;
     default: {
       SceneValidation now = validate_scene(scene);
       for (size_t i = 0; i < now.valid.size(); ++i)
         if (accel.validation.valid[i] && !now.valid[i])
           throw Error(ErrorCode::invalid_argument,
-                      fmt::format("refit: triangle {} is no longer valid (NaN/Inf, bad index or degenerate); rebuild", i));
+                      fmt::format("refit: triangle {} is no longer valid (NaN/Inf, bad index or "
+                                  "degenerate); rebuild",
+                                  i));
       const Buffer<Triangle> global = gather_triangles(scene, now);
-      for (size_t i = 0; i < accel.nodes->triangles.size(); ++i) accel.nodes->triangles[i] = global[accel.nodes->bvh.prim_ids[i]];
+      for (size_t i = 0; i < accel.nodes->triangles.size(); ++i)
+        accel.nodes->triangles[i] = global[accel.nodes->bvh.prim_ids[i]];
       refit_bvh2(accel.nodes->bvh, accel.nodes->triangles);
     }
   }

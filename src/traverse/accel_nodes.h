@@ -54,10 +54,10 @@ struct Bvh8 {
 
 namespace detail {
 struct AccelNodes {
-  Bvh2 bvh;                         ///< bvh2 layout
-  Buffer<Triangle> triangles;       ///< bvh2: triangles[i] is primitive bvh.prim_ids[i]
-  Bvh4 bvh4;                        ///< bvh4 layout (the binary tree is released)
-  Bvh8 bvh8;                        ///< bvh8 layout
+  Bvh2 bvh;                    ///< bvh2 layout
+  Buffer<Triangle> triangles;  ///< bvh2: triangles[i] is primitive bvh.prim_ids[i]
+  Bvh4 bvh4;                   ///< bvh4 layout (the binary tree is released)
+  Bvh8 bvh8;                   ///< bvh8 layout
 };
 }  // namespace detail
 

@@ -24,5 +24,4 @@ void for_each_traceable_run(std::span<const Ray> rays, Out* out, Fn&& fn) {
   }
 }
 
-
 }  // namespace kestrel::kernels

@@ -1,8 +1,8 @@
 // Traversal kernels per instruction set. Each kernels_<isa>.cpp compiles wide_kernels.inl
 // with its own compiler flags into its own namespace; trace.cpp picks a table at run time
-// (kernel_table, by the ISA a call asks for or default_isa()). Kernels take raw pointers only, so no template code is shared between the ISA
-// files (a shared inline function compiled with AVX-512 could otherwise be picked by the
-// linker for an SSE2 caller).
+// (kernel_table, by the ISA a call asks for or default_isa()). Kernels take raw pointers only, so
+// no template code is shared between the ISA files (a shared inline function compiled with AVX-512
+// could otherwise be picked by the linker for an SSE2 caller).
 #pragma once
 #include <cstddef>
 
@@ -14,22 +14,24 @@ namespace kestrel::kernels {
 
 /// Traces rays[0..n) into hits[0..n). Rays must be traceable (the caller filters the
 /// rest). Closest-hit kernels fill t, prim_id, u, v; any-hit kernels fill t and prim_id.
-using Bvh4Fn = void (*)(const Bvh4Node* nodes, const TriangleBlock* blocks, const Ray* rays, Hit* hits, size_t n);
-using Bvh8Fn = void (*)(const Bvh8Node* nodes, const TriangleBlock* blocks, const Ray* rays, Hit* hits, size_t n);
+using Bvh4Fn = void (*)(const Bvh4Node* nodes, const TriangleBlock* blocks, const Ray* rays,
+                        Hit* hits, size_t n);
+using Bvh8Fn = void (*)(const Bvh8Node* nodes, const TriangleBlock* blocks, const Ray* rays,
+                        Hit* hits, size_t n);
 
 /// What the two-level kernels know of an instance (plain data, built by commit()).
 struct InstanceData {
   float world_to_object[12];  ///< Affine3::m of the inverse transform
   uint32_t mask;
-  uint32_t id;                ///< InstanceId reported in hits
-  const void* nodes;          ///< the mesh's Bvh4Node / Bvh8Node array (same width as the TLAS)
+  uint32_t id;        ///< InstanceId reported in hits
+  const void* nodes;  ///< the mesh's Bvh4Node / Bvh8Node array (same width as the TLAS)
   const TriangleBlock* blocks;
 };
 
 /// Two-level: TLAS leaves are wide_leaf_bit | index into `instances`. Closest-hit kernels
 /// fill every field of InstanceHit; any-hit kernels fill t, prim_id and instance_id.
-using TlasFn = void (*)(const void* tlas_nodes, const InstanceData* instances, const Ray* rays, InstanceHit* hits,
-                        size_t n, uint32_t ray_mask);
+using TlasFn = void (*)(const void* tlas_nodes, const InstanceData* instances, const Ray* rays,
+                        InstanceHit* hits, size_t n, uint32_t ray_mask);
 
 struct Table {
   Bvh4Fn closest4, any4, packet4;

@@ -3,5 +3,7 @@
 #include "traverse/wide_kernels.inl"
 
 namespace kestrel::kernels {
-const Table& table_avx2() { return avx2::table; }
+const Table& table_avx2() {
+  return avx2::table;
+}
 }  // namespace kestrel::kernels

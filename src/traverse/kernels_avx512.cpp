@@ -3,5 +3,7 @@
 #include "traverse/wide_kernels.inl"
 
 namespace kestrel::kernels {
-const Table& table_avx512() { return avx512::table; }
+const Table& table_avx512() {
+  return avx512::table;
+}
 }  // namespace kestrel::kernels

@@ -3,5 +3,7 @@
 #include "traverse/wide_kernels.inl"
 
 namespace kestrel::kernels {
-const Table& table_sse2() { return sse2::table; }
+const Table& table_sse2() {
+  return sse2::table;
+}
 }  // namespace kestrel::kernels

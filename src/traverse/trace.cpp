@@ -9,10 +9,10 @@
 #include "core/parallel.h"
 #include "geometry/triangle_intersect.h"
 #include "kestrel/error.h"
+#include "traverse/accel_nodes.h"
 #include "traverse/batches.h"
 #include "traverse/kernels.h"
 #include "traverse/traverse_bvh2.h"
-#include "traverse/accel_nodes.h"
 
 namespace kestrel {
 
@@ -20,12 +20,14 @@ namespace kestrel {
 
 const kernels::Table& kernels::table_for(Isa isa) {
   switch (isa) {
-    case Isa::avx512: return table_avx512();
-    case Isa::avx2: return table_avx2();
-    default: return table_sse2();
+    case Isa::avx512:
+      return table_avx512();
+    case Isa::avx2:
+      return table_avx2();
+    default:
+      return table_sse2();
   }
 }
-
 
 // ---- scalar Bvh2 reference ----------------------------------------------------------------
 
@@ -68,13 +70,19 @@ void trace_range(const Accel& accel, std::span<const Ray> rays, std::span<Hit> h
     case Layout::bvh4:
       if (accel.nodes->bvh4.empty()) break;
       kernels::for_each_traceable_run(rays, hits.data(), [&](const Ray* r, Hit* h, size_t n) {
-        (any_hit ? (packets ? k.any_packet4 : k.any4) : packets ? k.packet4 : k.closest4)(accel.nodes->bvh4.nodes.data(), accel.nodes->bvh4.blocks.data(), r, h, n);
+        (any_hit   ? (packets ? k.any_packet4 : k.any4)
+         : packets ? k.packet4
+                   : k.closest4)(accel.nodes->bvh4.nodes.data(), accel.nodes->bvh4.blocks.data(), r,
+                                 h, n);
       });
       return;
     case Layout::bvh8:
       if (accel.nodes->bvh8.empty()) break;
       kernels::for_each_traceable_run(rays, hits.data(), [&](const Ray* r, Hit* h, size_t n) {
-        (any_hit ? (packets ? k.any_packet8 : k.any8) : packets ? k.packet8 : k.closest8)(accel.nodes->bvh8.nodes.data(), accel.nodes->bvh8.blocks.data(), r, h, n);
+        (any_hit   ? (packets ? k.any_packet8 : k.any8)
+         : packets ? k.packet8
+                   : k.closest8)(accel.nodes->bvh8.nodes.data(), accel.nodes->bvh8.blocks.data(), r,
+                                 h, n);
       });
       return;
     default:
@@ -106,7 +114,8 @@ bool looks_coherent(std::span<const Ray> rays) {
     bool same = true;
     for (size_t k = 1; k < 8 && same; ++k) {
       const Ray& b = rays[g + k];
-      same = std::signbit(b.dir.x) == std::signbit(a.dir.x) && std::signbit(b.dir.y) == std::signbit(a.dir.y) &&
+      same = std::signbit(b.dir.x) == std::signbit(a.dir.x) &&
+             std::signbit(b.dir.y) == std::signbit(a.dir.y) &&
              std::signbit(b.dir.z) == std::signbit(a.dir.z) && dominant_axis(b.dir) == axis;
     }
     coherent += same;
@@ -116,19 +125,22 @@ bool looks_coherent(std::span<const Ray> rays) {
 
 void check_sizes(size_t rays, size_t out) {
   if (rays != out)
-    throw Error(ErrorCode::invalid_argument, fmt::format("trace: {} rays but room for {} results", rays, out));
+    throw Error(ErrorCode::invalid_argument,
+                fmt::format("trace: {} rays but room for {} results", rays, out));
 }
 }  // namespace
 
 Hit intersect(const Accel& accel, const Ray& ray) {
   Hit hit;
-  trace_range(accel, std::span(&ray, 1), std::span(&hit, 1), false, kernels::table_for(default_isa()), false);
+  trace_range(accel, std::span(&ray, 1), std::span(&hit, 1), false,
+              kernels::table_for(default_isa()), false);
   return hit;
 }
 
 Hit intersect_any(const Accel& accel, const Ray& ray) {
   Hit hit;
-  trace_range(accel, std::span(&ray, 1), std::span(&hit, 1), true, kernels::table_for(default_isa()), false);
+  trace_range(accel, std::span(&ray, 1), std::span(&hit, 1), true,
+              kernels::table_for(default_isa()), false);
   return hit;
 }
 
@@ -145,11 +157,13 @@ void trace(const Accel& accel, std::span<const Ray> rays, std::span<Hit> hits, b
   });
 }
 
-void trace(const Accel& accel, std::span<const Ray> rays, std::span<Hit> hits, const TraceOptions& options) {
+void trace(const Accel& accel, std::span<const Ray> rays, std::span<Hit> hits,
+           const TraceOptions& options) {
   trace(accel, rays, hits, false, options);
 }
 
-void occluded(const Accel& accel, std::span<const Ray> rays, std::span<uint8_t> out, const TraceOptions& options) {
+void occluded(const Accel& accel, std::span<const Ray> rays, std::span<uint8_t> out,
+              const TraceOptions& options) {
   check_sizes(rays.size(), out.size());
   const Isa isa = options.isa.value_or(default_isa());
   require_supported(isa);
@@ -159,7 +173,8 @@ void occluded(const Accel& accel, std::span<const Ray> rays, std::span<uint8_t> 
     for (size_t i = b; i < e; i += 256) {
       const size_t n = std::min<size_t>(256, e - i);
       const auto chunk = rays.subspan(i, n);
-      trace_range(accel, chunk, std::span(local, n), true, k, options.packets.value_or(looks_coherent(chunk)));
+      trace_range(accel, chunk, std::span(local, n), true, k,
+                  options.packets.value_or(looks_coherent(chunk)));
       for (size_t j = 0; j < n; ++j) out[i + j] = local[j].hit();
     }
   });

@@ -57,7 +57,9 @@ struct SlabRay {
 /// lying in a box face can compute a hit distance a few ulps before the box's computed entry,
 /// and a second triangle hit at exactly that distance (a duplicate, a shared edge) must still
 /// be reached whatever the visiting order, so the smallest-id tie rule gives one answer.
-inline float cull_distance(float t) { return t + std::fabs(t) * 0x1p-12f; }
+inline float cull_distance(float t) {
+  return t + std::fabs(t) * 0x1p-12f;
+}
 
 /// Walks the BVH nearest child first. leaf(first, count, tmax) tests prims
 /// [first, first + count) of bvh.prim_ids, may lower tmax, and returns true to stop (any hit).

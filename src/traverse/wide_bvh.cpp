@@ -1,8 +1,8 @@
 #include "traverse/wide_bvh.h"
 
 #include <algorithm>
-#include <functional>
 #include <cmath>
+#include <functional>
 #include <vector>
 
 #include "core/simd/vec4f.h"
@@ -87,7 +87,9 @@ LeafPlan plan_leaves(const Bvh2& bvh, uint32_t max_leaf) {
 // Wide nodes from a binary tree: flat[i] marks the binary subtrees that become one leaf
 // slot; emit_leaf(i) returns that slot's child reference.
 template <int W, class Node, class EmitLeaf>
-void build_wide_nodes(const Bvh2& bvh, const std::vector<uint8_t>& flat, Buffer<Node>& nodes, EmitLeaf&& emit_leaf) {  struct Work {
+void build_wide_nodes(const Bvh2& bvh, const std::vector<uint8_t>& flat, Buffer<Node>& nodes,
+                      EmitLeaf&& emit_leaf) {
+  struct Work {
     uint32_t src, dst;
   };
   std::vector<Work> todo{{0, 0}};
@@ -142,7 +144,6 @@ void build_wide_nodes(const Bvh2& bvh, const std::vector<uint8_t>& flat, Buffer<
     nodes[work.dst] = node;
   }
 }
-
 
 template <int W, class Node, class Wide>
 Wide collapse(const Bvh2& bvh, std::span<const Triangle> tris, uint32_t max_leaf) {
@@ -233,9 +234,10 @@ void refit_nodes(Wide& bvh, const std::function<void(TriangleBlock&)>& rewrite) 
       float lo[3] = {inf, inf, inf}, hi[3] = {-inf, -inf, -inf};
       if (ref & wide_leaf_bit) {
         for (TriangleBlock* blk = &bvh.blocks[ref & ~wide_leaf_bit];; ++blk) {
-          rewrite(*blk);  // new vertices, then their box, while the block is hot
+          rewrite(*blk);                 // new vertices, then their box, while the block is hot
           for (int a = 0; a < 3; ++a) {  // one row per vertex and axis: 4 lanes at once
-            const Vec4f v0 = Vec4f::load(blk->v[0][a]), v1 = Vec4f::load(blk->v[1][a]), v2 = Vec4f::load(blk->v[2][a]);
+            const Vec4f v0 = Vec4f::load(blk->v[0][a]), v1 = Vec4f::load(blk->v[1][a]),
+                        v2 = Vec4f::load(blk->v[2][a]);
             lo[a] = std::min(lo[a], hmin(min(min(v0, v1), v2)));
             hi[a] = std::max(hi[a], hmax(max(max(v0, v1), v2)));
           }
@@ -267,8 +269,12 @@ Bvh4 collapse_to_bvh4(const Bvh2& bvh, std::span<const Triangle> t, uint32_t max
 Bvh8 collapse_to_bvh8(const Bvh2& bvh, std::span<const Triangle> t, uint32_t max_leaf) {
   return collapse<8, Bvh8Node, Bvh8>(bvh, t, max_leaf);
 }
-void refit_wide(Bvh4& bvh, const std::function<void(TriangleBlock&)>& rewrite) { refit_nodes<4>(bvh, rewrite); }
-void refit_wide(Bvh8& bvh, const std::function<void(TriangleBlock&)>& rewrite) { refit_nodes<8>(bvh, rewrite); }
+void refit_wide(Bvh4& bvh, const std::function<void(TriangleBlock&)>& rewrite) {
+  refit_nodes<4>(bvh, rewrite);
+}
+void refit_wide(Bvh8& bvh, const std::function<void(TriangleBlock&)>& rewrite) {
+  refit_nodes<8>(bvh, rewrite);
+}
 
 namespace {
 
@@ -279,11 +285,14 @@ Buffer<Node> collapse_instance_tree(const Bvh2& bvh) {
   std::vector<uint8_t> flat(bvh.nodes.size());
   for (size_t i = 0; i < bvh.nodes.size(); ++i) {
     if (bvh.nodes[i].is_leaf() && bvh.nodes[i].count != 1)
-      throw Error(ErrorCode::invalid_argument, "instance tree: every leaf must hold one instance (max_leaf_size = 1)");
+      throw Error(ErrorCode::invalid_argument,
+                  "instance tree: every leaf must hold one instance (max_leaf_size = 1)");
     flat[i] = bvh.nodes[i].is_leaf();
   }
   nodes.reserve(bvh.nodes.size() / (W - 1) + 1);
-  build_wide_nodes<W>(bvh, flat, nodes, [&](uint32_t leaf) { return wide_leaf_bit | bvh.prim_ids[bvh.nodes[leaf].index]; });
+  build_wide_nodes<W>(bvh, flat, nodes, [&](uint32_t leaf) {
+    return wide_leaf_bit | bvh.prim_ids[bvh.nodes[leaf].index];
+  });
   return nodes;
 }
 
@@ -304,7 +313,8 @@ template <int W, class Wide>
 double sah(const Wide& bvh) {
   if (bvh.empty()) return 0;
   const auto area = [](const auto& n, int j) {
-    const float dx = n.bounds[1][j] - n.bounds[0][j], dy = n.bounds[3][j] - n.bounds[2][j], dz = n.bounds[5][j] - n.bounds[4][j];
+    const float dx = n.bounds[1][j] - n.bounds[0][j], dy = n.bounds[3][j] - n.bounds[2][j],
+                dz = n.bounds[5][j] - n.bounds[4][j];
     return double(dx) * dy + double(dy) * dz + double(dz) * dx;
   };
   double cost = 0;
@@ -320,7 +330,9 @@ double sah(const Wide& bvh) {
         continue;
       }
       size_t blocks = 1;
-      for (const TriangleBlock* b = &bvh.blocks[ref & ~wide_leaf_bit]; !(b->prim_id[0] & block_last_bit); ++b) ++blocks;
+      for (const TriangleBlock* b = &bvh.blocks[ref & ~wide_leaf_bit];
+           !(b->prim_id[0] & block_last_bit); ++b)
+        ++blocks;
       cost += area(n, j) * double(blocks);
     }
   return root > 0 ? 1.0 + cost / root : 1.0;
@@ -328,12 +340,24 @@ double sah(const Wide& bvh) {
 
 }  // namespace
 
-Buffer<Bvh4Node> collapse_instances_bvh4(const Bvh2& bvh) { return collapse_instance_tree<4, Bvh4Node>(bvh); }
-Buffer<Bvh8Node> collapse_instances_bvh8(const Bvh2& bvh) { return collapse_instance_tree<8, Bvh8Node>(bvh); }
-Bounds3 wide_bounds(const Bvh4& bvh) { return root_bounds<4>(bvh); }
-Bounds3 wide_bounds(const Bvh8& bvh) { return root_bounds<8>(bvh); }
-double wide_sah_cost(const Bvh4& bvh) { return sah<4>(bvh); }
-double wide_sah_cost(const Bvh8& bvh) { return sah<8>(bvh); }
+Buffer<Bvh4Node> collapse_instances_bvh4(const Bvh2& bvh) {
+  return collapse_instance_tree<4, Bvh4Node>(bvh);
+}
+Buffer<Bvh8Node> collapse_instances_bvh8(const Bvh2& bvh) {
+  return collapse_instance_tree<8, Bvh8Node>(bvh);
+}
+Bounds3 wide_bounds(const Bvh4& bvh) {
+  return root_bounds<4>(bvh);
+}
+Bounds3 wide_bounds(const Bvh8& bvh) {
+  return root_bounds<8>(bvh);
+}
+double wide_sah_cost(const Bvh4& bvh) {
+  return sah<4>(bvh);
+}
+double wide_sah_cost(const Bvh8& bvh) {
+  return sah<8>(bvh);
+}
 
 void refit_bvh2(Bvh2& bvh, std::span<const Triangle> tris) {
   if (bvh.empty()) return;

@@ -26,7 +26,9 @@
 // of rays, nodes visited, blocks tested and hit children per node (stat_hist[k] = nodes
 // with k children hit). Off in the library.
 #ifdef KESTREL_TRAVERSAL_STATS
-namespace kestrel::kernels { extern thread_local uint64_t stat_nodes, stat_blocks, stat_rays, stat_hist[9]; }
+namespace kestrel::kernels {
+extern thread_local uint64_t stat_nodes, stat_blocks, stat_rays, stat_hist[9];
+}
 #define KSTAT(x) (x)
 #else
 #define KSTAT(x) ((void)0)
@@ -34,16 +36,20 @@ namespace kestrel::kernels { extern thread_local uint64_t stat_nodes, stat_block
 namespace kestrel::kernels::KESTREL_ISA_NS {
 namespace {
 
+// In this order: each part uses the ones before it.
+// clang-format off
 #include "traverse/wide_tests.inl"
 #include "traverse/wide_traversal.inl"
 #include "traverse/wide_packets.inl"
+// clang-format on
 
 const Table table = {
-    &trace_batch<4, false, Bvh4Node>, &trace_batch<4, true, Bvh4Node>, &trace_packets<4, Bvh4Node>,
-    &trace_batch<8, false, Bvh8Node>, &trace_batch<8, true, Bvh8Node>, &trace_packets<8, Bvh8Node>,
-    &trace_tlas<4, false, Bvh4Node>, &trace_tlas<4, true, Bvh4Node>,
-    &trace_tlas<8, false, Bvh8Node>, &trace_tlas<8, true, Bvh8Node>,
-    &occlusion_packets<4, Bvh4Node>, &occlusion_packets<8, Bvh8Node>,
+    &trace_batch<4, false, Bvh4Node>, &trace_batch<4, true, Bvh4Node>,
+    &trace_packets<4, Bvh4Node>,      &trace_batch<8, false, Bvh8Node>,
+    &trace_batch<8, true, Bvh8Node>,  &trace_packets<8, Bvh8Node>,
+    &trace_tlas<4, false, Bvh4Node>,  &trace_tlas<4, true, Bvh4Node>,
+    &trace_tlas<8, false, Bvh8Node>,  &trace_tlas<8, true, Bvh8Node>,
+    &occlusion_packets<4, Bvh4Node>,  &occlusion_packets<8, Bvh8Node>,
 };
 
 }  // namespace

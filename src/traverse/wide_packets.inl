@@ -20,7 +20,8 @@ inline uint64_t transpose8x8(uint64_t x) {
 }
 
 template <int W, class Node>
-void trace_packet(const Node* nodes, const TriangleBlock* blocks, const Ray* rays, Hit* hits, unsigned n) {
+void trace_packet(const Node* nodes, const TriangleBlock* blocks, const Ray* rays, Hit* hits,
+                  unsigned n) {
   using S = Simd<W>;
   using F = typename S::F;
   struct Lane {
@@ -59,13 +60,15 @@ void trace_packet(const Node* nodes, const TriangleBlock* blocks, const Ray* ray
       for (unsigned rs = cur_rays; rs; rs &= rs - 1) {
         const unsigned r = ctz(rs);
         F tn;
-        const uint64_t m = lane[r].box.test(node.bounds, lane[r].tmin, S::splat(lane[r].cull_t), tn);
+        const uint64_t m =
+            lane[r].box.test(node.bounds, lane[r].tmin, S::splat(lane[r].cull_t), tn);
         masks |= m << (8 * r);
         dmin = vmin(lane[r].box.test_mask != 0 ? tn : inf, dmin);
       }
       const uint64_t by_child = transpose8x8(masks);  // byte j: rays that hit child j
       unsigned hit_children = 0;
-      for (int j = 0; j < W; ++j) hit_children |= unsigned((by_child >> (8 * j)) & 0xFF) != 0 ? 1u << j : 0u;
+      for (int j = 0; j < W; ++j)
+        hit_children |= unsigned((by_child >> (8 * j)) & 0xFF) != 0 ? 1u << j : 0u;
       if (!hit_children) goto pop;
       // Push farthest first (by the nearest entry over the packet's rays).
       Entry* base = sp;
@@ -136,13 +139,16 @@ done:
 }
 
 #ifdef __AVX2__
-// Coherent packets, L rays (8, or 16 with AVX-512) in the lanes of every vector: each child box of a node is tested
-// against all rays at once and each triangle of a leaf against all rays at once, so the
-// control flow (which children, in which order, which leaves) is decided once per packet.
+// Coherent packets, L rays (8, or 16 with AVX-512) in the lanes of every vector: each child box of
+// a node is tested against all rays at once and each triangle of a leaf against all rays at once,
+// so the control flow (which children, in which order, which leaves) is decided once per packet.
 // Needs rays that agree on their direction signs (near planes) and on the watertight test's
 // axis permutation (kx, ky, kz); the caller falls back otherwise. Every per-ray operation is
 // the single-ray kernel's, lane by lane, so the hits are identical.
-template <class V, class M> inline V select_lanes(M m, V a, V b) { return m != M{} ? a : b; }
+template <class V, class M>
+inline V select_lanes(M m, V a, V b) {
+  return m != M{} ? a : b;
+}
 
 // Horizontal minimum, broadcast to every lane.
 inline vf8 hmin_lanes(vf8 d) {
@@ -154,13 +160,15 @@ inline vf16 hmin_lanes(vf16 d) {
   d = vmin(d, __builtin_shufflevector(d, d, 8, 9, 10, 11, 12, 13, 14, 15, 0, 1, 2, 3, 4, 5, 6, 7));
   d = vmin(d, __builtin_shufflevector(d, d, 4, 5, 6, 7, 0, 1, 2, 3, 12, 13, 14, 15, 8, 9, 10, 11));
   d = vmin(d, __builtin_shufflevector(d, d, 2, 3, 0, 1, 6, 7, 4, 5, 10, 11, 8, 9, 14, 15, 12, 13));
-  return vmin(d, __builtin_shufflevector(d, d, 1, 0, 3, 2, 5, 4, 7, 6, 9, 8, 11, 10, 13, 12, 15, 14));
+  return vmin(d,
+              __builtin_shufflevector(d, d, 1, 0, 3, 2, 5, 4, 7, 6, 9, 8, 11, 10, 13, 12, 15, 14));
 }
 
 // AnyHit: occlusion; a lane leaves the packet at its first hit (t < tmax), children are not
 // sorted, and the packet ends when every lane is done.
 template <int L, bool AnyHit>
-bool trace_packet_lanes(const Bvh8Node* nodes, const TriangleBlock* blocks, const Ray* rays, Hit* hits, unsigned n) {
+bool trace_packet_lanes(const Bvh8Node* nodes, const TriangleBlock* blocks, const Ray* rays,
+                        Hit* hits, unsigned n) {
   using S = Simd<L>;
   using VF = typename S::F;
   using VI = typename S::I;
@@ -174,8 +182,8 @@ bool trace_packet_lanes(const Bvh8Node* nodes, const TriangleBlock* blocks, cons
         __builtin_signbit(rays[r].dir.z) != __builtin_signbit(rays[0].dir.z))
       return false;
   }
-  alignas(64) float o[3][L], inv[3][L], inv_far[3][L], tmin_a[L], tmax_a[L], sx_a[L], sy_a[L], okx_a[L], oky_a[L], okz_a[L],
-      dkx_a[L], dky_a[L], dkz_a[L];
+  alignas(64) float o[3][L], inv[3][L], inv_far[3][L], tmin_a[L], tmax_a[L], sx_a[L], sy_a[L],
+      okx_a[L], oky_a[L], okz_a[L], dkx_a[L], dky_a[L], dkz_a[L];
   const int kx = tr[0].kx, ky = tr[0].ky, kz = tr[0].kz;
   for (unsigned l = 0; l < unsigned(L); ++l) {
     const unsigned r = l < n ? l : n - 1;  // idle lanes repeat the last ray, masked out
@@ -205,9 +213,11 @@ bool trace_packet_lanes(const Bvh8Node* nodes, const TriangleBlock* blocks, cons
   VI best_id = VI{} - 1;  // invalid_id in every lane
   const VF scale = bcast(0x1p-12f);
   auto cull_of = [&](VF t) { return t + (t < zero ? -t : t) * scale; };
-  VF cull = AnyHit ? best_t : cull_of(best_t);  // any hit: the ray's own tmax, as the single-ray kernel
-  unsigned done = 0;                             // any hit: lanes that found their hit
-  const int nrx = __builtin_signbit(rays[0].dir.x) ? 1 : 0, nry = 2 + (__builtin_signbit(rays[0].dir.y) ? 1 : 0),
+  VF cull =
+      AnyHit ? best_t : cull_of(best_t);  // any hit: the ray's own tmax, as the single-ray kernel
+  unsigned done = 0;                      // any hit: lanes that found their hit
+  const int nrx = __builtin_signbit(rays[0].dir.x) ? 1 : 0,
+            nry = 2 + (__builtin_signbit(rays[0].dir.y) ? 1 : 0),
             nrz = 4 + (__builtin_signbit(rays[0].dir.z) ? 1 : 0);
   struct Entry {
     uint32_t ref, rays;
@@ -225,10 +235,12 @@ bool trace_packet_lanes(const Bvh8Node* nodes, const TriangleBlock* blocks, cons
       Entry* base = sp;
       for (int j = 0; j < 8; ++j) {
         if (node.child[j] == wide_empty) continue;
-        const VF nx = (bcast(node.bounds[nrx][j]) - ox) * ix, ny = (bcast(node.bounds[nry][j]) - oy) * iy,
-                  nz = (bcast(node.bounds[nrz][j]) - oz) * iz;
-        const VF gx = (bcast(node.bounds[nrx ^ 1][j]) - ox) * fx, gy = (bcast(node.bounds[nry ^ 1][j]) - oy) * fy,
-                  gz = (bcast(node.bounds[nrz ^ 1][j]) - oz) * fz;
+        const VF nx = (bcast(node.bounds[nrx][j]) - ox) * ix,
+                 ny = (bcast(node.bounds[nry][j]) - oy) * iy,
+                 nz = (bcast(node.bounds[nrz][j]) - oz) * iz;
+        const VF gx = (bcast(node.bounds[nrx ^ 1][j]) - ox) * fx,
+                 gy = (bcast(node.bounds[nry ^ 1][j]) - oy) * fy,
+                 gz = (bcast(node.bounds[nrz ^ 1][j]) - oz) * fz;
         const VF tn = vmax(nz, vmax(ny, vmax(nx, tmin)));
         const VF tf = vmin(gz, vmin(gy, vmin(gx, cull)));
         const VI hit = (tn <= tf) & active;
@@ -255,7 +267,8 @@ bool trace_packet_lanes(const Bvh8Node* nodes, const TriangleBlock* blocks, cons
       const VI active = ((VI{} + int(cur_rays)) >> lane_index & 1) != 0;
       for (const TriangleBlock* blk = blocks + (cur & ~wide_leaf_bit);; ++blk) {
         for (int i = 0; i < 4; ++i) {
-          const VF akz = bcast(blk->v[0][kz][i]) - okz, bkz = bcast(blk->v[1][kz][i]) - okz, ckz = bcast(blk->v[2][kz][i]) - okz;
+          const VF akz = bcast(blk->v[0][kz][i]) - okz, bkz = bcast(blk->v[1][kz][i]) - okz,
+                   ckz = bcast(blk->v[2][kz][i]) - okz;
           const VF akx = bcast(blk->v[0][kx][i]) - okx, aky = bcast(blk->v[0][ky][i]) - oky;
           const VF bkx = bcast(blk->v[1][kx][i]) - okx, bky = bcast(blk->v[1][ky][i]) - oky;
           const VF ckx = bcast(blk->v[2][kx][i]) - okx, cky = bcast(blk->v[2][ky][i]) - oky;
@@ -267,7 +280,8 @@ bool trace_packet_lanes(const Bvh8Node* nodes, const TriangleBlock* blocks, cons
           VI ok;
           const unsigned slow = S::mask((u == zero) | (v == zero) | (w == zero) | (det != det));
           if (__builtin_expect(slow == 0, 1)) {
-            const VI ui = reinterpret_cast<VI>(u), vi = reinterpret_cast<VI>(v), wi = reinterpret_cast<VI>(w);
+            const VI ui = reinterpret_cast<VI>(u), vi = reinterpret_cast<VI>(v),
+                     wi = reinterpret_cast<VI>(w);
             ok = ((ui ^ vi) | (ui ^ wi)) >= VI{};
           } else {
             unsigned retry = S::mask((u == zero) | (v == zero) | (w == zero));
@@ -287,7 +301,8 @@ bool trace_packet_lanes(const Bvh8Node* nodes, const TriangleBlock* blocks, cons
           if (!S::mask(ok)) continue;
           const VF e10 = bkx - akx, e11 = bky - aky, e12 = bkz - akz;
           const VF e20 = ckx - akx, e21 = cky - aky, e22 = ckz - akz;
-          const VF n0 = e11 * e22 - e12 * e21, n1 = e12 * e20 - e10 * e22, n2 = e10 * e21 - e11 * e20;
+          const VF n0 = e11 * e22 - e12 * e21, n1 = e12 * e20 - e10 * e22,
+                   n2 = e10 * e21 - e11 * e20;
           const VF ndd = n0 * dkx + n1 * dky + n2 * dkz;
           const VF t = (n0 * akx + n1 * aky + n2 * akz) / ndd;
           const VI id = VI{} + int(blk->prim_id[i] & ~block_last_bit);
@@ -301,8 +316,9 @@ bool trace_packet_lanes(const Bvh8Node* nodes, const TriangleBlock* blocks, cons
             continue;
           }
           // closer(): nearer, or equally near with a smaller id once a hit exists.
-          const VI better = ok & (ndd != zero) & (t > tmin) &
-                             ((t < best_t) | ((t == best_t) & (best_id != VI{} - 1) & (id < best_id)));
+          const VI better =
+              ok & (ndd != zero) & (t > tmin) &
+              ((t < best_t) | ((t == best_t) & (best_id != VI{} - 1) & (id < best_id)));
           if (!S::mask(better)) continue;
           best_t = select_lanes(better, t, best_t);
           best_id = select_lanes(better, id, best_id);
@@ -353,23 +369,27 @@ constexpr int packet_lanes = 8;
 #endif
 
 template <int W, class Node>
-void trace_packets(const Node* nodes, const TriangleBlock* blocks, const Ray* rays, Hit* hits, size_t n) {
+void trace_packets(const Node* nodes, const TriangleBlock* blocks, const Ray* rays, Hit* hits,
+                   size_t n) {
 #ifdef __AVX2__
   if constexpr (W == 8) {
     for (size_t i = 0; i < n; i += packet_lanes) {
       const unsigned m = unsigned(n - i < size_t(packet_lanes) ? n - i : size_t(packet_lanes));
       if (trace_packet_lanes<packet_lanes, false>(nodes, blocks, rays + i, hits + i, m)) continue;
-      for (unsigned k = 0; k < m; k += 8) trace_packet<W>(nodes, blocks, rays + i + k, hits + i + k, m - k < 8 ? m - k : 8);
+      for (unsigned k = 0; k < m; k += 8)
+        trace_packet<W>(nodes, blocks, rays + i + k, hits + i + k, m - k < 8 ? m - k : 8);
     }
     return;
   }
 #endif
-  for (size_t i = 0; i < n; i += 8) trace_packet<W>(nodes, blocks, rays + i, hits + i, unsigned(n - i < 8 ? n - i : 8));
+  for (size_t i = 0; i < n; i += 8)
+    trace_packet<W>(nodes, blocks, rays + i, hits + i, unsigned(n - i < 8 ? n - i : 8));
 }
 
 // Occlusion packets: lane packets where the rays agree, single rays otherwise.
 template <int W, class Node>
-void occlusion_packets(const Node* nodes, const TriangleBlock* blocks, const Ray* rays, Hit* hits, size_t n) {
+void occlusion_packets(const Node* nodes, const TriangleBlock* blocks, const Ray* rays, Hit* hits,
+                       size_t n) {
 #ifdef __AVX2__
   if constexpr (W == 8) {
     for (size_t i = 0; i < n; i += packet_lanes) {

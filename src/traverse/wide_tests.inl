@@ -10,15 +10,18 @@ typedef int32_t vi8 __attribute__((vector_size(32)));
 typedef float vf4u __attribute__((vector_size(16), aligned(4)));
 typedef float vf8u __attribute__((vector_size(32), aligned(4)));
 
-template <int W> struct Simd;
-template <> struct Simd<4> {
+template <int W>
+struct Simd;
+template <>
+struct Simd<4> {
   using F = vf4;
   using I = vi4;
   static F load(const float* p) { return *reinterpret_cast<const vf4u*>(p); }
   static F splat(float x) { return F{x, x, x, x}; }
   static unsigned mask(I m) { return unsigned(_mm_movemask_ps(reinterpret_cast<__m128>(m))); }
 };
-template <> struct Simd<8> {
+template <>
+struct Simd<8> {
   using F = vf8;
   using I = vi8;
   static F load(const float* p) { return *reinterpret_cast<const vf8u*>(p); }
@@ -36,7 +39,8 @@ template <> struct Simd<8> {
 typedef float vf16 __attribute__((vector_size(64)));
 typedef int32_t vi16 __attribute__((vector_size(64)));
 typedef float vf16u __attribute__((vector_size(64), aligned(4)));
-template <> struct Simd<16> {
+template <>
+struct Simd<16> {
   using F = vf16;
   using I = vi16;
   static F load(const float* p) { return *reinterpret_cast<const vf16u*>(p); }
@@ -45,20 +49,31 @@ template <> struct Simd<16> {
 #ifdef __AVX512F__
     return unsigned(_mm512_cmplt_epi32_mask(reinterpret_cast<__m512i>(m), _mm512_setzero_si512()));
 #else
-    const vi8 lo = __builtin_shufflevector(m, m, 0, 1, 2, 3, 4, 5, 6, 7), hi = __builtin_shufflevector(m, m, 8, 9, 10, 11, 12, 13, 14, 15);
+    const vi8 lo = __builtin_shufflevector(m, m, 0, 1, 2, 3, 4, 5, 6, 7),
+              hi = __builtin_shufflevector(m, m, 8, 9, 10, 11, 12, 13, 14, 15);
     return Simd<8>::mask(lo) | Simd<8>::mask(hi) << 8;
 #endif
   }
 };
 
 // Same semantics as SlabRay::max_keep / min_keep: a NaN candidate keeps the accumulator.
-template <class F> inline F vmax(F candidate, F acc) { return candidate > acc ? candidate : acc; }
-template <class F> inline F vmin(F candidate, F acc) { return candidate < acc ? candidate : acc; }
+template <class F>
+inline F vmax(F candidate, F acc) {
+  return candidate > acc ? candidate : acc;
+}
+template <class F>
+inline F vmin(F candidate, F acc) {
+  return candidate < acc ? candidate : acc;
+}
 
-inline unsigned ctz(unsigned m) { return unsigned(__builtin_ctz(m)); }
+inline unsigned ctz(unsigned m) {
+  return unsigned(__builtin_ctz(m));
+}
 
 // As cull_distance in traverse_bvh2.h.
-inline float cull_distance(float t) { return t + __builtin_fabsf(t) * 0x1p-12f; }
+inline float cull_distance(float t) {
+  return t + __builtin_fabsf(t) * 0x1p-12f;
+}
 
 inline bool closer(float t, uint32_t id, float best_t, uint32_t best_id) {
   return t < best_t || (t == best_t && best_id != invalid_id && id < best_id);
@@ -74,7 +89,8 @@ struct TriRay {
   void init(const Ray& r) {
     org[0] = r.org.x, org[1] = r.org.y, org[2] = r.org.z;
     dir[0] = r.dir.x, dir[1] = r.dir.y, dir[2] = r.dir.z;
-    const float ax = __builtin_fabsf(dir[0]), ay = __builtin_fabsf(dir[1]), az = __builtin_fabsf(dir[2]);
+    const float ax = __builtin_fabsf(dir[0]), ay = __builtin_fabsf(dir[1]),
+                az = __builtin_fabsf(dir[2]);
     kz = ax >= ay ? (ax >= az ? 0 : 2) : (ay >= az ? 1 : 2);
     kx = kz == 2 ? 0 : kz + 1;
     ky = kx == 2 ? 0 : kx + 1;
@@ -106,9 +122,12 @@ inline BlockHits intersect_block(const TriRay& r, const TriangleBlock& blk) {
   const vf4 okx = S::splat(r.org[r.kx]), oky = S::splat(r.org[r.ky]), okz = S::splat(r.org[r.kz]);
   const vf4 sx = S::splat(r.sx), sy = S::splat(r.sy);
   // Vertices relative to the origin, in the permuted axes, then sheared.
-  const vf4 akx = S::load(V0 + kx) - okx, aky = S::load(V0 + ky) - oky, akz = S::load(V0 + kz) - okz;
-  const vf4 bkx = S::load(V1 + kx) - okx, bky = S::load(V1 + ky) - oky, bkz = S::load(V1 + kz) - okz;
-  const vf4 ckx = S::load(V2 + kx) - okx, cky = S::load(V2 + ky) - oky, ckz = S::load(V2 + kz) - okz;
+  const vf4 akx = S::load(V0 + kx) - okx, aky = S::load(V0 + ky) - oky,
+            akz = S::load(V0 + kz) - okz;
+  const vf4 bkx = S::load(V1 + kx) - okx, bky = S::load(V1 + ky) - oky,
+            bkz = S::load(V1 + kz) - okz;
+  const vf4 ckx = S::load(V2 + kx) - okx, cky = S::load(V2 + ky) - oky,
+            ckz = S::load(V2 + kz) - okz;
   const vf4 ax = akx - sx * akz, ay = aky - sy * akz;
   const vf4 bx = bkx - sx * bkz, by = bky - sy * bkz;
   const vf4 cx = ckx - sx * ckz, cy = cky - sy * ckz;
@@ -122,7 +141,8 @@ inline BlockHits intersect_block(const TriRay& r, const TriangleBlock& blk) {
   vi4 ok;
   if (__builtin_expect(slow == 0, 1)) {
     // No edge function is zero: the ray is inside when all three signs agree.
-    const vi4 ui = reinterpret_cast<vi4>(u), vi = reinterpret_cast<vi4>(v), wi = reinterpret_cast<vi4>(w);
+    const vi4 ui = reinterpret_cast<vi4>(u), vi = reinterpret_cast<vi4>(v),
+              wi = reinterpret_cast<vi4>(w);
     ok = ((ui ^ vi) | (ui ^ wi)) >= vi4{};
   } else {
     unsigned retry = S::mask((u == zero) | (v == zero) | (w == zero));
@@ -147,7 +167,8 @@ inline BlockHits intersect_block(const TriRay& r, const TriangleBlock& blk) {
   const vf4 n0 = e11 * e22 - e12 * e21;
   const vf4 n1 = e12 * e20 - e10 * e22;
   const vf4 n2 = e10 * e21 - e11 * e20;
-  const vf4 ndd = n0 * S::splat(r.dir[r.kx]) + n1 * S::splat(r.dir[r.ky]) + n2 * S::splat(r.dir[r.kz]);
+  const vf4 ndd =
+      n0 * S::splat(r.dir[r.kx]) + n1 * S::splat(r.dir[r.ky]) + n2 * S::splat(r.dir[r.kz]);
   const vf4 t = (n0 * akx + n1 * aky + n2 * akz) / ndd;
   ok &= (ndd != zero) & (t > S::splat(r.tmin));
   out.mask = S::mask(ok);
@@ -159,12 +180,15 @@ inline BlockHits intersect_block(const TriRay& r, const TriangleBlock& blk) {
 }
 
 // Per-ray constants of the box test (SlabRay), splatted to W lanes.
-inline float far_scale(float inv) { return inv * 1.00000072f; }
-template <int W> struct BoxRay {
+inline float far_scale(float inv) {
+  return inv * 1.00000072f;
+}
+template <int W>
+struct BoxRay {
   using F = typename Simd<W>::F;
   F org[3], inv[3], inv_far[3];
   mutable typename Simd<W>::I test_mask;  // lanes hit by the last test (all ones / zeros)
-  int near_row[3], far_row[3];  // rows of Bvh*Node::bounds holding the near / far planes
+  int near_row[3], far_row[3];            // rows of Bvh*Node::bounds holding the near / far planes
   BoxRay() = default;
   explicit BoxRay(const Ray& r) { init(r); }
   void init(const Ray& r) {

@@ -17,12 +17,18 @@ inline __m256i cmpx(__m256i v, __m256i partner_idx, int take_max) {
   const __m256i p = _mm256_permutevar8x32_epi32(v, partner_idx);
   const __m256i lo = _mm256_min_epi32(v, p), hi = _mm256_max_epi32(v, p);
   switch (take_max) {  // blend needs an immediate
-    case 0xAA: return _mm256_blend_epi32(lo, hi, 0xAA);
-    case 0xCC: return _mm256_blend_epi32(lo, hi, 0xCC);
-    case 0xF0: return _mm256_blend_epi32(lo, hi, 0xF0);
-    case 0x66: return _mm256_blend_epi32(lo, hi, 0x66);
-    case 0x3C: return _mm256_blend_epi32(lo, hi, 0x3C);
-    default: return _mm256_blend_epi32(lo, hi, 0x5A);
+    case 0xAA:
+      return _mm256_blend_epi32(lo, hi, 0xAA);
+    case 0xCC:
+      return _mm256_blend_epi32(lo, hi, 0xCC);
+    case 0xF0:
+      return _mm256_blend_epi32(lo, hi, 0xF0);
+    case 0x66:
+      return _mm256_blend_epi32(lo, hi, 0x66);
+    case 0x3C:
+      return _mm256_blend_epi32(lo, hi, 0x3C);
+    default:
+      return _mm256_blend_epi32(lo, hi, 0x5A);
   }
 }
 
@@ -44,10 +50,13 @@ inline uint32_t push_sorted8(const uint32_t* child, vf8 tnear, vi8 hit, StackEnt
   const __m256i lane = _mm256_and_si256(key, _mm256_set1_epi32(7));
   const int n = __builtin_popcount(unsigned(_mm256_movemask_ps(reinterpret_cast<__m256>(hit))));
   // Reverse the first n sorted entries: slot i gets sorted entry n-1-i (slot n-1 = nearest).
-  const __m256i rev = _mm256_and_si256(_mm256_sub_epi32(_mm256_set1_epi32(n - 1), iota), _mm256_set1_epi32(7));
+  const __m256i rev =
+      _mm256_and_si256(_mm256_sub_epi32(_mm256_set1_epi32(n - 1), iota), _mm256_set1_epi32(7));
   const __m256i order = _mm256_permutevar8x32_epi32(lane, rev);
-  const __m256i refs = _mm256_permutevar8x32_epi32(_mm256_loadu_si256(reinterpret_cast<const __m256i*>(child)), order);
-  const __m256i dists = _mm256_permutevar8x32_epi32(_mm256_castps_si256(reinterpret_cast<__m256>(tnear)), order);
+  const __m256i refs = _mm256_permutevar8x32_epi32(
+      _mm256_loadu_si256(reinterpret_cast<const __m256i*>(child)), order);
+  const __m256i dists =
+      _mm256_permutevar8x32_epi32(_mm256_castps_si256(reinterpret_cast<__m256>(tnear)), order);
   const __m256i lo = _mm256_unpacklo_epi32(refs, dists), hi = _mm256_unpackhi_epi32(refs, dists);
   _mm256_storeu_si256(reinterpret_cast<__m256i*>(sp), _mm256_permute2x128_si256(lo, hi, 0x20));
   _mm256_storeu_si256(reinterpret_cast<__m256i*>(sp) + 1, _mm256_permute2x128_si256(lo, hi, 0x31));
@@ -57,12 +66,14 @@ inline uint32_t push_sorted8(const uint32_t* child, vf8 tnear, vi8 hit, StackEnt
 #endif
 
 // Deepest wide tree: the Bvh2 depth bound (255) with at most W-1 entries pushed per level.
-template <int W> inline constexpr int stack_size = 256 * (W - 1) + 1 + 8;
+template <int W>
+inline constexpr int stack_size = 256 * (W - 1) + 1 + 8;
 
 // Walks a wide BVH nearest child first. leaf(ref) handles a leaf reference: it may lower
 // best_t (closest hit) and returns true to stop (any hit). Node is Bvh4Node or Bvh8Node.
 template <int W, bool AnyHit, class Node, class LeafFn>
-inline void traverse(const Node* nodes, const BoxRay<W>& box, float tmin_s, float& best_t, LeafFn&& leaf) {
+inline void traverse(const Node* nodes, const BoxRay<W>& box, float tmin_s, float& best_t,
+                     LeafFn&& leaf) {
   using S = Simd<W>;
   using F = typename S::F;
   const F tmin = S::splat(tmin_s);
@@ -218,15 +229,17 @@ union HitStorage {
 // space (t is unchanged by an affine map of origin and direction together).
 inline void to_object(const float* m, const Ray& r, Ray& out) {
   const Vec3 o = r.org, d = r.dir;
-  out.org = {m[0] * o.x + m[1] * o.y + m[2] * o.z + m[3], m[4] * o.x + m[5] * o.y + m[6] * o.z + m[7],
+  out.org = {m[0] * o.x + m[1] * o.y + m[2] * o.z + m[3],
+             m[4] * o.x + m[5] * o.y + m[6] * o.z + m[7],
              m[8] * o.x + m[9] * o.y + m[10] * o.z + m[11]};
-  out.dir = {m[0] * d.x + m[1] * d.y + m[2] * d.z, m[4] * d.x + m[5] * d.y + m[6] * d.z, m[8] * d.x + m[9] * d.y + m[10] * d.z};
+  out.dir = {m[0] * d.x + m[1] * d.y + m[2] * d.z, m[4] * d.x + m[5] * d.y + m[6] * d.z,
+             m[8] * d.x + m[9] * d.y + m[10] * d.z};
   out.tmin = r.tmin;
 }
 
 template <int W, bool AnyHit, class Node>
-void trace_tlas(const void* tlas_nodes, const InstanceData* instances, const Ray* rays, InstanceHit* hits, size_t n,
-                uint32_t ray_mask) {
+void trace_tlas(const void* tlas_nodes, const InstanceData* instances, const Ray* rays,
+                InstanceHit* hits, size_t n, uint32_t ray_mask) {
   const Node* tlas = static_cast<const Node*>(tlas_nodes);
   for (size_t k = 0; k < n; ++k) {
     const Ray& ray = rays[k];
@@ -250,7 +263,8 @@ void trace_tlas(const void* tlas_nodes, const InstanceData* instances, const Ray
       Hit& h = storage.hit;
       trace_ray<W, AnyHit>(static_cast<const Node*>(inst.nodes), inst.blocks, local, h);
       if (h.prim_id == invalid_id) return false;
-      if (!AnyHit && !(h.t < best.t || (h.t == best.t && best.instance_id != invalid_id && inst.id < best.instance_id)))
+      if (!AnyHit && !(h.t < best.t || (h.t == best.t && best.instance_id != invalid_id &&
+                                        inst.id < best.instance_id)))
         return false;
       best.t = h.t;
       best.prim_id = h.prim_id;
@@ -265,6 +279,7 @@ void trace_tlas(const void* tlas_nodes, const InstanceData* instances, const Ray
 }
 
 template <int W, bool AnyHit, class Node>
-void trace_batch(const Node* nodes, const TriangleBlock* blocks, const Ray* rays, Hit* hits, size_t n) {
+void trace_batch(const Node* nodes, const TriangleBlock* blocks, const Ray* rays, Hit* hits,
+                 size_t n) {
   for (size_t i = 0; i < n; ++i) trace_ray<W, AnyHit>(nodes, blocks, rays[i], hits[i]);
 }

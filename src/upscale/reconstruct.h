@@ -14,7 +14,8 @@ struct Axis {
   std::vector<int> i0;
   std::vector<float> w;  // 3 per entry
   std::vector<float> d0;
-  void build(int out, int in, int f, float jitter, float sharpness);  // upscale.cpp (not inline: no ISA flags)
+  void build(int out, int in, int f, float jitter,
+             float sharpness);  // upscale.cpp (not inline: no ISA flags)
 };
 
 // Bilinear taps of the parameter grid (pixel centres at 4k + 2 in output pixels).

@@ -1,4 +1,5 @@
-// The upsampler's reconstruction built for avx2 (-march=haswell, as the earlier target_clones "arch=haswell" clone; flags in CMakeLists.txt).
+// The upsampler's reconstruction built for avx2 (-march=haswell, as the earlier target_clones
+// "arch=haswell" clone; flags in CMakeLists.txt).
 #include <xmmintrin.h>
 
 #include <algorithm>
@@ -10,10 +11,14 @@
 namespace kestrel::upscale {
 namespace avx2_ns {
 constexpr float kLuma[3] = {0.2126f, 0.7152f, 0.0722f};
-#include "upscale/sampling.inl"
+// clang-format off
+#include "upscale/sampling.inl"  // first: the loop uses its helpers
 #include "upscale/reconstruct.inl"
+// clang-format on
 }  // namespace avx2_ns
 
-ReconstructFn reconstruct_avx2() { return avx2_ns::reconstruct_rows; }
+ReconstructFn reconstruct_avx2() {
+  return avx2_ns::reconstruct_rows;
+}
 
 }  // namespace kestrel::upscale

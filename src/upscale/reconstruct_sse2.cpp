@@ -10,10 +10,14 @@
 namespace kestrel::upscale {
 namespace sse2_ns {
 constexpr float kLuma[3] = {0.2126f, 0.7152f, 0.0722f};
-#include "upscale/sampling.inl"
+// clang-format off
+#include "upscale/sampling.inl"  // first: the loop uses its helpers
 #include "upscale/reconstruct.inl"
+// clang-format on
 }  // namespace sse2_ns
 
-ReconstructFn reconstruct_sse2() { return sse2_ns::reconstruct_rows; }
+ReconstructFn reconstruct_sse2() {
+  return sse2_ns::reconstruct_rows;
+}
 
 }  // namespace kestrel::upscale

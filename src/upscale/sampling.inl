@@ -1,16 +1,26 @@
 // Per-pixel helpers of the upsampler, included into each instruction set's namespace (the
 // reconstruction files) and into upscale.cpp's, so no inline function compiled with one
 // ISA's flags is shared with code compiled for another.
-static inline float luma(const float* c) { return kLuma[0] * c[0] + kLuma[1] * c[1] + kLuma[2] * c[2]; }
-static inline float finite_or_zero(float v) { return std::isfinite(v) ? v : 0.0f; }
-static inline int clampi(int v, int lo, int hi) { return v < lo ? lo : (v > hi ? hi : v); }
+static inline float luma(const float* c) {
+  return kLuma[0] * c[0] + kLuma[1] * c[1] + kLuma[2] * c[2];
+}
+static inline float finite_or_zero(float v) {
+  return std::isfinite(v) ? v : 0.0f;
+}
+static inline int clampi(int v, int lo, int hi) {
+  return v < lo ? lo : (v > hi ? hi : v);
+}
 // floor as an int without libm (baseline x86-64 has no roundss); |x| < 2^31.
 static inline int floor_int(float x) {
   const int i = int(x);
   return i - (float(i) > x);
 }
-static inline float sigmoid(float x) { return 1.0f / (1.0f + std::exp(-x)); }
-static inline float softplus(float x) { return x > 20.0f ? x : std::log1p(std::exp(x)); }
+static inline float sigmoid(float x) {
+  return 1.0f / (1.0f + std::exp(-x));
+}
+static inline float softplus(float x) {
+  return x > 20.0f ? x : std::log1p(std::exp(x));
+}
 
 // Catmull-Rom weights of the four taps around t in [0, 1).
 static inline void catmull_rom(float t, float w[4]) {
@@ -61,7 +71,8 @@ static inline __m128 sample_catmull_rom3(const float* img, int w, int h, float x
   for (int j = 0; j < 4; ++j) {
     const float* row = img + size_t(iy[j]) * size_t(w) * 3;
     __m128 r = _mm_mul_ps(_mm_set1_ps(wx[0]), _mm_loadu_ps(row + size_t(ix[0]) * 3));
-    for (int i = 1; i < 4; ++i) r = _mm_add_ps(r, _mm_mul_ps(_mm_set1_ps(wx[i]), _mm_loadu_ps(row + size_t(ix[i]) * 3)));
+    for (int i = 1; i < 4; ++i)
+      r = _mm_add_ps(r, _mm_mul_ps(_mm_set1_ps(wx[i]), _mm_loadu_ps(row + size_t(ix[i]) * 3)));
     acc = _mm_add_ps(acc, _mm_mul_ps(_mm_set1_ps(wy[j]), r));
   }
   return acc;
@@ -72,4 +83,3 @@ static inline void store3(float* dst, __m128 v) {
   _mm_store_ps(t, v);
   dst[0] = t[0], dst[1] = t[1], dst[2] = t[2];
 }
-

@@ -14,17 +14,16 @@
 
 #include "core/parallel.h"
 #include "core/timer.h"
+#include "kestrel/error.h"
 #include "nn/conv.h"
 #include "nn/weights.h"
 #include "upscale/reconstruct.h"
-#include "kestrel/error.h"
 
 namespace kestrel {
 
 using upscale::Axis;
 using upscale::GridAxis;
 using upscale::Recon;
-
 
 namespace {
 
@@ -57,25 +56,30 @@ void parallel_rows(int h, int grain, F&& f) {
 void check_input(const UpscaleInput& in) {
   if (!in.color) throw Error(ErrorCode::invalid_argument, "upscale: the colour image is required");
   const FloatImage& c = *in.color;
-  if (c.channels != 3 || c.width <= 0 || c.height <= 0 || c.pixels.size() != size_t(c.width) * size_t(c.height) * 3)
-    throw Error(ErrorCode::invalid_argument, fmt::format("upscale: colour must be a non-empty 3-channel image (got {}x{}x{})",
-                                                         c.width, c.height, c.channels));
+  if (c.channels != 3 || c.width <= 0 || c.height <= 0 ||
+      c.pixels.size() != size_t(c.width) * size_t(c.height) * 3)
+    throw Error(ErrorCode::invalid_argument,
+                fmt::format("upscale: colour must be a non-empty 3-channel image (got {}x{}x{})",
+                            c.width, c.height, c.channels));
   auto same = [&](const FloatImage* im, const char* name, int c0, int c1) {
     if (!im) return;
     if (im->width != c.width || im->height != c.height)
-      throw Error(ErrorCode::invalid_argument, fmt::format("upscale: {} is {}x{}, colour is {}x{}", name, im->width,
-                                                           im->height, c.width, c.height));
+      throw Error(ErrorCode::invalid_argument,
+                  fmt::format("upscale: {} is {}x{}, colour is {}x{}", name, im->width, im->height,
+                              c.width, c.height));
     if (im->channels < c0 || im->channels > c1 ||
         im->pixels.size() != size_t(im->width) * size_t(im->height) * size_t(im->channels))
-      throw Error(ErrorCode::invalid_argument, fmt::format("upscale: {} has {} channels (expected {}{})", name,
-                                                           im->channels, c0, c1 > c0 ? fmt::format(" to {}", c1) : ""));
+      throw Error(ErrorCode::invalid_argument,
+                  fmt::format("upscale: {} has {} channels (expected {}{})", name, im->channels, c0,
+                              c1 > c0 ? fmt::format(" to {}", c1) : ""));
   };
   same(in.depth, "depth", 1, 1);
   same(in.motion, "motion", 2, 3);
-  if (!std::isfinite(in.jitter_x) || !std::isfinite(in.jitter_y) || in.jitter_x < -1 || in.jitter_x > 2 ||
-      in.jitter_y < -1 || in.jitter_y > 2)
-    throw Error(ErrorCode::invalid_argument, fmt::format("upscale: jitter ({}, {}) is not a sub-pixel position",
-                                                         in.jitter_x, in.jitter_y));
+  if (!std::isfinite(in.jitter_x) || !std::isfinite(in.jitter_y) || in.jitter_x < -1 ||
+      in.jitter_x > 2 || in.jitter_y < -1 || in.jitter_y > 2)
+    throw Error(ErrorCode::invalid_argument,
+                fmt::format("upscale: jitter ({}, {}) is not a sub-pixel position", in.jitter_x,
+                            in.jitter_y));
 }
 
 }  // namespace
@@ -84,9 +88,12 @@ namespace upscale {
 ReconstructFn reconstruct_for(Isa isa) {
   require_supported(isa);
   switch (isa) {
-    case Isa::avx512: return reconstruct_avx512();
-    case Isa::avx2: return reconstruct_avx2();
-    default: return reconstruct_sse2();
+    case Isa::avx512:
+      return reconstruct_avx512();
+    case Isa::avx2:
+      return reconstruct_avx2();
+    default:
+      return reconstruct_sse2();
   }
 }
 
@@ -118,22 +125,28 @@ void GridAxis::build(int out, int grid) {
 
 const char* upscale_method_name(UpscaleMethod m) {
   switch (m) {
-    case UpscaleMethod::neural: return "neural";
-    case UpscaleMethod::taau: return "taau";
-    case UpscaleMethod::bicubic: return "bicubic";
-    case UpscaleMethod::bilinear: return "bilinear";
+    case UpscaleMethod::neural:
+      return "neural";
+    case UpscaleMethod::taau:
+      return "taau";
+    case UpscaleMethod::bicubic:
+      return "bicubic";
+    case UpscaleMethod::bilinear:
+      return "bilinear";
   }
   return "?";
 }
 
 std::optional<UpscaleMethod> upscale_method_from_name(std::string_view name) {
-  for (UpscaleMethod m : {UpscaleMethod::neural, UpscaleMethod::taau, UpscaleMethod::bicubic, UpscaleMethod::bilinear})
+  for (UpscaleMethod m : {UpscaleMethod::neural, UpscaleMethod::taau, UpscaleMethod::bicubic,
+                          UpscaleMethod::bilinear})
     if (name == upscale_method_name(m)) return m;
   return std::nullopt;
 }
 
 std::string default_upscaler_weights() {
-  if (const char* dir = std::getenv("KESTREL_WEIGHTS_DIR"); dir && *dir) return std::string(dir) + "/upscaler.kdw";
+  if (const char* dir = std::getenv("KESTREL_WEIGHTS_DIR"); dir && *dir)
+    return std::string(dir) + "/upscaler.kdw";
   return std::string(KESTREL_SOURCE_DIR) + "/weights/upscaler.kdw";
 }
 
@@ -146,7 +159,8 @@ struct Upscaler::Impl {
   int w = 0, h = 0;
   bool has_history = false;
   // Per-frame buffers (reused).
-  std::vector<float> y, depth, mdil, mu, sigma, feat, grid, act0, act1, scratch, hist, next_hist, prev_depth;
+  std::vector<float> y, depth, mdil, mu, sigma, feat, grid, act0, act1, scratch, hist, next_hist,
+      prev_depth;
   Axis ax, ay;
   GridAxis gx, gy;
 
@@ -157,14 +171,15 @@ struct Upscaler::Impl {
 
 Upscaler::Upscaler(const UpscalerOptions& options) : impl_(std::make_unique<Impl>()) {
   if (options.factor != 2 && options.factor != 4)
-    throw Error(ErrorCode::invalid_argument, fmt::format("upscale: factor must be 2 or 4, got {}", options.factor));
+    throw Error(ErrorCode::invalid_argument,
+                fmt::format("upscale: factor must be 2 or 4, got {}", options.factor));
   impl_->options = options;
   if (options.method == UpscaleMethod::neural) {
     const std::string path = options.weights.empty() ? default_upscaler_weights() : options.weights;
-    impl_->layers = nn::load_layers(path, kMagic, kArchitecture,
-                                         {{"c1", 16, kFeatures, 3}, {"c2", 16, 16, 3}, {"c3", 16, 16, 3},
-                                          {"head", kOutputs, 16, 3}},
-                                         "upsampler");
+    impl_->layers = nn::load_layers(
+        path, kMagic, kArchitecture,
+        {{"c1", 16, kFeatures, 3}, {"c2", 16, 16, 3}, {"c3", 16, 16, 3}, {"head", kOutputs, 16, 3}},
+        "upsampler");
     for (const auto& l : impl_->layers)
       impl_->parameters += size_t(l.outputs) * (size_t(l.cin) * size_t(l.ksize * l.ksize) + 1);
   }
@@ -176,10 +191,18 @@ Upscaler& Upscaler::operator=(Upscaler&&) noexcept = default;
 void Upscaler::reset() {
   impl_->has_history = false;
 }
-UpscaleMethod Upscaler::method() const { return impl_->options.method; }
-int Upscaler::factor() const { return impl_->options.factor; }
-size_t Upscaler::parameter_count() const { return impl_->parameters; }
-Upscaler::Times Upscaler::last_times() const { return impl_->times; }
+UpscaleMethod Upscaler::method() const {
+  return impl_->options.method;
+}
+int Upscaler::factor() const {
+  return impl_->options.factor;
+}
+size_t Upscaler::parameter_count() const {
+  return impl_->parameters;
+}
+Upscaler::Times Upscaler::last_times() const {
+  return impl_->times;
+}
 
 FloatImage Upscaler::upscale(const UpscaleInput& input) {
   FloatImage out;
@@ -193,12 +216,19 @@ void Upscaler::upscale(const UpscaleInput& input, FloatImage& out) {
   const int f = m.options.factor;
   const int w = input.color->width, h = input.color->height;
   if (w != m.w || h != m.h) m.w = w, m.h = h, m.has_history = false;
-  if (out.width != f * w || out.height != f * h || out.channels != 3) out = FloatImage(f * w, f * h, 3);
+  if (out.width != f * w || out.height != f * h || out.channels != 3)
+    out = FloatImage(f * w, f * h, 3);
   m.times = {};
   switch (m.options.method) {
-    case UpscaleMethod::bilinear: m.spatial(input, out, false); break;
-    case UpscaleMethod::bicubic: m.spatial(input, out, true); break;
-    default: m.temporal(input, out); break;
+    case UpscaleMethod::bilinear:
+      m.spatial(input, out, false);
+      break;
+    case UpscaleMethod::bicubic:
+      m.spatial(input, out, true);
+      break;
+    default:
+      m.temporal(input, out);
+      break;
   }
 }
 
@@ -207,7 +237,8 @@ void Upscaler::Impl::spatial(const UpscaleInput& in, FloatImage& out, bool cubic
   const int f = options.factor;
   y.resize(size_t(w) * size_t(h) * 3 + 1);  // + 1: the 4-float loads of the last pixel
   y.back() = 0.0f;
-  for (size_t p = 0; p + 1 < y.size(); ++p) y[p] = std::max(finite_or_zero(in.color->pixels[p]), 0.0f);
+  for (size_t p = 0; p + 1 < y.size(); ++p)
+    y[p] = std::max(finite_or_zero(in.color->pixels[p]), 0.0f);
   const int W = out.width;
   parallel_rows(out.height, 4, [&](int r0, int r1) {
     for (int Y = r0; Y < r1; ++Y) {
@@ -215,8 +246,10 @@ void Upscaler::Impl::spatial(const UpscaleInput& in, FloatImage& out, bool cubic
       for (int X = 0; X < W; ++X) {
         const float sx = (float(X) + 0.5f) / float(f) - in.jitter_x + 0.5f;
         float* o = out.at(X, Y);
-        if (cubic) store3(o, sample_catmull_rom3(y.data(), w, h, sx, sy));
-        else sample_bilinear<3>(y.data(), w, h, sx, sy, o);
+        if (cubic)
+          store3(o, sample_catmull_rom3(y.data(), w, h, sx, sy));
+        else
+          sample_bilinear<3>(y.data(), w, h, sx, sy, o);
         for (int c = 0; c < 3; ++c) o[c] = std::max(o[c], 0.0f);
       }
     }
@@ -229,7 +262,8 @@ void Upscaler::Impl::spatial(const UpscaleInput& in, FloatImage& out, bool cubic
 void Upscaler::Impl::prepare(const UpscaleInput& in) {
   const size_t n = size_t(w) * size_t(h);
   // + 1: room for the reconstruction's 4-float loads of the last pixel.
-  y.resize(3 * n + 1), depth.resize(n), mdil.resize(2 * n), mu.resize(3 * n + 1), sigma.resize(3 * n + 1);
+  y.resize(3 * n + 1), depth.resize(n), mdil.resize(2 * n), mu.resize(3 * n + 1),
+      sigma.resize(3 * n + 1);
   y[3 * n] = mu[3 * n] = sigma[3 * n] = 0.0f;
   std::vector<float>& motion = scratch;  // raw motion, reused below as conv scratch
   motion.resize(2 * n);
@@ -237,24 +271,30 @@ void Upscaler::Impl::prepare(const UpscaleInput& in) {
   parallel_rows(h, 8, [&](int r0, int r1) {
     for (size_t p = size_t(r0) * size_t(w); p < size_t(r1) * size_t(w); ++p) {
       float c[3];
-      for (int k = 0; k < 3; ++k) c[k] = std::max(finite_or_zero(in.color->pixels[3 * p + size_t(k)]), 0.0f);
+      for (int k = 0; k < 3; ++k)
+        c[k] = std::max(finite_or_zero(in.color->pixels[3 * p + size_t(k)]), 0.0f);
       const float s = 1.0f / (1.0f + luma(c));
       for (int k = 0; k < 3; ++k) y[3 * p + size_t(k)] = c[k] * s;
       depth[p] = in.depth ? std::max(finite_or_zero(in.depth->pixels[p]), 0.0f) : 1.0f;
       for (int k = 0; k < 2; ++k)  // beyond any frame, and safe to convert to int
-        motion[2 * p + size_t(k)] = mc ? std::clamp(finite_or_zero(in.motion->pixels[size_t(mc) * p + size_t(k)]), -kMaxMotion, kMaxMotion) : 0.0f;
+        motion[2 * p + size_t(k)] =
+            mc ? std::clamp(finite_or_zero(in.motion->pixels[size_t(mc) * p + size_t(k)]),
+                            -kMaxMotion, kMaxMotion)
+               : 0.0f;
     }
   });
   parallel_rows(h, 8, [&](int r0, int r1) {
     std::vector<float> c1(3 * size_t(w)), c2(3 * size_t(w));  // vertical 3-sums of y and y^2
     for (int j = r0; j < r1; ++j) {
-      const float* rows[3] = {&y[size_t(clampi(j - 1, 0, h - 1)) * size_t(w) * 3], &y[size_t(j) * size_t(w) * 3],
+      const float* rows[3] = {&y[size_t(clampi(j - 1, 0, h - 1)) * size_t(w) * 3],
+                              &y[size_t(j) * size_t(w) * 3],
                               &y[size_t(clampi(j + 1, 0, h - 1)) * size_t(w) * 3]};
       for (size_t q = 0; q < 3 * size_t(w); ++q) {
         const float a = rows[0][q], b = rows[1][q], c = rows[2][q];
         c1[q] = a + b + c, c2[q] = a * a + b * b + c * c;
       }
-      const float* drow[3] = {&depth[size_t(clampi(j - 1, 0, h - 1)) * size_t(w)], &depth[size_t(j) * size_t(w)],
+      const float* drow[3] = {&depth[size_t(clampi(j - 1, 0, h - 1)) * size_t(w)],
+                              &depth[size_t(j) * size_t(w)],
                               &depth[size_t(clampi(j + 1, 0, h - 1)) * size_t(w)]};
       const int row_of[3] = {clampi(j - 1, 0, h - 1), j, clampi(j + 1, 0, h - 1)};
       for (int i = 0; i < w; ++i) {
@@ -271,8 +311,10 @@ void Upscaler::Impl::prepare(const UpscaleInput& in) {
           }
         mdil[2 * p] = motion[2 * arg], mdil[2 * p + 1] = motion[2 * arg + 1];
         for (int k = 0; k < 3; ++k) {
-          const float s1 = c1[3 * size_t(cols[0]) + size_t(k)] + c1[3 * size_t(i) + size_t(k)] + c1[3 * size_t(cols[2]) + size_t(k)];
-          const float s2 = c2[3 * size_t(cols[0]) + size_t(k)] + c2[3 * size_t(i) + size_t(k)] + c2[3 * size_t(cols[2]) + size_t(k)];
+          const float s1 = c1[3 * size_t(cols[0]) + size_t(k)] + c1[3 * size_t(i) + size_t(k)] +
+                           c1[3 * size_t(cols[2]) + size_t(k)];
+          const float s2 = c2[3 * size_t(cols[0]) + size_t(k)] + c2[3 * size_t(i) + size_t(k)] +
+                           c2[3 * size_t(cols[2]) + size_t(k)];
           const float m = s1 / 9.0f;
           mu[3 * p + size_t(k)] = m;
           sigma[3 * p + size_t(k)] = std::sqrt(std::max(s2 / 9.0f - m * m, 0.0f));
@@ -288,7 +330,8 @@ void Upscaler::Impl::temporal(const UpscaleInput& in, FloatImage& out) {
   const bool neural = options.method == UpscaleMethod::neural;
   Timer timer;
   prepare(in);
-  if (has_history && (hist.size() != size_t(W) * size_t(H) * 3 + 1 || prev_depth.size() != size_t(w) * size_t(h)))
+  if (has_history &&
+      (hist.size() != size_t(W) * size_t(H) * 3 + 1 || prev_depth.size() != size_t(w) * size_t(h)))
     has_history = false;
   // Parameters on the grid (gw x gh, 3 per cell): the network's, decoded, or the constants.
   const int gw = f == 2 ? (w + 1) / 2 : w, gh = f == 2 ? (h + 1) / 2 : h;
@@ -306,7 +349,8 @@ void Upscaler::Impl::temporal(const UpscaleInput& in, FloatImage& out) {
           const float mx = mdil[2 * p], my = mdil[2 * p + 1];
           float valid = 0, Lh = L, dchange = 0;
           if (has_history) {
-            const float hx = float(f) * (float(i) + in.jitter_x + mx), hy = float(f) * (float(j) + in.jitter_y + my);
+            const float hx = float(f) * (float(i) + in.jitter_x + mx),
+                        hy = float(f) * (float(j) + in.jitter_y + my);
             valid = (hx >= 0 && hx < float(W) && hy >= 0 && hy < float(H)) ? 1.0f : 0.0f;
             float hc[3];
             sample_bilinear<3>(hp, W, H, hx, hy, hc);
@@ -314,20 +358,24 @@ void Upscaler::Impl::temporal(const UpscaleInput& in, FloatImage& out) {
             const int px = clampi(floor_int(float(i) + 0.5f + mx), 0, w - 1);
             const int py = clampi(floor_int(float(j) + 0.5f + my), 0, h - 1);
             const float dp = prev_depth[size_t(py) * size_t(w) + size_t(px)], d = depth[p];
-            if (d > 0 && dp > 0) dchange = std::clamp((dp - d) / std::max(d, kMinDepth), -1.0f, 1.0f);
-            else if ((d > 0) != (dp > 0)) dchange = 1.0f;
+            if (d > 0 && dp > 0)
+              dchange = std::clamp((dp - d) / std::max(d, kMinDepth), -1.0f, 1.0f);
+            else if ((d > 0) != (dp > 0))
+              dchange = 1.0f;
           }
           const float mmag = std::min(std::sqrt(mx * mx + my * my) / 8.0f, 1.0f);
           const float d = depth[p];
           float edge = 0;
           const int nb[4][2] = {{0, -1}, {-1, 0}, {1, 0}, {0, 1}};
           for (const auto& o : nb) {
-            const float dn = depth[size_t(clampi(j + o[1], 0, h - 1)) * size_t(w) + size_t(clampi(i + o[0], 0, w - 1))];
+            const float dn = depth[size_t(clampi(j + o[1], 0, h - 1)) * size_t(w) +
+                                   size_t(clampi(i + o[0], 0, w - 1))];
             edge = std::max(edge, std::fabs(dn - d));
           }
           edge = std::min(edge / std::max(d, kMinDepth), 1.0f);
           float* o = &feat[p * kLowFeatures];
-          o[0] = L, o[1] = (Lh - L) * valid, o[2] = sigL, o[3] = (Lh - muL) * valid, o[4] = dchange * valid;
+          o[0] = L, o[1] = (Lh - L) * valid, o[2] = sigL, o[3] = (Lh - muL) * valid,
+          o[4] = dchange * valid;
           o[5] = mmag, o[6] = valid, o[7] = edge;
         }
     });
@@ -340,7 +388,8 @@ void Upscaler::Impl::temporal(const UpscaleInput& in, FloatImage& out) {
           float sum[kLowFeatures] = {}, mx1 = 0, mx4 = 0;
           for (int b = 0; b < s; ++b)
             for (int a = 0; a < s; ++a) {
-              const size_t q = size_t(clampi(s * gj + b, 0, h - 1)) * size_t(w) + size_t(clampi(s * gi + a, 0, w - 1));
+              const size_t q = size_t(clampi(s * gj + b, 0, h - 1)) * size_t(w) +
+                               size_t(clampi(s * gi + a, 0, w - 1));
               const float* fq = &feat[q * kLowFeatures];
               for (int k = 0; k < kLowFeatures; ++k) sum[k] += fq[k];
               mx1 = std::max(mx1, std::fabs(fq[1])), mx4 = std::max(mx4, std::fabs(fq[4]));
@@ -360,22 +409,26 @@ void Upscaler::Impl::temporal(const UpscaleInput& in, FloatImage& out) {
     const int stride = layers[3].cout;
     for (size_t q = 0; q < size_t(gw) * size_t(gh); ++q) {
       const float* p = &act0[q * size_t(stride)];
-      grid[3 * q] = sigmoid(p[0]), grid[3 * q + 1] = softplus(p[1]), grid[3 * q + 2] = softplus(p[2]);
+      grid[3 * q] = sigmoid(p[0]), grid[3 * q + 1] = softplus(p[1]),
+               grid[3 * q + 2] = softplus(p[2]);
     }
     times.network = timer.ms();
     timer = Timer();
   } else {
-    for (size_t q = 0; q < size_t(gw) * size_t(gh); ++q) grid[3 * q] = kTaauA, grid[3 * q + 1] = kTaauGamma, grid[3 * q + 2] = kTaauKappa;
+    for (size_t q = 0; q < size_t(gw) * size_t(gh); ++q)
+      grid[3 * q] = kTaauA, grid[3 * q + 1] = kTaauGamma, grid[3 * q + 2] = kTaauKappa;
     times.features = timer.ms();
     timer = Timer();
   }
   // Reconstruction (model.step): per output pixel.
-  ax.build(W, w, f, in.jitter_x, kCurrentSharpness), ay.build(H, h, f, in.jitter_y, kCurrentSharpness);
+  ax.build(W, w, f, in.jitter_x, kCurrentSharpness),
+      ay.build(H, h, f, in.jitter_y, kCurrentSharpness);
   gx.build(W, gw), gy.build(H, gh);
   next_hist.resize(size_t(W) * size_t(H) * 3 + 1);  // every pixel is written; + 1: padding
   next_hist.back() = 0.0f;
   Recon r;
-  r.y = y.data(), r.mdil = mdil.data(), r.mu = mu.data(), r.sigma = sigma.data(), r.grid = grid.data();
+  r.y = y.data(), r.mdil = mdil.data(), r.mu = mu.data(), r.sigma = sigma.data(),
+  r.grid = grid.data();
   r.hist = hist.data(), r.next = next_hist.data(), r.out = out.pixels.data();
   r.ax = &ax, r.ay = &ay, r.gx = &gx, r.gy = &gy;
   r.w = w, r.h = h, r.W = W, r.H = H, r.gw = gw, r.f = f, r.history = has_history;

@@ -25,16 +25,18 @@ TEST(PublicApi, LoadRenderDenoiseUpsampleFromTheHeadersAlone) {
   }
   EXPECT_GT(sum, 0);  // the Cornell box's light is seen
   Denoiser d(DenoiserOptions{.method = DenoiseMethod::atrous});
-  const FloatImage denoised =
-      d.denoise({&f[Aov::color], &f[Aov::albedo], &f[Aov::normal], &f[Aov::depth], &f[Aov::roughness], &f[Aov::motion]});
+  const FloatImage denoised = d.denoise({&f[Aov::color], &f[Aov::albedo], &f[Aov::normal],
+                                         &f[Aov::depth], &f[Aov::roughness], &f[Aov::motion]});
   EXPECT_EQ(denoised.width, 32);
   UpscalerOptions uo;
   uo.method = UpscaleMethod::bicubic, uo.factor = 2;
   Upscaler u(uo);
-  const FloatImage up = u.upscale({&denoised, &f[Aov::depth], &f[Aov::motion], f.jitter_x, f.jitter_y});
+  const FloatImage up =
+      u.upscale({&denoised, &f[Aov::depth], &f[Aov::motion], f.jitter_x, f.jitter_y});
   EXPECT_EQ(up.width, 64);
   PipelineSettings ps;
-  ps.width = 32, ps.height = 24, ps.factor = 2, ps.denoiser = DenoiseMethod::atrous, ps.upscaler = UpscaleMethod::bilinear;
+  ps.width = 32, ps.height = 24, ps.factor = 2, ps.denoiser = DenoiseMethod::atrous,
+  ps.upscaler = UpscaleMethod::bilinear;
   Pipeline p("builtin:cornell_box", ps);
   EXPECT_EQ(p.frame(*camera, 0.0).rgb8.size(), size_t(32 * 24 * 3));
 }

@@ -3,13 +3,13 @@
 #include <fmt/format.h>
 #include <gtest/gtest.h>
 
+#include <sys/wait.h>
 #include <algorithm>
 #include <array>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
-#include <sys/wait.h>
 
 #include "kestrel/kestrel.h"
 #include "kestrel/render.h"
@@ -35,7 +35,8 @@ CliRun run(const std::string& args) {
 }
 
 TEST(Cli, HelpForEveryCommand) {
-  for (const char* c : {"", "bvh", "trace", "rays", "preview", "render", "render-sequence", "denoise", "upscale", "run", "view"}) {
+  for (const char* c : {"", "bvh", "trace", "rays", "preview", "render", "render-sequence",
+                        "denoise", "upscale", "run", "view"}) {
     const CliRun r = run(std::string(c) + " --help");
     EXPECT_EQ(r.status, 0) << c << ": " << r.out;
     EXPECT_NE(r.out.find("Usage"), std::string::npos) << c;
@@ -58,7 +59,8 @@ TEST(Cli, BadInputIsAOneLineErrorAndNonZeroExit) {
   EXPECT_NE(r.status, 0);
   r = run("preview --res 0x10");
   EXPECT_EQ(r.status, 1);
-  const std::string nan_obj = test::write_temp_file("all_nan.obj", "v nan 0 0\nv 0 nan 0\nv 0 0 nan\nf 1 2 3\n");
+  const std::string nan_obj =
+      test::write_temp_file("all_nan.obj", "v nan 0 0\nv 0 nan 0\nv 0 0 nan\nf 1 2 3\n");
   r = run("bvh " + nan_obj);
   EXPECT_EQ(r.status, 1);
   EXPECT_NE(r.out.find("no valid triangle"), std::string::npos) << r.out;
@@ -67,7 +69,8 @@ TEST(Cli, BadInputIsAOneLineErrorAndNonZeroExit) {
 TEST(Cli, BvhReportsMetricsAsJson) {
   const CliRun r = run("bvh builtin:cornell_box --builder sweep --threads 1 --repeat 2 --json");
   ASSERT_EQ(r.status, 0) << r.out;
-  for (const char* key : {"\"sah_cost\"", "\"build_ms\"", "\"leaf_size_histogram\"", "\"bytes_per_prim\"", "\"valid\": true"})
+  for (const char* key : {"\"sah_cost\"", "\"build_ms\"", "\"leaf_size_histogram\"",
+                          "\"bytes_per_prim\"", "\"valid\": true"})
     EXPECT_NE(r.out.find(key), std::string::npos) << key;
 }
 
@@ -76,10 +79,12 @@ TEST(Cli, RaysTraceHitsRoundTripMatchesTheLibrary) {
   std::filesystem::create_directories(dir);
   const std::string rays = (dir / "cb.rays").string(), hits = (dir / "cb.hits").string();
   for (const char* kind : {"primary", "diffuse"}) {
-    CliRun r = run(std::string("rays builtin:cornell_box --kind ") + kind + " --res 64x48 -o " + rays);
+    CliRun r =
+        run(std::string("rays builtin:cornell_box --kind ") + kind + " --res 64x48 -o " + rays);
     ASSERT_EQ(r.status, 0) << r.out;
     for (const char* builder : {"binned", "lbvh"}) {
-      r = run("trace builtin:cornell_box --rays " + rays + " --hits " + hits + " --builder " + builder + " --threads 2");
+      r = run("trace builtin:cornell_box --rays " + rays + " --hits " + hits + " --builder " +
+              builder + " --threads 2");
       ASSERT_EQ(r.status, 0) << r.out;
       EXPECT_NE(r.out.find("Mrays/s"), std::string::npos);
       const auto in = read_rays(rays);
@@ -101,10 +106,12 @@ TEST(Cli, RaysTraceHitsRoundTripMatchesTheLibrary) {
       run("trace builtin:cornell_box --layout bvh2 --rays " + rays + " --hits " + hits);
       return read_hits(hits);
     }();
-    std::vector<std::string> variants = {"--layout bvh4 --isa sse2", "--layout bvh8 --isa sse2 --packets on",
-                                         "--layout bvh8 --packets off", "--quality auto --expected-rays 1e9"};
+    std::vector<std::string> variants = {
+        "--layout bvh4 --isa sse2", "--layout bvh8 --isa sse2 --packets on",
+        "--layout bvh8 --packets off", "--quality auto --expected-rays 1e9"};
     for (const char* isa : {"avx2", "avx512"})
-      if (isa_supported(*isa_from_name(isa))) variants.push_back(std::string("--layout bvh8 --packets on --isa ") + isa);
+      if (isa_supported(*isa_from_name(isa)))
+        variants.push_back(std::string("--layout bvh8 --packets on --isa ") + isa);
     for (const std::string& v : variants) {
       r = run("trace builtin:cornell_box " + v + " --rays " + rays + " --hits " + hits);
       ASSERT_EQ(r.status, 0) << v << ": " << r.out;
@@ -125,7 +132,8 @@ TEST(Cli, RaysTraceHitsRoundTripMatchesTheLibrary) {
 }
 
 TEST(Cli, PreviewWritesAPng) {
-  const std::string png = (std::filesystem::temp_directory_path() / "kestrel_tests" / "p.png").string();
+  const std::string png =
+      (std::filesystem::temp_directory_path() / "kestrel_tests" / "p.png").string();
   std::filesystem::create_directories(std::filesystem::path(png).parent_path());
   std::filesystem::remove(png);
   const CliRun r = run("preview -o " + png + " --res 64x64");
@@ -141,16 +149,19 @@ TEST(Cli, RenderWritesEveryAovAndIsThreadIndependent) {
   std::filesystem::remove_all(dir);
   std::filesystem::create_directories(dir);
   const std::string d = dir.string();
-  CliRun r = run("render builtin:cornell_box --res 48x32 --spp 2 --seed 7 --threads 1 --quiet -o " + d + "/a.exr --pfm " + d +
-                 "/pfm --png " + d + "/a.png");
+  CliRun r = run("render builtin:cornell_box --res 48x32 --spp 2 --seed 7 --threads 1 --quiet -o " +
+                 d + "/a.exr --pfm " + d + "/pfm --png " + d + "/a.png");
   ASSERT_EQ(r.status, 0) << r.out;
   EXPECT_NE(r.out.find("Mrays/s"), std::string::npos) << r.out;
-  r = run("render builtin:cornell_box --res 48x32 --spp 2 --seed 7 --threads 2 --quiet -o " + d + "/b.exr");
+  r = run("render builtin:cornell_box --res 48x32 --spp 2 --seed 7 --threads 2 --quiet -o " + d +
+          "/b.exr");
   ASSERT_EQ(r.status, 0) << r.out;
   const auto a = read_exr(d + "/a.exr"), b = read_exr(d + "/b.exr");
   ASSERT_EQ(a.size(), 8u);
-  for (size_t i = 0; i < a.size(); ++i) EXPECT_EQ(a[i].image.pixels, b[i].image.pixels) << a[i].name;
-  for (const char* aov : {"color", "albedo", "normal", "depth", "roughness", "motion", "spp", "variance"})
+  for (size_t i = 0; i < a.size(); ++i)
+    EXPECT_EQ(a[i].image.pixels, b[i].image.pixels) << a[i].name;
+  for (const char* aov :
+       {"color", "albedo", "normal", "depth", "roughness", "motion", "spp", "variance"})
     EXPECT_TRUE(std::filesystem::exists(d + "/pfm/" + aov + ".pfm")) << aov;
   EXPECT_TRUE(std::filesystem::exists(d + "/a.png"));
   // Bad input: one line naming the problem.
@@ -159,7 +170,8 @@ TEST(Cli, RenderWritesEveryAovAndIsThreadIndependent) {
   EXPECT_NE(r.out.find("nowhere"), std::string::npos) << r.out;
   r = run("render builtin:cornell_box --camera 1,2,3 -o " + d + "/c.exr");
   EXPECT_EQ(r.status, 1);
-  const std::string nan_obj = test::write_temp_file("render_nan.obj", "v nan 0 0\nv 0 1 0\nv 0 0 1\nf 1 2 3\n");
+  const std::string nan_obj =
+      test::write_temp_file("render_nan.obj", "v nan 0 0\nv 0 1 0\nv 0 0 1\nf 1 2 3\n");
   r = run("render " + nan_obj + " -o " + d + "/c.exr");
   EXPECT_EQ(r.status, 1);
   EXPECT_NE(r.out.find("no valid triangle"), std::string::npos) << r.out;
@@ -174,10 +186,11 @@ TEST(Cli, RenderSequenceWritesOneFileSetPerFrame) {
   const std::string path = test::write_temp_file("cli_path.json", R"({"keyframes": [
     {"time": 0, "eye": [0.278, 0.273, -0.8], "target": [0.278, 0.273, 0], "vfov": 39.3},
     {"time": 1, "eye": [0.35, 0.3, -0.7], "target": [0.25, 0.27, 0], "vfov": 39.3}]})");
-  const CliRun r = run("render-sequence builtin:cornell_box --path " + path + " --frames 3 --spp 1 --res 32x24 --quiet -o " +
-                       dir.string());
+  const CliRun r = run("render-sequence builtin:cornell_box --path " + path +
+                       " --frames 3 --spp 1 --res 32x24 --quiet -o " + dir.string());
   ASSERT_EQ(r.status, 0) << r.out;
-  for (int i = 0; i < 3; ++i) EXPECT_TRUE(std::filesystem::exists(dir / ("frame_000" + std::to_string(i) + ".exr"))) << i;
+  for (int i = 0; i < 3; ++i)
+    EXPECT_TRUE(std::filesystem::exists(dir / ("frame_000" + std::to_string(i) + ".exr"))) << i;
   // The camera moved: the second frame has non-zero motion vectors.
   const auto layers = read_exr((dir / "frame_0001.exr").string());
   float max_motion = 0;
@@ -187,8 +200,10 @@ TEST(Cli, RenderSequenceWritesOneFileSetPerFrame) {
   EXPECT_GT(max_motion, 0.1f);
   const auto scene = test::shared_scene("gltf_box_animated/BoxAnimated.gltf");
   if (scene) {
-    const CliRun g = run("render-sequence " + *scene + " --path " + std::string(KESTREL_DATA_DIR) +
-                         "/paths/box_animated_orbit.json --frames 2 --spp 1 --res 32x24 --quiet -o " + (dir / "gltf").string());
+    const CliRun g =
+        run("render-sequence " + *scene + " --path " + std::string(KESTREL_DATA_DIR) +
+            "/paths/box_animated_orbit.json --frames 2 --spp 1 --res 32x24 --quiet -o " +
+            (dir / "gltf").string());
     EXPECT_EQ(g.status, 0) << g.out;
   }
 }
@@ -196,8 +211,10 @@ TEST(Cli, RenderSequenceWritesOneFileSetPerFrame) {
 TEST(Cli, RenderSequenceOrbitsAndDenoises) {
   const auto dir = std::filesystem::temp_directory_path() / "kestrel_tests" / "cli_orbit";
   std::filesystem::remove_all(dir);
-  const CliRun r = run("render-sequence builtin:cornell_box --path orbit:20 --frames 2 --spp 1 --res 32x24 --quiet --denoise svgf -o " +
-                       dir.string() + " --pfm " + (dir / "pfm").string());
+  const CliRun r =
+      run("render-sequence builtin:cornell_box --path orbit:20 --frames 2 --spp 1 --res 32x24 "
+          "--quiet --denoise svgf -o " +
+          dir.string() + " --pfm " + (dir / "pfm").string());
   ASSERT_EQ(r.status, 0) << r.out;
   // The denoised colour replaces the colour layer; the noisy one is kept beside it.
   const auto layers = read_exr((dir / "frame_0001.exr").string());
@@ -205,8 +222,13 @@ TEST(Cli, RenderSequenceOrbitsAndDenoises) {
   for (const auto& l : layers) noisy = noisy || l.name == "noisy";
   EXPECT_TRUE(noisy);
   EXPECT_TRUE(std::filesystem::exists(dir / "pfm" / "frame_0001" / "noisy.pfm"));
-  EXPECT_NE(run("render-sequence builtin:cornell_box --path orbit:x --frames 2 -o " + dir.string()).status, 0);
-  EXPECT_NE(run("render builtin:cornell_box --res 8x8 --denoise magic -o " + (dir / "x.exr").string()).status, 0);
+  EXPECT_NE(run("render-sequence builtin:cornell_box --path orbit:x --frames 2 -o " + dir.string())
+                .status,
+            0);
+  EXPECT_NE(
+      run("render builtin:cornell_box --res 8x8 --denoise magic -o " + (dir / "x.exr").string())
+          .status,
+      0);
 }
 
 TEST(Cli, DenoiseReadsPfmsAndExrSequences) {
@@ -215,9 +237,10 @@ TEST(Cli, DenoiseReadsPfmsAndExrSequences) {
   std::filesystem::remove_all(dir);
   for (const char* method : {"neural", "svgf", "atrous"}) {
     const std::string out = (dir / (std::string(method) + "_%d.pfm")).string();
-    const CliRun r = run("denoise --sequence --frames 2 --hdr " + fix + "color.pfm --alb " + fix + "albedo.pfm --nrm " + fix +
-                         "normal.pfm --depth " + fix + "depth.pfm --rough " + fix + "roughness.pfm --motion " + fix +
-                         "motion.pfm --method " + method + " -o " + out);
+    const CliRun r =
+        run("denoise --sequence --frames 2 --hdr " + fix + "color.pfm --alb " + fix +
+            "albedo.pfm --nrm " + fix + "normal.pfm --depth " + fix + "depth.pfm --rough " + fix +
+            "roughness.pfm --motion " + fix + "motion.pfm --method " + method + " -o " + out);
     ASSERT_EQ(r.status, 0) << method << ": " << r.out;
     const FloatImage img = read_pfm((dir / (std::string(method) + "_1.pfm")).string());
     EXPECT_EQ(img.width, 44);
@@ -226,16 +249,21 @@ TEST(Cli, DenoiseReadsPfmsAndExrSequences) {
   }
   // kestrel's own multi-layer EXRs in, EXR out.
   const auto frames = dir / "frames";
-  ASSERT_EQ(run("render-sequence builtin:cornell_box --path orbit:10 --frames 2 --spp 1 --res 24x16 --quiet -o " + frames.string()).status, 0);
-  const CliRun e = run("denoise --sequence --frames 2 -i " + (frames / "frame_%04d.exr").string() + " -o " +
-                       (dir / "exr_%02d.exr").string());
+  ASSERT_EQ(run("render-sequence builtin:cornell_box --path orbit:10 --frames 2 --spp 1 --res "
+                "24x16 --quiet -o " +
+                frames.string())
+                .status,
+            0);
+  const CliRun e = run("denoise --sequence --frames 2 -i " + (frames / "frame_%04d.exr").string() +
+                       " -o " + (dir / "exr_%02d.exr").string());
   ASSERT_EQ(e.status, 0) << e.out;
   EXPECT_TRUE(std::filesystem::exists(dir / "exr_01.exr"));
   // Errors: a size mismatch names the input; a pattern without %d; no colour.
   const std::string small = (dir / "small.pfm").string();
   write_pfm(small, FloatImage(8, 8, 3));
-  CliRun bad = run("denoise --hdr " + std::string(KESTREL_SOURCE_DIR) + "/tests/data/denoise/frame_0/color.pfm --alb " + small +
-                   " -o " + (dir / "bad.pfm").string());
+  CliRun bad = run("denoise --hdr " + std::string(KESTREL_SOURCE_DIR) +
+                   "/tests/data/denoise/frame_0/color.pfm --alb " + small + " -o " +
+                   (dir / "bad.pfm").string());
   EXPECT_EQ(bad.status, 1);
   EXPECT_NE(bad.out.find("albedo is 8x8"), std::string::npos) << bad.out;
   bad = run("denoise --sequence --frames 2 --hdr " + small + " -o " + (dir / "x.pfm").string());
@@ -249,13 +277,17 @@ TEST(Cli, UpscaleAndRenderSequenceUpscale) {
   std::filesystem::remove_all(dir);
   // Low-resolution frames (fixed jitter), then every method at both factors.
   const auto frames = dir / "low";
-  ASSERT_EQ(run("render-sequence builtin:cornell_box --path orbit:10 --frames 3 --spp 4 --fixed-jitter --res 24x16 --quiet -o " +
-                frames.string()).status, 0);
+  ASSERT_EQ(run("render-sequence builtin:cornell_box --path orbit:10 --frames 3 --spp 4 "
+                "--fixed-jitter --res 24x16 --quiet -o " +
+                frames.string())
+                .status,
+            0);
   for (const char* method : {"neural", "taau", "bicubic", "bilinear"})
     for (int f : {2, 4}) {
       const std::string out = (dir / fmt::format("{}_x{}_%04d.exr", method, f)).string();
-      const CliRun r = run(fmt::format("upscale --sequence {} --factor {} --method {} -o {} --quiet", (frames / "frame_%04d.exr").string(),
-                                       f, method, out));
+      const CliRun r =
+          run(fmt::format("upscale --sequence {} --factor {} --method {} -o {} --quiet",
+                          (frames / "frame_%04d.exr").string(), f, method, out));
       ASSERT_EQ(r.status, 0) << method << ": " << r.out;
       EXPECT_NE(r.out.find("3 frames"), std::string::npos) << r.out;  // every consecutive file
       const auto layers = read_exr((dir / fmt::format("{}_x{}_0002.exr", method, f)).string());
@@ -266,19 +298,25 @@ TEST(Cli, UpscaleAndRenderSequenceUpscale) {
     }
   // render-sequence --upscale: full-resolution frames, low-resolution ones under low/.
   const auto seq = dir / "seq";
-  const CliRun r = run("render-sequence builtin:cornell_box --path orbit:10 --frames 2 --res 48x32 --upscale taau --factor 4 --quiet -o " +
-                       seq.string());
+  const CliRun r =
+      run("render-sequence builtin:cornell_box --path orbit:10 --frames 2 --res 48x32 --upscale "
+          "taau --factor 4 --quiet -o " +
+          seq.string());
   ASSERT_EQ(r.status, 0) << r.out;
   EXPECT_EQ(read_exr((seq / "frame_0001.exr").string())[0].image.width, 48);
   EXPECT_EQ(read_exr((seq / "low" / "frame_0001.exr").string())[0].image.width, 12);
   // Errors name the problem.
-  CliRun bad = run("upscale --sequence " + (frames / "frame_%04d.exr").string() + " --factor 3 -o " + (dir / "x_%d.exr").string());
+  CliRun bad = run("upscale --sequence " + (frames / "frame_%04d.exr").string() +
+                   " --factor 3 -o " + (dir / "x_%d.exr").string());
   EXPECT_EQ(bad.status, 1);
   EXPECT_NE(bad.out.find("factor"), std::string::npos) << bad.out;
   bad = run("upscale -i /nonexistent/frame.exr -o " + (dir / "x.exr").string());
   EXPECT_EQ(bad.status, 1);
   EXPECT_NE(bad.out.find("/nonexistent/frame.exr"), std::string::npos) << bad.out;
-  bad = run("render-sequence builtin:cornell_box --path orbit:10 --frames 1 --res 30x30 --upscale neural --factor 4 -o " + seq.string());
+  bad =
+      run("render-sequence builtin:cornell_box --path orbit:10 --frames 1 --res 30x30 --upscale "
+          "neural --factor 4 -o " +
+          seq.string());
   EXPECT_EQ(bad.status, 1);
   EXPECT_NE(bad.out.find("divisible"), std::string::npos) << bad.out;
 }
@@ -286,22 +324,30 @@ TEST(Cli, UpscaleAndRenderSequenceUpscale) {
 TEST(Cli, RunWritesFramesAndAStageTable) {
   const auto dir = std::filesystem::temp_directory_path() / "kestrel_tests" / "cli_run";
   std::filesystem::remove_all(dir);
-  const CliRun r = run("run builtin:cornell_box --path orbit:20 --frames 3 --res 64x48 --internal 16x12 --max-depth 2 --quiet --exr -o " +
-                       dir.string());
+  const CliRun r =
+      run("run builtin:cornell_box --path orbit:20 --frames 3 --res 64x48 --internal 16x12 "
+          "--max-depth 2 --quiet --exr -o " +
+          dir.string());
   ASSERT_EQ(r.status, 0) << r.out;
-  for (const char* f : {"frame_0000.png", "frame_0002.png", "frame_0002.exr", "timings.md", "timings.csv"})
+  for (const char* f :
+       {"frame_0000.png", "frame_0002.png", "frame_0002.exr", "timings.md", "timings.csv"})
     EXPECT_TRUE(std::filesystem::exists(dir / f)) << f;
   std::ifstream md(dir / "timings.md");
   const std::string table((std::istreambuf_iterator<char>(md)), std::istreambuf_iterator<char>());
-  for (const char* stage : {"| render |", "| denoise |", "| upscale |", "| tone map |", "| frame |", "frames per second"})
+  for (const char* stage : {"| render |", "| denoise |", "| upscale |", "| tone map |", "| frame |",
+                            "frames per second"})
     EXPECT_NE(table.find(stage), std::string::npos) << stage << "\n" << table;
   EXPECT_NE(table.find("16x12 internal (x4)"), std::string::npos) << table;
   EXPECT_EQ(read_exr((dir / "frame_0002.exr").string())[0].image.width, 64);
   // Same path, same settings: the same frames (deterministic pipeline).
   const auto again = dir / "again";
-  ASSERT_EQ(run("run builtin:cornell_box --path orbit:20 --frames 3 --res 64x48 --internal 16x12 --max-depth 2 --quiet --threads 1 -o " +
-                again.string()).status, 0);
-  std::ifstream a(dir / "frame_0002.png", std::ios::binary), b(again / "frame_0002.png", std::ios::binary);
+  ASSERT_EQ(run("run builtin:cornell_box --path orbit:20 --frames 3 --res 64x48 --internal 16x12 "
+                "--max-depth 2 --quiet --threads 1 -o " +
+                again.string())
+                .status,
+            0);
+  std::ifstream a(dir / "frame_0002.png", std::ios::binary),
+      b(again / "frame_0002.png", std::ios::binary);
   const std::string pa((std::istreambuf_iterator<char>(a)), std::istreambuf_iterator<char>());
   const std::string pb((std::istreambuf_iterator<char>(b)), std::istreambuf_iterator<char>());
   EXPECT_TRUE(!pa.empty() && pa == pb) << "1 thread and all threads differ";

@@ -5,10 +5,10 @@
 #include <cstring>
 
 #include "bvh/binary_tree.h"
+#include "bvh/cost_model.h"
 #include "geometry/prim_ref.h"
 #include "kestrel/kestrel.h"
 #include "support/oracles.h"
-#include "bvh/cost_model.h"
 #include "traverse/accel_nodes.h"
 
 namespace kestrel {
@@ -22,7 +22,9 @@ BuildConfig config_for(Builder b) {
   return c;
 }
 
-Buffer<PrimRef> refs_of(const Scene& scene) { return make_prim_refs(scene, validate_scene(scene)); }
+Buffer<PrimRef> refs_of(const Scene& scene) {
+  return make_prim_refs(scene, validate_scene(scene));
+}
 
 class EveryBuilder : public ::testing::TestWithParam<Builder> {};
 
@@ -33,7 +35,8 @@ TEST_P(EveryBuilder, ValidOnRandomSoups) {
       const auto refs = refs_of(scene);
       const BuildConfig config = config_for(GetParam());
       const Bvh2 bvh = build_bvh(refs, config);
-      EXPECT_EQ(validate_bvh(bvh, refs, config.max_leaf_size), "") << "n = " << n << ", seed " << seed;
+      EXPECT_EQ(validate_bvh(bvh, refs, config.max_leaf_size), "")
+          << "n = " << n << ", seed " << seed;
     }
   }
 }
@@ -55,7 +58,8 @@ TEST_P(EveryBuilder, MatchesBruteForceRayByRay) {
     ASSERT_EQ(got.t, want.t) << "ray " << i;
     if (got.prim_id != want.prim_id) {
       Ray r = rays[i];
-      const Hit alt = intersect_brute_force(std::span(&soup.triangles[got.prim_id], 1), {}, r, false);
+      const Hit alt =
+          intersect_brute_force(std::span(&soup.triangles[got.prim_id], 1), {}, r, false);
       ASSERT_EQ(alt.t, want.t) << "ray " << i << " hit prim " << got.prim_id << " at a different t";
     }
     const Hit any = intersect_any(accel, rays[i]);
@@ -86,7 +90,9 @@ TEST_P(EveryBuilder, SerialAndParallelBuildsAreIdentical) {
   }
   ASSERT_EQ(serial.nodes.size(), parallel.nodes.size());
   ASSERT_EQ(serial.prim_ids, parallel.prim_ids);
-  EXPECT_EQ(std::memcmp(serial.nodes.data(), parallel.nodes.data(), serial.nodes.size() * sizeof(Bvh2Node)), 0);
+  EXPECT_EQ(std::memcmp(serial.nodes.data(), parallel.nodes.data(),
+                        serial.nodes.size() * sizeof(Bvh2Node)),
+            0);
 }
 
 TEST_P(EveryBuilder, IdenticalCentroidsStillGiveAValidTree) {
@@ -147,7 +153,8 @@ TEST(SahOrder, SweepBeatsBinnedAndTreeletBeatsLbvh) {
 // where binning alone loses to the exact sweep; the boundary refinement and the exact
 // small-input path must keep binned within 3 %.
 TEST(SahOrder, BinnedStaysCloseToSweepOnGridsAndTinyScenes) {
-  for (const char* rel : {"gltf_morph_stress_test/MorphStressTest.gltf", "cornell_box/cornell_box.obj"}) {
+  for (const char* rel :
+       {"gltf_morph_stress_test/MorphStressTest.gltf", "cornell_box/cornell_box.obj"}) {
     auto path = test::shared_scene(rel);
     if (!path) continue;  // the synthetic cases below run regardless
     const Scene scene = load_scene(*path);
@@ -160,7 +167,8 @@ TEST(SahOrder, BinnedStaysCloseToSweepOnGridsAndTinyScenes) {
     for (int j = 0; j < 200; ++j) {
       const uint32_t base = uint32_t(mesh.positions.size());
       const float x = i * 0.01f, z = j * 0.013f;
-      mesh.positions.insert(mesh.positions.end(), {{x, 0, z}, {x + 0.008f, 0, z}, {x, 0, z + 0.008f}});
+      mesh.positions.insert(mesh.positions.end(),
+                            {{x, 0, z}, {x + 0.008f, 0, z}, {x, 0, z + 0.008f}});
       mesh.indices.insert(mesh.indices.end(), {base, base + 1, base + 2});
     }
   grid.meshes.push_back(mesh);
@@ -178,7 +186,8 @@ TEST(SahOrder, HoldsOnSharedAndSyntheticScenes) {
   scenes.emplace_back("synthetic sphere", test::closed_sphere(6, {0.2f, -0.1f, 0.3f}, 1.5f));
   Scene clusters = test::random_soup(3000, 0.02f, 71);
   for (size_t i = 0; i < clusters.meshes[0].positions.size(); ++i)  // three dense clusters
-    clusters.meshes[0].positions[i] = clusters.meshes[0].positions[i] * 0.2f + Vec3{float(i % 3), 0.5f * float(i % 3), 0};
+    clusters.meshes[0].positions[i] =
+        clusters.meshes[0].positions[i] * 0.2f + Vec3{float(i % 3), 0.5f * float(i % 3), 0};
   scenes.emplace_back("synthetic clusters", std::move(clusters));
   for (const auto& [rel, scene] : scenes) {
     const double sweep = sah_of(scene, Builder::sweep), binned = sah_of(scene, Builder::binned);
@@ -207,7 +216,8 @@ TEST(Lbvh, BottomUpEmissionEqualsKarrasTopDown) {
       const Bvh2 ea = emit_bvh2(a, c), eb = emit_bvh2(b, c);
       ASSERT_EQ(ea.prim_ids, eb.prim_ids) << "n = " << n << ", bits " << bits;
       ASSERT_EQ(ea.nodes.size(), eb.nodes.size());
-      EXPECT_EQ(std::memcmp(ea.nodes.data(), eb.nodes.data(), ea.nodes.size() * sizeof(Bvh2Node)), 0);
+      EXPECT_EQ(std::memcmp(ea.nodes.data(), eb.nodes.data(), ea.nodes.size() * sizeof(Bvh2Node)),
+                0);
     }
   }
 }
@@ -307,7 +317,8 @@ TEST(AutoQuality, PicksFastBuildsForFewRaysAndGoodTreesForMany) {
         EXPECT_LE(predicted_seconds(b, n, r), predicted_seconds(other, n, r));
       EXPECT_LT(predicted_seconds(b, n, r), predicted_seconds(b, n, r * 10));
     }
-    EXPECT_LT(predicted_seconds(Builder::binned, n, 1e6), predicted_seconds(Builder::binned, n * 2, 1e6));
+    EXPECT_LT(predicted_seconds(Builder::binned, n, 1e6),
+              predicted_seconds(Builder::binned, n * 2, 1e6));
   }
   BuildConfig c;
   c.quality = BuildQuality::automatic;

@@ -25,7 +25,8 @@ Error error_of(F&& f) {
 }
 
 void expect_mentions(const Error& e, const std::string& text) {
-  EXPECT_NE(std::string(e.what()).find(text), std::string::npos) << "'" << e.what() << "' lacks '" << text << "'";
+  EXPECT_NE(std::string(e.what()).find(text), std::string::npos)
+      << "'" << e.what() << "' lacks '" << text << "'";
 }
 
 struct SceneCount {
@@ -48,16 +49,20 @@ TEST_P(SharedScenes, LoadWithTheReadmeTriangleCount) {
 // Scene-level (flattened) counts from ../shared/scenes/README.md.
 INSTANTIATE_TEST_SUITE_P(
     All, SharedScenes,
-    ::testing::Values(SceneCount{"cornell_box/cornell_box.obj", 36}, SceneCount{"teapot/teapot.obj", 6320},
-                      SceneCount{"dabrovic_sponza/sponza.obj", 66445}, SceneCount{"stanford_bunny/stanford_bunny.obj", 69451},
-                      SceneCount{"lamborghini/lamborghini.obj", 145917}, SceneCount{"bunny_grid/bunny_grid.obj", 1111218},
+    ::testing::Values(SceneCount{"cornell_box/cornell_box.obj", 36},
+                      SceneCount{"teapot/teapot.obj", 6320},
+                      SceneCount{"dabrovic_sponza/sponza.obj", 66445},
+                      SceneCount{"stanford_bunny/stanford_bunny.obj", 69451},
+                      SceneCount{"lamborghini/lamborghini.obj", 145917},
+                      SceneCount{"bunny_grid/bunny_grid.obj", 1111218},
                       SceneCount{"gltf_flight_helmet/FlightHelmet.gltf", 94722},
                       SceneCount{"gltf_water_bottle/WaterBottle.gltf", 4510},
                       SceneCount{"gltf_box_animated/BoxAnimated.gltf", 254},
                       SceneCount{"gltf_cesium_milk_truck/CesiumMilkTruck.gltf", 3624},
                       SceneCount{"gltf_truck_fleet/truck_fleet.gltf", 231936},
                       SceneCount{"gltf_animated_morph_cube/AnimatedMorphCube.gltf", 12},
-                      SceneCount{"gltf_morph_stress_test/MorphStressTest.gltf", 2412}, SceneCount{"gltf_fox/Fox.glb", 576},
+                      SceneCount{"gltf_morph_stress_test/MorphStressTest.gltf", 2412},
+                      SceneCount{"gltf_fox/Fox.glb", 576},
                       SceneCount{"gltf_cornell_box/cornell_box.gltf", 36}),
     [](const auto& info) {
       std::string s = std::filesystem::path(info.param.rel).parent_path().string();
@@ -118,12 +123,13 @@ TEST(Obj, MtlTexturesAreDecoded) {
 }
 
 TEST(Obj, FanTriangulationFollowsFileOrder) {
-  const std::string path = test::write_temp_file("quad.obj",
-      "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nv 0 0 1\nf 1 2 3 4\nf 1 2 5\n");
+  const std::string path = test::write_temp_file(
+      "quad.obj", "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nv 0 0 1\nf 1 2 3 4\nf 1 2 5\n");
   const Scene s = load_scene(path);
   ASSERT_EQ(s.triangle_count(), 3u);
   const auto& idx = s.meshes[0].indices;
-  EXPECT_EQ(std::vector<uint32_t>(idx.begin(), idx.end()), (std::vector<uint32_t>{0, 1, 2, 0, 2, 3, 0, 1, 4}));
+  EXPECT_EQ(std::vector<uint32_t>(idx.begin(), idx.end()),
+            (std::vector<uint32_t>{0, 1, 2, 0, 2, 3, 0, 1, 4}));
 }
 
 TEST(Obj, MissingFileNamesTheFile) {
@@ -133,14 +139,17 @@ TEST(Obj, MissingFileNamesTheFile) {
 }
 
 TEST(Obj, MalformedLinesNameFileAndLine) {
-  const std::string bad_vertex = test::write_temp_file("bad_vertex.obj", "v 0 0 0\nv 1 0 0\nv 1 abc 0\nf 1 2 3\n");
+  const std::string bad_vertex =
+      test::write_temp_file("bad_vertex.obj", "v 0 0 0\nv 1 0 0\nv 1 abc 0\nf 1 2 3\n");
   Error e = error_of([&] { load_scene(bad_vertex); });
   EXPECT_EQ(e.code(), ErrorCode::parse_error);
   expect_mentions(e, bad_vertex + ":3");
-  const std::string short_face = test::write_temp_file("short_face.obj", "v 0 0 0\nv 1 0 0\nv 1 1 0\n\nf 1 2\n");
+  const std::string short_face =
+      test::write_temp_file("short_face.obj", "v 0 0 0\nv 1 0 0\nv 1 1 0\n\nf 1 2\n");
   e = error_of([&] { load_scene(short_face); });
   expect_mentions(e, short_face + ":5");
-  const std::string zero_index = test::write_temp_file("zero_index.obj", "v 0 0 0\nv 1 0 0\nv 1 1 0\nf 0 1 2\n");
+  const std::string zero_index =
+      test::write_temp_file("zero_index.obj", "v 0 0 0\nv 1 0 0\nv 1 1 0\nf 0 1 2\n");
   expect_mentions(error_of([&] { load_scene(zero_index); }), zero_index + ":4");
   // Truncated in the middle of a vertex line.
   const std::string truncated = test::write_temp_file("truncated.obj", "v 0 0 0\nv 1 0 0\nv 1 1");
@@ -149,13 +158,13 @@ TEST(Obj, MalformedLinesNameFileAndLine) {
 
 TEST(Obj, BadTrianglesAreCountedAndSkipped) {
   const std::string path = test::write_temp_file("bad_tris.obj",
-      "v 0 0 0\nv 1 0 0\nv 0 1 0\nv nan 0 0\nv 2 0 0\n"
-      "f 1 2 3\n"      // good
-      "f 1 2 4\n"      // NaN vertex
-      "f 1 2 9\n"      // index past the end
-      "f 1 2 5\n"      // collinear: zero area
-      "f 1 1 3\n"      // repeated vertex
-      "f 2 3 1\n");    // good
+                                                 "v 0 0 0\nv 1 0 0\nv 0 1 0\nv nan 0 0\nv 2 0 0\n"
+                                                 "f 1 2 3\n"    // good
+                                                 "f 1 2 4\n"    // NaN vertex
+                                                 "f 1 2 9\n"    // index past the end
+                                                 "f 1 2 5\n"    // collinear: zero area
+                                                 "f 1 1 3\n"    // repeated vertex
+                                                 "f 2 3 1\n");  // good
   const Scene s = load_scene(path);
   const SceneValidation v = validate_scene(s);
   EXPECT_EQ(v.report.triangle_count, 6u);
@@ -189,7 +198,8 @@ TEST(Scene, UnknownFormatAndBuiltins) {
 }
 
 TEST(Gltf, MalformedAndTruncatedFilesAreErrors) {
-  const std::string not_json = test::write_temp_file("broken.gltf", "{ \"asset\": { \"version\": \"2.0\" ");
+  const std::string not_json =
+      test::write_temp_file("broken.gltf", "{ \"asset\": { \"version\": \"2.0\" ");
   Error e = error_of([&] { load_scene(not_json); });
   EXPECT_EQ(e.code(), ErrorCode::parse_error);
   expect_mentions(e, not_json);
@@ -241,7 +251,8 @@ TEST(RaysFiles, RoundTripAndCorruption) {
   Error e = error_of([&] { read_rays(cut); });
   EXPECT_EQ(e.code(), ErrorCode::parse_error);
   expect_mentions(e, cut);
-  const std::string wrong = test::write_temp_file("wrong.rays", std::string("HITS\x01\0\0\0", 8) + std::string(8, '\0'));
+  const std::string wrong =
+      test::write_temp_file("wrong.rays", std::string("HITS\x01\0\0\0", 8) + std::string(8, '\0'));
   expect_mentions(error_of([&] { read_rays(wrong); }), "magic");
   EXPECT_EQ(error_of([&] { read_rays("/nonexistent.rays"); }).code(), ErrorCode::file_not_found);
 }

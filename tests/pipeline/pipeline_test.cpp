@@ -19,7 +19,9 @@ PipelineSettings small(int factor) {
   return s;
 }
 
-Camera front() { return framing_camera(load_scene("builtin:cornell_box")); }
+Camera front() {
+  return framing_camera(load_scene("builtin:cornell_box"));
+}
 
 TEST(Pipeline, StagesHaveTheirSizesAndFiniteValues) {
   for (int factor : {1, 2, 4}) {
@@ -56,7 +58,8 @@ TEST(Pipeline, RendersAsTheRendererAndTakesARenderFunction) {
   EXPECT_EQ(f.render[Aov::depth].pixels, want[Aov::depth].pixels);
   EXPECT_EQ(f.upscaled.pixels, want[Aov::color].pixels);
   int calls = 0;
-  p.set_render_function([&](Renderer&, const Camera&, const RenderSettings& settings, const std::optional<Camera>& prev) {
+  p.set_render_function([&](Renderer&, const Camera&, const RenderSettings& settings,
+                            const std::optional<Camera>& prev) {
     ++calls;
     EXPECT_EQ(settings.frame, 1u);
     EXPECT_TRUE(prev.has_value());

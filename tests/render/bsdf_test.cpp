@@ -12,7 +12,9 @@
 namespace kestrel::render {
 namespace {
 
-Vec3 dir(float theta, float phi) { return {std::sin(theta) * std::cos(phi), std::sin(theta) * std::sin(phi), std::cos(theta)}; }
+Vec3 dir(float theta, float phi) {
+  return {std::sin(theta) * std::cos(phi), std::sin(theta) * std::sin(phi), std::cos(theta)};
+}
 
 // Upper-tail p-value of chi-square with k degrees of freedom (Wilson-Hilferty).
 double chi2_p_value(double chi2, int k) {
@@ -28,7 +30,8 @@ struct Case {
 std::vector<Case> cases() {
   auto make = [](Vec3 base, float metallic, float roughness, float specular) {
     BsdfParams p;
-    p.base = base, p.metallic = metallic, p.alpha = std::max(roughness * roughness, min_alpha), p.specular = specular;
+    p.base = base, p.metallic = metallic, p.alpha = std::max(roughness * roughness, min_alpha),
+    p.specular = specular;
     return p;
   };
   return {{"lambertian", make({0.7f, 0.5f, 0.3f}, 0, 1, 0)},
@@ -88,10 +91,13 @@ TEST_P(BsdfCase, SamplingMatchesPdfChiSquare) {
     chi2 += (observed[k] - expected[k]) * (observed[k] - expected[k]) / expected[k];
     ++cells;
   }
-  if (pool_e >= 5) chi2 += (pool_o - pool_e) * (pool_o - pool_e) / pool_e, ++cells;
-  else EXPECT_LT(pool_o, 30) << c.name << ": samples where the pdf is ~0";
+  if (pool_e >= 5)
+    chi2 += (pool_o - pool_e) * (pool_o - pool_e) / pool_e, ++cells;
+  else
+    EXPECT_LT(pool_o, 30) << c.name << ": samples where the pdf is ~0";
   const double p = chi2_p_value(chi2, cells - 1);
-  EXPECT_GT(p, 1e-4) << c.name << " cos_o " << cos_o << ": chi2 " << chi2 << " over " << cells << " cells";
+  EXPECT_GT(p, 1e-4) << c.name << " cos_o " << cos_o << ": chi2 " << chi2 << " over " << cells
+                     << " cells";
 }
 
 TEST_P(BsdfCase, EvalPdfAndSampleAgree) {
@@ -109,7 +115,8 @@ TEST_P(BsdfCase, EvalPdfAndSampleAgree) {
     for (int k = 0; k < 3; ++k) ASSERT_NEAR(bs.weight[k], f[k] / pdf, 1e-4f * (1 + f[k] / pdf));
     // Reciprocity: f(wo, wi) = f(wi, wo) (eval carries cos(wi)).
     const Vec3 fr = bsdf_eval(c.p, bs.wi, wo);
-    for (int k = 0; k < 3; ++k) ASSERT_NEAR(f[k] / bs.wi.z, fr[k] / wo.z, 2e-4f * (1 + f[k] / bs.wi.z));
+    for (int k = 0; k < 3; ++k)
+      ASSERT_NEAR(f[k] / bs.wi.z, fr[k] / wo.z, 2e-4f * (1 + f[k] / bs.wi.z));
   }
   // Below the surface: nothing.
   EXPECT_EQ(bsdf_pdf(c.p, wo, Vec3{0, 0.6f, -0.8f}), 0.0f);
@@ -126,13 +133,15 @@ TEST_P(BsdfCase, ReflectsNoMoreThanItReceives) {
   for (int i = 0; i < nt; ++i)
     for (int j = 0; j < np; ++j) {
       const float t = (i + 0.5f) * (pi / 2) / nt, ph = (j + 0.5f) * 2 * pi / np;
-      albedo = albedo + bsdf_eval(c.p, wo, dir(t, ph)) * (std::sin(t) * (pi / 2 / nt) * (2 * pi / np));
+      albedo =
+          albedo + bsdf_eval(c.p, wo, dir(t, ph)) * (std::sin(t) * (pi / 2 / nt) * (2 * pi / np));
     }
   for (int k = 0; k < 3; ++k) EXPECT_LE(albedo[k], 1.01f) << c.name;
 }
 
 INSTANTIATE_TEST_SUITE_P(All, BsdfCase,
-                         ::testing::Combine(::testing::Range(0, 6), ::testing::Values(0.9f, 0.5f, 0.15f)));
+                         ::testing::Combine(::testing::Range(0, 6),
+                                            ::testing::Values(0.9f, 0.5f, 0.15f)));
 
 TEST(Bsdf, LambertianIsBaseOverPi) {
   BsdfParams p;
@@ -160,7 +169,8 @@ TEST(Bsdf, GgxWeakWhiteFurnace) {
           const double ph = (j + 0.5) * 2 * pi / np;
           const Vec3 h = dir(float(t), float(ph));
           const double dh = std::max(0.0f, dot(wo, h));
-          sum += ggx_g1(alpha, wo) * dh * ggx_d(alpha, h) / wo.z * std::sin(t) * (t1 - t0) * (2 * pi / np);
+          sum += ggx_g1(alpha, wo) * dh * ggx_d(alpha, h) / wo.z * std::sin(t) * (t1 - t0) *
+                 (2 * pi / np);
         }
       }
       EXPECT_NEAR(sum, 1.0, 0.005) << "alpha " << alpha << " cos_o " << cos_o;

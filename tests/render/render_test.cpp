@@ -25,12 +25,24 @@ struct SceneRenderer : private AssetHolder, public Renderer {
 
 constexpr float kPi = 3.14159265358979f;
 
-Vec3 sub(Vec3 a, Vec3 b) { return {a.x - b.x, a.y - b.y, a.z - b.z}; }
-Vec3 add(Vec3 a, Vec3 b) { return {a.x + b.x, a.y + b.y, a.z + b.z}; }
-Vec3 mul(Vec3 a, float s) { return {a.x * s, a.y * s, a.z * s}; }
-float dot3(Vec3 a, Vec3 b) { return a.x * b.x + a.y * b.y + a.z * b.z; }
-Vec3 cross3(Vec3 a, Vec3 b) { return {a.y * b.z - a.z * b.y, a.z * b.x - a.x * b.z, a.x * b.y - a.y * b.x}; }
-Vec3 unit(Vec3 a) { return mul(a, 1.0f / std::sqrt(dot3(a, a))); }
+Vec3 sub(Vec3 a, Vec3 b) {
+  return {a.x - b.x, a.y - b.y, a.z - b.z};
+}
+Vec3 add(Vec3 a, Vec3 b) {
+  return {a.x + b.x, a.y + b.y, a.z + b.z};
+}
+Vec3 mul(Vec3 a, float s) {
+  return {a.x * s, a.y * s, a.z * s};
+}
+float dot3(Vec3 a, Vec3 b) {
+  return a.x * b.x + a.y * b.y + a.z * b.z;
+}
+Vec3 cross3(Vec3 a, Vec3 b) {
+  return {a.y * b.z - a.z * b.y, a.z * b.x - a.x * b.z, a.x * b.y - a.y * b.x};
+}
+Vec3 unit(Vec3 a) {
+  return mul(a, 1.0f / std::sqrt(dot3(a, a)));
+}
 
 // The pinhole model of docs/renderer.md, written again here as the oracle.
 struct Pinhole {
@@ -86,7 +98,8 @@ TriangleMesh uv_sphere(Vec3 c, float radius, int rings, int segments, bool norma
     }
   for (int i = 0; i < rings; ++i)
     for (int j = 0; j < segments; ++j) {
-      const uint32_t a = uint32_t(i * (segments + 1) + j), b = a + 1, d = a + uint32_t(segments + 1), e = d + 1;
+      const uint32_t a = uint32_t(i * (segments + 1) + j), b = a + 1,
+                     d = a + uint32_t(segments + 1), e = d + 1;
       for (uint32_t k : {a, d, b, b, d, e}) m.indices.push_back(k);
       m.material_ids.push_back(0), m.material_ids.push_back(0);
     }
@@ -106,7 +119,8 @@ void mean_and_error(const FloatImage& img, int channel, double& mean, double& se
   double v = 0;
   const double n = double(img.width) * img.height;
   for (int y = 0; y < img.height; ++y)
-    for (int x = 0; x < img.width; ++x) v += (img.at(x, y)[channel] - mean) * (img.at(x, y)[channel] - mean);
+    for (int x = 0; x < img.width; ++x)
+      v += (img.at(x, y)[channel] - mean) * (img.at(x, y)[channel] - mean);
   se = std::sqrt(v / (n - 1) / n);
 }
 
@@ -222,8 +236,10 @@ TEST(Cameras, ThinLensIsSharpOnlyAtItsFocusDistance) {
   const Frame a = r.render(pinhole, rs), b = r.render(focused, rs), c = r.render(unfocused, rs);
   double diff_focused = 0, diff_unfocused = 0;
   for (size_t i = 0; i < a[Aov::albedo].pixels.size(); ++i) {
-    diff_focused = std::max(diff_focused, double(std::fabs(a[Aov::albedo].pixels[i] - b[Aov::albedo].pixels[i])));
-    diff_unfocused = std::max(diff_unfocused, double(std::fabs(a[Aov::albedo].pixels[i] - c[Aov::albedo].pixels[i])));
+    diff_focused = std::max(diff_focused,
+                            double(std::fabs(a[Aov::albedo].pixels[i] - b[Aov::albedo].pixels[i])));
+    diff_unfocused = std::max(
+        diff_unfocused, double(std::fabs(a[Aov::albedo].pixels[i] - c[Aov::albedo].pixels[i])));
   }
   EXPECT_LT(diff_focused, 1e-3);
   EXPECT_GT(diff_unfocused, 0.1);
@@ -319,7 +335,8 @@ TEST(MotionVectors, MovingInstanceReprojectsExactly) {
   scene.commit();
   Renderer r(scene, Environment::parse("sky"));
   const Vec3 move{0.4f, -0.25f, 0.3f};
-  scene.set_transform(inst, Affine3::translation({move.x, move.y, -4 + move.z}) * Affine3::rotation_y(0));
+  scene.set_transform(inst,
+                      Affine3::translation({move.x, move.y, -4 + move.z}) * Affine3::rotation_y(0));
   scene.commit();  // the renderer sees the commit at its next render
   RenderSettings rs;
   rs.width = 40, rs.height = 40, rs.jitter = false;
@@ -354,7 +371,8 @@ TEST(Determinism, SameBitsForOneAndTwoThreads) {
   const Frame a = r.render(cam, rs);
   rs.threads = 2;
   const Frame b = r.render(cam, rs);
-  for (int k = 0; k < aov_count; ++k) EXPECT_EQ(a.aov[k].pixels, b.aov[k].pixels) << aov_name(Aov(k));
+  for (int k = 0; k < aov_count; ++k)
+    EXPECT_EQ(a.aov[k].pixels, b.aov[k].pixels) << aov_name(Aov(k));
   rs.seed = 43;
   const Frame c = r.render(cam, rs);
   EXPECT_NE(a[Aov::color].pixels, c[Aov::color].pixels);
@@ -375,7 +393,8 @@ TEST(Determinism, TilesRenderedApartEqualOneRender) {
   Frame parts;
   const std::vector<uint32_t> first = {5, 0, 3}, second = {1, 4}, third = {2};
   for (const auto* list : {&first, &second, &third}) r.render_tiles(cam, rs, *list, parts, prev);
-  for (int k = 0; k < aov_count; ++k) EXPECT_EQ(whole.aov[k].pixels, parts.aov[k].pixels) << aov_name(Aov(k));
+  for (int k = 0; k < aov_count; ++k)
+    EXPECT_EQ(whole.aov[k].pixels, parts.aov[k].pixels) << aov_name(Aov(k));
   EXPECT_EQ(parts.stats.camera_rays, whole.stats.camera_rays);
   // A tile rendered again (another frame's settings in between) is the same again.
   RenderSettings other = rs;
@@ -388,7 +407,8 @@ TEST(Determinism, TilesRenderedApartEqualOneRender) {
     const FloatImage& b = scratch.aov[k];
     for (int y = 0; y < 32; ++y)
       for (int x = 0; x < 32; ++x)
-        for (int c = 0; c < a.channels; ++c) ASSERT_EQ(a.at(x, y)[c], b.at(x, y)[c]) << aov_name(Aov(k));
+        for (int c = 0; c < a.channels; ++c)
+          ASSERT_EQ(a.at(x, y)[c], b.at(x, y)[c]) << aov_name(Aov(k));
   }
   EXPECT_THROW(r.render_tiles(cam, rs, std::vector<uint32_t>{6}, parts), Error);
   rs.time_limit_s = 1;
@@ -400,7 +420,9 @@ TEST(Outputs, ExrAndPfmHoldEveryAov) {
   RenderSettings rs;
   rs.width = 24, rs.height = 20, rs.spp = 4;
   const Frame f = r.render(*find_view(load_scene("builtin:cornell_box"), "front"), rs);
-  const std::string dir = std::filesystem::path(test::write_temp_file("render_out_marker", "")).parent_path().string() + "/render_out";
+  const std::string dir =
+      std::filesystem::path(test::write_temp_file("render_out_marker", "")).parent_path().string() +
+      "/render_out";
   std::filesystem::create_directories(dir);
   write_frame_exr(dir + "/frame.exr", f);
   const std::vector<ImageLayer> layers = read_exr(dir + "/frame.exr");
@@ -420,7 +442,8 @@ TEST(Outputs, ExrAndPfmHoldEveryAov) {
     ASSERT_EQ(img.height, f.height);
     for (int y = 0; y < img.height; ++y)
       for (int x = 0; x < img.width; ++x)
-        for (int c = 0; c < aov_channels(Aov(k)); ++c) ASSERT_EQ(img.at(x, y)[c], f.aov[k].at(x, y)[c]) << aov_name(Aov(k));
+        for (int c = 0; c < aov_channels(Aov(k)); ++c)
+          ASSERT_EQ(img.at(x, y)[c], f.aov[k].at(x, y)[c]) << aov_name(Aov(k));
   }
 }
 
@@ -434,7 +457,8 @@ TEST(Cameras, OrbitTurnsTheEyeAboutTheTargetsVerticalAxis) {
   for (double t : {0.0, 0.3, 0.77, 1.0, 1.5, 2.0}) {
     const Camera c = p.at(t);
     const float dx = c.eye.x - 1, dz = c.eye.z;
-    EXPECT_NEAR(std::sqrt(dx * dx + dz * dz), 2.0f, 2e-3f) << t;  // on the circle (Catmull-Rom through keys 15 deg apart)
+    EXPECT_NEAR(std::sqrt(dx * dx + dz * dz), 2.0f, 2e-3f)
+        << t;  // on the circle (Catmull-Rom through keys 15 deg apart)
     EXPECT_NEAR(c.eye.y, 2.0f, 1e-5f) << t;
     EXPECT_NEAR(c.target.x, 1.0f, 1e-6f);
   }
@@ -486,16 +510,19 @@ TEST(BadInput, ClearErrors) {
   expect_error([&] { read_pfm(truncated); }, "trunc.pfm");
   const std::string not_pfm = test::write_temp_file("bad.pfm", "P6\n4 4\n255\n");
   expect_error([&] { read_pfm(not_pfm); }, "not a PFM");
-  const std::string garbage = test::write_temp_file("garbage.exr", "this is not an EXR file at all");
+  const std::string garbage =
+      test::write_temp_file("garbage.exr", "this is not an EXR file at all");
   expect_error([&] { read_exr(garbage); }, "garbage.exr");
   FloatImage nan_env(4, 2, 3);
   nan_env.pixels[5] = NAN;
   const std::string nan_path = test::write_temp_file("nan_env.pfm", "");
   write_pfm(nan_path, nan_env);
   expect_error([&] { Environment::parse(nan_path); }, "NaN");
-  const std::string bad_json = test::write_temp_file("bad.views.json", "{\"views\": {\"a\": {\"eye\": [1, 2]}}}");
+  const std::string bad_json =
+      test::write_temp_file("bad.views.json", "{\"views\": {\"a\": {\"eye\": [1, 2]}}}");
   expect_error([&] { load_views(bad_json); }, "bad.views.json");
-  const std::string bad_path = test::write_temp_file("bad_path.json",
+  const std::string bad_path = test::write_temp_file(
+      "bad_path.json",
       R"({"keyframes": [{"time": 1, "eye": [0,0,1], "target": [0,0,0]}, {"time": 0, "eye": [0,0,2], "target": [0,0,0]}]})");
   expect_error([&] { CameraPath::load(bad_path); }, "increasing");
   SceneRenderer r(load_scene("builtin:cornell_box"));
@@ -519,8 +546,10 @@ TEST(BadInput, ClearErrors) {
 TEST(BadInput, CorruptTextureIsAWarningNamingTheFile) {
   test::write_temp_file("corrupt_tex.png", "\x89PNG\r\n\x1a\n not really a png");
   test::write_temp_file("corrupt_tex.mtl", "newmtl m\nKd 1 1 1\nmap_Kd corrupt_tex.png\n");
-  const std::string obj = test::write_temp_file(
-      "corrupt_tex.obj", "mtllib corrupt_tex.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nvt 1 0\nvt 0 1\nusemtl m\nf 1/1 2/2 3/3\n");
+  const std::string obj =
+      test::write_temp_file("corrupt_tex.obj",
+                            "mtllib corrupt_tex.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nvt 1 0\nvt "
+                            "0 1\nusemtl m\nf 1/1 2/2 3/3\n");
   const Scene s = load_scene(obj);
   ASSERT_EQ(s.warnings.size(), 1u);
   EXPECT_NE(s.warnings[0].find("corrupt_tex.png"), std::string::npos) << s.warnings[0];

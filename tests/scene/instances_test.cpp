@@ -37,7 +37,8 @@ std::vector<Ray> rays_through(const Scene& scene, size_t n, uint64_t seed) {
     const Vec3 o = c + rng.on_sphere() * r;
     Vec3 target = rng.in_box(b.lo, b.hi);
     if (i % 4 != 0 && !soup.triangles.empty()) {
-      const Triangle& t = soup.triangles[size_t(rng.uniform() * float(soup.triangles.size())) % soup.triangles.size()];
+      const Triangle& t = soup.triangles[size_t(rng.uniform() * float(soup.triangles.size())) %
+                                         soup.triangles.size()];
       float u = rng.uniform(), v = rng.uniform();
       if (u + v > 1) u = 1 - u, v = 1 - v;
       target = t.v0 + (t.v1 - t.v0) * u + (t.v2 - t.v0) * v;
@@ -61,8 +62,10 @@ Fixture make_fixture() {
   const MeshId a = f.scene.add_mesh(f.meshes[0]);
   const MeshId b = f.scene.add_mesh(f.meshes[1]);
   for (int i = 0; i < 6; ++i) {
-    const Affine3 t = Affine3::translation({1.7f * float(i % 3), 0.3f * float(i), 1.5f * float(i / 3)}) *
-                      Affine3::rotation_y(37.0f * float(i)) * Affine3::scaling({1.0f + 0.2f * float(i), 1.0f, 0.8f + 0.1f * float(i)});
+    const Affine3 t =
+        Affine3::translation({1.7f * float(i % 3), 0.3f * float(i), 1.5f * float(i / 3)}) *
+        Affine3::rotation_y(37.0f * float(i)) *
+        Affine3::scaling({1.0f + 0.2f * float(i), 1.0f, 0.8f + 0.1f * float(i)});
     f.ids.push_back(f.scene.add_instance(i % 2 ? b : a, t));
   }
   return f;
@@ -83,7 +86,8 @@ Located locate(const Scene& flat, uint32_t gid) {
   return {invalid_id, invalid_id};
 }
 
-void expect_matches_flattened(const InstancedScene& scene, const std::vector<InstanceId>& ids, const std::string& what) {
+void expect_matches_flattened(const InstancedScene& scene, const std::vector<InstanceId>& ids,
+                              const std::string& what) {
   const Scene flat = scene.flatten();
   BuildConfig c;
   c.layout = Layout::bvh2;
@@ -227,7 +231,8 @@ TEST(Instances, RemovedInstancesAndMeshes) {
   f.scene.trace(rays, h);
   for (const InstanceHit& x : h)
     if (x.hit()) {
-      EXPECT_TRUE(x.instance_id == f.ids[1] || x.instance_id == f.ids[3] || x.instance_id == f.ids[5]);
+      EXPECT_TRUE(x.instance_id == f.ids[1] || x.instance_id == f.ids[3] ||
+                  x.instance_id == f.ids[5]);
     }
 }
 
@@ -245,13 +250,21 @@ TEST(Instances, BadInputIsAClearError) {
     return std::string("no error");
   };
   EXPECT_NE(message([&] { s.add_instance(m, nan); }).find("m[5] is nan"), std::string::npos);
-  EXPECT_NE(message([&] { s.add_instance(m, Affine3::scaling({1, 0, 1})); }).find("singular"), std::string::npos);
+  EXPECT_NE(message([&] {
+              s.add_instance(m, Affine3::scaling({1, 0, 1}));
+            }).find("singular"),
+            std::string::npos);
   EXPECT_NE(message([&] { s.add_instance(7, Affine3{}); }).find("no mesh 7"), std::string::npos);
   const InstanceId i = s.add_instance(m, Affine3{});
-  EXPECT_NE(message([&] { s.set_transform(i, Affine3::scaling({0, 0, 0})); }).find("instance 0: transform is singular"),
+  EXPECT_NE(message([&] {
+              s.set_transform(i, Affine3::scaling({0, 0, 0}));
+            }).find("instance 0: transform is singular"),
             std::string::npos);
-  EXPECT_NE(message([&] { s.set_transform(9, Affine3{}); }).find("no instance 9"), std::string::npos);
-  EXPECT_NE(message([&] { s.update_vertices(m, std::vector<Vec3>(3)); }).find("has 42 vertices, got 3"), std::string::npos);
+  EXPECT_NE(message([&] { s.set_transform(9, Affine3{}); }).find("no instance 9"),
+            std::string::npos);
+  EXPECT_NE(
+      message([&] { s.update_vertices(m, std::vector<Vec3>(3)); }).find("has 42 vertices, got 3"),
+      std::string::npos);
   EXPECT_NE(message([&] { s.remove_mesh(m); }).find("used by instance 0"), std::string::npos);
   std::vector<Ray> rays(2);
   std::vector<InstanceHit> hits(1);
@@ -270,7 +283,8 @@ TEST(Instances, BadInputIsAClearError) {
 }
 
 TEST(Instances, AffineInverseRoundTrips) {
-  const Affine3 a = Affine3::translation({1, -2, 3}) * Affine3::rotation_y(33) * Affine3::scaling({2, 0.5f, 3});
+  const Affine3 a =
+      Affine3::translation({1, -2, 3}) * Affine3::rotation_y(33) * Affine3::scaling({2, 0.5f, 3});
   const Affine3 i = inverse(a);
   test::Rng rng{1};
   for (int k = 0; k < 100; ++k) {
@@ -316,7 +330,8 @@ TEST(Instances, BunnyGridInstancesFileLoadsAsSixteenInstancesOfOneMesh) {
 }
 
 TEST(Instances, InstanceFileErrorsNameFileAndLine) {
-  const std::string p = test::write_temp_file("bad.instances.txt", "# header\n1 1 1 0 0 0 0\n1 1 1 0 0\n");
+  const std::string p =
+      test::write_temp_file("bad.instances.txt", "# header\n1 1 1 0 0 0 0\n1 1 1 0 0\n");
   try {
     load_instance_transforms(p);
     FAIL();
@@ -347,8 +362,10 @@ TEST(GltfInstances, MatchTheFlatteningLoaderAndShareMeshes) {
     const char* rel;
     size_t meshes, instances;
   };
-  for (const Case& c : {Case{"gltf_truck_fleet/truck_fleet.gltf", 2, 192}, Case{"gltf_cesium_milk_truck/CesiumMilkTruck.gltf", 2, 3},
-                        Case{"gltf_box_animated/BoxAnimated.gltf", 2, 2}, Case{"gltf_flight_helmet/FlightHelmet.gltf", 6, 6}}) {
+  for (const Case& c : {Case{"gltf_truck_fleet/truck_fleet.gltf", 2, 192},
+                        Case{"gltf_cesium_milk_truck/CesiumMilkTruck.gltf", 2, 3},
+                        Case{"gltf_box_animated/BoxAnimated.gltf", 2, 2},
+                        Case{"gltf_flight_helmet/FlightHelmet.gltf", 6, 6}}) {
     auto path = test::shared_scene(c.rel);
     if (!path) GTEST_SKIP() << "shared scenes absent";
     GltfInstances g = GltfInstances::load(*path);
@@ -384,7 +401,9 @@ TEST(GltfInstances, AnimationsMoveInstancesAndMorphMeshes) {
   const CommitStats st = s.commit();
   EXPECT_EQ(st.blas_builds + st.blas_refits, 0u);  // rigid motion: the TLAS only
   const Bounds3 b1 = bounds_of(s.flatten());
-  EXPECT_GT(std::fabs(b1.hi.y - b0.hi.y) + std::fabs(b1.lo.x - b0.lo.x) + std::fabs(b1.hi.z - b0.hi.z), 1e-3f);
+  EXPECT_GT(
+      std::fabs(b1.hi.y - b0.hi.y) + std::fabs(b1.lo.x - b0.lo.x) + std::fabs(b1.hi.z - b0.hi.z),
+      1e-3f);
   expect_matches_flattened(s, {0, 1}, "box at 1.5 s");
 
   GltfInstances cube = GltfInstances::load(*cube_path);
@@ -580,8 +599,11 @@ TEST(GltfInstances, SyntheticAnimatedFileFollowsItsClip) {
 // scenes): one mesh, sixteen transforms, flattened as the transforms say.
 TEST(Instances, SyntheticInstancesFilePlacesOneMeshSixteenTimes) {
   std::string text = "# sx sy sz tx ty tz rot_y_deg\n";
-  for (int i = 0; i < 16; ++i) text += fmt::format("{} {} {} {} 0 {} {}\n", 0.5 + 0.1 * (i % 3), 1, 0.5, 2 * (i % 4), 2 * (i / 4), 22.5 * i);
-  const std::vector<Affine3> t = load_instance_transforms(test::write_temp_file("synthetic.instances.txt", text));
+  for (int i = 0; i < 16; ++i)
+    text += fmt::format("{} {} {} {} 0 {} {}\n", 0.5 + 0.1 * (i % 3), 1, 0.5, 2 * (i % 4),
+                        2 * (i / 4), 22.5 * i);
+  const std::vector<Affine3> t =
+      load_instance_transforms(test::write_temp_file("synthetic.instances.txt", text));
   ASSERT_EQ(t.size(), 16u);
   InstancedScene s;
   const TriangleMesh mesh = test::closed_sphere(2, {0, 0.5f, 0}, 0.4f).meshes[0];
@@ -596,7 +618,8 @@ TEST(Instances, SyntheticInstancesFilePlacesOneMeshSixteenTimes) {
     const float rad = float(22.5 * double(k) * 3.14159265358979 / 180.0);
     const Vec3 p = mesh.positions[0], q = flat.meshes[k].positions[0];
     const float sx = 0.5f + 0.1f * float(k % 3);
-    const Vec3 want{std::cos(rad) * sx * p.x + std::sin(rad) * 0.5f * p.z + 2.0f * float(k % 4), p.y,
+    const Vec3 want{std::cos(rad) * sx * p.x + std::sin(rad) * 0.5f * p.z + 2.0f * float(k % 4),
+                    p.y,
                     -std::sin(rad) * sx * p.x + std::cos(rad) * 0.5f * p.z + 2.0f * float(k / 4)};
     EXPECT_NEAR(q.x, want.x, 1e-4f) << k;
     EXPECT_NEAR(q.y, want.y, 1e-4f) << k;

@@ -19,9 +19,15 @@ uint64_t Rng::next() {
   z = (z ^ (z >> 27)) * 0x94D049BB133111EBull;
   return z ^ (z >> 31);
 }
-float Rng::uniform() { return float(next() >> 40) * (1.0f / 16777216.0f); }
-float Rng::uniform(float lo, float hi) { return lo + (hi - lo) * uniform(); }
-Vec3 Rng::in_box(Vec3 lo, Vec3 hi) { return {uniform(lo.x, hi.x), uniform(lo.y, hi.y), uniform(lo.z, hi.z)}; }
+float Rng::uniform() {
+  return float(next() >> 40) * (1.0f / 16777216.0f);
+}
+float Rng::uniform(float lo, float hi) {
+  return lo + (hi - lo) * uniform();
+}
+Vec3 Rng::in_box(Vec3 lo, Vec3 hi) {
+  return {uniform(lo.x, hi.x), uniform(lo.y, hi.y), uniform(lo.z, hi.z)};
+}
 Vec3 Rng::on_sphere() {
   const float z = uniform(-1.0f, 1.0f), phi = uniform(0.0f, 6.2831853f);
   const float r = std::sqrt(std::max(0.0f, 1.0f - z * z));
@@ -48,12 +54,12 @@ Scene random_soup(size_t n, float size, uint64_t seed) {
 
 Scene closed_sphere(int subdivisions, Vec3 c, float radius) {
   const float t = (1.0f + std::sqrt(5.0f)) / 2.0f;
-  std::vector<Vec3> v = {{-1, t, 0}, {1, t, 0}, {-1, -t, 0}, {1, -t, 0}, {0, -1, t}, {0, 1, t},
-                         {0, -1, -t}, {0, 1, -t}, {t, 0, -1}, {t, 0, 1}, {-t, 0, -1}, {-t, 0, 1}};
+  std::vector<Vec3> v = {{-1, t, 0},  {1, t, 0},  {-1, -t, 0}, {1, -t, 0}, {0, -1, t},  {0, 1, t},
+                         {0, -1, -t}, {0, 1, -t}, {t, 0, -1},  {t, 0, 1},  {-t, 0, -1}, {-t, 0, 1}};
   for (Vec3& p : v) p = normalize(p);
-  std::vector<uint32_t> f = {0, 11, 5, 0, 5, 1, 0, 1, 7, 0, 7, 10, 0, 10, 11, 1, 5, 9, 5, 11, 4, 11, 10, 2, 10, 7, 6,
-                             7, 1, 8, 3, 9, 4, 3, 4, 2, 3, 2, 6, 3, 6, 8, 3, 8, 9, 4, 9, 5, 2, 4, 11, 6, 2, 10, 8, 6, 7,
-                             9, 8, 1};
+  std::vector<uint32_t> f = {0, 11, 5,  0, 5,  1, 0, 1, 7, 0, 7,  10, 0, 10, 11, 1, 5, 9, 5, 11,
+                             4, 11, 10, 2, 10, 7, 6, 7, 1, 8, 3,  9,  4, 3,  4,  2, 3, 2, 6, 3,
+                             6, 8,  3,  8, 9,  4, 9, 5, 2, 4, 11, 6,  2, 10, 8,  6, 7, 9, 8, 1};
   for (int s = 0; s < subdivisions; ++s) {
     std::map<std::pair<uint32_t, uint32_t>, uint32_t> mid;
     auto midpoint = [&](uint32_t a, uint32_t b) {
@@ -86,8 +92,10 @@ Scene closed_box(Vec3 lo, Vec3 hi) {
   Scene scene;
   scene.source = "test:box";
   TriangleMesh mesh;
-  for (int i = 0; i < 8; ++i) mesh.positions.push_back({i & 1 ? hi.x : lo.x, i & 2 ? hi.y : lo.y, i & 4 ? hi.z : lo.z});
-  mesh.indices = {0, 2, 1, 1, 2, 3, 4, 5, 6, 5, 7, 6, 0, 1, 4, 1, 5, 4, 2, 6, 3, 3, 6, 7, 0, 4, 2, 2, 4, 6, 1, 3, 5, 3, 7, 5};
+  for (int i = 0; i < 8; ++i)
+    mesh.positions.push_back({i & 1 ? hi.x : lo.x, i & 2 ? hi.y : lo.y, i & 4 ? hi.z : lo.z});
+  mesh.indices = {0, 2, 1, 1, 2, 3, 4, 5, 6, 5, 7, 6, 0, 1, 4, 1, 5, 4,
+                  2, 6, 3, 3, 6, 7, 0, 4, 2, 2, 4, 6, 1, 3, 5, 3, 7, 5};
   mesh.material_ids.assign(12, 0);
   scene.meshes.push_back(std::move(mesh));
   scene.materials.push_back(Material{});
@@ -102,11 +110,20 @@ std::vector<Ray> random_rays(size_t n, uint64_t seed) {
     r.org = rng.in_box({-0.5f, -0.5f, -0.5f}, {1.5f, 1.5f, 1.5f});
     r.dir = rng.in_box({0, 0, 0}, {1, 1, 1}) - r.org;
     switch (i % 8) {
-      case 1: r.dir.x = 0; break;                  // parallel to the yz plane
-      case 2: r.dir.y = r.dir.z = 0; break;        // along x
-      case 3: r.tmax = rng.uniform(0.2f, 1.0f); break;
-      case 4: r.tmin = rng.uniform(0.1f, 0.6f); break;
-      default: break;
+      case 1:
+        r.dir.x = 0;
+        break;  // parallel to the yz plane
+      case 2:
+        r.dir.y = r.dir.z = 0;
+        break;  // along x
+      case 3:
+        r.tmax = rng.uniform(0.2f, 1.0f);
+        break;
+      case 4:
+        r.tmin = rng.uniform(0.1f, 0.6f);
+        break;
+      default:
+        break;
     }
     if (r.dir.x == 0 && r.dir.y == 0 && r.dir.z == 0) r.dir = {0, 0, 1};
   }
@@ -145,7 +162,8 @@ std::string base64(const std::string& bytes) {
   std::string out;
   size_t i = 0;
   for (; i + 2 < bytes.size(); i += 3) {
-    const uint32_t v = uint32_t(uint8_t(bytes[i])) << 16 | uint32_t(uint8_t(bytes[i + 1])) << 8 | uint8_t(bytes[i + 2]);
+    const uint32_t v = uint32_t(uint8_t(bytes[i])) << 16 | uint32_t(uint8_t(bytes[i + 1])) << 8 |
+                       uint8_t(bytes[i + 2]);
     out += {t[v >> 18], t[(v >> 12) & 63], t[(v >> 6) & 63], t[v & 63]};
   }
   if (i + 1 == bytes.size()) {
@@ -164,27 +182,36 @@ std::string write_animated_gltf(const std::string& name) {
   const TriangleMesh soup = random_soup(60, 0.3f, 5).meshes[0];
   std::string bin;
   std::string views, accessors;
-  auto add = [&](const void* data, size_t bytes, size_t count, const char* type, int component, const std::string& extra) {
+  auto add = [&](const void* data, size_t bytes, size_t count, const char* type, int component,
+                 const std::string& extra) {
     const size_t offset = bin.size();
     bin.append(static_cast<const char*>(data), bytes);
     while (bin.size() % 4) bin.push_back('\0');
     const size_t index = std::count(views.begin(), views.end(), '{');
-    views += fmt::format("{}{{\"buffer\": 0, \"byteOffset\": {}, \"byteLength\": {}}}", views.empty() ? "" : ", ", offset, bytes);
-    accessors += fmt::format("{}{{\"bufferView\": {}, \"componentType\": {}, \"count\": {}, \"type\": \"{}\"{}}}",
-                             accessors.empty() ? "" : ", ", index, component, count, type, extra);
+    views += fmt::format("{}{{\"buffer\": 0, \"byteOffset\": {}, \"byteLength\": {}}}",
+                         views.empty() ? "" : ", ", offset, bytes);
+    accessors += fmt::format(
+        "{}{{\"bufferView\": {}, \"componentType\": {}, \"count\": {}, \"type\": \"{}\"{}}}",
+        accessors.empty() ? "" : ", ", index, component, count, type, extra);
     return index;
   };
   auto bounds = [](const std::vector<Vec3>& p) {
     Bounds3 b;
     for (const Vec3& v : p) extend(b, v);
-    return fmt::format(", \"min\": [{}, {}, {}], \"max\": [{}, {}, {}]", b.lo.x, b.lo.y, b.lo.z, b.hi.x, b.hi.y, b.hi.z);
+    return fmt::format(", \"min\": [{}, {}, {}], \"max\": [{}, {}, {}]", b.lo.x, b.lo.y, b.lo.z,
+                       b.hi.x, b.hi.y, b.hi.z);
   };
-  const size_t box_pos = add(box.positions.data(), box.positions.size() * 12, box.positions.size(), "VEC3", 5126, bounds(box.positions));
-  const size_t box_idx = add(box.indices.data(), box.indices.size() * 4, box.indices.size(), "SCALAR", 5125, "");
-  const size_t soup_pos = add(soup.positions.data(), soup.positions.size() * 12, soup.positions.size(), "VEC3", 5126, bounds(soup.positions));
-  const size_t soup_idx = add(soup.indices.data(), soup.indices.size() * 4, soup.indices.size(), "SCALAR", 5125, "");
+  const size_t box_pos = add(box.positions.data(), box.positions.size() * 12, box.positions.size(),
+                             "VEC3", 5126, bounds(box.positions));
+  const size_t box_idx =
+      add(box.indices.data(), box.indices.size() * 4, box.indices.size(), "SCALAR", 5125, "");
+  const size_t soup_pos = add(soup.positions.data(), soup.positions.size() * 12,
+                              soup.positions.size(), "VEC3", 5126, bounds(soup.positions));
+  const size_t soup_idx =
+      add(soup.indices.data(), soup.indices.size() * 4, soup.indices.size(), "SCALAR", 5125, "");
   const std::vector<Vec3> delta(soup.positions.size(), Vec3{0, 0.3f, 0});
-  const size_t soup_target = add(delta.data(), delta.size() * 12, delta.size(), "VEC3", 5126, bounds(delta));
+  const size_t soup_target =
+      add(delta.data(), delta.size() * 12, delta.size(), "VEC3", 5126, bounds(delta));
   const float times[2] = {0, 2}, moves[6] = {0, 0, 0, 0, 1, 0}, weights[2] = {0, 1};
   const size_t t_acc = add(times, 8, 2, "SCALAR", 5126, ", \"min\": [0], \"max\": [2]");
   const size_t move_acc = add(moves, 24, 2, "VEC3", 5126, "");
@@ -202,8 +229,8 @@ std::string write_animated_gltf(const std::string& name) {
   "animations": [{{"channels": [{{"sampler": 0, "target": {{"node": 0, "path": "translation"}}}},
                                {{"sampler": 1, "target": {{"node": 2, "path": "weights"}}}}],
                   "samplers": [{{"input": {}, "output": {}}}, {{"input": {}, "output": {}}}]}}]}})",
-      bin.size(), base64(bin), views, accessors, box_pos, box_idx, soup_pos, soup_idx, soup_target, t_acc, move_acc, t_acc,
-      weight_acc);
+      bin.size(), base64(bin), views, accessors, box_pos, box_idx, soup_pos, soup_idx, soup_target,
+      t_acc, move_acc, t_acc, weight_acc);
   return write_temp_file(name, json);
 }
 

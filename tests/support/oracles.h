@@ -13,10 +13,10 @@ namespace kestrel::test {
 struct Rng {
   uint64_t state;
   uint64_t next();
-  float uniform();                       ///< [0, 1)
+  float uniform();  ///< [0, 1)
   float uniform(float lo, float hi);
   Vec3 in_box(Vec3 lo, Vec3 hi);
-  Vec3 on_sphere();                      ///< unit vector, uniform
+  Vec3 on_sphere();  ///< unit vector, uniform
 };
 
 /// n random triangles in the unit cube with edge lengths up to `size` (a soup: overlaps,

@@ -31,7 +31,8 @@ struct Close {
   float abs_distance;  // world units
   bool operator()(float a, float b, const Ray& r) const {
     const float len = std::sqrt(r.dir.x * r.dir.x + r.dir.y * r.dir.y + r.dir.z * r.dir.z);
-    return std::fabs(a - b) <= 1e-4f * std::max(std::fabs(a), std::fabs(b)) || std::fabs(a - b) * len <= abs_distance;
+    return std::fabs(a - b) <= 1e-4f * std::max(std::fabs(a), std::fabs(b)) ||
+           std::fabs(a - b) * len <= abs_distance;
   }
 };
 
@@ -45,13 +46,15 @@ TEST_P(EmbreeDiff, SameClosestHitsAndOcclusionAsEmbree) {
   ASSERT_TRUE(cam.has_value());
   const Accel reference = build_accel(scene, BuildConfig{});
   const Bounds3 box = tools::scene_bounds(scene);
-  const Close close{1e-6f * std::sqrt((box.hi.x - box.lo.x) * (box.hi.x - box.lo.x) + (box.hi.y - box.lo.y) * (box.hi.y - box.lo.y) +
+  const Close close{1e-6f * std::sqrt((box.hi.x - box.lo.x) * (box.hi.x - box.lo.x) +
+                                      (box.hi.y - box.lo.y) * (box.hi.y - box.lo.y) +
                                       (box.hi.z - box.lo.z) * (box.hi.z - box.lo.z))};
   std::vector<Ray> rays = tools::primary_rays(*cam, GetParam().width, GetParam().height);
   const size_t primary_count = rays.size();
   for (auto kind : {tools::RayKind::diffuse, tools::RayKind::shadow}) {
-    auto more = tools::secondary_rays(reference, scene, std::vector<Ray>(rays.begin(), rays.begin() + primary_count), kind,
-                                      tools::default_light(tools::scene_bounds(scene)), 5);
+    auto more = tools::secondary_rays(reference, scene,
+                                      std::vector<Ray>(rays.begin(), rays.begin() + primary_count),
+                                      kind, tools::default_light(tools::scene_bounds(scene)), 5);
     rays.insert(rays.end(), more.begin(), more.end());
   }
   std::vector<Hit> want(rays.size());
@@ -85,34 +88,40 @@ TEST_P(EmbreeDiff, SameClosestHitsAndOcclusionAsEmbree) {
         const Triangle& tri = soup.triangles[w.prim_id];
         const Vec3 e1{tri.v1.x - tri.v0.x, tri.v1.y - tri.v0.y, tri.v1.z - tri.v0.z};
         const Vec3 e2{tri.v2.x - tri.v0.x, tri.v2.y - tri.v0.y, tri.v2.z - tri.v0.z};
-        const Vec3 n{e1.y * e2.z - e1.z * e2.y, e1.z * e2.x - e1.x * e2.z, e1.x * e2.y - e1.y * e2.x};
+        const Vec3 n{e1.y * e2.z - e1.z * e2.y, e1.z * e2.x - e1.x * e2.z,
+                     e1.x * e2.y - e1.y * e2.x};
         const Vec3& d = rays[i].dir;
-        const double cosine = std::fabs(double(n.x) * d.x + double(n.y) * d.y + double(n.z) * d.z) /
-                              (std::sqrt(double(n.x) * n.x + double(n.y) * n.y + double(n.z) * n.z) *
-                               std::sqrt(double(d.x) * d.x + double(d.y) * d.y + double(d.z) * d.z));
-        ASSERT_LT(cosine, 0.01) << builder_name(b) << " ray " << i << ": t " << g.t << " vs Embree " << w.t;
+        const double cosine =
+            std::fabs(double(n.x) * d.x + double(n.y) * d.y + double(n.z) * d.z) /
+            (std::sqrt(double(n.x) * n.x + double(n.y) * n.y + double(n.z) * n.z) *
+             std::sqrt(double(d.x) * d.x + double(d.y) * d.y + double(d.z) * d.z));
+        ASSERT_LT(cosine, 0.01) << builder_name(b) << " ray " << i << ": t " << g.t << " vs Embree "
+                                << w.t;
         ++grazing;
         continue;
       }
       // A different primitive: it must be hit at the same distance (shared edge, duplicate).
       float t = 0, u, v;
-      const bool ours_on_theirs = intersect_triangle(WatertightRay(rays[i]), soup.triangles[w.prim_id], rays[i].tmin,
-                                                     rays[i].tmax, t, u, v);
+      const bool ours_on_theirs = intersect_triangle(
+          WatertightRay(rays[i]), soup.triangles[w.prim_id], rays[i].tmin, rays[i].tmax, t, u, v);
       if (ours_on_theirs && close(t, g.t, rays[i]) && close(g.t, w.t, rays[i])) continue;
       ++grazing;
     }
-    for (size_t i = 0; i < rays.size(); ++i) occlusion_mismatch += any[i].hit() != bool(occluded[i]);
+    for (size_t i = 0; i < rays.size(); ++i)
+      occlusion_mismatch += any[i].hit() != bool(occluded[i]);
     // At most 1 in 20,000 rays may disagree, and only at grazing edges.
     EXPECT_LE(grazing, rays.size() / 20000 + 1) << builder_name(b);
     EXPECT_LE(occlusion_mismatch, rays.size() / 20000 + 1) << builder_name(b);
     EXPECT_GT(hits, rays.size() / 20) << builder_name(b);
-    RecordProperty(std::string(builder_name(b)) + "_disagreements", int(grazing + occlusion_mismatch));
+    RecordProperty(std::string(builder_name(b)) + "_disagreements",
+                   int(grazing + occlusion_mismatch));
   }
 }
 
 INSTANTIATE_TEST_SUITE_P(
     Shared, EmbreeDiff,
-    ::testing::Values(Case{"cornell_box/cornell_box.obj", "framing", 160, 120}, Case{"teapot/teapot.obj", "framing", 160, 120},
+    ::testing::Values(Case{"cornell_box/cornell_box.obj", "framing", 160, 120},
+                      Case{"teapot/teapot.obj", "framing", 160, 120},
                       Case{"dabrovic_sponza/sponza.obj", "inside", 160, 90},
                       Case{"stanford_bunny/stanford_bunny.obj", "framing", 160, 120},
                       Case{"lamborghini/lamborghini.obj", "framing", 160, 90},

@@ -27,7 +27,8 @@ TEST(Triangle, AnalyticHitDistanceAndBarycentrics) {
   EXPECT_FLOAT_EQ(t, 2.5f);  // units of dir: |dir| = 2
   EXPECT_FLOAT_EQ(u, 0.25f);
   EXPECT_FLOAT_EQ(v, 0.125f);
-  EXPECT_FALSE(intersect_triangle(WatertightRay(ray), tri, 0.0f, 2.5f, t, u, v));  // t must be < tmax
+  EXPECT_FALSE(
+      intersect_triangle(WatertightRay(ray), tri, 0.0f, 2.5f, t, u, v));  // t must be < tmax
   EXPECT_FALSE(intersect_triangle(WatertightRay(ray), tri, 2.5f, INFINITY, t, u, v));  // and > tmin
   const Ray away{{0.5f, 0.25f, 0}, {0, 0, -1}};
   EXPECT_FALSE(intersect_triangle(WatertightRay(away), tri, 0.0f, INFINITY, t, u, v));
@@ -57,7 +58,8 @@ TEST_P(Watertight, RaysThroughEdgesAndVerticesNeverSlipThrough) {
         ASSERT_TRUE(intersect(accel, in).hit()) << "triangle " << t << " edge " << k << " s " << s;
         ASSERT_TRUE(intersect_any(accel, in).hit());
         const Ray out{{0.3f, -0.2f, 0.1f}, target - Vec3{0.3f, -0.2f, 0.1f}};
-        ASSERT_TRUE(intersect(accel, out).hit()) << "escaped through triangle " << t << " edge " << k;
+        ASSERT_TRUE(intersect(accel, out).hit())
+            << "escaped through triangle " << t << " edge " << k;
         rays += 2;
       }
     }
@@ -86,11 +88,17 @@ INSTANTIATE_TEST_SUITE_P(Builders, Watertight, ::testing::ValuesIn(test::all_bui
 
 TEST(Rays, NonFiniteAndDegenerateRaysMiss) {
   const Accel accel = build_accel(test::closed_box({-1, -1, -1}, {1, 1, 1}), BuildConfig{});
-  const float nan = std::numeric_limits<float>::quiet_NaN(), inf = std::numeric_limits<float>::infinity();
+  const float nan = std::numeric_limits<float>::quiet_NaN(),
+              inf = std::numeric_limits<float>::infinity();
   const Ray bad[] = {
-      {{nan, 0, 0}, {0, 0, 1}}, {{0, 0, 0}, {nan, 0, 1}}, {{0, 0, 0}, {0, 0, 0}},
-      {{inf, 0, 0}, {-1, 0, 0}}, {{0, 0, 0}, {0, inf, 0}}, {{0, 0, 0}, {0, 0, 1}, nan, inf},
-      {{0, 0, 0}, {0, 0, 1}, 0.0f, nan}, {{0, 0, 0}, {0, 0, 1}, 2.0f, 1.0f},
+      {{nan, 0, 0}, {0, 0, 1}},
+      {{0, 0, 0}, {nan, 0, 1}},
+      {{0, 0, 0}, {0, 0, 0}},
+      {{inf, 0, 0}, {-1, 0, 0}},
+      {{0, 0, 0}, {0, inf, 0}},
+      {{0, 0, 0}, {0, 0, 1}, nan, inf},
+      {{0, 0, 0}, {0, 0, 1}, 0.0f, nan},
+      {{0, 0, 0}, {0, 0, 1}, 2.0f, 1.0f},
   };
   for (const Ray& r : bad) {
     EXPECT_FALSE(intersect(accel, r).hit());
@@ -102,7 +110,8 @@ TEST(Rays, TminAndTmaxAreHonoured) {
   const Accel accel = build_accel(test::closed_box({-1, -1, -1}, {1, 1, 1}), BuildConfig{});
   const Ray r{{0.1f, 0.2f, -3}, {0, 0, 1}};
   EXPECT_FLOAT_EQ(intersect(accel, r).t, 2.0f);
-  EXPECT_FLOAT_EQ(intersect(accel, Ray{r.org, r.dir, 2.5f, INFINITY}).t, 4.0f);  // skip the near face
+  EXPECT_FLOAT_EQ(intersect(accel, Ray{r.org, r.dir, 2.5f, INFINITY}).t,
+                  4.0f);  // skip the near face
   EXPECT_FALSE(intersect(accel, Ray{r.org, r.dir, 0.0f, 1.99f}).hit());
   EXPECT_FALSE(intersect(accel, Ray{r.org, r.dir, 4.01f, INFINITY}).hit());
   EXPECT_FALSE(intersect_any(accel, Ray{r.org, r.dir, 2.01f, 3.99f}).hit());

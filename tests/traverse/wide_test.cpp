@@ -31,7 +31,8 @@ uint32_t bits(float f) {
 }
 
 // Traces rays through every (layout, ISA) and compares with the Bvh2 reference.
-void expect_same_as_reference(const Scene& scene, std::span<const Ray> rays, Builder builder, const std::string& what) {
+void expect_same_as_reference(const Scene& scene, std::span<const Ray> rays, Builder builder,
+                              const std::string& what) {
   const Accel ref = build(scene, builder, Layout::bvh2);
   std::vector<Hit> want(rays.size()), want_any(rays.size());
   trace(ref, rays, want, false);
@@ -41,7 +42,8 @@ void expect_same_as_reference(const Scene& scene, std::span<const Ray> rays, Bui
   for (Layout layout : {Layout::bvh4, Layout::bvh8}) {
     const Accel wide = build(scene, builder, layout);
     for (Isa isa : test::supported_isas()) {
-      SCOPED_TRACE(what + " " + layout_name(layout) + " " + isa_name(isa) + " " + builder_name(builder));
+      SCOPED_TRACE(what + " " + layout_name(layout) + " " + isa_name(isa) + " " +
+                   builder_name(builder));
       for (bool packets : {false, true}) {
         std::vector<Hit> got(rays.size());
         TraceOptions opt;
@@ -50,7 +52,8 @@ void expect_same_as_reference(const Scene& scene, std::span<const Ray> rays, Bui
         trace(wide, rays, got, opt);
         for (size_t i = 0; i < rays.size(); ++i) {
           ASSERT_EQ(got[i].prim_id, want[i].prim_id) << "ray " << i << " packets " << packets;
-          ASSERT_EQ(bits(got[i].t), bits(want[i].t)) << "ray " << i << " t " << got[i].t << " vs " << want[i].t;
+          ASSERT_EQ(bits(got[i].t), bits(want[i].t))
+              << "ray " << i << " t " << got[i].t << " vs " << want[i].t;
           ASSERT_EQ(got[i].u, want[i].u) << "ray " << i;
           ASSERT_EQ(got[i].v, want[i].v) << "ray " << i;
         }
@@ -59,7 +62,8 @@ void expect_same_as_reference(const Scene& scene, std::span<const Ray> rays, Bui
       TraceOptions opt;
       opt.isa = isa;
       occluded(wide, rays, occ, opt);
-      for (size_t i = 0; i < rays.size(); ++i) ASSERT_EQ(bool(occ[i]), want_any[i].hit()) << "ray " << i;
+      for (size_t i = 0; i < rays.size(); ++i)
+        ASSERT_EQ(bool(occ[i]), want_any[i].hit()) << "ray " << i;
     }
   }
   EXPECT_GT(hits, rays.size() / 20) << what;  // the comparison is not vacuous
@@ -99,10 +103,12 @@ TEST(WideKernels, ClosedBoxAxisParallelAndEdgeRays) {
 TEST(WideKernels, UntraceableRaysMissInEveryKernel) {
   const Scene scene = test::random_soup(200, 0.3f, 1);
   const float nan = std::nanf(""), inf = INFINITY;
-  const std::vector<Ray> rays = {
-      {{nan, 0.5f, 0.5f}, {1, 0, 0}}, {{0.5f, 0.5f, -1}, {0, 0, nan}}, {{0.5f, 0.5f, -1}, {0, 0, 0}},
-      {{inf, 0.5f, 0.5f}, {-1, 0, 0}}, {{0.5f, 0.5f, -1}, {0, 0, 1}, 2.0f, 1.0f},  // tmin > tmax
-      {{0.5f, 0.5f, -1}, {0, 0, 1}, 0.0f, nan}};
+  const std::vector<Ray> rays = {{{nan, 0.5f, 0.5f}, {1, 0, 0}},
+                                 {{0.5f, 0.5f, -1}, {0, 0, nan}},
+                                 {{0.5f, 0.5f, -1}, {0, 0, 0}},
+                                 {{inf, 0.5f, 0.5f}, {-1, 0, 0}},
+                                 {{0.5f, 0.5f, -1}, {0, 0, 1}, 2.0f, 1.0f},  // tmin > tmax
+                                 {{0.5f, 0.5f, -1}, {0, 0, 1}, 0.0f, nan}};
   for (Layout layout : {Layout::bvh2, Layout::bvh4, Layout::bvh8}) {
     const Accel a = build(scene, Builder::binned, layout);
     for (Isa isa : test::supported_isas()) {
@@ -135,7 +141,8 @@ TEST(WideKernels, EmptySceneAndSingleTriangle) {
 // closed box around a sphere and a soup: rays bounce inside, as in an interior).
 TEST(WideKernels, ScenesPrimaryShadowDiffuse) {
   std::vector<std::pair<std::string, Scene>> scenes;
-  for (const char* rel : {"teapot/teapot.obj", "cornell_box/cornell_box.obj", "dabrovic_sponza/sponza.obj"})
+  for (const char* rel :
+       {"teapot/teapot.obj", "cornell_box/cornell_box.obj", "dabrovic_sponza/sponza.obj"})
     if (auto path = test::shared_scene(rel)) scenes.emplace_back(rel, load_scene(*path));
   scenes.emplace_back("builtin:cornell_box", load_scene("builtin:cornell_box"));
   Scene room = test::closed_box({-2, -1, -2}, {2, 2, 2});
@@ -145,8 +152,9 @@ TEST(WideKernels, ScenesPrimaryShadowDiffuse) {
   scenes.emplace_back("synthetic room", std::move(room));
   for (const auto& [rel, scene] : scenes) {
     const std::string view = rel.find("sponza") != std::string::npos ? "inside" : "framing";
-    auto cam = rel == "synthetic room" ? std::optional(tools::PinholeCamera{{-1.5f, 0.5f, -1.5f}, {0.3f, 0, 0.2f}, 70})
-                                       : tools::named_view(scene, view);
+    auto cam = rel == "synthetic room"
+                   ? std::optional(tools::PinholeCamera{{-1.5f, 0.5f, -1.5f}, {0.3f, 0, 0.2f}, 70})
+                   : tools::named_view(scene, view);
     ASSERT_TRUE(cam.has_value());
     BuildConfig c;
     c.layout = Layout::bvh2;
@@ -154,7 +162,8 @@ TEST(WideKernels, ScenesPrimaryShadowDiffuse) {
     std::vector<Ray> rays = tools::primary_rays(*cam, 96, 64);
     const std::vector<Ray> primary = rays;
     for (auto kind : {tools::RayKind::shadow, tools::RayKind::diffuse}) {
-      auto more = tools::secondary_rays(ref, scene, primary, kind, tools::default_light(tools::scene_bounds(scene)), 11);
+      auto more = tools::secondary_rays(ref, scene, primary, kind,
+                                        tools::default_light(tools::scene_bounds(scene)), 11);
       rays.insert(rays.end(), more.begin(), more.end());
     }
     expect_same_as_reference(scene, rays, Builder::binned, rel);
@@ -180,8 +189,12 @@ TEST(WideLayout, EveryPrimitiveInExactlyOneLeafAndBoxesEnclose) {
     size_t children = 0;
     for (size_t i = 0; i < node_count; ++i) {
       for (int j = 0; j < W; ++j) {
-        const uint32_t ref = W == 4 ? a.nodes->bvh4.nodes[i].child[j] : a.nodes->bvh8.nodes[i].child[j];
-        auto bound = [&](int row) { return W == 4 ? a.nodes->bvh4.nodes[i].bounds[row][j] : a.nodes->bvh8.nodes[i].bounds[row][j]; };
+        const uint32_t ref =
+            W == 4 ? a.nodes->bvh4.nodes[i].child[j] : a.nodes->bvh8.nodes[i].child[j];
+        auto bound = [&](int row) {
+          return W == 4 ? a.nodes->bvh4.nodes[i].bounds[row][j]
+                        : a.nodes->bvh8.nodes[i].bounds[row][j];
+        };
         if (ref == wide_empty) continue;
         ++children;
         if (!(ref & wide_leaf_bit)) {
@@ -203,16 +216,19 @@ TEST(WideLayout, EveryPrimitiveInExactlyOneLeafAndBoxesEnclose) {
         }
       }
     }
-    for (size_t id = 0; id < seen.size(); ++id) ASSERT_EQ(seen[id], soup.valid[id] ? 1 : 0) << "prim " << id;
-    EXPECT_EQ(children, node_count - 1 + [&] {
-      size_t leaves = 0;
-      for (size_t i = 0; i < node_count; ++i)
-        for (int j = 0; j < W; ++j) {
-          const uint32_t ref = W == 4 ? a.nodes->bvh4.nodes[i].child[j] : a.nodes->bvh8.nodes[i].child[j];
-          leaves += ref != wide_empty && (ref & wide_leaf_bit);
-        }
-      return leaves;
-    }());
+    for (size_t id = 0; id < seen.size(); ++id)
+      ASSERT_EQ(seen[id], soup.valid[id] ? 1 : 0) << "prim " << id;
+    EXPECT_EQ(
+        children, node_count - 1 + [&] {
+          size_t leaves = 0;
+          for (size_t i = 0; i < node_count; ++i)
+            for (int j = 0; j < W; ++j) {
+              const uint32_t ref =
+                  W == 4 ? a.nodes->bvh4.nodes[i].child[j] : a.nodes->bvh8.nodes[i].child[j];
+              leaves += ref != wide_empty && (ref & wide_leaf_bit);
+            }
+          return leaves;
+        }());
   }
 }
 
@@ -224,7 +240,8 @@ TEST(Refit, MatchesFreshBuildOnEveryLayout) {
   for (Layout layout : {Layout::bvh2, Layout::bvh4, Layout::bvh8}) {
     Scene moving = scene;
     Accel accel = build(moving, Builder::binned, layout);
-    for (Vec3& p : moving.meshes[0].positions) p = {p.x + 0.3f * p.y * p.y, p.y * 0.8f + 0.1f, p.z - 0.2f * p.x};
+    for (Vec3& p : moving.meshes[0].positions)
+      p = {p.x + 0.3f * p.y * p.y, p.y * 0.8f + 0.1f, p.z - 0.2f * p.x};
     refit_accel(accel, moving);
     const Accel fresh = build(moving, Builder::binned, Layout::bvh2);
     const test::Soup soup = test::flatten(moving);

@@ -20,11 +20,21 @@ struct Vec4f {
     return f[i];
   }
 };
-inline Vec4f operator+(Vec4f a, Vec4f b) { return Vec4f(_mm_add_ps(a.v, b.v)); }
-inline Vec4f operator-(Vec4f a, Vec4f b) { return Vec4f(_mm_sub_ps(a.v, b.v)); }
-inline Vec4f operator*(Vec4f a, Vec4f b) { return Vec4f(_mm_mul_ps(a.v, b.v)); }
-inline Vec4f min(Vec4f a, Vec4f b) { return Vec4f(_mm_min_ps(a.v, b.v)); }
-inline Vec4f max(Vec4f a, Vec4f b) { return Vec4f(_mm_max_ps(a.v, b.v)); }
+inline Vec4f operator+(Vec4f a, Vec4f b) {
+  return Vec4f(_mm_add_ps(a.v, b.v));
+}
+inline Vec4f operator-(Vec4f a, Vec4f b) {
+  return Vec4f(_mm_sub_ps(a.v, b.v));
+}
+inline Vec4f operator*(Vec4f a, Vec4f b) {
+  return Vec4f(_mm_mul_ps(a.v, b.v));
+}
+inline Vec4f min(Vec4f a, Vec4f b) {
+  return Vec4f(_mm_min_ps(a.v, b.v));
+}
+inline Vec4f max(Vec4f a, Vec4f b) {
+  return Vec4f(_mm_max_ps(a.v, b.v));
+}
 /// Truncating float -> int32 per lane, stored to out[4].
 inline void to_int(Vec4f a, int* out) {
   _mm_storeu_si128(reinterpret_cast<__m128i*>(out), _mm_cvttps_epi32(a.v));
