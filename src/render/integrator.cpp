@@ -49,7 +49,175 @@ Vec3 offset_origin(Vec3 p, Vec3 n) {
   return p + n * (2e-5f * scale);
 }
 
+// One sample of a pixel into the sums: a NaN/Inf radiance is dropped (not smeared), then
+// clamped when asked; the luminance's running mean and M2 (Welford) give the variance AOV.
+void add_sample(Accumulator& acc, size_t p, Vec3 L, const PixelSample& o, float clamp) {
+  if (!is_finite(L)) L = {0, 0, 0};
+  if (clamp > 0) {
+    const float m = std::max({L.x, L.y, L.z});
+    if (m > clamp) L = L * (clamp / m);
+  }
+  for (int c = 0; c < 3; ++c) {
+    acc.color[3 * p + size_t(c)] += L[c];
+    acc.albedo[3 * p + size_t(c)] += o.albedo[c];
+    acc.normal[3 * p + size_t(c)] += o.normal[c];
+  }
+  acc.depth[p] += o.depth;
+  acc.rough[p] += o.roughness;
+  acc.motion[2 * p] += o.mx;
+  acc.motion[2 * p + 1] += o.my;
+  const double lum = luminance(L);
+  const int n = ++acc.n[p];
+  const double delta = lum - acc.lum_mean[p];
+  acc.lum_mean[p] += delta / n;
+  acc.lum_m2[p] += delta * (lum - acc.lum_mean[p]);
+}
+
+constexpr size_t index_distance = 48, vertex_distance = 24, texel_distance = 12;
+
 }  // namespace
+
+// ---- prefetching what shading a hit reads ----------------------------------------------------
+
+void Renderer::Impl::prefetch_indices(const SurfaceHit& h) const {
+  if (!h.hit()) return;
+  const TriangleMesh& m = *instances[h.instance].mesh;
+  __builtin_prefetch(&m.indices[3 * size_t(h.prim)]);
+  if (!m.material_ids.empty()) __builtin_prefetch(&m.material_ids[h.prim]);
+}
+void Renderer::Impl::prefetch_vertices(const SurfaceHit& h) const {
+  if (!h.hit()) return;
+  const TriangleMesh& m = *instances[h.instance].mesh;
+  for (int c = 0; c < 3; ++c) {
+    const uint32_t i = m.indices[3 * size_t(h.prim) + size_t(c)];
+    __builtin_prefetch(&m.positions[i]);
+    if (!m.normals.empty()) __builtin_prefetch(&m.normals[i]);
+    if (!m.uvs.empty()) __builtin_prefetch(&m.uvs[i]);
+  }
+}
+// The base colour texels, once the uvs are near.
+void Renderer::Impl::prefetch_texels(const SurfaceHit& h) const {
+  if (!h.hit()) return;
+  const TriangleMesh& m = *instances[h.instance].mesh;
+  if (m.uvs.empty()) return;
+  const Texture* t = texture(material_of(m, h.prim).base_color_texture);
+  if (!t) return;
+  const Vec2 uv = uv_at(m, h.prim, h.u, h.v);
+  const float u = uv.x, v = uv.y;
+  const float x = (u - std::floor(u)) * float(t->width), y = (v - std::floor(v)) * float(t->height);
+  if (!(x >= 0 && x < float(t->width) && y >= 0 && y < float(t->height))) return;
+  const size_t row = size_t(y) * size_t(t->width);
+  __builtin_prefetch(&t->rgba[(row + size_t(x)) * 4]);
+  if (size_t(y) + 1 < size_t(t->height))
+    __builtin_prefetch(&t->rgba[(row + size_t(t->width) + size_t(x)) * 4]);
+}
+
+// ---- the surface at a hit --------------------------------------------------------------------
+
+// World position (and object-space position, for motion vectors), geometric and shading
+// normals facing the ray, texture coordinates, and the material's BSDF parameters there.
+Renderer::Impl::Surface Renderer::Impl::surface_at(const SurfaceHit& h, const Ray& ray) const {
+  Surface sf;
+  const InstanceShade& is = instances[h.instance];
+  const TriangleMesh& mesh = *is.mesh;
+  const uint32_t i0 = mesh.indices[3 * h.prim], i1 = mesh.indices[3 * h.prim + 1],
+                 i2 = mesh.indices[3 * h.prim + 2];
+  const float b0 = 1 - h.u - h.v;
+  Vec3 p0 = mesh.positions[i0], p1 = mesh.positions[i1], p2 = mesh.positions[i2];
+  sf.p_obj = p0 * b0 + p1 * h.u + p2 * h.v;
+  if (!is.identity) p0 = is.xf.point(p0), p1 = is.xf.point(p1), p2 = is.xf.point(p2);
+  sf.p = p0 * b0 + p1 * h.u + p2 * h.v;
+  const Vec3 wo = sf.wo = -ray.dir;
+  Vec3 ng = cross(p1 - p0, p2 - p0);
+  const float ng_len = length(ng);
+  ng = ng_len > 0 ? ng * (1.0f / ng_len) : -wo;
+  const float cos_hit = dot(ng, wo);
+  if (cos_hit < 0) ng = -ng;
+  Vec3 ns = ng;
+  if (!mesh.normals.empty()) {
+    Vec3 nn = mesh.normals[i0] * b0 + mesh.normals[i1] * h.u + mesh.normals[i2] * h.v;
+    if (!is.identity) nn = normal_transform(is.nrm, nn);
+    const float len = length(nn);
+    if (len > 0 && std::isfinite(len)) {
+      nn = nn * (1.0f / len);
+      if (dot(nn, ng) < 0) nn = -nn;
+      if (dot(nn, wo) > 1e-4f) ns = nn;
+    }
+  }
+  const Vec2 uv = sf.uv = uv_at(mesh, h.prim, h.u, h.v);
+  const Material& mat = *(sf.mat = &material_of(mesh, h.prim));
+  BsdfParams& bp = sf.bp;
+  bp.base = mat.base_color;
+  float roughness = mat.roughness;
+  bp.metallic = mat.metallic;
+  if (const Texture* t = texture(mat.base_color_texture)) {
+    float c[4];
+    sample_texture(*t, uv, true, c);
+    bp.base = bp.base * Vec3{c[0], c[1], c[2]};
+  }
+  if (const Texture* t = texture(mat.metallic_roughness_texture)) {
+    float c[4];
+    sample_texture(*t, uv, false, c);
+    roughness *= c[1];
+    bp.metallic *= c[2];
+  }
+  bp.base = min(max(bp.base, Vec3{0, 0, 0}), Vec3{1, 1, 1});
+  bp.metallic = std::clamp(bp.metallic, 0.0f, 1.0f);
+  roughness = std::clamp(roughness, 0.0f, 1.0f);
+  bp.alpha = std::max(roughness * roughness, min_alpha);
+  bp.specular = std::clamp(mat.specular, 0.0f, 1.0f);
+  sf.ng = ng, sf.ns = ns, sf.cos_hit = cos_hit, sf.roughness = roughness;
+  return sf;
+}
+
+// ---- next-event estimation -------------------------------------------------------------------
+
+// One light sample at a surface: an emissive triangle (by power) or the environment, MIS
+// weighted against the BSDF: the shadow ray to trace and what it adds when unblocked.
+bool Renderer::Impl::sample_light(const Surface& sf, const Basis& frame, Vec3 wo_l, Vec3 origin,
+                                  Vec3 throughput, Rng& rng, Ray& shadow,
+                                  Vec3& contribution) const {
+  const Vec3 &ng = sf.ng, &ns = sf.ns;
+  const BsdfParams& bp = sf.bp;
+  const float ul = rng.uniform(), u1 = rng.uniform(), u2 = rng.uniform();
+  Vec3 wi, le;
+  float pdf = 0, tmax = INFINITY;
+  Vec3 dir;
+  if (ul < p_env) {
+    float epdf;
+    wi = env_sample(u1, u2, ns, epdf);
+    pdf = p_env * epdf;
+    le = env_radiance(wi);
+    dir = wi;
+  } else {
+    const size_t li = light_dist.sample(lights.size() == 1 ? 0.5f : (ul - p_env) / (1 - p_env));
+    const LightTri& l = lights[li];
+    const float su = std::sqrt(u1);
+    const float lb1 = u2 * su, lb2 = 1 - su;  // weights of vertices 1 and 2
+    const Vec3 q = l.p0 + l.e1 * lb1 + l.e2 * lb2;
+    dir = q - origin;
+    const float dist2 = dot(dir, dir);
+    wi = dir * (1.0f / std::sqrt(dist2));
+    Vec3 nl = cross(l.e1, l.e2);
+    const float cos_l = std::fabs(dot(normalize(nl), wi));
+    const InstanceShade& lis = instances[l.instance];
+    const Material& lm = material_of(*lis.mesh, l.prim);
+    le = emission_at(lm, uv_at(*lis.mesh, l.prim, lb1, lb2));
+    pdf = light_pdf_of(li, dist2, cos_l);
+    tmax = 1.0f - 1e-3f;
+  }
+  if (!(pdf > 0 && dot(wi, ng) > 0 && luminance(le) > 0)) return false;
+  const Vec3 wi_l = frame.to_local(wi);
+  const Vec3 f = bsdf_eval(bp, wo_l, wi_l);
+  if (!(luminance(f) > 0)) return false;
+  const float bpdf = bsdf_pdf(bp, wo_l, wi_l);
+  const float w = pdf * pdf / (pdf * pdf + bpdf * bpdf);
+  shadow = Ray{origin, dir, 0.0f, tmax};
+  contribution = throughput * f * le * (w / pdf);
+  return true;
+}
+
+// ---- one tile ----------------------------------------------------------------------------------
 
 void Renderer::Impl::render_tile(const CameraModel& cam, const CameraModel& prev_cam,
                                  const RenderSettings& s, int tx, int ty, int pass, float jx,
@@ -106,50 +274,14 @@ void Renderer::Impl::render_tile(const CameraModel& cam, const CameraModel& prev
     shadow_rays.clear();
     shadows.clear();
     // Shading reads scattered vertex data: fetch it ahead, indices first, then the vertices
-    // they name (misses overlap instead of stalling one hit at a time).
-    auto prefetch_indices = [&](size_t k) {
-      const SurfaceHit& h = hits[k];
-      if (!h.hit()) return;
-      const TriangleMesh& m = *instances[h.instance].mesh;
-      __builtin_prefetch(&m.indices[3 * size_t(h.prim)]);
-      if (!m.material_ids.empty()) __builtin_prefetch(&m.material_ids[h.prim]);
-    };
-    auto prefetch_vertices = [&](size_t k) {
-      const SurfaceHit& h = hits[k];
-      if (!h.hit()) return;
-      const TriangleMesh& m = *instances[h.instance].mesh;
-      for (int c = 0; c < 3; ++c) {
-        const uint32_t i = m.indices[3 * size_t(h.prim) + size_t(c)];
-        __builtin_prefetch(&m.positions[i]);
-        if (!m.normals.empty()) __builtin_prefetch(&m.normals[i]);
-        if (!m.uvs.empty()) __builtin_prefetch(&m.uvs[i]);
-      }
-    };
-    auto prefetch_texels = [&](size_t k) {  // the base colour texels, once the uvs are near
-      const SurfaceHit& h = hits[k];
-      if (!h.hit()) return;
-      const TriangleMesh& m = *instances[h.instance].mesh;
-      if (m.uvs.empty()) return;
-      const Texture* t = texture(material_of(m, h.prim).base_color_texture);
-      if (!t) return;
-      const Vec2 uv = uv_at(m, h.prim, h.u, h.v);
-      const float u = uv.x, v = uv.y;
-      const float x = (u - std::floor(u)) * float(t->width),
-                  y = (v - std::floor(v)) * float(t->height);
-      if (!(x >= 0 && x < float(t->width) && y >= 0 && y < float(t->height))) return;
-      const size_t row = size_t(y) * size_t(t->width);
-      __builtin_prefetch(&t->rgba[(row + size_t(x)) * 4]);
-      if (size_t(y) + 1 < size_t(t->height))
-        __builtin_prefetch(&t->rgba[(row + size_t(t->width) + size_t(x)) * 4]);
-    };
-    constexpr size_t index_distance = 48, vertex_distance = 24, texel_distance = 12;
-    for (size_t k = 0; k < std::min(n, index_distance); ++k) prefetch_indices(k);
-    for (size_t k = 0; k < std::min(n, vertex_distance); ++k) prefetch_vertices(k);
-    for (size_t k = 0; k < std::min(n, texel_distance); ++k) prefetch_texels(k);
+    // they name, then texels (misses overlap instead of stalling one hit at a time).
+    for (size_t k = 0; k < std::min(n, index_distance); ++k) prefetch_indices(hits[k]);
+    for (size_t k = 0; k < std::min(n, vertex_distance); ++k) prefetch_vertices(hits[k]);
+    for (size_t k = 0; k < std::min(n, texel_distance); ++k) prefetch_texels(hits[k]);
     for (size_t k = 0; k < n; ++k) {
-      if (k + index_distance < n) prefetch_indices(k + index_distance);
-      if (k + vertex_distance < n) prefetch_vertices(k + vertex_distance);
-      if (k + texel_distance < n) prefetch_texels(k + texel_distance);
+      if (k + index_distance < n) prefetch_indices(hits[k + index_distance]);
+      if (k + vertex_distance < n) prefetch_vertices(hits[k + vertex_distance]);
+      if (k + texel_distance < n) prefetch_texels(hits[k + texel_distance]);
       PathState& ps = paths[active[k]];
       Rng& rng = rngs[active[k]];
       PixelSample& out = px[ps.pixel];
@@ -172,57 +304,13 @@ void Renderer::Impl::render_tile(const CameraModel& cam, const CameraModel& prev
       }
       // Surface interaction.
       const InstanceShade& is = instances[h.instance];
-      const TriangleMesh& mesh = *is.mesh;
-      const uint32_t i0 = mesh.indices[3 * h.prim], i1 = mesh.indices[3 * h.prim + 1],
-                     i2 = mesh.indices[3 * h.prim + 2];
-      const float b0 = 1 - h.u - h.v;
-      Vec3 p0 = mesh.positions[i0], p1 = mesh.positions[i1], p2 = mesh.positions[i2];
-      const Vec3 p_obj = p0 * b0 + p1 * h.u + p2 * h.v;
-      if (!is.identity) p0 = is.xf.point(p0), p1 = is.xf.point(p1), p2 = is.xf.point(p2);
-      const Vec3 p = p0 * b0 + p1 * h.u + p2 * h.v;
-      const Vec3 wo = -ray.dir;
-      Vec3 ng = cross(p1 - p0, p2 - p0);
-      const float ng_len = length(ng);
-      ng = ng_len > 0 ? ng * (1.0f / ng_len) : -wo;
-      const float cos_hit = dot(ng, wo);
-      if (cos_hit < 0) ng = -ng;
-      Vec3 ns = ng;
-      if (!mesh.normals.empty()) {
-        Vec3 nn = mesh.normals[i0] * b0 + mesh.normals[i1] * h.u + mesh.normals[i2] * h.v;
-        if (!is.identity) nn = normal_transform(is.nrm, nn);
-        const float len = length(nn);
-        if (len > 0 && std::isfinite(len)) {
-          nn = nn * (1.0f / len);
-          if (dot(nn, ng) < 0) nn = -nn;
-          if (dot(nn, wo) > 1e-4f) ns = nn;
-        }
-      }
-      const Vec2 uv = uv_at(mesh, h.prim, h.u, h.v);
-      const Material& mat = material_of(mesh, h.prim);
-      BsdfParams bp;
-      bp.base = mat.base_color;
-      float roughness = mat.roughness;
-      bp.metallic = mat.metallic;
-      if (const Texture* t = texture(mat.base_color_texture)) {
-        float c[4];
-        sample_texture(*t, uv, true, c);
-        bp.base = bp.base * Vec3{c[0], c[1], c[2]};
-      }
-      if (const Texture* t = texture(mat.metallic_roughness_texture)) {
-        float c[4];
-        sample_texture(*t, uv, false, c);
-        roughness *= c[1];
-        bp.metallic *= c[2];
-      }
-      bp.base = min(max(bp.base, Vec3{0, 0, 0}), Vec3{1, 1, 1});
-      bp.metallic = std::clamp(bp.metallic, 0.0f, 1.0f);
-      roughness = std::clamp(roughness, 0.0f, 1.0f);
-      bp.alpha = std::max(roughness * roughness, min_alpha);
-      bp.specular = std::clamp(mat.specular, 0.0f, 1.0f);
-
+      const Surface sf = surface_at(h, ray);
+      const Vec3 &p = sf.p, &ng = sf.ng, &ns = sf.ns, &wo = sf.wo;
+      const Material& mat = *sf.mat;
+      const BsdfParams& bp = sf.bp;
       if (depth == 0) {
         out.depth = dot(p - cam.eye, cam.forward);
-        const Vec3 p_prev = is.identity ? p : is.prev_xf.point(p_obj);
+        const Vec3 p_prev = is.identity ? p : is.prev_xf.point(sf.p_obj);
         float fx, fy, gx, gy;
         if (cam.project(p, fx, fy) && prev_cam.project(p_prev, gx, gy))
           out.mx = gx - fx, out.my = gy - fy;
@@ -231,15 +319,15 @@ void Renderer::Impl::render_tile(const CameraModel& cam, const CameraModel& prev
       if (ps.aov_pending) {
         out.albedo = bp.base;
         out.normal = ns;
-        out.roughness = roughness;
+        out.roughness = sf.roughness;
         if (!specular_surface || depth >= 3) ps.aov_pending = false;
       }
       // Emission (two-sided), weighted against light sampling.
       if (luminance(mat.emission) > 0) {
-        const Vec3 le = emission_at(mat, uv);
+        const Vec3 le = emission_at(mat, sf.uv);
         float w = 1;
         if (depth > 0) {
-          const float lp = light_pdf(h.instance, h.prim, h.t * h.t, std::fabs(cos_hit));
+          const float lp = light_pdf(h.instance, h.prim, h.t * h.t, std::fabs(sf.cos_hit));
           w = ps.bsdf_pdf * ps.bsdf_pdf / (ps.bsdf_pdf * ps.bsdf_pdf + lp * lp);
         }
         ps.radiance = ps.radiance + ps.throughput * le * w;
@@ -250,43 +338,11 @@ void Renderer::Impl::render_tile(const CameraModel& cam, const CameraModel& prev
       const Vec3 origin = offset_origin(p, ng);
       // Next-event estimation: one light sample (an emissive triangle or the environment).
       if (p_env > 0 || !lights.empty()) {
-        const float ul = rng.uniform(), u1 = rng.uniform(), u2 = rng.uniform();
-        Vec3 wi, le;
-        float pdf = 0, tmax = INFINITY;
-        Vec3 dir;
-        if (ul < p_env) {
-          float epdf;
-          wi = env_sample(u1, u2, ns, epdf);
-          pdf = p_env * epdf;
-          le = env_radiance(wi);
-          dir = wi;
-        } else {
-          const size_t li =
-              light_dist.sample(lights.size() == 1 ? 0.5f : (ul - p_env) / (1 - p_env));
-          const LightTri& l = lights[li];
-          const float su = std::sqrt(u1);
-          const float lb1 = u2 * su, lb2 = 1 - su;  // weights of vertices 1 and 2
-          const Vec3 q = l.p0 + l.e1 * lb1 + l.e2 * lb2;
-          dir = q - origin;
-          const float dist2 = dot(dir, dir);
-          wi = dir * (1.0f / std::sqrt(dist2));
-          Vec3 nl = cross(l.e1, l.e2);
-          const float cos_l = std::fabs(dot(normalize(nl), wi));
-          const InstanceShade& lis = instances[l.instance];
-          const Material& lm = material_of(*lis.mesh, l.prim);
-          le = emission_at(lm, uv_at(*lis.mesh, l.prim, lb1, lb2));
-          pdf = light_pdf_of(li, dist2, cos_l);
-          tmax = 1.0f - 1e-3f;
-        }
-        if (pdf > 0 && dot(wi, ng) > 0 && luminance(le) > 0) {
-          const Vec3 wi_l = frame.to_local(wi);
-          const Vec3 f = bsdf_eval(bp, wo_l, wi_l);
-          if (luminance(f) > 0) {
-            const float bpdf = bsdf_pdf(bp, wo_l, wi_l);
-            const float w = pdf * pdf / (pdf * pdf + bpdf * bpdf);
-            shadow_rays.push_back(Ray{origin, dir, 0.0f, tmax});
-            shadows.push_back({ps.throughput * f * le * (w / pdf), active[k]});
-          }
+        Ray shadow;
+        Vec3 contribution;
+        if (sample_light(sf, frame, wo_l, origin, ps.throughput, rng, shadow, contribution)) {
+          shadow_rays.push_back(shadow);
+          shadows.push_back({contribution, active[k]});
         }
       }
       // Continue the path by sampling the BSDF.
@@ -322,28 +378,7 @@ void Renderer::Impl::render_tile(const CameraModel& cam, const CameraModel& prev
 
   for (size_t i = 0; i < count; ++i) {
     const int x = x0 + int(i % size_t(x1 - x0)), y = y0 + int(i / size_t(x1 - x0));
-    const size_t p = size_t(y) * size_t(s.width) + size_t(x);
-    Vec3 L = paths[i].radiance;
-    if (!is_finite(L)) L = {0, 0, 0};  // a NaN/Inf sample is dropped, not smeared
-    if (s.clamp > 0) {
-      const float m = std::max({L.x, L.y, L.z});
-      if (m > s.clamp) L = L * (s.clamp / m);
-    }
-    const PixelSample& o = px[i];
-    for (int c = 0; c < 3; ++c) {
-      acc.color[3 * p + size_t(c)] += L[c];
-      acc.albedo[3 * p + size_t(c)] += o.albedo[c];
-      acc.normal[3 * p + size_t(c)] += o.normal[c];
-    }
-    acc.depth[p] += o.depth;
-    acc.rough[p] += o.roughness;
-    acc.motion[2 * p] += o.mx;
-    acc.motion[2 * p + 1] += o.my;
-    const double lum = luminance(L);
-    const int n = ++acc.n[p];
-    const double delta = lum - acc.lum_mean[p];
-    acc.lum_mean[p] += delta / n;
-    acc.lum_m2[p] += delta * (lum - acc.lum_mean[p]);
+    add_sample(acc, size_t(y) * size_t(s.width) + size_t(x), paths[i].radiance, px[i], s.clamp);
   }
 }
 

@@ -235,6 +235,19 @@ struct Renderer::Impl {
   void trace(std::span<const Ray> rays, std::span<SurfaceHit> hits) const;
   void occluded(std::span<const Ray> rays, std::span<uint8_t> out) const;
   // integrator.cpp
+  struct Surface {
+    Vec3 p, p_obj, ng, ns, wo;
+    float cos_hit = 0, roughness = 0;
+    Vec2 uv;
+    const Material* mat = nullptr;
+    BsdfParams bp;
+  };
+  Surface surface_at(const SurfaceHit& h, const Ray& ray) const;
+  bool sample_light(const Surface& sf, const Basis& frame, Vec3 wo_l, Vec3 origin, Vec3 throughput,
+                    Rng& rng, Ray& shadow, Vec3& contribution) const;
+  void prefetch_indices(const SurfaceHit& h) const;
+  void prefetch_vertices(const SurfaceHit& h) const;
+  void prefetch_texels(const SurfaceHit& h) const;
   void render_tile(const CameraModel& cam, const CameraModel& prev_cam, const RenderSettings& s,
                    int tx, int ty, int pass, float jx, float jy, Accumulator& acc, double& trace_ms,
                    uint64_t ray_counts[3]) const;
