@@ -1,7 +1,7 @@
 # Type stubs of the kestrel Python module (numpy in, numpy out). Arrays: rays (N, 8) float32
 # (org, dir, tmin, tmax); images (H, W, C) float32, rows top to bottom.
 import os
-from typing import Any, Optional, Sequence, Tuple, Union
+from typing import Any, Optional, Sequence, Tuple, Union, overload
 
 import numpy as np
 import numpy.typing as npt
@@ -83,6 +83,7 @@ class InstancedScene:
     def add_mesh(self, vertices: npt.NDArray[np.float32], indices: npt.NDArray[np.uint32], name: str = "mesh",
                  nan_policy: str = "warn") -> int: ...
     def add_scene_mesh(self, scene: Scene, mesh: int = 0) -> int: ...
+    def set_materials_from(self, scene: Scene) -> None: ...
     def add_instance(self, mesh: int, transform: Optional[Transform] = None, mask: int = 0xFFFFFFFF) -> int: ...
     def set_transform(self, instance: int, transform: Transform) -> None: ...
     def set_mask(self, instance: int, mask: int) -> None: ...
@@ -125,7 +126,10 @@ class Renderer:
     last_stats: dict[str, float]
     last_jitter: Tuple[float, float]
     light_count: int
+    @overload
     def __init__(self, scene: Scene, environment: Optional[str] = None) -> None: ...
+    @overload
+    def __init__(self, scene: InstancedScene, environment: Optional[str] = None) -> None: ...
     def render(self, camera: Camera, spp: int = 1, res: Tuple[int, int] = (640, 360), seed: int = 0,
                max_depth: int = 8, rr_depth: int = 3, clamp: float = 0.0, frame: int = 0, jitter: bool = True,
                fixed_jitter: bool = False, time_limit: float = 0.0, threads: int = 0,
