@@ -24,7 +24,8 @@ namespace {
 
 struct RenderArgs {
   std::string scene = "builtin:cornell_box", view, camera, res = "640x360", out, pfm, png, env,
-              path, denoise, upscale;
+              path, denoise, upscale, sun;
+  bool sky = false;
   int spp = 1, max_depth = 8, threads = 0, frames = 0, frame = 0, factor = 2;
   uint64_t seed = 0;
   double time_limit = 0, time = 0;
@@ -48,6 +49,11 @@ void add_common(CLI::App& cmd, RenderArgs& a) {
       ->check(CLI::Range(0, 1024));
   cmd.add_option("--env", a.env,
                  "Environment: none | sky | constant:R,G,B | image file (.hdr .exr .pfm .png)");
+  cmd.add_option("--sun", a.sun,
+                 "A sun: AZIMUTH,ELEVATION[,INTENSITY] (degrees from north (-Z) towards east (+X); "
+                 "irradiance, default 10); with the physical sky unless --env");
+  cmd.add_flag("--sky", a.sky,
+               "The physical sky (Preetham) for the sun (default sun: azimuth 135, elevation 45)");
   cmd.add_option("--pfm", a.pfm, "Also write one PFM per AOV into this directory");
   cmd.add_option("--png", a.png, "Also write the tone-mapped colour as PNG");
   cmd.add_option("--exposure", a.exposure, "Exposure of the PNG, stops")->capture_default_str();
@@ -78,8 +84,7 @@ RenderSettings settings_of(const RenderArgs& a) {
 }
 
 std::optional<Environment> environment_of(const RenderArgs& a) {
-  if (a.env.empty()) return std::nullopt;
-  return Environment::parse(a.env);
+  return make_lighting(a.env, a.sun, a.sky);
 }
 
 Camera parse_camera(const std::string& text) {
@@ -272,8 +277,7 @@ void run_render(const RenderArgs& a) {
   std::vector<distributed::RankStats> ranks;
   const Frame f = distributed::render(renderer, camera, rs, std::nullopt, &ranks);
   if (distributed::rank() != 0) return;  // rank 0 holds the frame and writes the files
-  fmt::print("scene    {} ({} triangles, {} light triangles)\n", source, triangles,
-             renderer.light_count());
+  fmt::print("scene    {} ({} triangles, {} lights)\n", source, triangles, renderer.light_count());
   print_stats(f.stats);
   print_ranks(ranks, f.stats.ms);
   const FloatImage denoised = denoiser ? denoise_frame(*denoiser, f) : FloatImage{};
@@ -322,6 +326,7 @@ void run_sequence(const RenderArgs& a) {
     ps.upscaler = *m, ps.factor = a.factor, ps.fixed_jitter = true;
   }
   std::filesystem::create_directories(a.out);
+  ps.sun = a.sun, ps.sky = a.sky;
   Pipeline pipeline(load_asset_reporting(a.scene), ps, a.env);
   pipeline.set_render_function(
       [](Renderer& r, const Camera& cam, const RenderSettings& rs,

@@ -15,7 +15,8 @@ namespace kestrel::cli {
 
 struct PipelineArgs {
   std::string scene = "builtin:cornell_box", res = "1280x720", internal, env, denoise = "neural",
-              upscale = "neural";
+              upscale = "neural", sun;
+  bool sky = false, auto_exposure = false;
   int factor = 2, spp = 1, max_depth = 4, threads = 0;
   float clamp = 16, exposure = 0;
   double target_ms = 0;
@@ -42,6 +43,15 @@ struct PipelineArgs {
     cmd.add_option("--clamp", clamp, "Sample radiance clamp (0 = off)")->capture_default_str();
     cmd.add_option("--env", env, "Environment: none | sky | constant:R,G,B | image file");
     cmd.add_option("--exposure", exposure, "Tone-map exposure, stops")->capture_default_str();
+    cmd.add_option(
+        "--sun", sun,
+        "A sun: AZIMUTH,ELEVATION[,INTENSITY] (degrees from north (-Z) towards east (+X); "
+        "irradiance, default 10); with the physical sky unless --env");
+    cmd.add_flag(
+        "--sky", sky,
+        "The physical sky (Preetham) for the sun (default sun: azimuth 135, elevation 45)");
+    cmd.add_flag("--auto-exposure", auto_exposure,
+                 "Exposure follows the image's log-average luminance (key 0.18, smoothed)");
     cmd.add_option("--target-ms", target_ms,
                    "Adapt the factor (1, 2, 4) to hold this frame time (0 = fixed)");
     cmd.add_option("--seed", seed, "Random seed")->capture_default_str();
@@ -82,6 +92,7 @@ struct PipelineArgs {
     s.upscaler = *u;
     s.spp = spp, s.max_depth = max_depth, s.clamp = clamp, s.exposure = exposure,
     s.target_ms = target_ms, s.seed = seed;
+    s.sun = sun, s.sky = sky, s.auto_exposure = auto_exposure;
     return s;
   }
 };

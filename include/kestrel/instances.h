@@ -94,6 +94,9 @@ class InstancedScene {
   void set_materials(std::vector<Material> materials, std::vector<Texture> textures = {});
   const std::vector<Material>& materials() const;
   const std::vector<Texture>& textures() const;
+  /// Punctual lights, in world space (checked by the renderer: light_problem()).
+  void set_lights(std::vector<Light> lights);
+  const std::vector<Light>& lights() const;
   /// Where the scene came from (a file, "builtin:NAME"): errors of the renderer name it.
   void set_source(std::string source);
   const std::string& source() const;
@@ -155,6 +158,9 @@ class GltfInstances {
   /// material_ids index these.
   const std::vector<Material>& materials() const;
   const std::vector<Texture>& textures() const;
+  /// The file's KHR_lights_punctual lights placed by their nodes, as posed by the last
+  /// add_to() / set_time() (a light under an animated node moves with it).
+  const std::vector<Light>& lights() const;
   /// End of the longest animation channel, seconds (0 when nothing is animated).
   double duration() const;
   /// Adds the meshes and instances to a scene, posed at t = 0.

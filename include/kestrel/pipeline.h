@@ -27,8 +27,14 @@ struct PipelineSettings {
   bool fixed_jitter = true;  ///< every sample of a frame at its jitter (what upsamplers expect)
   int threads = 0;           ///< the render's threads (RenderSettings::threads; 0 = all)
   float clamp = 16.0f;       ///< sample radiance clamp (0 = off): fireflies hurt a 1-spp loop
-  float exposure = 0.0f;     ///< stops, for the tone map
-  double target_ms = 0;      ///< > 0: change the factor (1, 2, 4) to hold this frame time
+  float exposure = 0.0f;     ///< stops, for the tone map (added to the automatic exposure)
+  /// Automatic exposure: the tone map's exposure follows the log-average luminance of the
+  /// output (key 0.18, Reinhard et al. 2002), 10 % of the way per frame (the first frame
+  /// jumps), clamped to +-16 stops. PipelineFrame::exposure says what was used.
+  bool auto_exposure = false;
+  std::string sun;       ///< "" or Sun::parse's AZIMUTH,ELEVATION[,INTENSITY] (make_lighting)
+  bool sky = false;      ///< the physical sky (make_lighting)
+  double target_ms = 0;  ///< > 0: change the factor (1, 2, 4) to hold this frame time
   uint64_t seed = 0;
 };
 
@@ -46,6 +52,7 @@ struct PipelineFrame {
   std::vector<uint8_t> rgb8;  ///< upscaled, tone-mapped sRGB, width x height x 3
   int width = 0, height = 0, internal_width = 0, internal_height = 0, factor = 1;
   uint32_t index = 0;  ///< frames since the start (the Halton jitter's index)
+  float exposure = 0;  ///< stops the tone map applied (settings + automatic)
   PipelineTimes times;
   RenderStats stats;
 };

@@ -72,6 +72,22 @@ struct CameraPath {
   Camera at(double time) const;
 };
 
+/// The sun: a disk of angular radius `angular_radius_degrees` around `direction` (unit,
+/// towards the sun) giving `irradiance` (per channel) to a surface facing it. Sampled as an
+/// area light (soft shadows from its size) and seen by rays that escape towards it.
+struct Sun {
+  Vec3 direction{0.5f, 0.70710677f, -0.5f};  ///< azimuth 135, elevation 45
+  Vec3 irradiance{10, 10, 10};
+  float angular_radius_degrees = 0.267f;  ///< the real sun's
+  /// "AZIMUTH,ELEVATION[,INTENSITY]" in degrees: azimuth from north (-Z) towards east (+X),
+  /// elevation above the horizon (+Y up, -90..90); INTENSITY the irradiance (white, default
+  /// 10). Throws Error naming the spec.
+  static Sun parse(const std::string& spec);
+  /// Throws Error(invalid_argument) unless every value is finite, the direction non-zero,
+  /// the irradiance >= 0 and the radius in (0, 45] degrees.
+  void check() const;
+};
+
 /// Light from infinitely far away: a constant radiance or an equirectangular image
 /// (u = 0.5 + atan2(d.x, -d.z) / 2pi, v = acos(d.y) / pi, row 0 = straight up), scaled.
 struct Environment {
@@ -81,11 +97,25 @@ struct Environment {
   bool overcast = false;
   FloatImage image;  ///< 3 channels, linear; empty = constant colour
   float scale = 1.0f;
+  /// The sun, beside whatever else the environment is (nullopt: none).
+  std::optional<Sun> sun;
+  /// A clear sky for the sun's direction (Preetham, Shirley & Smits 1999, `turbidity` in
+  /// [1.7, 10]: the Perez distribution of luminance and chromaticity), baked into a 512 x 256
+  /// equirectangular image and importance-sampled as one; the ground below the horizon 0.1 x
+  /// the horizon's luminance. Scaled so a 45-degree sun's zenith is 1 (the sky dims as the
+  /// sun sets). The sun itself is set as `sun`.
+  static Environment physical_sky(const Sun& sun, float turbidity = 3.0f);
   /// "none", "constant:R,G,B" (or "R,G,B"), "sky" (a white CIE overcast sky: zenith 1,
   /// horizon 1/3, ground 0.1; the default for scenes without emitters), or an image file
   /// (.hdr, .exr, .pfm, .png): see read_float_image.
   static Environment parse(const std::string& spec);
 };
+
+/// The lighting the CLI flags ask for: `env` (Environment::parse; "" = the scene's default),
+/// `sun` ("" = none, else Sun::parse) and `sky` (the physical sky). A sun without --env gets
+/// the physical sky; --sky without a sun uses the default Sun. nullopt = the scene's default
+/// (neither given). Throws Error for bad specs or --sky with --env.
+std::optional<Environment> make_lighting(const std::string& env, const std::string& sun, bool sky);
 
 /// What a render does. The same settings and seed give the same bits for any thread count.
 struct RenderSettings {

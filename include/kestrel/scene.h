@@ -31,6 +31,27 @@ struct Material {
   int normal_texture = -1;
 };
 
+/// A punctual light (glTF KHR_lights_punctual): a point, a spot or a directional light, in
+/// world space. glTF's photometric units are taken 1:1 as kestrel's radiometric ones: a
+/// point or spot light's `intensity` (candela) is its radiant intensity (radiance units x
+/// m^2 per steradian), a directional light's (lux) the irradiance it gives a surface facing it.
+struct Light {
+  enum class Type { point, spot, directional };
+  std::string name;
+  Type type = Type::point;
+  Vec3 position{0, 0, 0};    ///< point and spot
+  Vec3 direction{0, 0, -1};  ///< spot and directional: the way the light travels (unit)
+  Vec3 color{1, 1, 1};       ///< linear RGB, multiplies intensity
+  float intensity = 1;
+  float range = 0;  ///< > 0: glTF's smooth cut-off at this distance; 0 = none
+  float inner_cone = 0, outer_cone = 0.7853982f;  ///< spot: radians, 0 <= inner < outer <= pi/2
+};
+/// "point", "spot", "directional".
+const char* light_type_name(Light::Type type);
+/// Why a light cannot be rendered ("" when it can): a NaN/Inf value, a negative colour,
+/// intensity or range, a zero direction, or cone angles outside 0 <= inner < outer <= pi/2.
+std::string light_problem(const Light& light);
+
 /// A triangle mesh in world space. Triangle i is (indices[3i], indices[3i+1], indices[3i+2]);
 /// normals and uvs are per vertex when present (same count as positions) or empty.
 struct TriangleMesh {
@@ -63,6 +84,7 @@ struct Scene {
   std::vector<TriangleMesh> meshes;
   std::vector<Material> materials;
   std::vector<Texture> textures;
+  std::vector<Light> lights;  ///< punctual lights (glTF KHR_lights_punctual)
   /// Problems that did not stop the load (e.g. a texture that could not be decoded).
   std::vector<std::string> warnings;
   size_t triangle_count() const;

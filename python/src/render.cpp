@@ -163,6 +163,7 @@ py::dict pipeline_frame_dict(const PipelineFrame& f) {
   d["rgb8"] = rgb;
   d["index"] = f.index;
   d["factor"] = f.factor;
+  d["exposure"] = f.exposure;
   py::dict t;
   t["update"] = f.times.update;
   t["render"] = f.times.render;
@@ -265,31 +266,35 @@ void bind_render(py::module_& m) {
       m, "Renderer",
       "The path tracer (NEE + MIS, every AOV) over a Scene (copied: each mesh one identity "
       "instance) or a committed InstancedScene (referenced: each render sees its last commit).")
-      .def(py::init([](std::shared_ptr<Scene> scene, std::optional<std::string> environment) {
-             std::optional<Environment> env;
-             if (environment) env = Environment::parse(*environment);
+      .def(py::init([](std::shared_ptr<Scene> scene, std::optional<std::string> environment,
+                       std::optional<std::string> sun, bool sky) {
+             const std::optional<Environment> env =
+                 make_lighting(environment.value_or(""), sun.value_or(""), sky);
              auto r = std::make_unique<PyRenderer>();
              Scene copy = *scene;
              py::gil_scoped_release release;
              r->asset.emplace(Asset::from_scene(std::move(copy)));
-             r->renderer = std::make_unique<Renderer>(r->asset->scene(), std::move(env));
+             r->renderer = std::make_unique<Renderer>(r->asset->scene(), env);
              return r;
            }),
-           py::arg("scene"), py::arg("environment") = py::none(),
+           py::arg("scene"), py::arg("environment") = py::none(), py::arg("sun") = py::none(),
+           py::arg("sky") = false,
            "environment: None = the scene's default (a sky without emitters), 'none', 'sky', "
-           "'constant:R,G,B' or an "
-           "image file.")
-      .def(py::init(
-               [](std::shared_ptr<PyInstancedScene> scene, std::optional<std::string> environment) {
-                 std::optional<Environment> env;
-                 if (environment) env = Environment::parse(*environment);
-                 auto r = std::make_unique<PyRenderer>();
-                 r->instanced = scene;
-                 py::gil_scoped_release release;
-                 r->renderer = std::make_unique<Renderer>(scene->scene, std::move(env));
-                 return r;
-               }),
-           py::arg("scene"), py::arg("environment") = py::none())
+           "'constant:R,G,B' or an image file; sun: 'AZIMUTH,ELEVATION[,INTENSITY]' (with the "
+           "physical sky unless environment is given); sky: the physical sky.")
+      .def(py::init([](std::shared_ptr<PyInstancedScene> scene,
+                       std::optional<std::string> environment, std::optional<std::string> sun,
+                       bool sky) {
+             const std::optional<Environment> env =
+                 make_lighting(environment.value_or(""), sun.value_or(""), sky);
+             auto r = std::make_unique<PyRenderer>();
+             r->instanced = scene;
+             py::gil_scoped_release release;
+             r->renderer = std::make_unique<Renderer>(scene->scene, env);
+             return r;
+           }),
+           py::arg("scene"), py::arg("environment") = py::none(), py::arg("sun") = py::none(),
+           py::arg("sky") = false)
       .def(
           "render",
           [](PyRenderer& r, const Camera& camera, int spp, py::handle res, uint64_t seed,
@@ -432,17 +437,23 @@ void bind_render(py::module_& m) {
       .def(py::init([](const std::filesystem::path& scene, py::handle res, int factor,
                        std::optional<std::string> denoiser, const std::string& upscaler, int spp,
                        int max_depth, float clamp, float exposure, double target_ms, uint64_t seed,
-                       const std::string& environment) {
-             const PipelineSettings s =
+                       const std::string& environment, const std::string& sun, bool sky,
+                       bool auto_exposure) {
+             PipelineSettings s =
                  pipeline_settings(resolution(res), factor, denoiser, upscaler, spp, max_depth,
                                    clamp, exposure, target_ms, seed);
+             s.sun = sun, s.sky = sky, s.auto_exposure = auto_exposure;
              py::gil_scoped_release release;
              return std::make_unique<Pipeline>(scene.string(), s, environment);
            }),
            py::arg("scene"), py::arg("res") = py::make_tuple(1280, 720), py::arg("factor") = 2,
            py::arg("denoiser") = "neural", py::arg("upscaler") = "neural", py::arg("spp") = 1,
            py::arg("max_depth") = 4, py::arg("clamp") = 16.0f, py::arg("exposure") = 0.0f,
-           py::arg("target_ms") = 0.0, py::arg("seed") = 0, py::arg("environment") = "")
+           py::arg("target_ms") = 0.0, py::arg("seed") = 0, py::arg("environment") = "",
+           py::arg("sun") = "", py::arg("sky") = false, py::arg("auto_exposure") = false,
+           "sun: 'AZIMUTH,ELEVATION[,INTENSITY]' (degrees; with the physical sky unless "
+           "environment is "
+           "given); sky: the physical sky; auto_exposure: the tone map follows the image.")
       .def(
           "frame",
           [](Pipeline& p, const Camera& camera, double time) {

@@ -209,3 +209,20 @@ def test_image_files_round_trip(tmp_path):
     with pytest.raises(ValueError, match="a.pfm|truncated|PFM"):
         (tmp_path / "t.pfm").write_bytes(b"PF\n7 5\n-1\n" + b"\0" * 10)
         kestrel.read_pfm(str(tmp_path / "t.pfm"))
+
+
+def test_sun_and_sky(cornell):
+    dark = kestrel.Renderer(cornell, environment="none")
+    sunny = kestrel.Renderer(cornell, environment="none", sun="30,60,20")
+    assert sunny.light_count == dark.light_count + 1
+    cam = kestrel.view(cornell)
+    a = dark.render(cam, res=RES, spp=2)["color"]
+    b = sunny.render(cam, res=RES, spp=2)["color"]
+    assert b.mean() >= a.mean()
+    sky = kestrel.Renderer(cornell, sky=True).render(cam, res=RES, spp=2)["color"]
+    assert np.isfinite(sky).all() and sky.mean() > 0
+    with pytest.raises(ValueError, match="--sun"):
+        kestrel.Renderer(cornell, sun="0,120")
+    loop = kestrel.Pipeline("builtin:cornell_box", res=(32, 24), factor=1, denoiser=None, sun="0,45", auto_exposure=True)
+    f = loop.frame(cam)
+    assert f["exposure"] != 0.0 and f["rgb8"].shape == (24, 32, 3)

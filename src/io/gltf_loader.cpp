@@ -90,6 +90,7 @@ Scene load_gltf(const std::string& path) {
       if (!all_uvs) mesh.uvs.clear();
       scene.meshes.push_back(std::move(mesh));
     }
+    if (auto light = node_light(path, model, node_index, world)) scene.lights.push_back(*light);
     for (int child : node.children) self(self, child, world, depth + 1);
   };
   for (int root : roots) visit(visit, root, identity(), 0);
@@ -97,6 +98,52 @@ Scene load_gltf(const std::string& path) {
 }
 
 namespace gltf {
+
+std::optional<Light> node_light(const std::string& path, const tinygltf::Model& model,
+                                int node_index, const Mat4& world) {
+  const tinygltf::Node& node = model.nodes[size_t(node_index)];
+  const auto ext = node.extensions.find("KHR_lights_punctual");
+  if (ext == node.extensions.end() || !ext->second.IsObject() || !ext->second.Has("light"))
+    return std::nullopt;
+  const tinygltf::Value& v = ext->second.Get("light");
+  const int index = v.IsNumber() || v.IsInt() ? v.GetNumberAsInt() : -1;
+  if (index < 0 || size_t(index) >= model.lights.size())
+    throw Error(ErrorCode::parse_error,
+                fmt::format("{}: node {} names missing light {}", path, node_index, index));
+  const tinygltf::Light& gl = model.lights[size_t(index)];
+  const std::string what =
+      fmt::format("{}: light {} '{}' (node {})", path, index, gl.name, node_index);
+  Light l;
+  l.name = gl.name.empty() ? fmt::format("light{}", index) : gl.name;
+  if (gl.type == "point")
+    l.type = Light::Type::point;
+  else if (gl.type == "spot")
+    l.type = Light::Type::spot;
+  else if (gl.type == "directional")
+    l.type = Light::Type::directional;
+  else
+    throw Error(
+        ErrorCode::parse_error,
+        fmt::format("{}: unknown type '{}' (expected point, spot or directional)", what, gl.type));
+  if (!gl.color.empty()) {
+    if (gl.color.size() != 3)
+      throw Error(ErrorCode::parse_error, fmt::format("{}: color must have 3 components", what));
+    l.color = {float(gl.color[0]), float(gl.color[1]), float(gl.color[2])};
+  }
+  l.intensity = float(gl.intensity);
+  l.range = float(gl.range);
+  l.inner_cone = float(gl.spot.innerConeAngle);
+  l.outer_cone = float(gl.spot.outerConeAngle);
+  l.position = transform_point(world, {0, 0, 0});
+  const Vec3 o = l.position, z = transform_point(world, {0, 0, -1});
+  const Vec3 d{z.x - o.x, z.y - o.y, z.z - o.z};
+  const float len = std::sqrt(d.x * d.x + d.y * d.y + d.z * d.z);
+  l.direction =
+      len > 0 && std::isfinite(len) ? Vec3{d.x / len, d.y / len, d.z / len} : Vec3{0, 0, 0};
+  if (const std::string p = light_problem(l); !p.empty())
+    throw Error(ErrorCode::parse_error, fmt::format("{}: {}", what, p));
+  return l;
+}
 
 void check_node_tree(const std::string& path, const tinygltf::Model& model) {
   // Every child exists, no node has two parents (shared children would make a DAG whose

@@ -8,6 +8,7 @@
 #include <array>
 #include <cmath>
 #include <cstring>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -105,6 +106,12 @@ inline Vec3 transform_normal(const Mat4& m, Vec3 n) {
   if (len > 0) x /= len, y /= len, z /= len;
   return {float(x), float(y), float(z)};
 }
+
+/// The KHR_lights_punctual light a node carries, placed by the node's world matrix (position
+/// = its origin, direction = its -Z axis), or nullopt. Throws Error naming the file, the node
+/// and the light for a missing light, an unknown type or a light_problem().
+std::optional<Light> node_light(const std::string& path, const tinygltf::Model& model,
+                                int node_index, const Mat4& world);
 
 struct GltfReader {
   const std::string& path;

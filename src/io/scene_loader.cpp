@@ -1,6 +1,7 @@
 #include <fmt/format.h>
 
 #include <algorithm>
+#include <cmath>
 #include <filesystem>
 #include <fstream>
 
@@ -31,6 +32,41 @@ std::string lower_extension(const std::string& path) {
 }
 
 }  // namespace
+
+const char* light_type_name(Light::Type type) {
+  switch (type) {
+    case Light::Type::point:
+      return "point";
+    case Light::Type::spot:
+      return "spot";
+    case Light::Type::directional:
+      return "directional";
+  }
+  return "?";
+}
+
+std::string light_problem(const Light& l) {
+  const auto finite = [](Vec3 v) {
+    return std::isfinite(v.x) && std::isfinite(v.y) && std::isfinite(v.z);
+  };
+  if (!finite(l.color) || !std::isfinite(l.intensity) || !std::isfinite(l.range))
+    return "a NaN or Inf colour, intensity or range";
+  if (l.color.x < 0 || l.color.y < 0 || l.color.z < 0 || l.intensity < 0 || l.range < 0)
+    return fmt::format("negative colour, intensity ({}) or range ({})", l.intensity, l.range);
+  if (l.type != Light::Type::directional && !finite(l.position)) return "a NaN or Inf position";
+  if (l.type != Light::Type::point) {
+    const float len2 = l.direction.x * l.direction.x + l.direction.y * l.direction.y +
+                       l.direction.z * l.direction.z;
+    if (!std::isfinite(len2) || !(std::fabs(len2 - 1.0f) < 1e-3f))
+      return "its direction is not a finite unit vector (a NaN, zero or singular node transform)";
+  }
+  if (l.type == Light::Type::spot &&
+      !(std::isfinite(l.inner_cone) && std::isfinite(l.outer_cone) && l.inner_cone >= 0 &&
+        l.inner_cone < l.outer_cone && l.outer_cone <= 1.5707964f))
+    return fmt::format("spot cone angles inner {} / outer {} are not 0 <= inner < outer <= pi/2",
+                       l.inner_cone, l.outer_cone);
+  return {};
+}
 
 bool is_gltf_path(const std::string& path) {
   const std::string ext = lower_extension(path);

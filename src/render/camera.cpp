@@ -291,3 +291,153 @@ Environment Environment::parse(const std::string& spec) {
 }
 
 }  // namespace kestrel
+
+// ---- the sun and the physical sky ------------------------------------------------------------
+
+namespace kestrel {
+
+void Sun::check() const {
+  const float len = length(direction);
+  if (!is_finite(direction) || !(len > 0) || !is_finite(irradiance) || irradiance.x < 0 ||
+      irradiance.y < 0 || irradiance.z < 0 || !std::isfinite(angular_radius_degrees) ||
+      !(angular_radius_degrees > 0) || angular_radius_degrees > 45)
+    throw Error(ErrorCode::invalid_argument,
+                "sun: direction must be finite and non-zero, irradiance finite and >= 0, angular "
+                "radius in (0, 45] "
+                "degrees");
+}
+
+Sun Sun::parse(const std::string& spec) {
+  std::vector<float> v;
+  size_t at = 0;
+  while (at <= spec.size()) {
+    const size_t comma = spec.find(',', at);
+    const std::string part =
+        spec.substr(at, comma == std::string::npos ? std::string::npos : comma - at);
+    char* end = nullptr;
+    const float x = std::strtof(part.c_str(), &end);
+    if (part.empty() || end != part.c_str() + part.size() || !std::isfinite(x))
+      throw Error(ErrorCode::invalid_argument,
+                  fmt::format("--sun '{}': '{}' is not a finite number", spec, part));
+    v.push_back(x);
+    if (comma == std::string::npos) break;
+    at = comma + 1;
+  }
+  if (v.size() != 2 && v.size() != 3)
+    throw Error(ErrorCode::invalid_argument,
+                fmt::format("--sun '{}': expected AZIMUTH,ELEVATION[,INTENSITY]", spec));
+  if (v[1] < -90 || v[1] > 90)
+    throw Error(ErrorCode::invalid_argument,
+                fmt::format("--sun '{}': elevation {} is not in [-90, 90]", spec, v[1]));
+  if (v.size() == 3 && v[2] < 0)
+    throw Error(ErrorCode::invalid_argument,
+                fmt::format("--sun '{}': intensity {} is negative", spec, v[2]));
+  const double az = double(v[0]) * 3.14159265358979 / 180.0,
+               el = double(v[1]) * 3.14159265358979 / 180.0;
+  Sun sun;
+  sun.direction = {float(std::sin(az) * std::cos(el)), float(std::sin(el)),
+                   float(-std::cos(az) * std::cos(el))};
+  const float intensity = v.size() == 3 ? v[2] : 10.0f;
+  sun.irradiance = {intensity, intensity, intensity};
+  return sun;
+}
+
+namespace {
+
+// Preetham et al. 1999: the Perez function and the zenith values of Y (kcd/m^2), x and y.
+struct Perez {
+  double a, b, c, d, e;
+  double operator()(double cos_theta, double gamma, double cos_gamma) const {
+    return (1 + a * std::exp(b / std::max(cos_theta, 0.01))) *
+           (1 + c * std::exp(d * gamma) + e * cos_gamma * cos_gamma);
+  }
+};
+
+struct PreethamSky {
+  Perez Y, x, y;
+  double zenith_Y, zenith_x, zenith_y, theta_s;
+  explicit PreethamSky(double T, double theta_sun) : theta_s(theta_sun) {
+    Y = {0.1787 * T - 1.4630, -0.3554 * T + 0.4275, -0.0227 * T + 5.3251, 0.1206 * T - 2.5771,
+         -0.0670 * T + 0.3703};
+    x = {-0.0193 * T - 0.2592, -0.0665 * T + 0.0008, -0.0004 * T + 0.2125, -0.0641 * T - 0.8989,
+         -0.0033 * T + 0.0452};
+    y = {-0.0167 * T - 0.2608, -0.0950 * T + 0.0092, -0.0079 * T + 0.2102, -0.0441 * T - 1.6537,
+         -0.0109 * T + 0.0529};
+    const double chi = (4.0 / 9.0 - T / 120.0) * (3.14159265358979 - 2 * theta_s);
+    zenith_Y = std::max(0.0, (4.0453 * T - 4.9710) * std::tan(chi) - 0.2155 * T + 2.4192);
+    const double t = theta_s, t2 = t * t, t3 = t2 * t;
+    zenith_x = T * T * (0.00166 * t3 - 0.00375 * t2 + 0.00209 * t) +
+               T * (-0.02903 * t3 + 0.06377 * t2 - 0.03202 * t + 0.00394) +
+               (0.11693 * t3 - 0.21196 * t2 + 0.06052 * t + 0.25886);
+    zenith_y = T * T * (0.00275 * t3 - 0.00610 * t2 + 0.00317 * t) +
+               T * (-0.04214 * t3 + 0.08970 * t2 - 0.04153 * t + 0.00516) +
+               (0.15346 * t3 - 0.26756 * t2 + 0.06670 * t + 0.26688);
+  }
+  // Linear sRGB radiance towards direction d (unit) with the sun towards s (unit), in kcd/m^2.
+  Vec3 radiance(Vec3 d, Vec3 s) const {
+    const double cos_theta = std::max(double(d.y), 0.0);
+    const double cos_gamma = std::clamp(double(dot(d, s)), -1.0, 1.0), gamma = std::acos(cos_gamma);
+    const double cs = std::cos(theta_s);
+    const double Yv = zenith_Y * Y(cos_theta, gamma, cos_gamma) / Y(1.0, theta_s, cs);
+    const double xv = zenith_x * x(cos_theta, gamma, cos_gamma) / x(1.0, theta_s, cs);
+    const double yv = zenith_y * y(cos_theta, gamma, cos_gamma) / y(1.0, theta_s, cs);
+    if (!(yv > 1e-6) || !(Yv > 0)) return {0, 0, 0};
+    const double X = xv * Yv / yv, Z = (1 - xv - yv) * Yv / yv;
+    const double r = 3.2406 * X - 1.5372 * Yv - 0.4986 * Z,
+                 g = -0.9689 * X + 1.8758 * Yv + 0.0415 * Z,
+                 b = 0.0557 * X - 0.2040 * Yv + 1.0570 * Z;
+    return {float(std::max(r, 0.0)), float(std::max(g, 0.0)), float(std::max(b, 0.0))};
+  }
+};
+
+}  // namespace
+
+Environment Environment::physical_sky(const Sun& sun, float turbidity) {
+  sun.check();
+  if (!(turbidity >= 1.7f && turbidity <= 10.0f))
+    throw Error(ErrorCode::invalid_argument,
+                fmt::format("sky: turbidity {} is not in [1.7, 10]", turbidity));
+  const Vec3 s = normalize(sun.direction);
+  // Preetham's fit holds for the sun above the horizon: below it, the sky of a sun on it.
+  const double theta_s =
+      std::min(std::acos(std::clamp(double(s.y), -1.0, 1.0)), 1.5707963267948966 - 1e-3);
+  const double horizontal = std::sqrt(double(s.x) * s.x + double(s.z) * s.z);
+  const Vec3 s_fit =
+      horizontal > 1e-9
+          ? Vec3{float(s.x / horizontal * std::sin(theta_s)), float(std::cos(theta_s)),
+                 float(s.z / horizontal * std::sin(theta_s))}
+          : Vec3{0, float(std::cos(theta_s)), float(-std::sin(theta_s))};
+  const PreethamSky sky(turbidity, theta_s);
+  const double norm = 1.0 / PreethamSky(3.0, 3.14159265358979 / 4).zenith_Y;
+  Environment env;
+  env.sun = sun;
+  const int w = 512, h = 256;
+  env.image = FloatImage(w, h, 3);
+  for (int y = 0; y < h; ++y) {
+    const float v = (float(y) + 0.5f) / float(h), theta = v * 3.14159265f;
+    for (int x = 0; x < w; ++x) {
+      const float u = (float(x) + 0.5f) / float(w), phi = (u - 0.5f) * 2 * 3.14159265f;
+      Vec3 d{std::sin(theta) * std::sin(phi), std::cos(theta), -std::sin(theta) * std::cos(phi)};
+      float k = 1.0f;
+      if (d.y < 0.0f)
+        d = normalize(Vec3{d.x, 0.0f, d.z} + Vec3{0, 1e-3f, 0}), k = 0.1f;  // the ground
+      const Vec3 r = sky.radiance(d, s_fit) * float(norm * k);
+      float* p = env.image.at(x, y);
+      p[0] = r.x, p[1] = r.y, p[2] = r.z;
+    }
+  }
+  return env;
+}
+
+std::optional<Environment> make_lighting(const std::string& env, const std::string& sun, bool sky) {
+  if (sun.empty() && !sky)
+    return env.empty() ? std::nullopt : std::optional(Environment::parse(env));
+  if (sky && !env.empty())
+    throw Error(ErrorCode::invalid_argument, "give --sky or --env, not both");
+  const Sun s = sun.empty() ? Sun{} : Sun::parse(sun);
+  Environment e = env.empty() ? Environment::physical_sky(s) : Environment::parse(env);
+  e.sun = s;
+  return e;
+}
+
+}  // namespace kestrel

@@ -14,8 +14,10 @@ void Renderer::Impl::choose_environment(std::optional<Environment> environment) 
   if (environment)
     env = std::move(*environment);
   else
-    env = Environment::parse(lights.empty() ? "sky" : "none");
+    env = Environment::parse(lights.empty() && punctual.empty() ? "sky" : "none");
   setup_environment();
+  env_ready = true;
+  choose_strategies();
 }
 
 void Renderer::Impl::setup_environment() {
@@ -36,7 +38,33 @@ void Renderer::Impl::setup_environment() {
     }
     env_rows = Distribution1D(row_weights);
   }
-  p_env = !env_on ? 0.0f : (lights.empty() ? 1.0f : 0.5f);
+  sun_on = false;
+  if (env.sun) {
+    const Sun& sun = *env.sun;
+    sun.check();
+    const double radius = double(sun.angular_radius_degrees) * 3.14159265358979 / 180.0;
+    const double one_minus_cos =
+        2 * std::sin(radius / 2) * std::sin(radius / 2);  // 1 - cos, exactly
+    sun_dir = normalize(sun.direction);
+    sun_cos_max = float(1 - one_minus_cos);
+    sun_solid_angle = float(2 * 3.14159265358979 * one_minus_cos);
+    sun_radiance = sun.irradiance * (1.0f / sun_solid_angle);
+    sun_on = luminance(sun.irradiance) > 0;
+  }
+}
+
+// NEE's choice among the environment, the sun and the local lights: equal shares of what
+// exists (the environment alone: 1; with local lights: 1/2 each, as before the sun existed).
+void Renderer::Impl::choose_strategies() {
+  const bool local = local_light_count() > 0;
+  if (!sun_on) {
+    p_sun = 0;
+    p_env = !env_on ? 0.0f : (!local ? 1.0f : 0.5f);
+    return;
+  }
+  const float n = float(int(env_on) + 1 + int(local));
+  p_env = env_on ? 1.0f / n : 0.0f;
+  p_sun = 1.0f / n;
 }
 
 // Solid-angle pdf of sampling direction d from the environment (given it was chosen), at a

@@ -172,8 +172,9 @@ Renderer::Impl::Surface Renderer::Impl::surface_at(const SurfaceHit& h, const Ra
 
 // ---- next-event estimation -------------------------------------------------------------------
 
-// One light sample at a surface: an emissive triangle (by power) or the environment, MIS
-// weighted against the BSDF: the shadow ray to trace and what it adds when unblocked.
+// One light sample at a surface: the environment, the sun, or a local light (an emissive
+// triangle or a punctual light, by power); MIS weighted against the BSDF except for punctual
+// lights (deltas): the shadow ray to trace and what it adds when unblocked.
 bool Renderer::Impl::sample_light(const Surface& sf, const Basis& frame, Vec3 wo_l, Vec3 origin,
                                   Vec3 throughput, Rng& rng, Ray& shadow,
                                   Vec3& contribution) const {
@@ -189,8 +190,50 @@ bool Renderer::Impl::sample_light(const Surface& sf, const Basis& frame, Vec3 wo
     pdf = p_env * epdf;
     le = env_radiance(wi);
     dir = wi;
+  } else if (ul < p_env + p_sun) {  // the sun: uniform in its cone
+    const float cos_t = 1 - u1 * (1 - sun_cos_max),
+                sin_t = std::sqrt(std::max(0.0f, 1 - cos_t * cos_t));
+    const float phi = 2 * pi * u2;
+    wi = Basis(sun_dir).to_world({sin_t * std::cos(phi), sin_t * std::sin(phi), cos_t});
+    pdf = p_sun / sun_solid_angle;
+    le = sun_radiance;
+    dir = wi;
   } else {
-    const size_t li = light_dist.sample(lights.size() == 1 ? 0.5f : (ul - p_env) / (1 - p_env));
+    const float u = local_light_count() == 1 ? 0.5f : (ul - p_env - p_sun) / (1 - p_env - p_sun);
+    const size_t li = light_dist.sample(u);
+    if (li >= lights.size()) {  // a punctual light: a delta, no MIS
+      const Punctual& q = punctual[li - lights.size()];
+      const float pick = (1 - p_env - p_sun) * light_dist.pmf(li);
+      if (q.type == Light::Type::directional) {
+        wi = dir = -q.direction;
+        le = q.intensity;  // irradiance
+      } else {
+        dir = q.position - origin;
+        const float dist2 = dot(dir, dir);
+        if (!(dist2 > 0)) return false;
+        const float dist = std::sqrt(dist2);
+        wi = dir * (1.0f / dist);
+        float k = 1.0f / dist2;
+        if (q.range > 0) {  // glTF's recommended window: (1 - (d / range)^4)^2, clamped
+          const float x = dist / q.range, x4 = x * x * x * x;
+          const float win = std::clamp(1 - x4, 0.0f, 1.0f);
+          k *= win * win;
+        }
+        if (q.type == Light::Type::spot) {
+          const float a =
+              std::clamp(dot(q.direction, -wi) * q.spot_scale + q.spot_offset, 0.0f, 1.0f);
+          k *= a * a;
+        }
+        le = q.intensity * k;
+        tmax = 1.0f - 1e-3f;
+      }
+      if (!(pick > 0 && dot(wi, ng) > 0 && luminance(le) > 0)) return false;
+      const Vec3 f = bsdf_eval(bp, wo_l, frame.to_local(wi));
+      if (!(luminance(f) > 0)) return false;
+      shadow = Ray{origin, dir, 0.0f, tmax};
+      contribution = throughput * f * le * (1.0f / pick);
+      return true;
+    }
     const LightTri& l = lights[li];
     const float su = std::sqrt(u1);
     const float lb1 = u2 * su, lb2 = 1 - su;  // weights of vertices 1 and 2
@@ -295,6 +338,17 @@ void Renderer::Impl::render_tile(const CameraModel& cam, const CameraModel& prev
           w = ps.bsdf_pdf * ps.bsdf_pdf / (ps.bsdf_pdf * ps.bsdf_pdf + lp * lp);
         }
         ps.radiance = ps.radiance + ps.throughput * le * w;
+        if (sun_on) {  // a ray that escapes into the sun's disk
+          const Vec3 ls = sun_radiance_towards(normalize(ray.dir));
+          if (luminance(ls) > 0) {
+            float ws = 1;
+            if (depth > 0) {
+              const float lp = p_sun / sun_solid_angle;
+              ws = ps.bsdf_pdf * ps.bsdf_pdf / (ps.bsdf_pdf * ps.bsdf_pdf + lp * lp);
+            }
+            ps.radiance = ps.radiance + ps.throughput * ls * ws;
+          }
+        }
         if (ps.aov_pending) {
           out.albedo = min(le, Vec3{1, 1, 1});
           out.normal = {0, 0, 0};
@@ -337,7 +391,7 @@ void Renderer::Impl::render_tile(const CameraModel& cam, const CameraModel& prev
       const Vec3 wo_l = frame.to_local(wo);
       const Vec3 origin = offset_origin(p, ng);
       // Next-event estimation: one light sample (an emissive triangle or the environment).
-      if (p_env > 0 || !lights.empty()) {
+      if (p_env > 0 || p_sun > 0 || local_light_count() > 0) {
         Ray shadow;
         Vec3 contribution;
         if (sample_light(sf, frame, wo_l, origin, ps.throughput, rng, shadow, contribution)) {

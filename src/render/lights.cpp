@@ -6,6 +6,7 @@
 #include <unordered_map>
 
 #include "kestrel/error.h"
+#include "kestrel/scene.h"
 #include "render/renderer_impl.h"
 
 namespace kestrel {
@@ -67,8 +68,39 @@ void Renderer::Impl::sync_lights() {
       extend(bounds, p0), extend(bounds, p1), extend(bounds, p2);
     }
   }
+  double triangle_power = 0;
+  for (float w : power) triangle_power += w;
+  if (!(triangle_power > 0)) lights.clear(), power.clear();
+  // Punctual lights after the triangles, by power: a point light 4 pi I, a spot 2 pi (1 -
+  // cos outer) I, a directional one its irradiance over the scene's cross-section.
+  punctual.clear();
+  const float r = is_empty(bounds) ? 1.0f : 0.5f * length(extent(bounds));
+  for (const Light& l : scene->lights()) {
+    if (const std::string problem = light_problem(l); !problem.empty())
+      throw Error(
+          ErrorCode::invalid_argument,
+          fmt::format("{}: {} light '{}': {}", source(), light_type_name(l.type), l.name, problem));
+    Punctual q;
+    q.type = l.type, q.position = l.position, q.direction = normalize(l.direction),
+    q.intensity = l.color * l.intensity;
+    q.range = l.range;
+    const float cos_inner = std::cos(l.inner_cone), cos_outer = std::cos(l.outer_cone);
+    q.spot_scale = 1.0f / std::max(0.001f, cos_inner - cos_outer);  // glTF's smooth cone edge
+    q.spot_offset = -cos_outer * q.spot_scale;
+    const float lum = luminance(q.intensity);
+    float w = 0;
+    if (l.type == Light::Type::point)
+      w = 4 * pi * lum;
+    else if (l.type == Light::Type::spot)
+      w = 2 * pi * (1 - cos_outer) * lum;
+    else
+      w = pi * r * r * lum;
+    if (!(w > 0)) continue;
+    punctual.push_back(q);
+    power.push_back(w);
+  }
   light_dist = Distribution1D(power);
-  if (light_dist.total() <= 0) lights.clear();
+  if (light_dist.total() <= 0) lights.clear(), punctual.clear();
 }
 
 }  // namespace kestrel

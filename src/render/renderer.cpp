@@ -75,13 +75,14 @@ void Renderer::Impl::sync() {
       for (int col = 0; col < 3; ++col) is.nrm[row * 3 + col] = inv.m[col * 4 + row];
   }
   sync_lights();
+  if (env_ready) choose_strategies();  // the local lights may have come or gone
 }
 
 Bounds3 Renderer::bounds() const {
   return impl_->bounds;
 }
 size_t Renderer::light_count() const {
-  return impl_->lights.size();
+  return impl_->lights.size() + impl_->punctual.size() + (impl_->sun_on ? 1 : 0);
 }
 const Environment& Renderer::environment() const {
   return impl_->env;

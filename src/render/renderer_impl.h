@@ -136,13 +136,26 @@ struct Renderer::Impl {
   std::vector<Material> materials;        // the scene's, plus a trailing "default"
   std::vector<InstanceShade> instances;
   std::vector<std::vector<int32_t>> emissive_rank;  // per mesh key, per triangle: rank or -1
-  std::vector<LightTri> lights;
-  Distribution1D light_dist;
+  std::vector<LightTri> lights;  // emissive triangles: local lights 0 .. lights.size() - 1
+  // Punctual lights (the scene's KHR_lights_punctual): local lights lights.size() .. on.
+  struct Punctual {
+    Light::Type type;
+    Vec3 position, direction, intensity;  // intensity: colour x intensity
+    float range, spot_scale, spot_offset;
+  };
+  std::vector<Punctual> punctual;
+  Distribution1D light_dist;  // over the local lights, by power
   Environment env;
   bool env_on = false;
   Distribution1D env_rows;
   std::vector<Distribution1D> env_cols;
   float p_env = 0;  // probability NEE samples the environment
+  // The sun (env.sun): a cone of directions sampled uniformly, radiance irradiance / solid angle.
+  bool sun_on = false;
+  Vec3 sun_dir, sun_radiance;
+  float sun_cos_max = 1, sun_solid_angle = 0;
+  float p_sun = 0;         // probability NEE samples the sun
+  bool env_ready = false;  // choose_environment ran (the probabilities can be set)
   Bounds3 bounds;
   RayCapture* capture = nullptr;
   std::unique_ptr<Accumulator> tile_acc;  // render_tiles: sums kept between calls of one size
@@ -218,12 +231,18 @@ struct Renderer::Impl {
   float light_pdf_of(size_t li, float dist2, float cos_light) const {
     const LightTri& l = lights[li];
     if (cos_light <= 0 || l.area <= 0) return 0;
-    return (1 - p_env) * light_dist.pmf(li) / l.area * dist2 / cos_light;
+    return (1 - p_env - p_sun) * light_dist.pmf(li) / l.area * dist2 / cos_light;
+  }
+  size_t local_light_count() const { return lights.size() + punctual.size(); }
+  // The sun's radiance towards d (unit) when d is inside its disk.
+  Vec3 sun_radiance_towards(Vec3 d) const {
+    return sun_on && dot(d, sun_dir) >= sun_cos_max ? sun_radiance : Vec3{0, 0, 0};
   }
 
   // environment.cpp
   void choose_environment(std::optional<Environment> environment);
   void setup_environment();
+  void choose_strategies();  // p_env, p_sun from what there is to sample
   float env_pdf(Vec3 d, Vec3 n) const;
   Vec3 env_sample(float u1, float u2, Vec3 n, float& pdf) const;
   // lights.cpp

@@ -63,6 +63,7 @@ Asset Asset::from_scene(Scene scene, SceneConfig config) {
   for (TriangleMesh& mesh : scene.meshes)
     m.scene.add_instance(m.scene.add_mesh(std::move(mesh)), Affine3{});
   m.scene.set_materials(std::move(scene.materials), std::move(scene.textures));
+  m.scene.set_lights(std::move(scene.lights));
   m.scene.set_source(m.source);
   m.scene.commit();
   return a;
@@ -77,6 +78,7 @@ Asset Asset::load(const std::string& path, size_t clip, SceneConfig config) {
   m.gltf.emplace(GltfInstances::load(path, clip));
   m.gltf->add_to(m.scene);
   m.scene.set_materials(m.gltf->materials(), m.gltf->textures());
+  m.scene.set_lights(m.gltf->lights());
   m.scene.set_source(path);
   m.scene.commit();
   m.warn_about_skipped_triangles();
@@ -112,7 +114,10 @@ CommitStats Asset::update(double time, bool force) {
     throw Error(ErrorCode::invalid_argument,
                 fmt::format("{}: time {} is not finite", m.source, time));
   if (!m.gltf && !force) return {};
-  if (m.gltf) m.gltf->set_time(m.scene, time);
+  if (m.gltf) {
+    m.gltf->set_time(m.scene, time);
+    m.scene.set_lights(m.gltf->lights());
+  }
   return m.scene.commit();
 }
 

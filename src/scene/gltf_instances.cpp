@@ -137,6 +137,8 @@ struct GltfInstances::Impl {
   std::vector<Channel> channels;
   std::vector<Material> materials;
   std::vector<Texture> textures;
+  std::vector<std::pair<int, Light>> node_lights;  // (node, light in the node's space)
+  std::vector<Light> lights;                       // posed (world space)
   double duration = 0;
   // Filled by add_to().
   std::vector<MeshId> mesh_ids;
@@ -144,6 +146,24 @@ struct GltfInstances::Impl {
   std::vector<std::vector<float>> posed_weights;           // per mesh, last weights applied
   std::vector<uint8_t> hidden;                             // per node_instances entry
   bool added = false;
+
+  // Lights placed by their nodes' world matrices; a node scaled to nothing turns its light off.
+  void pose_lights(const std::vector<Mat4>& world) {
+    lights.clear();
+    for (const auto& [node, local] : node_lights) {
+      Light l = local;
+      const Mat4& m = world[size_t(node)];
+      l.position = gltf::transform_point(m, {0, 0, 0});
+      const Vec3 z = gltf::transform_point(m, {0, 0, -1});
+      const Vec3 d{z.x - l.position.x, z.y - l.position.y, z.z - l.position.z};
+      const float len = std::sqrt(d.x * d.x + d.y * d.y + d.z * d.z);
+      if (len > 0 && std::isfinite(len))
+        l.direction = {d.x / len, d.y / len, d.z / len};
+      else
+        l.intensity = 0, l.direction = local.direction;
+      lights.push_back(l);
+    }
+  }
 
   std::vector<Mat4> world_matrices(const std::vector<Node>& posed) const {
     std::vector<Mat4> world(posed.size(), gltf::identity());
@@ -321,6 +341,11 @@ GltfInstances GltfInstances::load(const std::string& path, size_t clip) {
   for (int r : g.roots) mark(mark, r, 0);
   for (size_t i = 0; i < g.nodes.size(); ++i)
     if (reachable[i] && g.nodes[i].mesh >= 0) g.node_instances.push_back({int(i), 0});
+  for (size_t i = 0; i < g.nodes.size(); ++i)
+    if (reachable[i])
+      if (auto l = gltf::node_light(path, model, int(i), gltf::identity()))
+        g.node_lights.push_back({int(i), *l});
+  g.pose_lights(g.world_matrices(g.nodes));
   return out;
 }
 
@@ -332,6 +357,9 @@ const std::vector<Material>& GltfInstances::materials() const {
 }
 const std::vector<Texture>& GltfInstances::textures() const {
   return impl_->textures;
+}
+const std::vector<Light>& GltfInstances::lights() const {
+  return impl_->lights;
 }
 size_t GltfInstances::instance_count() const {
   return impl_->node_instances.size();
@@ -388,6 +416,7 @@ void GltfInstances::set_time(InstancedScene& scene, double t) {
     }
   }
   const std::vector<Mat4> world = g.world_matrices(posed);
+  g.pose_lights(world);
   for (size_t k = 0; k < g.node_instances.size(); ++k) {
     const auto [node, id] = g.node_instances[k];
     const Affine3 a = to_affine(world[size_t(node)]);

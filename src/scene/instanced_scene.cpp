@@ -170,6 +170,7 @@ struct InstancedScene::Impl {
   Layout layout = Layout::bvh8;
   std::vector<Material> materials;
   std::vector<Texture> textures;
+  std::vector<Light> lights;
   std::string source;
   uint64_t generation = 0;
   // As of the last commit(): the BLAS of the only instance when it is the identity with every
@@ -495,6 +496,12 @@ const std::vector<Material>& InstancedScene::materials() const {
 }
 const std::vector<Texture>& InstancedScene::textures() const {
   return impl_->textures;
+}
+void InstancedScene::set_lights(std::vector<Light> lights) {
+  impl_->lights = std::move(lights);
+}
+const std::vector<Light>& InstancedScene::lights() const {
+  return impl_->lights;
 }
 void InstancedScene::set_source(std::string source) {
   impl_->source = std::move(source);

@@ -233,6 +233,28 @@ def main():
     path = write("UPPER.GLB", glb)
     expect_ok("a valid .GLB with an upper-case extension", ["bvh", path], ["1 triangles: 1 valid"])
 
+    # --- Lights: bad glTF punctual lights and bad --sun flags.
+    for kind, light, needle in [("unknown type", {"name": "odd", "type": "area"}, "unknown type"),
+                                ("negative intensity", {"name": "neg", "type": "point", "intensity": -3}, "negative"),
+                                ("inverted cone", {"name": "cone", "type": "spot",
+                                                   "spot": {"innerConeAngle": 1.2, "outerConeAngle": 0.3}}, "cone")]:
+        extra = {"extensionsUsed": ["KHR_lights_punctual"],
+                 "extensions": {"KHR_lights_punctual": {"lights": [light]}},
+                 "nodes": [{"mesh": 0}, {"extensions": {"KHR_lights_punctual": {"light": 0}}}],
+                 "scenes": [{"nodes": [0, 1]}]}
+        path = gltf_with([ok_acc], views, tri, extra, "bad_light.gltf")
+        expect_error(f"glTF light: {kind}", ["render", path, "--res", "8x8", "--png", "x.png", "--quiet"],
+                     ["bad_light.gltf", light["name"], needle])
+    extra = {"nodes": [{"mesh": 0}, {"extensions": {"KHR_lights_punctual": {"light": 5}}}], "scenes": [{"nodes": [0, 1]}]}
+    path = gltf_with([ok_acc], views, tri, extra, "missing_light.gltf")
+    expect_error("glTF node names a missing light", ["render", path, "--res", "8x8", "--png", "x.png", "--quiet"],
+                 ["missing_light.gltf", "missing light 5"])
+    for sun in ["0,95", "nan,10", "10", "0,10,-2"]:
+        expect_error(f"--sun {sun}", ["render", "builtin:cornell_box", "--sun", sun, "--res", "8x8", "--png", "x.png"],
+                     ["--sun", sun])
+    expect_error("--sky with --env", ["run", "builtin:cornell_box", "--sky", "--env", "sky", "--frames", 1, "-o", "run_out"],
+                 ["--sky"])
+
     print(f"{passed} passed, {len(failures)} failed")
     for f in failures:
         print("FAIL", f)

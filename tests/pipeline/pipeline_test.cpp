@@ -71,6 +71,28 @@ TEST(Pipeline, RendersAsTheRendererAndTakesARenderFunction) {
   EXPECT_EQ(g.index, 2u);
 }
 
+// Automatic exposure: a brighter scene gets fewer stops; the exposure moves 10 % of the way
+// per frame towards the log-average target (the first frame jumps there).
+TEST(Pipeline, AutoExposureFollowsTheImageSmoothly) {
+  PipelineSettings s = small(1);
+  s.denoise = false, s.auto_exposure = true;
+  Pipeline dim("builtin:cornell_box", s, "none");
+  Pipeline bright("builtin:cornell_box", s, "constant:20,20,20");
+  const float e_dim = dim.frame(front(), 0.0).exposure,
+              e_bright = bright.frame(front(), 0.0).exposure;
+  EXPECT_GT(e_dim, e_bright + 1.0f);
+  // Steady state: the image does not change much, so the exposure barely moves; a manual
+  // exposure is added on top.
+  const float e2 = dim.frame(front(), 0.0).exposure;
+  EXPECT_NEAR(e2, e_dim, 0.5f);
+  s.exposure = 1.0f;
+  dim.set_settings(s);
+  EXPECT_NEAR(dim.frame(front(), 0.0).exposure, e2 + 1.0f, 0.5f);
+  PipelineSettings fixed = small(1);
+  fixed.denoise = false;
+  EXPECT_EQ(Pipeline("builtin:cornell_box", fixed).frame(front(), 0.0).exposure, 0.0f);
+}
+
 TEST(Pipeline, AdaptiveFactorFollowsTheTarget) {
   PipelineSettings s = small(2);
   s.target_ms = 1e-6;  // impossible: coarser
