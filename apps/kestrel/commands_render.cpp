@@ -24,7 +24,7 @@ namespace {
 
 struct RenderArgs {
   std::string scene = "builtin:cornell_box", view, camera, res = "640x360", out, pfm, png, env,
-              path, denoise, upscale, sun;
+              path, denoise, upscale, sun, light_sampling = "power";
   bool sky = false;
   int spp = 1, max_depth = 8, threads = 0, frames = 0, frame = 0, factor = 2;
   uint64_t seed = 0;
@@ -54,6 +54,9 @@ void add_common(CLI::App& cmd, RenderArgs& a) {
                  "irradiance, default 10); with the physical sky unless --env");
   cmd.add_flag("--sky", a.sky,
                "The physical sky (Preetham) for the sun (default sun: azimuth 135, elevation 45)");
+  cmd.add_option("--light-sampling", a.light_sampling,
+                 "How NEE picks a local light: power (default) | tree (a light tree: many lights)")
+      ->capture_default_str();
   cmd.add_option("--pfm", a.pfm, "Also write one PFM per AOV into this directory");
   cmd.add_option("--png", a.png, "Also write the tone-mapped colour as PNG");
   cmd.add_option("--exposure", a.exposure, "Exposure of the PNG, stops")->capture_default_str();
@@ -80,6 +83,11 @@ RenderSettings settings_of(const RenderArgs& a) {
   s.fixed_jitter = a.fixed_jitter;
   s.clamp = a.clamp;
   s.progress = !a.quiet && isatty(2);
+  if (a.light_sampling == "tree")
+    s.light_sampling = LightSampling::tree;
+  else if (a.light_sampling != "power")
+    throw Error(ErrorCode::invalid_argument,
+                fmt::format("--light-sampling '{}': expected power or tree", a.light_sampling));
   return s;
 }
 

@@ -117,6 +117,14 @@ struct Environment {
 /// (neither given). Throws Error for bad specs or --sky with --env.
 std::optional<Environment> make_lighting(const std::string& env, const std::string& sun, bool sky);
 
+/// How next-event estimation picks one of the local lights (emissive triangles, point and
+/// spot lights). Both are unbiased.
+enum class LightSampling {
+  power,  ///< in proportion to power (the default)
+  tree,   ///< by a light tree's estimate of each light's contribution at the point (many
+          ///< lights; scenes with directional lights fall back to power)
+};
+
 /// What a render does. The same settings and seed give the same bits for any thread count.
 struct RenderSettings {
   int width = 640, height = 360;
@@ -128,9 +136,10 @@ struct RenderSettings {
   /// Every pass at the frame's jitter (Halton index frame + 1, the 1-spp sequence): a clean,
   /// point-sampled low-resolution frame, as temporal upsamplers see it, from many passes.
   bool fixed_jitter = false;
-  int max_depth = 8;      ///< path vertices after the camera (1 = direct light only)
-  int rr_depth = 3;       ///< Russian roulette from this bounce on
-  float clamp = 0;        ///< > 0: clamp each sample's radiance (biased); 0 = off
+  int max_depth = 8;  ///< path vertices after the camera (1 = direct light only)
+  int rr_depth = 3;   ///< Russian roulette from this bounce on
+  float clamp = 0;    ///< > 0: clamp each sample's radiance (biased); 0 = off
+  LightSampling light_sampling = LightSampling::power;
   int threads = 0;        ///< 0 = all the library may use
   bool progress = false;  ///< a progress bar on stderr
 };

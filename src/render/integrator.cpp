@@ -176,7 +176,7 @@ Renderer::Impl::Surface Renderer::Impl::surface_at(const SurfaceHit& h, const Ra
 // triangle or a punctual light, by power); MIS weighted against the BSDF except for punctual
 // lights (deltas): the shadow ray to trace and what it adds when unblocked.
 bool Renderer::Impl::sample_light(const Surface& sf, const Basis& frame, Vec3 wo_l, Vec3 origin,
-                                  Vec3 throughput, Rng& rng, Ray& shadow,
+                                  Vec3 throughput, Rng& rng, bool tree, Ray& shadow,
                                   Vec3& contribution) const {
   const Vec3 &ng = sf.ng, &ns = sf.ns;
   const BsdfParams& bp = sf.bp;
@@ -200,10 +200,17 @@ bool Renderer::Impl::sample_light(const Surface& sf, const Basis& frame, Vec3 wo
     dir = wi;
   } else {
     const float u = local_light_count() == 1 ? 0.5f : (ul - p_env - p_sun) / (1 - p_env - p_sun);
-    const size_t li = light_dist.sample(u);
+    float local_pick = 0;
+    size_t li = 0;
+    if (tree) {
+      li = light_tree.sample(origin, u, local_pick);
+    } else {
+      li = light_dist.sample(u);
+      local_pick = light_dist.pmf(li);
+    }
     if (li >= lights.size()) {  // a punctual light: a delta, no MIS
       const Punctual& q = punctual[li - lights.size()];
-      const float pick = (1 - p_env - p_sun) * light_dist.pmf(li);
+      const float pick = (1 - p_env - p_sun) * local_pick;
       if (q.type == Light::Type::directional) {
         wi = dir = -q.direction;
         le = q.intensity;  // irradiance
@@ -246,7 +253,7 @@ bool Renderer::Impl::sample_light(const Surface& sf, const Basis& frame, Vec3 wo
     const InstanceShade& lis = instances[l.instance];
     const Material& lm = material_of(*lis.mesh, l.prim);
     le = emission_at(lm, uv_at(*lis.mesh, l.prim, lb1, lb2));
-    pdf = light_pdf_of(li, dist2, cos_l);
+    pdf = light_pdf_of(li, dist2, cos_l, local_pick);
     tmax = 1.0f - 1e-3f;
   }
   if (!(pdf > 0 && dot(wi, ng) > 0 && luminance(le) > 0)) return false;
@@ -266,6 +273,7 @@ void Renderer::Impl::render_tile(const CameraModel& cam, const CameraModel& prev
                                  const RenderSettings& s, int tx, int ty, int pass, float jx,
                                  float jy, Accumulator& acc, double& trace_ms,
                                  uint64_t ray_counts[3]) const {
+  const bool use_tree = s.light_sampling == LightSampling::tree && !light_tree.empty();
   const int x0 = tx * tile_size, y0 = ty * tile_size;
   const int x1 = std::min(x0 + tile_size, s.width), y1 = std::min(y0 + tile_size, s.height);
   const size_t count = size_t(x1 - x0) * size_t(y1 - y0);
@@ -381,7 +389,8 @@ void Renderer::Impl::render_tile(const CameraModel& cam, const CameraModel& prev
         const Vec3 le = emission_at(mat, sf.uv);
         float w = 1;
         if (depth > 0) {
-          const float lp = light_pdf(h.instance, h.prim, h.t * h.t, std::fabs(sf.cos_hit));
+          const float lp =
+              light_pdf(h.instance, h.prim, h.t * h.t, std::fabs(sf.cos_hit), ray.org, use_tree);
           w = ps.bsdf_pdf * ps.bsdf_pdf / (ps.bsdf_pdf * ps.bsdf_pdf + lp * lp);
         }
         ps.radiance = ps.radiance + ps.throughput * le * w;
@@ -394,7 +403,8 @@ void Renderer::Impl::render_tile(const CameraModel& cam, const CameraModel& prev
       if (p_env > 0 || p_sun > 0 || local_light_count() > 0) {
         Ray shadow;
         Vec3 contribution;
-        if (sample_light(sf, frame, wo_l, origin, ps.throughput, rng, shadow, contribution)) {
+        if (sample_light(sf, frame, wo_l, origin, ps.throughput, rng, use_tree, shadow,
+                         contribution)) {
           shadow_rays.push_back(shadow);
           shadows.push_back({contribution, active[k]});
         }

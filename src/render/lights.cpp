@@ -101,6 +101,26 @@ void Renderer::Impl::sync_lights() {
   }
   light_dist = Distribution1D(power);
   if (light_dist.total() <= 0) lights.clear(), punctual.clear();
+  // The light tree over the same local lights, unless one is directional (no position).
+  light_tree.build({});
+  bool directional = false;
+  for (const Punctual& q : punctual) directional |= q.type == Light::Type::directional;
+  if (!directional && local_light_count() > 1) {
+    std::vector<LightTree::Item> items;
+    items.reserve(local_light_count());
+    for (size_t i = 0; i < lights.size(); ++i) {
+      const LightTri& l = lights[i];
+      Bounds3 b;
+      extend(b, l.p0), extend(b, l.p0 + l.e1), extend(b, l.p0 + l.e2);
+      items.push_back({b, power[i]});
+    }
+    for (size_t i = 0; i < punctual.size(); ++i) {
+      Bounds3 b;
+      extend(b, punctual[i].position);
+      items.push_back({b, power[lights.size() + i]});
+    }
+    light_tree.build(items);
+  }
 }
 
 }  // namespace kestrel

@@ -13,6 +13,7 @@
 #include "core/vec.h"
 #include "kestrel/render.h"
 #include "render/bsdf.h"
+#include "render/light_tree.h"
 #include "render/sampling.h"
 #include "render/testing.h"
 
@@ -145,6 +146,7 @@ struct Renderer::Impl {
   };
   std::vector<Punctual> punctual;
   Distribution1D light_dist;  // over the local lights, by power
+  LightTree light_tree;       // over the same, when there is no directional light
   Environment env;
   bool env_on = false;
   Distribution1D env_rows;
@@ -219,19 +221,23 @@ struct Renderer::Impl {
     return true;
   }
 
-  // Probability (solid angle) that NEE picked this point on light triangle (instance, prim).
-  float light_pdf(uint32_t instance, uint32_t prim, float dist2, float cos_light) const {
+  // Probability (solid angle) that NEE at x picked this point on light triangle (instance,
+  // prim), with the tree or by power.
+  float light_pdf(uint32_t instance, uint32_t prim, float dist2, float cos_light, Vec3 x,
+                  bool tree) const {
     if (lights.empty() || cos_light <= 0) return 0;
     const InstanceShade& is = instances[instance];
     const int32_t r = emissive_rank[is.mesh_key][prim];
     if (r < 0) return 0;
-    return light_pdf_of(is.light_base + size_t(r), dist2, cos_light);
+    const size_t li = is.light_base + size_t(r);
+    return light_pdf_of(li, dist2, cos_light, tree ? light_tree.pmf(x, li) : light_dist.pmf(li));
   }
-  // The same for light li (solid angle: pick probability / area * distance^2 / cos).
-  float light_pdf_of(size_t li, float dist2, float cos_light) const {
+  // The same for light li picked with probability `pick` among the local lights (solid angle:
+  // pick / area * distance^2 / cos).
+  float light_pdf_of(size_t li, float dist2, float cos_light, float pick) const {
     const LightTri& l = lights[li];
     if (cos_light <= 0 || l.area <= 0) return 0;
-    return (1 - p_env - p_sun) * light_dist.pmf(li) / l.area * dist2 / cos_light;
+    return (1 - p_env - p_sun) * pick / l.area * dist2 / cos_light;
   }
   size_t local_light_count() const { return lights.size() + punctual.size(); }
   // The sun's radiance towards d (unit) when d is inside its disk.
@@ -263,7 +269,7 @@ struct Renderer::Impl {
   };
   Surface surface_at(const SurfaceHit& h, const Ray& ray) const;
   bool sample_light(const Surface& sf, const Basis& frame, Vec3 wo_l, Vec3 origin, Vec3 throughput,
-                    Rng& rng, Ray& shadow, Vec3& contribution) const;
+                    Rng& rng, bool tree, Ray& shadow, Vec3& contribution) const;
   void prefetch_indices(const SurfaceHit& h) const;
   void prefetch_vertices(const SurfaceHit& h) const;
   void prefetch_texels(const SurfaceHit& h) const;

@@ -5,7 +5,9 @@
 
 #include <cmath>
 
+#include "core/vec.h"
 #include "kestrel/kestrel.h"
+#include "render/light_tree.h"
 #include "support/oracles.h"
 
 namespace kestrel {
@@ -214,6 +216,63 @@ TEST(Lights, GltfPunctualLightsLoadPlacedByTheirNodes) {
       EXPECT_NE(std::string(e.what()).find(needle), std::string::npos) << e.what();
     }
   }
+}
+
+}  // namespace
+}  // namespace kestrel
+
+namespace kestrel {
+namespace {
+
+// The light tree's probabilities: they sum to one at any point, sample() reports the same
+// probability pmf() gives, and picks lights in those proportions.
+TEST(LightTree, ProbabilitiesAreConsistentAndSumToOne) {
+  test::Rng rng{5};
+  std::vector<render::LightTree::Item> items;
+  for (int i = 0; i < 300; ++i) {
+    const Vec3 c = rng.in_box({-10, 0, -10}, {10, 3, 10});
+    Bounds3 b;
+    extend(b, c), extend(b, c + Vec3{0.1f, 0, 0.1f} * rng.uniform());
+    items.push_back({b, i % 7 == 0 ? 0.0f : 1 + 100 * rng.uniform()});
+  }
+  render::LightTree tree;
+  tree.build(items);
+  for (int k = 0; k < 20; ++k) {
+    const Vec3 x = rng.in_box({-12, 0, -12}, {12, 4, 12});
+    double sum = 0;
+    for (size_t i = 0; i < items.size(); ++i) sum += tree.pmf(x, i);
+    EXPECT_NEAR(sum, 1.0, 1e-4);
+    std::vector<int> count(items.size(), 0);
+    const int n = 20000;
+    for (int j = 0; j < n; ++j) {
+      float p = 0;
+      const size_t i = tree.sample(x, (float(j) + 0.5f) / float(n), p);
+      ASSERT_LT(i, items.size());
+      ASSERT_NEAR(p, tree.pmf(x, i), 1e-5f * std::max(1.0f, p));
+      ASSERT_GT(items[i].power, 0.0f);  // zero-power lights are never picked
+      ++count[i];
+    }
+    for (size_t i = 0; i < items.size(); ++i)  // stratified u: frequencies within a count or two
+      EXPECT_NEAR(count[i], tree.pmf(x, i) * n, 2.5 + 0.02 * tree.pmf(x, i) * n) << i;
+  }
+}
+
+// Unbiased both ways: the lamp hall converges to the same image with either light choice.
+TEST(LightTree, TreeAndPowerSamplingConvergeToTheSameImage) {
+  const Asset hall = Asset::load("builtin:lamp_hall");
+  Renderer r(hall.scene());
+  EXPECT_EQ(r.light_count(), 2048u);
+  RenderSettings s;
+  s.width = 32, s.height = 18, s.spp = 256, s.max_depth = 2;
+  const Camera cam = *find_view(hall, "inside");
+  double mean[2] = {0, 0};
+  for (int m = 0; m < 2; ++m) {
+    s.light_sampling = m ? LightSampling::tree : LightSampling::power;
+    s.seed = uint64_t(m);
+    const Frame f = r.render(cam, s);
+    for (float v : f[Aov::color].pixels) mean[m] += v;
+  }
+  EXPECT_NEAR(mean[1] / mean[0], 1.0, 0.03);
 }
 
 }  // namespace
