@@ -11,6 +11,7 @@
 #include "kestrel/error.h"
 #include "kestrel/parallel.h"
 #include "kestrel/trace.h"
+#include "queries.h"
 
 namespace py = pybind11;
 using namespace kestrel;
@@ -43,6 +44,7 @@ PYBIND11_MODULE(_kestrel, m) {
   });
 
   python::bind_geometry(m);
+  python::bind_instances(m);
   python::bind_render(m);
   python::bind_images(m);
 
