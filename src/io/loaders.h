@@ -16,6 +16,8 @@ Scene load_obj(const std::string& path);
 Scene load_gltf(const std::string& path);
 /// Built-in scenes by name ("cornell_box").
 Scene make_builtin_scene(const std::string& name);
+/// The warning for triangles validation skipped ("" when none was): counts by reason.
+std::string skipped_triangles_warning(const std::string& source, const ValidationReport& r);
 
 /// Decodes a PNG/JPEG/... image to RGBA8; Error naming the file when it cannot.
 Texture load_texture(const std::string& path);

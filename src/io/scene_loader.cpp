@@ -78,17 +78,21 @@ namespace {
 // Triangles that will never be built (NaN/Inf vertices, bad indices, zero area) as a warning
 // with the counts, so a damaged mesh does not render silently with holes.
 Scene with_validation_warning(Scene scene) {
-  const ValidationReport r = validate_scene(scene).report;
-  if (r.valid_triangle_count != r.triangle_count)
-    scene.warnings.push_back(fmt::format(
-        "{}: {} of {} triangles skipped ({} with a NaN or Inf vertex, {} with an index past "
-        "the vertices, {} of zero area)",
-        scene.source, r.triangle_count - r.valid_triangle_count, r.triangle_count,
-        r.nonfinite_triangle_count, r.bad_index_triangle_count, r.degenerate_triangle_count));
+  const std::string w = skipped_triangles_warning(scene.source, validate_scene(scene).report);
+  if (!w.empty()) scene.warnings.push_back(w);
   return scene;
 }
 
 }  // namespace
+
+std::string skipped_triangles_warning(const std::string& source, const ValidationReport& r) {
+  if (r.valid_triangle_count == r.triangle_count) return {};
+  return fmt::format(
+      "{}: {} of {} triangles skipped ({} with a NaN or Inf vertex, {} with an index past "
+      "the vertices, {} of zero area)",
+      source, r.triangle_count - r.valid_triangle_count, r.triangle_count,
+      r.nonfinite_triangle_count, r.bad_index_triangle_count, r.degenerate_triangle_count);
+}
 
 Scene load_scene(const std::string& path) {
   constexpr std::string_view builtin_prefix = "builtin:";

@@ -7,6 +7,7 @@
 #include <optional>
 
 #include "core/vec.h"
+#include "io/loaders.h"
 #include "kestrel/error.h"
 
 namespace kestrel {
@@ -39,13 +40,8 @@ struct Asset::Impl {
     }
   }
   void warn_about_skipped_triangles() {
-    const ValidationReport r = scene.validation();
-    if (r.valid_triangle_count != r.triangle_count)
-      warnings.push_back(fmt::format(
-          "{}: {} of {} triangles skipped ({} with a NaN or Inf vertex, {} with an index past "
-          "the vertices, {} of zero area)",
-          source, r.triangle_count - r.valid_triangle_count, r.triangle_count,
-          r.nonfinite_triangle_count, r.bad_index_triangle_count, r.degenerate_triangle_count));
+    const std::string w = skipped_triangles_warning(source, scene.validation());
+    if (!w.empty()) warnings.push_back(w);
   }
 };
 

@@ -156,16 +156,10 @@ TEST(Lights, BadLightsAreErrorsNamingSceneAndLight) {
 
 std::string gltf_with_light(const std::string& name, const std::string& light_json) {
   const TriangleMesh quad = plane().meshes[0];
-  // Positions (4 x vec3) then indices (6 x uint32), base64 of the raw bytes.
+  // Positions (4 x vec3) then indices (6 x uint32), as a base64 data URI.
   std::string bin(reinterpret_cast<const char*>(quad.positions.data()), 48);
   bin.append(reinterpret_cast<const char*>(quad.indices.data()), 24);
-  static const char* t = "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
-  std::string b64;
-  for (size_t i = 0; i < bin.size(); i += 3) {  // 72 bytes: whole groups of 3
-    const uint32_t v =
-        uint32_t(uint8_t(bin[i])) << 16 | uint32_t(uint8_t(bin[i + 1])) << 8 | uint8_t(bin[i + 2]);
-    b64 += {t[v >> 18], t[(v >> 12) & 63], t[(v >> 6) & 63], t[v & 63]};
-  }
+  const std::string b64 = test::base64(bin);
   return test::write_temp_file(
       name, R"({"asset": {"version": "2.0"}, "extensionsUsed": ["KHR_lights_punctual"],
     "buffers": [{"byteLength": 72, "uri": "data:application/octet-stream;base64,)" +

@@ -156,7 +156,6 @@ std::string write_temp_file(const std::string& name, const std::string& contents
   return path;
 }
 
-namespace {
 std::string base64(const std::string& bytes) {
   static const char* t = "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
   std::string out;
@@ -175,7 +174,6 @@ std::string base64(const std::string& bytes) {
   }
   return out;
 }
-}  // namespace
 
 std::string write_animated_gltf(const std::string& name) {
   const TriangleMesh box = closed_box({-0.5f, -0.5f, -0.5f}, {0.5f, 0.5f, 0.5f}).meshes[0];

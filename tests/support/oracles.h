@@ -49,6 +49,9 @@ std::vector<Isa> supported_isas();
 /// Every builder, for parameterised tests.
 std::vector<Builder> all_builders();
 
+/// Standard base64 (RFC 4648, with padding): glTF data URIs of the test files.
+std::string base64(const std::string& bytes);
+
 /// A synthetic animated glTF (written under the test temp dir; its path returned), so the
 /// two-level tests never depend on ../shared/scenes: mesh 0 a closed box placed by node 0
 /// and by its child node 1 (translated by +3 x), mesh 1 a 60-triangle soup with one morph
