@@ -18,12 +18,14 @@ using bench::relmse;
 
 int main(int argc, char** argv) {
   CLI::App app{"kestrel light-sampling benchmark"};
-  std::string scene = "builtin:lamp_hall", view = "inside", res = "320x180";
+  std::string scene = "builtin:lamp_hall", view = "inside", res = "320x180", lights;
   double seconds = 2.0;
   int ref_spp = 2048, runs = 3, threads = 1, depth = 3;
   bool quick = false;
   app.add_option("--scene", scene, "Scene")->capture_default_str();
   app.add_option("--view", view, "View")->capture_default_str();
+  app.add_option("--lights", lights,
+                 "A lights file added to the scene's (e.g. data/lights/sponza_100.json)");
   app.add_option("--res", res, "Resolution")->capture_default_str();
   app.add_option("--seconds", seconds, "Render time per method and run")->capture_default_str();
   app.add_option("--ref-spp", ref_spp, "Reference passes (tree)")->capture_default_str();
@@ -38,7 +40,8 @@ int main(int argc, char** argv) {
     if (std::sscanf(res.c_str(), "%dx%d", &w, &h) != 2)
       throw Error(ErrorCode::invalid_argument, "--res WxH");
     ThreadLimit limit(threads);
-    const Asset asset = Asset::load(scene);
+    Asset asset = Asset::load(scene);
+    if (!lights.empty()) asset.add_lights(load_lights(lights));
     const auto cam = find_view(asset, view);
     if (!cam)
       throw Error(ErrorCode::invalid_argument, fmt::format("{}: no view '{}'", scene, view));

@@ -24,7 +24,7 @@ namespace {
 
 struct RenderArgs {
   std::string scene = "builtin:cornell_box", view, camera, res = "640x360", out, pfm, png, env,
-              path, denoise, upscale, sun, light_sampling = "power";
+              path, denoise, upscale, sun, light_sampling = "power", lights;
   bool sky = false;
   int spp = 1, max_depth = 8, threads = 0, frames = 0, frame = 0, factor = 2;
   uint64_t seed = 0;
@@ -54,6 +54,10 @@ void add_common(CLI::App& cmd, RenderArgs& a) {
                  "irradiance, default 10); with the physical sky unless --env");
   cmd.add_flag("--sky", a.sky,
                "The physical sky (Preetham) for the sun (default sun: azimuth 135, elevation 45)");
+  cmd.add_option(
+      "--lights", a.lights,
+      "A lights file (JSON: point / spot / directional lights, docs/renderer.md) added to "
+      "the scene's");
   cmd.add_option("--light-sampling", a.light_sampling,
                  "How NEE picks a local light: power (default) | tree (a light tree: many lights)")
       ->capture_default_str();
@@ -262,7 +266,8 @@ void run_render(const RenderArgs& a) {
   if (!a.view.empty() && !a.camera.empty())
     throw Error(ErrorCode::invalid_argument, "render: give --view or --camera, not both");
   const RenderSettings s = settings_of(a);
-  const Asset asset = load_asset_reporting(a.scene);
+  Asset asset = load_asset_reporting(a.scene);
+  if (!a.lights.empty()) asset.add_lights(load_lights(a.lights));
   Camera camera;
   if (!a.camera.empty()) {
     camera = parse_camera(a.camera);
@@ -335,7 +340,9 @@ void run_sequence(const RenderArgs& a) {
   }
   std::filesystem::create_directories(a.out);
   ps.sun = a.sun, ps.sky = a.sky;
-  Pipeline pipeline(load_asset_reporting(a.scene), ps, a.env);
+  Asset asset = load_asset_reporting(a.scene);
+  if (!a.lights.empty()) asset.add_lights(load_lights(a.lights));
+  Pipeline pipeline(std::move(asset), ps, a.env);
   pipeline.set_render_function(
       [](Renderer& r, const Camera& cam, const RenderSettings& rs,
          const std::optional<Camera>& prev) { return distributed::render(r, cam, rs, prev); });

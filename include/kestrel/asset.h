@@ -31,6 +31,8 @@ class Asset {
   /// A static asset has nothing to pose: it commits only when asked to (`force`) — edits made
   /// through scene() are committed by the caller.
   CommitStats update(double time, bool force = false);
+  /// Lights added to the file's own (e.g. a lights file): kept across update().
+  void add_lights(const std::vector<Light>& lights);
   bool animated() const;
   /// End of the longest animation channel, seconds (0 when static).
   double duration() const;

@@ -111,6 +111,12 @@ struct Environment {
   static Environment parse(const std::string& spec);
 };
 
+/// A lights file: {"lights": [{"name": "...", "type": "point" | "spot" | "directional",
+/// "position": [x, y, z], "direction": [x, y, z], "color": [r, g, b], "intensity": I,
+/// "range": r, "inner_cone": rad, "outer_cone": rad}, ...]} (fields as Light; omitted ones
+/// keep Light's defaults; directions are normalised). Errors name the file and the light.
+std::vector<Light> load_lights(const std::string& path);
+
 /// The lighting the CLI flags ask for: `env` (Environment::parse; "" = the scene's default),
 /// `sun` ("" = none, else Sun::parse) and `sky` (the physical sky). A sun without --env gets
 /// the physical sky; --sky without a sun uses the default Sun. nullopt = the scene's default

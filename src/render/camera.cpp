@@ -429,6 +429,50 @@ Environment Environment::physical_sky(const Sun& sun, float turbidity) {
   return env;
 }
 
+std::vector<Light> load_lights(const std::string& path) {
+  const json j = read_json(path);
+  if (!j.is_object() || !j.contains("lights") || !j["lights"].is_array())
+    throw Error(ErrorCode::parse_error,
+                fmt::format("{}: expected an object with a \"lights\" array", path));
+  std::vector<Light> out;
+  for (size_t i = 0; i < j["lights"].size(); ++i) {
+    const json& o = j["lights"][i];
+    const std::string where = fmt::format("light {}", i);
+    if (!o.is_object())
+      throw Error(ErrorCode::parse_error, fmt::format("{}: {} is not an object", path, where));
+    Light l;
+    l.name = o.contains("name") && o["name"].is_string() ? o["name"].get<std::string>()
+                                                         : fmt::format("light{}", i);
+    const std::string type =
+        o.contains("type") && o["type"].is_string() ? o["type"].get<std::string>() : "point";
+    if (type == "point")
+      l.type = Light::Type::point;
+    else if (type == "spot")
+      l.type = Light::Type::spot;
+    else if (type == "directional")
+      l.type = Light::Type::directional;
+    else
+      throw Error(ErrorCode::parse_error,
+                  fmt::format("{}: {} '{}': unknown type '{}' (expected point, spot or "
+                              "directional)",
+                              path, where, l.name, type));
+    if (o.contains("position")) l.position = vec3_field(path, where, o, "position");
+    if (o.contains("direction")) {
+      const Vec3 d = vec3_field(path, where, o, "direction");
+      l.direction = length(d) > 0 ? normalize(d) : d;
+    }
+    if (o.contains("color")) l.color = vec3_field(path, where, o, "color");
+    l.intensity = number_field(path, where, o, "intensity", l.intensity);
+    l.range = number_field(path, where, o, "range", l.range);
+    l.inner_cone = number_field(path, where, o, "inner_cone", l.inner_cone);
+    l.outer_cone = number_field(path, where, o, "outer_cone", l.outer_cone);
+    if (const std::string p = light_problem(l); !p.empty())
+      throw Error(ErrorCode::parse_error, fmt::format("{}: {} '{}': {}", path, where, l.name, p));
+    out.push_back(l);
+  }
+  return out;
+}
+
 std::optional<Environment> make_lighting(const std::string& env, const std::string& sun, bool sky) {
   if (sun.empty() && !sky)
     return env.empty() ? std::nullopt : std::optional(Environment::parse(env));

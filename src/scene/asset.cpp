@@ -17,6 +17,12 @@ struct Asset::Impl {
   std::optional<GltfInstances> gltf;
   std::string source;
   std::vector<std::string> warnings;
+  std::vector<Light> own_lights, extra_lights;  // the file's, and add_lights()'s
+  void apply_lights() {
+    std::vector<Light> all = own_lights;
+    all.insert(all.end(), extra_lights.begin(), extra_lights.end());
+    scene.set_lights(std::move(all));
+  }
   mutable Bounds3 bounds;
   mutable uint64_t bounds_generation = ~uint64_t(0);  // the scene generation `bounds` are of
 
@@ -59,7 +65,8 @@ Asset Asset::from_scene(Scene scene, SceneConfig config) {
   for (TriangleMesh& mesh : scene.meshes)
     m.scene.add_instance(m.scene.add_mesh(std::move(mesh)), Affine3{});
   m.scene.set_materials(std::move(scene.materials), std::move(scene.textures));
-  m.scene.set_lights(std::move(scene.lights));
+  m.own_lights = std::move(scene.lights);
+  m.apply_lights();
   m.scene.set_source(m.source);
   m.scene.commit();
   return a;
@@ -74,7 +81,8 @@ Asset Asset::load(const std::string& path, size_t clip, SceneConfig config) {
   m.gltf.emplace(GltfInstances::load(path, clip));
   m.gltf->add_to(m.scene);
   m.scene.set_materials(m.gltf->materials(), m.gltf->textures());
-  m.scene.set_lights(m.gltf->lights());
+  m.own_lights = m.gltf->lights();
+  m.apply_lights();
   m.scene.set_source(path);
   m.scene.commit();
   m.warn_about_skipped_triangles();
@@ -87,6 +95,11 @@ InstancedScene& Asset::scene() {
 const InstancedScene& Asset::scene() const {
   return impl_->scene;
 }
+void Asset::add_lights(const std::vector<Light>& lights) {
+  impl_->extra_lights.insert(impl_->extra_lights.end(), lights.begin(), lights.end());
+  impl_->apply_lights();
+}
+
 bool Asset::animated() const {
   return impl_->gltf && impl_->gltf->duration() > 0;
 }
@@ -112,7 +125,8 @@ CommitStats Asset::update(double time, bool force) {
   if (!m.gltf && !force) return {};
   if (m.gltf) {
     m.gltf->set_time(m.scene, time);
-    m.scene.set_lights(m.gltf->lights());
+    m.own_lights = m.gltf->lights();
+    m.apply_lights();
   }
   return m.scene.commit();
 }

@@ -271,3 +271,55 @@ TEST(LightTree, TreeAndPowerSamplingConvergeToTheSameImage) {
 
 }  // namespace
 }  // namespace kestrel
+
+namespace kestrel {
+namespace {
+
+// Lights files: what a user adds to a scene (data/lights/sponza_100.json); every bad light an
+// error naming the file and the light; added lights survive an animated asset's updates.
+TEST(Lights, LightsFilesLoadAndBadOnesNameFileAndLight) {
+  const std::string good = test::write_temp_file("good.lights.json", R"({"lights": [
+    {"name": "a", "type": "point", "position": [0, 0, -3], "intensity": 8},
+    {"name": "b", "type": "spot", "position": [1, 2, 3], "direction": [0, -2, 0], "outer_cone": 0.5},
+    {"type": "directional", "direction": [0, 0, -1], "color": [1, 0.5, 0.25], "intensity": 3}]})");
+  const std::vector<Light> l = load_lights(good);
+  ASSERT_EQ(l.size(), 3u);
+  EXPECT_EQ(l[1].type, Light::Type::spot);
+  EXPECT_FLOAT_EQ(l[1].direction.y, -1.0f);  // normalised
+  EXPECT_EQ(l[2].name, "light2");
+  Asset asset = Asset::from_scene(plane());
+  asset.add_lights({l[0]});
+  Renderer r(asset.scene(), Environment::parse("none"));
+  RenderSettings s;
+  s.width = s.height = 1, s.max_depth = 2, s.jitter = false;
+  EXPECT_NEAR(r.render(Camera{{0, 0, 0}, {0, 0, -5}, 10}, s)[Aov::color].pixels[1],
+              kAlbedo / kPi * 2.0f, 1e-4f);
+  Asset animated = Asset::load(test::write_animated_gltf("lights_anim.gltf"));
+  animated.add_lights(l);
+  animated.update(1.0);
+  EXPECT_EQ(animated.scene().lights().size(), 3u);
+  for (
+      const auto& [text, needle] : std::vector<std::pair<std::string, std::string>>{
+          {R"({"lights": [{"name": "x", "type": "area"}]})", "unknown type 'area'"},
+          {R"({"lights": [{"name": "neg", "intensity": -1}]})", "neg"},
+          {R"({"lights": [{"name": "cone", "type": "spot", "direction": [0, 0, 1], "inner_cone": 1, "outer_cone": 0.5}]})",
+           "cone"},
+          {R"({"lights": [{"name": "dir", "type": "directional", "direction": [0, 0, 0]}]})",
+           "direction"},
+          {R"({"lights": [3]})", "light 0"},
+          {R"({"light": []})", "\"lights\" array"},
+          {R"({"lights": [{"position": [1, 2]}]})", "position"}}) {
+    const std::string bad = test::write_temp_file("bad.lights.json", text);
+    try {
+      load_lights(bad);
+      ADD_FAILURE() << needle;
+    } catch (const Error& e) {
+      EXPECT_NE(std::string(e.what()).find("bad.lights.json"), std::string::npos) << e.what();
+      EXPECT_NE(std::string(e.what()).find(needle), std::string::npos) << e.what();
+    }
+  }
+  EXPECT_THROW(load_lights("/nonexistent/x.lights.json"), Error);
+}
+
+}  // namespace
+}  // namespace kestrel
