@@ -134,12 +134,7 @@ std::optional<Light> node_light(const std::string& path, const tinygltf::Model& 
   l.range = float(gl.range);
   l.inner_cone = float(gl.spot.innerConeAngle);
   l.outer_cone = float(gl.spot.outerConeAngle);
-  l.position = transform_point(world, {0, 0, 0});
-  const Vec3 o = l.position, z = transform_point(world, {0, 0, -1});
-  const Vec3 d{z.x - o.x, z.y - o.y, z.z - o.z};
-  const float len = std::sqrt(d.x * d.x + d.y * d.y + d.z * d.z);
-  l.direction =
-      len > 0 && std::isfinite(len) ? Vec3{d.x / len, d.y / len, d.z / len} : Vec3{0, 0, 0};
+  if (!place_light(l, world)) l.direction = {0, 0, 0};  // light_problem reports it
   if (const std::string p = light_problem(l); !p.empty())
     throw Error(ErrorCode::parse_error, fmt::format("{}: {}", what, p));
   return l;

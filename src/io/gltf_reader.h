@@ -107,6 +107,18 @@ inline Vec3 transform_normal(const Mat4& m, Vec3 n) {
   return {float(x), float(y), float(z)};
 }
 
+/// Places a light by a node's world matrix: position = its origin, direction = its -Z axis.
+/// False (direction untouched) when the matrix collapses that axis.
+inline bool place_light(Light& l, const Mat4& world) {
+  l.position = transform_point(world, {0, 0, 0});
+  const Vec3 z = transform_point(world, {0, 0, -1});
+  const Vec3 d{z.x - l.position.x, z.y - l.position.y, z.z - l.position.z};
+  const float len = std::sqrt(d.x * d.x + d.y * d.y + d.z * d.z);
+  if (!(len > 0 && std::isfinite(len))) return false;
+  l.direction = {d.x / len, d.y / len, d.z / len};
+  return true;
+}
+
 /// The KHR_lights_punctual light a node carries, placed by the node's world matrix (position
 /// = its origin, direction = its -Z axis), or nullopt. Throws Error naming the file, the node
 /// and the light for a missing light, an unknown type or a light_problem().

@@ -183,6 +183,7 @@ bool Renderer::Impl::sample_light(const Surface& sf, const Basis& frame, Vec3 wo
   const float ul = rng.uniform(), u1 = rng.uniform(), u2 = rng.uniform();
   Vec3 wi, le;
   float pdf = 0, tmax = INFINITY;
+  bool delta = false;  // a punctual light: pdf is its pick probability, no MIS
   Vec3 dir;
   if (ul < p_env) {
     float epdf;
@@ -210,7 +211,8 @@ bool Renderer::Impl::sample_light(const Surface& sf, const Basis& frame, Vec3 wo
     }
     if (li >= lights.size()) {  // a punctual light: a delta, no MIS
       const Punctual& q = punctual[li - lights.size()];
-      const float pick = (1 - p_env - p_sun) * local_pick;
+      pdf = (1 - p_env - p_sun) * local_pick;  // a probability, not a density
+      delta = true;
       if (q.type == Light::Type::directional) {
         wi = dir = -q.direction;
         le = q.intensity;  // irradiance
@@ -234,34 +236,32 @@ bool Renderer::Impl::sample_light(const Surface& sf, const Basis& frame, Vec3 wo
         le = q.intensity * k;
         tmax = 1.0f - 1e-3f;
       }
-      if (!(pick > 0 && dot(wi, ng) > 0 && luminance(le) > 0)) return false;
-      const Vec3 f = bsdf_eval(bp, wo_l, frame.to_local(wi));
-      if (!(luminance(f) > 0)) return false;
-      shadow = Ray{origin, dir, 0.0f, tmax};
-      contribution = throughput * f * le * (1.0f / pick);
-      return true;
+    } else {
+      const LightTri& l = lights[li];
+      const float su = std::sqrt(u1);
+      const float lb1 = u2 * su, lb2 = 1 - su;  // weights of vertices 1 and 2
+      const Vec3 q = l.p0 + l.e1 * lb1 + l.e2 * lb2;
+      dir = q - origin;
+      const float dist2 = dot(dir, dir);
+      wi = dir * (1.0f / std::sqrt(dist2));
+      Vec3 nl = cross(l.e1, l.e2);
+      const float cos_l = std::fabs(dot(normalize(nl), wi));
+      const InstanceShade& lis = instances[l.instance];
+      const Material& lm = material_of(*lis.mesh, l.prim);
+      le = emission_at(lm, uv_at(*lis.mesh, l.prim, lb1, lb2));
+      pdf = light_pdf_of(li, dist2, cos_l, local_pick);
+      tmax = 1.0f - 1e-3f;
     }
-    const LightTri& l = lights[li];
-    const float su = std::sqrt(u1);
-    const float lb1 = u2 * su, lb2 = 1 - su;  // weights of vertices 1 and 2
-    const Vec3 q = l.p0 + l.e1 * lb1 + l.e2 * lb2;
-    dir = q - origin;
-    const float dist2 = dot(dir, dir);
-    wi = dir * (1.0f / std::sqrt(dist2));
-    Vec3 nl = cross(l.e1, l.e2);
-    const float cos_l = std::fabs(dot(normalize(nl), wi));
-    const InstanceShade& lis = instances[l.instance];
-    const Material& lm = material_of(*lis.mesh, l.prim);
-    le = emission_at(lm, uv_at(*lis.mesh, l.prim, lb1, lb2));
-    pdf = light_pdf_of(li, dist2, cos_l, local_pick);
-    tmax = 1.0f - 1e-3f;
   }
   if (!(pdf > 0 && dot(wi, ng) > 0 && luminance(le) > 0)) return false;
   const Vec3 wi_l = frame.to_local(wi);
   const Vec3 f = bsdf_eval(bp, wo_l, wi_l);
   if (!(luminance(f) > 0)) return false;
-  const float bpdf = bsdf_pdf(bp, wo_l, wi_l);
-  const float w = pdf * pdf / (pdf * pdf + bpdf * bpdf);
+  float w = 1;
+  if (!delta) {
+    const float bpdf = bsdf_pdf(bp, wo_l, wi_l);
+    w = pdf * pdf / (pdf * pdf + bpdf * bpdf);
+  }
   shadow = Ray{origin, dir, 0.0f, tmax};
   contribution = throughput * f * le * (w / pdf);
   return true;

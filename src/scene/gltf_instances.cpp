@@ -152,15 +152,7 @@ struct GltfInstances::Impl {
     lights.clear();
     for (const auto& [node, local] : node_lights) {
       Light l = local;
-      const Mat4& m = world[size_t(node)];
-      l.position = gltf::transform_point(m, {0, 0, 0});
-      const Vec3 z = gltf::transform_point(m, {0, 0, -1});
-      const Vec3 d{z.x - l.position.x, z.y - l.position.y, z.z - l.position.z};
-      const float len = std::sqrt(d.x * d.x + d.y * d.y + d.z * d.z);
-      if (len > 0 && std::isfinite(len))
-        l.direction = {d.x / len, d.y / len, d.z / len};
-      else
-        l.intensity = 0, l.direction = local.direction;
+      if (!gltf::place_light(l, world[size_t(node)])) l.intensity = 0;
       lights.push_back(l);
     }
   }
