@@ -49,8 +49,26 @@ InputFrame load_frame(const fs::path& dir) {
 
 struct Scores {
   double psnr = 0, ssim = 0, relmse = 0, terr = 0;
+  double psnr0 = 0;   // the first frame alone (no history yet): the single-frame score
+  double bright = 0;  // brightest output pixel / brightest reference pixel (max over clips)
   int frames = 0;
 };
+
+float brightest(const FloatImage& img) {
+  float m = 0;
+  for (float v : img.pixels) m = std::max(m, v);
+  return m;
+}
+
+// A test clip's family: "test_<family>_<seed>" (families.py) or the clip itself.
+std::string family_of(const std::string& clip) {
+  std::string f = clip.rfind("test_", 0) == 0 ? clip.substr(5) : clip;
+  const size_t us = f.find_last_of('_');
+  if (us != std::string::npos && us + 1 < f.size() &&
+      f.find_first_not_of("0123456789", us + 1) == std::string::npos)
+    f.resize(us);
+  return f;
+}
 
 struct Method {
   std::string name;
@@ -117,6 +135,7 @@ int main(int argc, char** argv) {
     fs::create_directories(out_dir);
     std::map<std::string, std::map<int, Scores>>
         total;  // method -> spp -> scores (summed over clips)
+    std::map<std::string, std::map<std::string, Scores>> by_family;  // family -> method (1 spp)
     std::string per_clip;
     const std::vector<int> spps = quick ? std::vector<int>{1} : std::vector<int>{1, 2, 4};
     for (const std::string& clip : clips) {
@@ -141,9 +160,13 @@ int main(int argc, char** argv) {
           Scores s;
           std::vector<float> prev_o, prev_r;
           FloatImage out;
+          float out_max = 0, ref_max = 0;
           for (int t = 0; t < frames; ++t) {
             out = m.identity ? inputs[size_t(t)].color : d->denoise(inputs[size_t(t)].input());
             const std::vector<float> to = tonemapped(out), tr = tonemapped(refs[size_t(t)]);
+            out_max = std::max(out_max, brightest(out));
+            ref_max = std::max(ref_max, brightest(refs[size_t(t)]));
+            if (t == 0) s.psnr0 = psnr(to, tr);
             s.psnr += psnr(to, tr);
             s.ssim += ssim(to, tr, out.width, out.height);
             s.relmse += relmse(out, refs[size_t(t)]);
@@ -158,13 +181,20 @@ int main(int argc, char** argv) {
           s.psnr /= frames, s.ssim /= frames, s.relmse /= frames;
           s.terr /= std::max(frames - 1, 1);
           s.frames = frames;
-          per_clip += fmt::format("| {} | {} | {} | {:.2f} | {:.4f} | {:.4f} | {:.5f} |\n", clip,
-                                  spp, m.name, s.psnr, s.ssim, s.relmse, s.terr);
+          s.bright = out_max / std::max(ref_max, 1e-6f);
+          per_clip += fmt::format(
+              "| {} | {} | {} | {:.2f} | {:.2f} | {:.4f} | {:.4f} | {:.5f} | {:.2f} |\n", clip, spp,
+              m.name, s.psnr0, s.psnr, s.ssim, s.relmse, s.terr, s.bright);
           fmt::print(
-              "{:20s} {} spp  {:26s} PSNR {:6.2f}  SSIM {:.4f}  relMSE {:.4f}  tErr {:.5f}\n", clip,
-              spp, m.name, s.psnr, s.ssim, s.relmse, s.terr);
-          Scores& t = total[m.name][spp];
-          t.psnr += s.psnr, t.ssim += s.ssim, t.relmse += s.relmse, t.terr += s.terr, t.frames += 1;
+              "{:20s} {} spp  {:26s} PSNR {:6.2f} (frame 0 {:6.2f})  SSIM {:.4f}  relMSE {:.4f}  "
+              "tErr {:.5f}  max/ref {:.2f}\n",
+              clip, spp, m.name, s.psnr, s.psnr0, s.ssim, s.relmse, s.terr, s.bright);
+          auto add = [&](Scores& t) {
+            t.psnr += s.psnr, t.ssim += s.ssim, t.relmse += s.relmse, t.terr += s.terr;
+            t.psnr0 += s.psnr0, t.bright = std::max(t.bright, s.bright), t.frames += 1;
+          };
+          add(total[m.name][spp]);
+          if (spp == 1) add(by_family[family_of(clip)][m.name]);
           last.push_back(out);
         }
         if (spp == 1) {
@@ -220,8 +250,10 @@ int main(int argc, char** argv) {
         "tone-mapped values; ms per "
         "1280x720 frame with {} threads (median of {} after 2 warm-up frames). Neural parameters: "
         "{}.\n\n"
-        "| method | spp | PSNR dB | SSIM | relMSE | tErr | ms @1280x720 "
-        "|\n|---|---:|---:|---:|---:|---:|---:|\n",
+        "PSNR₀ is the first frame alone (no history: the single-frame score); max/ref the "
+        "brightest output pixel over the brightest reference pixel (the largest over clips).\n\n"
+        "| method | spp | PSNR₀ dB | PSNR dB | SSIM | relMSE | tErr | max/ref | ms @1280x720 "
+        "|\n|---|---:|---:|---:|---:|---:|---:|---:|---:|\n",
         fs::path(dataset).filename().string(), fmt::join(clips, ", "), threads, repeat, params);
     std::string json = "{\n  \"clips\": [";
     for (size_t i = 0; i < clips.size(); ++i)
@@ -236,20 +268,35 @@ int main(int argc, char** argv) {
         const Scores& s = it->second;
         const double n = s.frames;
         const std::string t = ms.count(m.name) ? fmt::format("{:.1f}", ms[m.name]) : "";
-        md += fmt::format("| {} | {} | {:.2f} | {:.4f} | {:.4f} | {:.5f} | {} |\n", m.name, spp,
-                          s.psnr / n, s.ssim / n, s.relmse / n, s.terr / n, t);
+        md += fmt::format(
+            "| {} | {} | {:.2f} | {:.2f} | {:.4f} | {:.4f} | {:.5f} | {:.2f} | {} |\n", m.name, spp,
+            s.psnr0 / n, s.psnr / n, s.ssim / n, s.relmse / n, s.terr / n, s.bright, t);
         json += fmt::format(
-            "{}    {{\"method\": \"{}\", \"spp\": {}, \"psnr\": {:.3f}, \"ssim\": {:.4f}, "
-            "\"relmse\": {:.5f}, "
-            "\"terr\": {:.5f}, \"ms\": {}}}",
-            first ? "" : ",\n", m.name, spp, s.psnr / n, s.ssim / n, s.relmse / n, s.terr / n,
-            ms.count(m.name) ? fmt::format("{:.2f}", ms[m.name]) : "null");
+            "{}    {{\"method\": \"{}\", \"spp\": {}, \"psnr0\": {:.3f}, \"psnr\": {:.3f}, "
+            "\"ssim\": {:.4f}, \"relmse\": {:.5f}, \"terr\": {:.5f}, \"max_over_ref\": {:.3f}, "
+            "\"ms\": {}}}",
+            first ? "" : ",\n", m.name, spp, s.psnr0 / n, s.psnr / n, s.ssim / n, s.relmse / n,
+            s.terr / n, s.bright, ms.count(m.name) ? fmt::format("{:.2f}", ms[m.name]) : "null");
         first = false;
       }
     json += "\n  ]\n}\n";
     md +=
-        "\nPer clip:\n\n| clip | spp | method | PSNR dB | SSIM | relMSE | tErr "
-        "|\n|---|---:|---|---:|---:|---:|---:|\n" +
+        "\nPer family (1 spp, means over the family's clips; max/ref the largest):\n\n"
+        "| family | method | PSNR₀ dB | PSNR dB | SSIM | relMSE | tErr | max/ref "
+        "|\n|---|---|---:|---:|---:|---:|---:|---:|\n";
+    for (const auto& [family, per_method] : by_family)
+      for (const Method& m : methods) {
+        auto it = per_method.find(m.name);
+        if (it == per_method.end()) continue;
+        const Scores& s = it->second;
+        const double n = s.frames;
+        md += fmt::format("| {} | {} | {:.2f} | {:.2f} | {:.4f} | {:.4f} | {:.5f} | {:.2f} |\n",
+                          family, m.name, s.psnr0 / n, s.psnr / n, s.ssim / n, s.relmse / n,
+                          s.terr / n, s.bright);
+      }
+    md +=
+        "\nPer clip:\n\n| clip | spp | method | PSNR₀ dB | PSNR dB | SSIM | relMSE | tErr | "
+        "max/ref |\n|---|---:|---|---:|---:|---:|---:|---:|---:|\n" +
         per_clip;
     md +=
         "\nCrops (last frame, 1 spp; left to right: input, a-trous, SVGF-like, neural frame by "

@@ -8,6 +8,15 @@ training: Sponza, the Lamborghini and procedural rooms with seeds >= 1000.
     make_dataset.py [--out out/denoise_dataset] [--split train|test|all] [--ref-spp 256]
                     [--test-ref-spp 1024] [--res 256x144] [--frames 6] [--rooms 10]
 
+With --families (the dataset of architecture 3): the training clips are the TRAIN families
+of families.py (--seeds each) and their targets independent noisy renders (Noise2Noise, at
+--ref-spp); the test clips are the HELDOUT families (--test-seeds each, never seen in
+training) and the shared Sponza and Lamborghini, with --test-frames frames and references at
+--test-ref-spp:
+
+    make_dataset.py --families --out out/denoise_families --frames 8 --ref-spp 64 \
+                    --test-frames 16 --test-ref-spp 256
+
 Re-running skips finished clips (a clip is finished when its manifest entry exists).
 """
 import argparse
@@ -20,12 +29,34 @@ import time
 sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), ".."))
 import kestrel_mpi  # noqa: E402
 
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+import families  # noqa: E402
+
 HERE = os.path.dirname(os.path.abspath(__file__))
 ROOT = os.path.normpath(os.path.join(HERE, "..", ".."))
 SCENES = os.path.normpath(os.path.join(ROOT, "..", "shared", "scenes"))
 
 
+def family_clips(args):
+    """--families: TRAIN families x --seeds for training (Noise2Noise targets), HELDOUT
+    families x --test-seeds and the shared Sponza and Lamborghini for evaluation."""
+    out = []
+    for f in families.TRAIN:
+        for s in range(args.seeds):
+            out.append(dict(name=f"{f}_{s:03d}", split="train", family=f, seed=s))
+    for f in families.HELDOUT:
+        for s in range(args.test_seeds):
+            out.append(dict(name=f"test_{f}_{1000 + s}", split="test", family=f, seed=1000 + s))
+    out.append(dict(name="test_sponza", split="test", scene=os.path.join(SCENES, "dabrovic_sponza/sponza.obj"),
+                    path=os.path.join(ROOT, "data/paths/sponza_short.json"), env=None))
+    out.append(dict(name="test_lamborghini", split="test", scene=os.path.join(SCENES, "lamborghini/lamborghini.obj"),
+                    path="orbit:24", env=None))
+    return out
+
+
 def clips(args):
+    if args.families:
+        return family_clips(args)
     out = []
     train_shared = [
         ("cornell_box", "cornell_box/cornell_box.obj", "orbit:16", None),
@@ -63,6 +94,9 @@ def main():
     ap.add_argument("--frames", type=int, default=6)
     ap.add_argument("--test-frames", type=int, default=8)
     ap.add_argument("--rooms", type=int, default=10)
+    ap.add_argument("--families", action="store_true", help="scene families (families.py) instead of rooms and shared scenes")
+    ap.add_argument("--seeds", type=int, default=8, help="--families: seeds per training family")
+    ap.add_argument("--test-seeds", type=int, default=3, help="--families: seeds per held-out family")
     kestrel_mpi.add_arguments(ap)
     args = ap.parse_args()
     os.makedirs(args.out, exist_ok=True)
@@ -76,7 +110,11 @@ def main():
         d = os.path.join(args.out, clip["name"])
         t0 = time.time()
         scene, path, env = clip.get("scene"), clip.get("path"), clip.get("env")
-        if "room" in clip:
+        flags = []
+        if "family" in clip:
+            info = families.make(clip["family"], clip["seed"], os.path.join(d, "scene"))
+            scene, path, flags = info["scene"], info["path"], info["flags"]
+        elif "room" in clip:
             rd = os.path.join(d, "scene")
             run([sys.executable, os.path.join(HERE, "procedural.py"), str(clip["room"]), rd])
             scene, path = os.path.join(rd, "room.obj"), os.path.join(rd, "path.json")
@@ -84,7 +122,7 @@ def main():
         test = clip["split"] == "test"
         frames = args.test_frames if test else args.frames
         base = kestrel_mpi.prefix(args) + [args.kestrel, "render-sequence", scene, "--path", path, "--frames", str(frames), "--res", args.res,
-                "--quiet"]
+                "--quiet"] + flags
         if env and env != "none":
             base += ["--env", env]
         for spp in ([1, 2, 4] if test else [1]):
@@ -93,7 +131,13 @@ def main():
         ref_spp = args.test_ref_spp if test else args.ref_spp
         run(base + ["--spp", str(ref_spp), "--seed", "7", "-o", os.path.join(d, "ref"), "--pfm",
                     os.path.join(d, "ref", "pfm"), "--png", "1"])
+        command = "python3 scripts/denoise/make_dataset.py " + " ".join(sys.argv[1:])
+        manifest.setdefault("commands", {})[clip["split"]] = command
+        manifest.setdefault("targets", {})[clip["split"]] = (
+            f"an independent {ref_spp}-spp render (seed 7) of each frame (Noise2Noise)" if not test
+            else f"{ref_spp}-spp references")
         manifest["clips"][clip["name"]] = dict(split=clip["split"], scene=scene, path=path, env=env or "default",
+                                               family=clip.get("family", ""), flags=flags,
                                                frames=frames, res=args.res, ref_spp=ref_spp,
                                                seconds=round(time.time() - t0, 1))
         json.dump(manifest, open(manifest_path, "w"), indent=1)

@@ -1,12 +1,18 @@
 """kestrel's denoiser, the reference definition (training; the C++ engine in
 src/denoise/kernels.inl computes the same function, checked by tests/denoise parity).
 
-Architecture 2. Per frame, at full resolution H x W (padded to multiples of 8 by edge
+Architecture 3. Per frame, at full resolution H x W (padded to multiples of 8 by edge
 replication):
-  r  = colour / (albedo + EPS)                     demodulated irradiance (linear)
+  d  = albedo + EPS, or 1 where the albedo is (nearly) black (max < 0.02): demodulation only
+       where it is safe (emitters, black and mirror-black pixels are filtered as colour)
+  r  = colour / d                                  demodulated irradiance (linear)
   x  = log(1 + r)                                  its HDR transfer (features, guides)
   yw, zw = previous output irradiance and depth warped by the motion vectors (bilinear,
-           clamped); valid = the previous position lies inside the image (0 on frame 0)
+           clamped); valid = the previous position lies inside the image and its depth
+           is within 10 % (disocclusion: the history is rejected, 0 on frame 0)
+  yw = min(yw, B): the history clamped to the brightest current sample near p (B = 3x3 max
+       over quarter-res cells of the 4x4 block maxima of r, per channel: a 12x12 window),
+       which rejects history that lighting changes made too bright and bounds the state
   features (17): x, albedo, normal, roughness, log(1 + yw), valid, |zw - z| / z, relative
                  depth gradient, mean(x)^2
 A small CNN at 1/4 and 1/8 resolution (4x4 average pool in) predicts 17 maps per
@@ -20,13 +26,18 @@ averages *linear* irradiance (no log-domain bias) with weights from log irradian
   g = log(1 + r_l)
   (n_p.n_p rather than 1: the centre tap weighs exactly 1 even where there is no normal, so
   the sum of weights never vanishes)
-The output colour is max(r_4, 0) * (albedo + EPS); r_4 and z are the recurrent state.
+The output colour is max(r_4, 0) * d; r_4 and z are the recurrent state. Every step is a
+convex combination (alpha, beta in (0, 1), normalised positive weights, bilinear warps), so no
+output irradiance exceeds the brightest current sample of its 12x12 window or of the filter's
+footprint: the recurrence cannot amplify.
 """
 import torch
 import torch.nn as nn
 import torch.nn.functional as F
 
 EPS = 0.01
+BLACK = 0.02  # albedo below this (every channel): no demodulation
+DISOCCLUDED = 0.1  # relative depth change that rejects the history
 LEVELS = 4
 FEATURES = 17
 OUTPUTS = 1 + 4 * LEVELS
@@ -66,6 +77,13 @@ def shift(t, dy, dx):
     return tp[..., p + dy:p + dy + h, p + dx:p + dx + w]
 
 
+def demodulation(albedo):
+    """albedo + EPS per channel, 1 where every channel is below BLACK."""
+    a = albedo.clamp(min=0)
+    black = (albedo.max(dim=1, keepdim=True).values < BLACK).to(a.dtype)
+    return (a + EPS) * (1 - black) + black
+
+
 class Denoiser(nn.Module):
     def __init__(self):
         super().__init__()
@@ -98,7 +116,8 @@ class Denoiser(nn.Module):
     def forward(self, color, albedo, normal, depth, rough, motion, state=None, recurrent=True):
         """All inputs (B,C,H,W) with H, W multiples of 8. state = (y, z) of the previous
         frame or None. Returns (colour, new state)."""
-        x_lin = color.clamp(min=0) / (albedo.clamp(min=0) + EPS)
+        dm = demodulation(albedo)
+        x_lin = color.clamp(min=0) / dm
         x = torch.log1p(x_lin)
         z = depth
         zc = z.clamp(min=ZMIN)
@@ -107,6 +126,9 @@ class Denoiser(nn.Module):
         else:
             yw_lin, valid = warp(state[0], motion)
             zw, _ = warp(state[1], motion)
+            valid = valid * ((zw - z).abs() <= DISOCCLUDED * zc).to(z.dtype)
+            bound = F.max_pool2d(F.max_pool2d(x_lin, 4), 3, stride=1, padding=1)
+            yw_lin = torch.minimum(yw_lin, F.interpolate(bound, scale_factor=4, mode="nearest"))
         yw = torch.log1p(yw_lin.clamp(min=0))
         dz = ((zw - z).abs() / zc).clamp(max=1.0) * valid
         zg = (((shift(z, 0, 1) - z).abs() + (shift(z, 1, 0) - z).abs()) / zc).clamp(max=1.0)
@@ -135,7 +157,7 @@ class Denoiser(nn.Module):
                 acc = acc + wq * q[:, 7:10]
                 wsum = wsum + wq
             xi = xi + beta * (acc / wsum - xi)
-        out = xi.clamp(min=0) * (albedo.clamp(min=0) + EPS)
+        out = xi.clamp(min=0) * dm
         return out, (xi, z)
 
 

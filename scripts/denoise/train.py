@@ -12,6 +12,7 @@ import json
 import math
 import os
 import random
+import struct
 import subprocess
 import sys
 import time
@@ -69,6 +70,13 @@ def tr(c):
 
 
 def losses(out, ref):
+    """ref may be noisy (Noise2Noise, Lehtinen et al. 2018: an independent render of the same
+    frames). The spatial term is L1 on log(1 + colour), as for converged references: the
+    relative L2 that Noise2Noise prescribes for Monte Carlo targets, (o - r)^2 / (sg(o) +
+    0.01)^2, has the target's mean as minimiser but diverged here (the 64-spp targets'
+    fireflies on dark pixels gave batches of loss 40 and the gradient and temporal terms rose
+    5x within 250 steps); L1 is robust to them at the price of a bias toward the target's
+    median. The gradient-domain and temporal terms are L1 on log(1 + colour) too."""
     a, b = tr(out), tr(ref)
     spatial = (a - b).abs().mean()
     grad = ((a[..., :, 1:] - a[..., :, :-1]) - (b[..., :, 1:] - b[..., :, :-1])).abs().mean() + \
@@ -77,16 +85,16 @@ def losses(out, ref):
     return spatial, grad, temporal
 
 
-W_SPATIAL, W_GRAD, W_TEMPORAL = 1.0, 0.25, 0.5
-ARCHITECTURE = 2  # model.py's network (1: the same filter in log space, retired)
+W_SPATIAL, W_GRAD, W_TEMPORAL = 1.0, 0.25, 0.5  # defaults of --w-spatial, --w-grad, --w-temporal
+ARCHITECTURE = 3  # model.py's network (1: the filter in log space; 2: unsafe demodulation, no history clamp)
 
 
 def export_weights(model, path):
     kestrel_nn.export_kdw(model, path, b"KSTRLDNW", ARCHITECTURE)
 
 
-def load_weights(model, path):
-    kestrel_nn.load_kdw(model, path, b"KSTRLDNW", ARCHITECTURE)
+def load_weights(model, path, architecture=ARCHITECTURE):
+    kestrel_nn.load_kdw(model, path, b"KSTRLDNW", architecture)
 
 
 def write_fixture(model, clip, out_dir):
@@ -130,6 +138,13 @@ def main():
     ap.add_argument("--out", default=os.path.join(ROOT, "weights"))
     ap.add_argument("--fixture", default=os.path.join(ROOT, "tests", "data", "denoise"))
     ap.add_argument("--fixture-only", action="store_true", help="write the parity fixture from --out's weights and stop")
+    ap.add_argument("--w-spatial", type=float, default=W_SPATIAL)
+    ap.add_argument("--w-grad", type=float, default=W_GRAD)
+    ap.add_argument("--w-temporal", type=float, default=W_TEMPORAL)
+    ap.add_argument("--checkpoint", default=os.path.join(ROOT, "out", "denoise_train.ckpt"),
+                    help="saved every 100 steps; --resume continues from it")
+    ap.add_argument("--resume", action="store_true")
+    ap.add_argument("--init", help="start from these weights (architecture 2 or 3: the same tensors)")
     args = ap.parse_args()
     torch.set_num_threads(args.threads)
     torch.set_flush_denormal(True)  # exp() of large negative arguments: denormals are ~50x slower
@@ -139,7 +154,9 @@ def main():
     if args.fixture_only:  # the parity fixture from committed weights, without training
         model = M.Denoiser()
         load_weights(model, os.path.join(args.out, "denoiser.kdw"))
-        write_fixture(model, load_clip(args.data, "cornell_box", 2)[0], args.fixture)
+        manifest = json.load(open(os.path.join(args.data, "manifest.json")))
+        name = sorted(n for n, c in manifest["clips"].items() if c["split"] == "train")[0]
+        write_fixture(model, load_clip(args.data, name, 2)[0], args.fixture)
         print("wrote", args.fixture)
         return
     manifest = json.load(open(os.path.join(args.data, "manifest.json")))
@@ -147,12 +164,28 @@ def main():
     clips = [load_clip(args.data, n, manifest["clips"][n]["frames"]) for n in names]
     print(f"{len(clips)} train clips: {', '.join(names)}", flush=True)
     model = M.Denoiser()
+    if args.init:
+        blob = open(args.init, "rb").read()
+        load_weights(model, args.init, struct.unpack("<I", blob[12:16])[0])
+        print("initialised from", args.init, flush=True)
     opt = torch.optim.Adam(model.parameters(), lr=args.lr)
     sched = torch.optim.lr_scheduler.OneCycleLR(opt, max_lr=args.lr, total_steps=args.steps, pct_start=0.1)
-    history = []
+    history, first = [], 0
+    if args.resume and os.path.exists(args.checkpoint):
+        ck = torch.load(args.checkpoint)
+        model.load_state_dict(ck["model"]), opt.load_state_dict(ck["opt"]), sched.load_state_dict(ck["sched"])
+        history, first = ck["history"], ck["step"]
+        random.setstate(ck["random"]), np.random.set_state(ck["numpy"]), torch.set_rng_state(ck["torch"])
+        print(f"resumed at step {first}", flush=True)
     t0 = time.time()
     cs = args.crop
-    for step in range(args.steps):
+    for step in range(first, args.steps):
+        if step % 100 == 0 and step > first:
+            os.makedirs(os.path.dirname(args.checkpoint), exist_ok=True)
+            torch.save(dict(model=model.state_dict(), opt=opt.state_dict(), sched=sched.state_dict(), history=history,
+                            step=step, random=random.getstate(), numpy=np.random.get_state(),
+                            torch=torch.get_rng_state()), args.checkpoint + ".tmp")
+            os.replace(args.checkpoint + ".tmp", args.checkpoint)
         batch_in, batch_ref = [], []
         for _ in range(args.batch):
             ins, refs = clips[random.randrange(len(clips))]
@@ -164,7 +197,7 @@ def main():
         ref = torch.from_numpy(np.stack(batch_ref)).permute(0, 1, 4, 2, 3).contiguous()
         out = run_sequence(model, seq)
         ls, lg, lt = losses(out, ref)
-        loss = W_SPATIAL * ls + W_GRAD * lg + W_TEMPORAL * lt
+        loss = args.w_spatial * ls + args.w_grad * lg + args.w_temporal * lt
         opt.zero_grad()
         loss.backward()
         norm = torch.nn.utils.clip_grad_norm_(model.parameters(), 1.0)
@@ -184,14 +217,18 @@ def main():
     commit = subprocess.run(["git", "-C", ROOT, "rev-parse", "--short", "HEAD"], capture_output=True, text=True).stdout.strip()
     prov = dict(file="denoiser.kdw", architecture=f"kestrel-denoiser-{ARCHITECTURE} (scripts/denoise/model.py)",
                 parameters=M.parameter_count(model), framework=f"PyTorch {torch.__version__} (Debian python3-torch)",
-                dataset=dict(command="python3 scripts/denoise/make_dataset.py --split train (defaults: 256x144, 6 frames, "
-                                     "1 spp inputs, 256 spp references)", clips=names),
+                dataset=dict(command=manifest.get("commands", {}).get("train", "python3 scripts/denoise/make_dataset.py --split train"),
+                             clips=names, targets=manifest.get("targets", {}).get("train", "references")),
+                init=args.init,
                 command="python3 scripts/denoise/train.py " + " ".join(sys.argv[1:]), steps=args.steps,
                 batch=args.batch, crop=args.crop, seed=args.seed, lr=args.lr, threads=args.threads,
-                loss=dict(weights=dict(spatial=W_SPATIAL, gradient=W_GRAD, temporal=W_TEMPORAL),
+                loss=dict(weights=dict(spatial=args.w_spatial, gradient=args.w_grad, temporal=args.w_temporal),
                           final_mean_last_100=dict(total=float(tail[:, 1].mean()), spatial=float(tail[:, 2].mean()),
                                                    gradient=float(tail[:, 3].mean()), temporal=float(tail[:, 4].mean()))),
                 seconds=round(time.time() - t0), git=commit)
+    init_json = os.path.splitext(args.init)[0] + ".json" if args.init else None
+    if init_json and os.path.exists(init_json):  # what the starting weights were trained on
+        prov["init_provenance"] = json.load(open(init_json))
     json.dump(prov, open(os.path.join(args.out, "denoiser.json"), "w"), indent=1)
     import matplotlib
     matplotlib.use("Agg")
@@ -209,7 +246,7 @@ def main():
     plt.legend()
     plt.tight_layout()
     plt.savefig(os.path.join(args.out, "denoiser_loss.png"), dpi=100)
-    write_fixture(model, clips[names.index("cornell_box") if "cornell_box" in names else 0][0], args.fixture)
+    write_fixture(model, clips[0][0], args.fixture)
     print("wrote", args.out, args.fixture)
 
 

@@ -1,5 +1,5 @@
-// kestrel::Denoiser: input checks and padding, the neural denoiser's state, and the two
-// non-neural baselines (edge-avoiding a-trous, SVGF-like).
+// kestrel::Denoiser: input checks and padding, the neural denoiser's state, and the
+// dispatch to the non-neural baselines (svgf.h).
 #include "kestrel/denoise.h"
 
 #include <fmt/format.h>
@@ -13,6 +13,7 @@
 #include "core/parallel.h"
 #include "denoise/kernels.h"
 #include "denoise/neural.h"
+#include "denoise/svgf.h"
 #include "kestrel/error.h"
 #include "kestrel/trace.h"
 
@@ -173,262 +174,6 @@ Planes gather(const DenoiseInput& in, int align) {
   return p;
 }
 
-constexpr float kEps = denoise::kAlbedoEps;
-const float kB3[5] = {1.0f / 16, 1.0f / 4, 3.0f / 8, 1.0f / 4, 1.0f / 16};
-
-float luminance(float r, float g, float b) {
-  return 0.2126f * r + 0.7152f * g + 0.0722f * b;
-}
-
-// One 5x5 edge-avoiding a-trous pass (B3 spline) over planar irradiance `x` (3 channels) and
-// optionally a variance plane; weights from the caller's per-pixel edge function.
-template <class Weight>
-void atrous_pass(const Planes& in, Planes& out, const Planes& g, int dilation, const float* var_in,
-                 float* var_out, Weight&& weight) {
-  const int W = in.width, H = in.height;
-  rows(H, [&](int r0, int r1) {
-    for (int y = r0; y < r1; ++y)
-      for (int x = 0; x < W; ++x) {
-        const size_t p = size_t(y) * size_t(W) + size_t(x);
-        float acc[3] = {0, 0, 0}, wsum = 0, vacc = 0;
-        for (int j = -2; j <= 2; ++j) {
-          const int qy = y + j * dilation;
-          if (qy < 0 || qy >= H) continue;
-          for (int i = -2; i <= 2; ++i) {
-            const int qx = x + i * dilation;
-            if (qx < 0 || qx >= W) continue;
-            const size_t q = size_t(qy) * size_t(W) + size_t(qx);
-            const float w = kB3[j + 2] * kB3[i + 2] * weight(p, q, in, g);
-            for (int c = 0; c < 3; ++c) acc[c] += w * in.ch(c)[q];
-            wsum += w;
-            if (var_in) vacc += w * w * var_in[q];
-          }
-        }
-        for (int c = 0; c < 3; ++c) out.ch(c)[p] = wsum > 0 ? acc[c] / wsum : in.ch(c)[p];
-        if (var_out) var_out[p] = wsum > 0 ? vacc / (wsum * wsum) : var_in[p];
-      }
-  });
-}
-
-// x^(2^k) by k squarings (SVGF's normal weight max(0, n.n_q)^128 without pow).
-float pow2k(float x, int k) {
-  for (int i = 0; i < k; ++i) x *= x;
-  return x;
-}
-
-float normal_dot(const Planes& g, size_t p, size_t q) {
-  return g.ch(6)[p] * g.ch(6)[q] + g.ch(7)[p] * g.ch(7)[q] + g.ch(8)[p] * g.ch(8)[q];
-}
-float rel_depth(const Planes& g, size_t p, size_t q) {
-  return std::abs(g.ch(9)[p] - g.ch(9)[q]) / std::max(g.ch(9)[p], denoise::kMinDepth);
-}
-
-// SVGF's depth edge stop: |z_p - z_q| / (|grad z(p) . (p - q)| + eps), the screen-space depth
-// gradient (central differences) predicting the depth change along the tap's offset.
-struct DepthGradient {
-  std::vector<float> gx, gy;
-  int width = 0;
-  explicit DepthGradient(const Planes& g)
-      : gx(size_t(g.width) * size_t(g.height)), gy(gx.size()), width(g.width) {
-    const int W = g.width, H = g.height;
-    const float* z = g.ch(9);
-    for (int y = 0; y < H; ++y)
-      for (int x = 0; x < W; ++x) {
-        const size_t p = size_t(y) * size_t(W) + size_t(x);
-        const int xl = std::max(x - 1, 0), xr = std::min(x + 1, W - 1), yu = std::max(y - 1, 0),
-                  yd = std::min(y + 1, H - 1);
-        gx[p] = (z[size_t(y) * size_t(W) + size_t(xr)] - z[size_t(y) * size_t(W) + size_t(xl)]) /
-                float(std::max(xr - xl, 1));
-        gy[p] = (z[size_t(yd) * size_t(W) + size_t(x)] - z[size_t(yu) * size_t(W) + size_t(x)]) /
-                float(std::max(yd - yu, 1));
-      }
-  }
-  float weight(const Planes& g, size_t p, size_t q, float sigma) const {
-    const float dx = float(int(q % size_t(width)) - int(p % size_t(width)));
-    const float dy = float(int(q / size_t(width)) - int(p / size_t(width)));
-    const float predicted = std::abs(gx[p] * dx + gy[p] * dy);
-    return std::abs(g.ch(9)[p] - g.ch(9)[q]) /
-           (sigma * predicted + 1e-3f * std::max(g.ch(9)[p], denoise::kMinDepth));
-  }
-};
-
-// The baselines' demodulation: by albedo, except where the albedo is (nearly) black
-// (emitters, black surfaces): there the colour is filtered as it is, since dividing by ~0
-// would turn it into huge irradiance that the filters then spread onto lit neighbours.
-float demod_albedo(const Planes& g, size_t p, int c) {
-  const float a0 = g.ch(3)[p], a1 = g.ch(4)[p], a2 = g.ch(5)[p];
-  if (std::max(a0, std::max(a1, a2)) < 0.02f) return 1.0f;
-  return std::max(g.ch(3 + c)[p], 0.0f) + kEps;
-}
-
-Planes demodulate(const Planes& g) {
-  Planes x(g.width, g.height, 3);
-  for (size_t p = 0; p < size_t(g.width) * size_t(g.height); ++p)
-    for (int c = 0; c < 3; ++c) x.ch(c)[p] = g.ch(c)[p] / demod_albedo(g, p, c);
-  return x;
-}
-
-Planes remodulate(const Planes& x, const Planes& g) {
-  Planes out(g.width, g.height, 3);
-  for (size_t p = 0; p < size_t(g.width) * size_t(g.height); ++p)
-    for (int c = 0; c < 3; ++c) out.ch(c)[p] = std::max(x.ch(c)[p], 0.0f) * demod_albedo(g, p, c);
-  return out;
-}
-
-// Dammertz et al. 2010 on demodulated irradiance: 5 passes, dilation 1..16, colour
-// (log irradiance) / normal / depth (SVGF's gradient-scaled form) edge stopping; the colour
-// sigma halves each pass.
-Planes atrous_filter(const Planes& g) {
-  Planes x = demodulate(g), t(g.width, g.height, 3), logx(g.width, g.height, 3);
-  const DepthGradient dz(g);
-  const float sigma_c = 0.6f, sigma_n = 0.2f, sigma_z = 1.0f;
-  for (int it = 0; it < 5; ++it) {
-    for (size_t p = 0; p < x.data.size(); ++p) logx.data[p] = std::log1p(std::max(x.data[p], 0.0f));
-    const float sc = sigma_c * std::ldexp(1.0f, -it);
-    atrous_pass(x, t, g, 1 << it, nullptr, nullptr,
-                [&](size_t p, size_t q, const Planes&, const Planes& gg) {
-                  float d2 = 0;
-                  for (int c = 0; c < 3; ++c) {
-                    const float d = logx.ch(c)[p] - logx.ch(c)[q];
-                    d2 += d * d;
-                  }
-                  const float nd = std::max(0.0f, 1.0f - normal_dot(gg, p, q));
-                  return std::exp(-d2 / (sc * sc) - nd / (sigma_n * sigma_n) -
-                                  dz.weight(gg, p, q, sigma_z));
-                });
-    std::swap(x, t);
-  }
-  return remodulate(x, g);
-}
-
-// SVGF-like (Schied et al. 2017): temporal accumulation of demodulated irradiance and its
-// luminance moments with motion-vector reprojection and a depth/normal consistency test,
-// variance from the moments (a spatial estimate for short histories), 5 variance-guided
-// a-trous passes; the first pass's output is the next frame's history.
-struct Svgf {
-  Planes history;  // irradiance 0-2, moments 3-4, length 5, depth 6, normal 7-9
-  Planes run(const Planes& g) {
-    const int W = g.width, H = g.height;
-    const size_t N = size_t(W) * size_t(H);
-    Planes x = demodulate(g);
-    const bool have = history.width == W && history.height == H;
-    Planes acc(W, H, 3);
-    std::vector<float> m1(N), m2(N), len(N), var(N);
-    rows(H, [&](int r0, int r1) {
-      for (int y = r0; y < r1; ++y)
-        for (int i = 0; i < W; ++i) {
-          const size_t p = size_t(y) * size_t(W) + size_t(i);
-          const float l = luminance(x.ch(0)[p], x.ch(1)[p], x.ch(2)[p]);
-          float h[5] = {0, 0, 0, 0, 0}, hl = 0;
-          if (have) {
-            // Bilinear reprojection using only the consistent taps (depth within 10 %,
-            // normals within ~25 degrees).
-            const float px = float(i) + g.ch(11)[p], py = float(y) + g.ch(12)[p];
-            const int x0 = int(std::floor(px)), y0 = int(std::floor(py));
-            const float fx = px - float(x0), fy = py - float(y0);
-            float wsum = 0;
-            for (int k = 0; k < 4; ++k) {
-              const int sx = x0 + (k & 1), sy = y0 + (k >> 1);
-              if (sx < 0 || sy < 0 || sx >= W || sy >= H) continue;
-              const size_t q = size_t(sy) * size_t(W) + size_t(sx);
-              const float zq = history.ch(6)[q], z = g.ch(9)[p];
-              const float nd = g.ch(6)[p] * history.ch(7)[q] + g.ch(7)[p] * history.ch(8)[q] +
-                               g.ch(8)[p] * history.ch(9)[q];
-              const bool normals =
-                  (g.ch(6)[p] == 0 && g.ch(7)[p] == 0 && g.ch(8)[p] == 0) || nd > 0.9f;
-              if (std::abs(zq - z) > 0.1f * std::max(z, denoise::kMinDepth) || !normals) continue;
-              const float w = ((k & 1) ? fx : 1 - fx) * ((k >> 1) ? fy : 1 - fy);
-              for (int c = 0; c < 5; ++c) h[c] += w * history.ch(c)[q];
-              hl += w * history.ch(5)[q];
-              wsum += w;
-            }
-            if (wsum > 1e-3f) {
-              for (float& v : h) v /= wsum;
-              hl /= wsum;
-            } else {
-              hl = 0;
-            }
-          }
-          const float n = std::min(hl, 254.0f) + 1.0f;
-          const float a = std::max(1.0f / n, 0.2f);
-          for (int c = 0; c < 3; ++c)
-            acc.ch(c)[p] = hl > 0 ? h[c] + a * (x.ch(c)[p] - h[c]) : x.ch(c)[p];
-          m1[p] = hl > 0 ? h[3] + a * (l - h[3]) : l;
-          m2[p] = hl > 0 ? h[4] + a * (l * l - h[4]) : l * l;
-          len[p] = n;
-          var[p] = std::max(0.0f, m2[p] - m1[p] * m1[p]);
-        }
-    });
-    // Short histories: variance from a 7x7 neighbourhood of the moments.
-    std::vector<float> var2 = var;
-    rows(H, [&](int r0, int r1) {
-      for (int y = r0; y < r1; ++y)
-        for (int i = 0; i < W; ++i) {
-          const size_t p = size_t(y) * size_t(W) + size_t(i);
-          if (len[p] >= 4) continue;
-          float s1 = 0, s2 = 0, ws = 0;
-          for (int j = -3; j <= 3; ++j)
-            for (int k = -3; k <= 3; ++k) {
-              const int sy = y + j, sx = i + k;
-              if (sx < 0 || sy < 0 || sx >= W || sy >= H) continue;
-              const size_t q = size_t(sy) * size_t(W) + size_t(sx);
-              const float w = std::exp(-rel_depth(g, p, q) / 0.05f) *
-                                  pow2k(std::max(0.0f, normal_dot(g, p, q)), 5) +
-                              (q == p ? 1.0f : 0.0f);
-              s1 += w * m1[q], s2 += w * m2[q], ws += w;
-            }
-          var2[p] = std::max(0.0f, s2 / ws - (s1 / ws) * (s1 / ws)) * 4.0f / len[p];
-        }
-    });
-    var = var2;
-    Planes t(W, H, 3);
-    std::vector<float> var_next(N), gvar(N);
-    const float sigma_l = 4.0f, sigma_z = 1.0f;  // sigma_n = 128 = 2^7 (pow2k below)
-    const DepthGradient dz(g);
-    Planes first;
-    for (int it = 0; it < 5; ++it) {
-      // 3x3 Gaussian-blurred variance for the luminance edge stop.
-      rows(H, [&](int r0, int r1) {
-        for (int y = r0; y < r1; ++y)
-          for (int i = 0; i < W; ++i) {
-            float s = 0, ws = 0;
-            for (int j = -1; j <= 1; ++j)
-              for (int k = -1; k <= 1; ++k) {
-                const int sy = y + j, sx = i + k;
-                if (sx < 0 || sy < 0 || sx >= W || sy >= H) continue;
-                const float w = (j == 0 ? 0.5f : 0.25f) * (k == 0 ? 0.5f : 0.25f);
-                s += w * var[size_t(sy) * size_t(W) + size_t(sx)], ws += w;
-              }
-            gvar[size_t(y) * size_t(W) + size_t(i)] = s / ws;
-          }
-      });
-      atrous_pass(acc, t, g, 1 << it, var.data(), var_next.data(),
-                  [&](size_t p, size_t q, const Planes& a, const Planes& gg) {
-                    const float lp = luminance(a.ch(0)[p], a.ch(1)[p], a.ch(2)[p]);
-                    const float lq = luminance(a.ch(0)[q], a.ch(1)[q], a.ch(2)[q]);
-                    const float wl = std::abs(lp - lq) / (sigma_l * std::sqrt(gvar[p]) + 1e-4f);
-                    const float wz = dz.weight(gg, p, q, sigma_z);
-                    const bool no_normal = gg.ch(6)[p] == 0 && gg.ch(7)[p] == 0 && gg.ch(8)[p] == 0;
-                    const float wn = no_normal ? 1.0f
-                                               : pow2k(std::max(0.0f, normal_dot(gg, p, q)),
-                                                       7);  // ^sigma_n = ^128
-                    return wn * std::exp(-wl - wz);
-                  });
-      std::swap(acc, t);
-      std::swap(var, var_next);
-      if (it == 0) first = acc;
-    }
-    history = Planes(W, H, 10);
-    for (size_t p = 0; p < N; ++p) {
-      for (int c = 0; c < 3; ++c) history.ch(c)[p] = first.ch(c)[p];
-      history.ch(3)[p] = m1[p], history.ch(4)[p] = m2[p], history.ch(5)[p] = len[p];
-      history.ch(6)[p] = g.ch(9)[p];
-      for (int c = 0; c < 3; ++c) history.ch(7 + c)[p] = g.ch(6 + c)[p];
-    }
-    return remodulate(acc, g);
-  }
-};
-
 }  // namespace
 
 struct Denoiser::Impl {
@@ -437,7 +182,7 @@ struct Denoiser::Impl {
   Planes state, inputs;
   denoise::Workspace workspace;
   bool profile = std::getenv("KESTREL_DENOISE_PROFILE") != nullptr;
-  Svgf svgf;
+  denoise::Svgf svgf;
 };
 
 Denoiser::Denoiser(const DenoiserOptions& options) : impl_(std::make_unique<Impl>()) {
@@ -452,7 +197,7 @@ Denoiser& Denoiser::operator=(Denoiser&&) noexcept = default;
 
 void Denoiser::reset() {
   impl_->state = Planes();
-  impl_->svgf = Svgf();
+  impl_->svgf.reset();
 }
 
 DenoiseMethod Denoiser::method() const {
@@ -493,11 +238,20 @@ void Denoiser::denoise(const DenoiseInput& input, FloatImage& out) {
       to_image(result, width, height, out);
       return;
     }
-    case DenoiseMethod::svgf:
-      to_image(impl_->svgf.run(gather(input, 1)), width, height, out);
+    case DenoiseMethod::svgf: {
+      gather(input, 1, impl_->inputs);
+      denoise::SvgfTimes times;
+      to_image(impl_->svgf.run(impl_->inputs, impl_->profile ? &times : nullptr), width, height,
+               out);
+      if (impl_->profile)
+        fmt::print(stderr,
+                   "svgf stages (ms): temporal {:.1f}  variance {:.1f}  passes {:.1f}  output "
+                   "{:.1f}\n",
+                   times.temporal, times.variance, times.passes, times.output);
       return;
+    }
     case DenoiseMethod::atrous:
-      to_image(atrous_filter(gather(input, 1)), width, height, out);
+      to_image(denoise::atrous_filter(gather(input, 1)), width, height, out);
       return;
   }
 }

@@ -233,6 +233,57 @@ static void ensure(Planes& p, int w, int h, int c) {
   if (p.width != w || p.height != h || p.channels != c) p = Planes(w, h, c);
 }
 
+// model.py's demodulation(): albedo + EPS, or 1 where every channel is below kBlackAlbedo.
+static inline float demodulation(float a0, float a1, float a2, float a) {
+  const float m = a0 > a1 ? a0 : a1;
+  const bool black = (m > a2 ? m : a2) < kBlackAlbedo;
+  return black ? 1.0f : (a > 0.0f ? a : 0.0f) + kAlbedoEps;
+}
+
+// The history clamp (model.py): yw = min(yw, B), B per channel the 3x3 maximum over
+// quarter-res cells of the 4x4 block maxima of the current irradiance (a 12x12 window).
+static void clamp_history(Workspace& ws, int W, int H) {
+  const int Wq = W / 4, Hq = H / 4;
+  ws.bound.resize(size_t(3) * size_t(Wq) * size_t(Hq));
+  ws.bound3.resize(ws.bound.size());
+  const size_t Nq = size_t(Wq) * size_t(Hq);
+  parallel_rows(Hq, 8, [&](int r0, int r1) {
+    for (int c = 0; c < 3; ++c)
+      for (int qy = r0; qy < r1; ++qy)
+        for (int qx = 0; qx < Wq; ++qx) {
+          float m = 0.0f;  // irradiance is >= 0
+          for (int sy = 0; sy < 4; ++sy) {
+            const float* x = ws.xlin.ch(c) + size_t(qy * 4 + sy) * size_t(W) + size_t(qx * 4);
+            for (int sx = 0; sx < 4; ++sx) m = x[sx] > m ? x[sx] : m;
+          }
+          ws.bound[size_t(c) * Nq + size_t(qy) * size_t(Wq) + size_t(qx)] = m;
+        }
+  });
+  parallel_rows(Hq, 8, [&](int r0, int r1) {
+    for (int c = 0; c < 3; ++c)
+      for (int qy = r0; qy < r1; ++qy)
+        for (int qx = 0; qx < Wq; ++qx) {
+          float m = 0.0f;
+          for (int dy = -1; dy <= 1; ++dy)
+            for (int dx = -1; dx <= 1; ++dx) {
+              const int y = qy + dy, x = qx + dx;
+              if (y < 0 || y >= Hq || x < 0 || x >= Wq) continue;
+              const float v = ws.bound[size_t(c) * Nq + size_t(y) * size_t(Wq) + size_t(x)];
+              m = v > m ? v : m;
+            }
+          ws.bound3[size_t(c) * Nq + size_t(qy) * size_t(Wq) + size_t(qx)] = m;
+        }
+  });
+  parallel_rows(H, 8, [&](int r0, int r1) {
+    for (int c = 0; c < 3; ++c)
+      for (int y = r0; y < r1; ++y) {
+        const float* b = ws.bound3.data() + size_t(c) * Nq + size_t(y / 4) * size_t(Wq);
+        float* yw = ws.yw.ch(c) + size_t(y) * size_t(W);
+        for (int i = 0; i < W; ++i) yw[i] = yw[i] < b[i / 4] ? yw[i] : b[i / 4];
+      }
+  });
+}
+
 static const Planes& network(const NeuralWeights& nw, const Planes& in, Planes& state,
                              bool recurrent, Workspace& ws, StageTimes* times) {
   using clock = std::chrono::steady_clock;
@@ -249,6 +300,7 @@ static const Planes& network(const NeuralWeights& nw, const Planes& in, Planes& 
   const int Wq = W / 4, Hq = H / 4;
   ensure(ws.x, W, H, 3);
   ensure(ws.xlin, W, H, 3);
+  ensure(ws.demod, W, H, 3);
   ensure(ws.yw, W, H, 3);
   ws.zw.resize(N), ws.valid.resize(N), ws.zc.resize(N);
   const float* z = in.ch(9);
@@ -268,13 +320,15 @@ static const Planes& network(const NeuralWeights& nw, const Planes& in, Planes& 
       const size_t row = size_t(y) * size_t(W);
       for (int c = 0; c < 3; ++c) {
         const float* col = in.ch(c) + row;
+        const float *a0 = in.ch(3) + row, *a1 = in.ch(4) + row, *a2 = in.ch(5) + row;
         const float* alb = in.ch(3 + c) + row;
         float* xo = ws.x.ch(c) + row;
         float* xl = ws.xlin.ch(c) + row;
+        float* dm = ws.demod.ch(c) + row;
         for (int i = 0; i < W; ++i) {
-          const float a = alb[i] > 0.0f ? alb[i] : 0.0f;
+          dm[i] = demodulation(a0[i], a1[i], a2[i], alb[i]);
           const float v = col[i] > 0.0f ? col[i] : 0.0f;
-          xl[i] = v / (a + kAlbedoEps);
+          xl[i] = v / dm[i];
           xo[i] = log1p_pos(xl[i]);
         }
       }
@@ -320,8 +374,15 @@ static const Planes& network(const NeuralWeights& nw, const Planes& in, Planes& 
       };
       for (int c = 0; c < 3; ++c) gather4(state.ch(c), ws.yw.ch(c) + row);
       gather4(state.ch(3), ws.zw.data() + row);
+      // Disocclusion: the history's depth more than 10 % off rejects it.
+      const float* zw = ws.zw.data() + row;
+      const float* zc = ws.zc.data() + row;
+      const float* zr = z + row;
+      for (int i = 0; i < W; ++i)
+        valid[i] = std::fabs(zw[i] - zr[i]) <= kDisoccluded * zc[i] ? valid[i] : 0.0f;
     }
   });
+  if (have_state) clamp_history(ws, W, H);
   lap(&st.prepare);
   // Features, 4x4 average pooled to quarter resolution (channels last). Per quarter row:
   // 13 features are input planes, 4 are computed per full-res row; each is summed over 4x4.
@@ -492,13 +553,9 @@ static const Planes& network(const NeuralWeights& nw, const Planes& in, Planes& 
     for (int c = 0; c < 3; ++c) {
       const size_t b = size_t(r0) * size_t(W), e = size_t(r1) * size_t(W);
       const float* xi = ws.xi.ch(c);
-      const float* alb = in.ch(3 + c);
+      const float* dm = ws.demod.ch(c);
       float* o = ws.out.ch(c);
-      for (size_t p = b; p < e; ++p) {
-        const float v = xi[p] > 0.0f ? xi[p] : 0.0f;
-        const float a = alb[p] > 0.0f ? alb[p] : 0.0f;
-        o[p] = v * (a + kAlbedoEps);
-      }
+      for (size_t p = b; p < e; ++p) o[p] = (xi[p] > 0.0f ? xi[p] : 0.0f) * dm[p];
       std::memcpy(ws.next_state.ch(c) + b, xi + b, sizeof(float) * (e - b));
     }
     std::memcpy(ws.next_state.ch(3) + size_t(r0) * size_t(W), z + size_t(r0) * size_t(W),

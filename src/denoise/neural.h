@@ -37,11 +37,14 @@ constexpr int kFeatures = 17;
 constexpr int kLevels = 4;
 constexpr int kOutputs = 1 + 4 * kLevels;
 constexpr float kAlbedoEps = 0.01f;
+constexpr float kBlackAlbedo = 0.02f;  ///< below this in every channel: no demodulation
+constexpr float kDisoccluded = 0.1f;   ///< relative depth change that rejects the history
 constexpr float kMinDepth = 1e-3f;
 
 /// Buffers reused from frame to frame (no allocation or page faults once warm).
 struct Workspace {
-  Planes x, xlin, yw, xi, xo, lg, out, next_state;
+  Planes x, xlin, demod, yw, xi, xo, lg, out, next_state;
+  std::vector<float> bound, bound3;
   std::vector<float> zw, valid, zc, feat, e1, pooled, e2, e3, cat, d1, o, act, padded, hrows;
 };
 

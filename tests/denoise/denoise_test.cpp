@@ -7,6 +7,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstdio>
 #include <filesystem>
 #include <fstream>
 #include <random>
@@ -174,6 +175,83 @@ TEST(Denoise, NoiseAroundAKnownMeanShrinks) {
     if (m != DenoiseMethod::atrous) {
       EXPECT_LT(err.back(), 0.7 * err.front()) << denoise_method_name(m) << ": no temporal gain";
     }
+  }
+}
+
+// The neural denoiser's output is a convex combination of the current frame's samples and a
+// history clamped to the brightest current sample near each pixel (architecture 3,
+// docs/denoiser.md), so in demodulated terms no output exceeds the brightest current input
+// sample, whatever the network predicts and whatever came before. Checked on a moving
+// sequence with fireflies, a near-black mirror-like region, and a light that goes out: the
+// history of the bright frames must not survive into the dark ones.
+TEST(Denoise, NeuralOutputIsBoundedByTheCurrentSamples) {
+  const int w = 64, h = 48;
+  Aux aux(w, h);
+  std::mt19937 rng(11);
+  std::exponential_distribution<float> noise(1.0f);
+  std::uniform_real_distribution<float> u(0.0f, 1.0f);
+  for (int y = 0; y < h; ++y)
+    for (int x = 0; x < w; ++x) {
+      const bool dark = x >= 40 && x < 48;  // albedo under the demodulation threshold
+      for (int c = 0; c < 3; ++c) aux.albedo.at(x, y)[c] = dark ? 0.005f : 0.3f + 0.02f * float(c);
+      aux.motion.at(x, y)[0] = -0.7f;  // a pan: the history moves 0.7 px
+    }
+  Denoiser d(options(DenoiseMethod::neural));
+  for (int t = 0; t < 10; ++t) {
+    const float light = t < 6 ? 5.0f : 0.05f;  // the light goes out at frame 6
+    FloatImage c(w, h, 3);
+    for (int y = 0; y < h; ++y)
+      for (int x = 0; x < w; ++x)
+        for (int k = 0; k < 3; ++k) {
+          float v = light * aux.albedo.at(x, y)[k] * noise(rng);
+          if (u(rng) < 0.01f) v *= 100.0f;  // fireflies
+          c.at(x, y)[k] = v;
+        }
+    float max_r = 0;  // the brightest demodulated input sample of this frame
+    auto demod = [&](int x, int y, int k) {
+      const float* a = aux.albedo.at(x, y);
+      return std::max({a[0], a[1], a[2]}) < 0.02f ? 1.0f : a[k] + 0.01f;
+    };
+    for (int y = 0; y < h; ++y)
+      for (int x = 0; x < w; ++x)
+        for (int k = 0; k < 3; ++k) max_r = std::max(max_r, c.at(x, y)[k] / demod(x, y, k));
+    const FloatImage out = d.denoise(aux.with(c));
+    for (int y = 0; y < h; ++y)
+      for (int x = 0; x < w; ++x)
+        for (int k = 0; k < 3; ++k)
+          ASSERT_LE(out.at(x, y)[k] / demod(x, y, k), max_r * (1 + 1e-5f))
+              << "frame " << t << " at " << x << "," << y;
+  }
+}
+
+// A static scene's noisy sequence converges to its mean instead of drifting: the error falls
+// to a plateau and stays there (the temporal blends keep a floor, SVGF's 0.2), and the mean
+// stays within 5 % (no amplification, no darkening by the recurrence).
+TEST(Denoise, StaticSequenceConvergesWithoutDrift) {
+  const int w = 96, h = 64;
+  const Aux aux(w, h);
+  std::mt19937 rng(5);
+  std::exponential_distribution<float> radiance(1.0f / 0.4f);
+  for (DenoiseMethod m : {DenoiseMethod::neural, DenoiseMethod::svgf}) {
+    Denoiser d(options(m));
+    std::vector<double> err, mean;
+    for (int t = 0; t < 24; ++t) {
+      FloatImage c(w, h, 3);
+      for (float& v : c.pixels) v = radiance(rng);
+      const FloatImage o = d.denoise(aux.with(c));
+      err.push_back(mse(o, 0.4f));
+      double sum = 0;
+      for (float v : o.pixels) sum += v;
+      mean.push_back(sum / double(o.pixels.size()));
+    }
+    double early = 0, late = 0;
+    for (int t = 8; t < 16; ++t) early += err[size_t(t)], late += err[size_t(t) + 8];
+    EXPECT_LT(early, 8 * 0.5 * err[0]) << denoise_method_name(m);
+    EXPECT_LT(late, 1.3 * early) << denoise_method_name(m) << ": the error grows";
+    std::printf("%s: error frame 0 %.3g, frames 8-15 %.3g, 16-23 %.3g\n", denoise_method_name(m),
+                err[0], early / 8, late / 8);
+    for (int t = 8; t < 24; ++t)
+      EXPECT_NEAR(mean[size_t(t)], 0.4, 0.02) << denoise_method_name(m) << " frame " << t;
   }
 }
 

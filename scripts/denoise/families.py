@@ -1,0 +1,398 @@
+#!/usr/bin/env python3
+"""Seeded procedural scene *families* for training and judging the reconstruction networks.
+Each family has many variations (sizes, materials, textures, lights, exposure, camera speed);
+everything follows from (family, seed). A scene is an OBJ + MTL (+ PNG textures, + a lights
+file), a camera path and the `kestrel render-sequence` flags that light it.
+
+    families.py FAMILY SEED OUT_DIR     -> OUT_DIR/scene.obj, scene.mtl, path.json, render.json
+    families.py --list                  -> the families and their split (train / heldout)
+
+Families (TRAIN are used for training; HELDOUT are never seen in training and are kept for
+evaluation, with the shared scenes):
+  sunlit_interior  rooms lit by sun and sky through windows (white, coloured or textured walls)
+  night_interior   closed rooms lit by many small point lights and lamps
+  corridor         long corridors under rows of ceiling panels, doors, a walk along them
+  outdoor          ground, buildings and foliage cards (thin alpha-less quads) under sun and sky
+  product          glossy and metallic objects on a sweep backdrop under softboxes, orbiting
+  mirror_room      (heldout) mirrors, mirror spheres and clear-coated objects, window or lamps
+  stairwell        (heldout) flights of steps, railings of thin bars, a skylight and a lamp
+  gallery          (heldout) photo-like textured canvases on walls, spot-lit, a slow pan
+Variations common to all: exposure (light intensity scaled by 1/8 .. 8: overexposed and very
+dark frames), camera speed (slow: a few pixels per frame; fast: tens), untextured / checker /
+noise / photo-like textures.
+"""
+import json
+import math
+import os
+import random
+import sys
+
+from PIL import Image
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from procedural import Mesh, texture  # noqa: E402
+
+TRAIN = ["sunlit_interior", "night_interior", "corridor", "outdoor", "product"]
+HELDOUT = ["mirror_room", "stairwell", "gallery"]
+
+
+class Scene:
+    def __init__(self, rng, out):
+        self.rng, self.out = rng, out
+        self.mesh, self.mats, self.textures, self.lights = Mesh(), {}, [], []
+        self.flags = []
+        os.makedirs(out, exist_ok=True)
+
+    # Materials: MTL text per name.
+    def mat(self, name, kind=None, color=None):
+        rng = self.rng
+        if name in self.mats:
+            return name
+        kind = kind or rng.choices(["diffuse", "textured", "photo", "glossy", "metal"], [4, 2, 1, 2, 1])[0]
+        col = color or [round(rng.uniform(0.05, 0.9), 3) for _ in range(3)]
+        lines = [f"newmtl {name}", f"Kd {col[0]} {col[1]} {col[2]}"]
+        if kind in ("textured", "photo"):
+            tex = f"tex_{len(self.textures)}.png"
+            (photo_texture if kind == "photo" else texture)(rng, os.path.join(self.out, tex))
+            self.textures.append(tex)
+            lines += [f"map_Kd {tex}", "Pr 1"]
+        elif kind == "glossy":
+            lines += ["Ks 1 1 1", f"Pr {round(rng.uniform(0.02, 0.35), 3)}"]
+        elif kind == "coated":  # clear coat over a saturated base: glass-like reflections
+            lines += ["Ks 1 1 1", "Pr 0.0"]
+        elif kind == "metal":
+            lines += ["Pm 1", f"Pr {round(rng.uniform(0.05, 0.5), 3)}"]
+        elif kind == "mirror":
+            lines = [f"newmtl {name}", "Kd 0.95 0.95 0.95", "Pm 1", "Pr 0.0"]
+        elif kind == "gold":
+            lines = [f"newmtl {name}", "Kd 1.0 0.78 0.34", "Pm 1", f"Pr {round(rng.uniform(0.0, 0.25), 3)}"]
+        elif kind == "emitter":
+            e = [round(c, 3) for c in col]
+            lines = [f"newmtl {name}", "Kd 0 0 0", f"Ke {e[0]} {e[1]} {e[2]}"]
+        else:
+            lines.append("Pr 1")
+        self.mats[name] = "\n".join(lines)
+        return name
+
+    def room(self, W, H, D, window=None, prefix="room"):
+        """An inward-facing box room; window = (x0, x1, y0, y1) cut into the z = D wall."""
+        m = self.mesh
+        floor, wall, ceil = (self.mat(f"{prefix}_floor"), self.mat(f"{prefix}_wall"), self.mat(f"{prefix}_ceiling", "diffuse"))
+        m.quad(floor, (0, 0, 0), (W, 0, 0), (W, 0, D), (0, 0, D), uv_scale=W / 2)
+        m.quad(ceil, (0, H, D), (W, H, D), (W, H, 0), (0, H, 0), uv_scale=W / 2)
+        m.quad(wall, (0, 0, 0), (0, 0, D), (0, H, D), (0, H, 0), uv_scale=D / 2)
+        m.quad(wall, (W, 0, D), (W, 0, 0), (W, H, 0), (W, H, D), uv_scale=D / 2)
+        m.quad(wall, (W, 0, 0), (0, 0, 0), (0, H, 0), (W, H, 0), uv_scale=W / 2)
+        if window:
+            x0, x1, y0, y1 = window
+            for (a0, a1, b0, b1) in [(0, x0, 0, H), (x1, W, 0, H), (x0, x1, 0, y0), (x0, x1, y1, H)]:
+                m.quad(wall, (a0, b0, D), (a1, b0, D), (a1, b1, D), (a0, b1, D), uv_scale=1)
+        else:
+            m.quad(wall, (0, 0, D), (W, 0, D), (W, H, D), (0, H, D), uv_scale=W / 2)
+
+    def clutter(self, W, D, n, kinds=("box", "box", "sphere", "cylinder"), mats=None, margin=0.6):
+        rng, m = self.rng, self.mesh
+        for i in range(n):
+            mat = self.mat(rng.choice(mats) if mats else f"obj_{rng.randrange(6)}")
+            x, z = rng.uniform(margin, W - margin), rng.uniform(margin, D - margin)
+            kind = rng.choice(kinds)
+            if kind == "box":
+                h = (rng.uniform(0.15, 0.6), rng.uniform(0.15, 0.9), rng.uniform(0.15, 0.6))
+                m.box(mat, (x, h[1], z), h, rng.uniform(0, math.pi), uv_scale=rng.choice([1, 2]))
+            elif kind == "sphere":
+                r = rng.uniform(0.2, 0.6)
+                m.surface(mat, (x, r, z), r, "sphere", seg=32)
+            else:
+                r = rng.uniform(0.05, 0.4)
+                m.surface(mat, (x, 0, z), r, "cylinder", seg=20, height=rng.uniform(0.5, 2.0))
+
+    def point_light(self, p, color, intensity):
+        self.lights.append({"name": f"lamp_{len(self.lights)}", "type": "point", "position": [round(v, 4) for v in p],
+                            "color": color, "intensity": round(intensity, 4)})
+
+    def walk(self, eye, look, speed, vfov, frames_span=1.0):
+        """A 4-key path: eye moves by `speed` metres over the clip, the target drifts."""
+        rng = self.rng
+        a = rng.uniform(0, 2 * math.pi)
+        step = [math.cos(a) * speed / 3, rng.uniform(-0.02, 0.02), math.sin(a) * speed / 3]
+        turn = [rng.uniform(-1, 1) * speed / 3, rng.uniform(-0.1, 0.1) * speed, rng.uniform(-1, 1) * speed / 3]
+        keys = [{"time": k / 3 * frames_span, "eye": [eye[i] + step[i] * k for i in range(3)],
+                 "target": [look[i] + turn[i] * k for i in range(3)], "vfov": vfov} for k in range(4)]
+        self.path = {"keyframes": keys}
+
+    def write(self, family, seed, exposure):
+        obj, mtl = os.path.join(self.out, "scene.obj"), os.path.join(self.out, "scene.mtl")
+        with open(mtl, "w") as f:
+            f.write("\n\n".join(self.mats.values()) + "\n")
+        with open(obj, "w") as f:
+            f.write(f"# kestrel scene family {family}, seed {seed}\nmtllib scene.mtl\n")
+            for v in self.mesh.v:
+                f.write("v %.5f %.5f %.5f\n" % v)
+            for t in self.mesh.vt:
+                f.write("vt %.5f %.5f\n" % t)
+            for mat, faces in self.mesh.groups:
+                f.write(f"usemtl {mat}\n")
+                for tri in faces:
+                    f.write("f " + " ".join(f"{v + 1}/{t + 1}" for v, t in tri) + "\n")
+        flags = list(self.flags)
+        if self.lights:
+            for L in self.lights:
+                L["intensity"] = round(L["intensity"] * exposure, 5)
+            json.dump({"lights": self.lights}, open(os.path.join(self.out, "lights.json"), "w"), indent=1)
+            flags += ["--lights", os.path.join(self.out, "lights.json"), "--light-sampling", "tree"]
+        self.path["scene"] = f"{family} {seed}"
+        json.dump(self.path, open(os.path.join(self.out, "path.json"), "w"), indent=1)
+        info = {"family": family, "seed": seed, "exposure": exposure, "flags": flags,
+                "scene": obj, "path": os.path.join(self.out, "path.json"), "triangles": sum(len(g[1]) for g in self.mesh.groups)}
+        json.dump(info, open(os.path.join(self.out, "render.json"), "w"), indent=1)
+        return info
+
+
+def photo_texture(rng, path, n=256):
+    """Photo-like: a few octaves of smooth value noise in two random colours, with edges."""
+    base = [[rng.random() for _ in range(9)] for _ in range(9)]
+    a = [rng.uniform(0.05, 0.9) for _ in range(3)]
+    b = [rng.uniform(0.05, 0.9) for _ in range(3)]
+    octaves = [(rng.randint(2, 5), 0.55), (rng.randint(8, 16), 0.3), (rng.randint(24, 48), 0.15)]
+    grids = [[[rng.random() for _ in range(k + 1)] for _ in range(k + 1)] for k, _ in octaves]
+    img = Image.new("RGB", (n, n))
+    px = img.load()
+    for y in range(n):
+        for x in range(n):
+            v = 0.0
+            for (k, w), g in zip(octaves, grids):
+                fx, fy = x / n * k, y / n * k
+                i, j = int(fx), int(fy)
+                tx, ty = fx - i, fy - j
+                tx, ty = tx * tx * (3 - 2 * tx), ty * ty * (3 - 2 * ty)
+                top = g[j][i] * (1 - tx) + g[j][i + 1] * tx
+                bot = g[j + 1][i] * (1 - tx) + g[j + 1][i + 1] * tx
+                v += w * (top * (1 - ty) + bot * ty)
+            v = min(max((v - 0.2) / 0.6, 0.0), 1.0)
+            px[x, y] = tuple(int(255 * (a[c] * (1 - v) + b[c] * v)) for c in range(3))
+    del base
+    img.save(path)
+
+
+def exposure_and_speed(rng):
+    exposure = 2.0 ** rng.choice([-3, -2, -1, 0, 0, 0, 1, 2, 3])
+    speed = rng.choice([0.15, 0.3, 0.6, 1.5, 3.0])  # metres over the clip: slow .. fast
+    return exposure, speed
+
+
+def sun_through(rng, exposure, elevation=(15, 50)):
+    """A sun on the +Z side (the windows' side): azimuth 180 +- 60 (north is -Z)."""
+    az, el = 180 + rng.uniform(-60, 60), rng.uniform(*elevation)
+    return ["--sun", f"{az:.1f},{el:.1f},{rng.uniform(4, 12) * exposure:.3f}", "--sky"]
+
+
+def sunlit_interior(s, rng, exposure, speed):
+    W, H, D = rng.uniform(4, 9), rng.uniform(2.6, 4), rng.uniform(4, 9)
+    x0 = rng.uniform(0.4, W / 2)
+    win = (x0, min(W - 0.4, x0 + rng.uniform(0.8, 2.5)), rng.uniform(0.5, 1.0), 0)
+    win = (win[0], win[1], win[2], min(H - 0.2, win[2] + rng.uniform(1.0, 2.2)))
+    if rng.random() < 0.4:
+        s.mat("room_wall", "diffuse", [0.85, 0.85, 0.85])
+    s.room(W, H, D, window=win)
+    s.clutter(W, D, rng.randint(3, 10))
+    if rng.random() < 0.5:
+        r = rng.uniform(0.25, 0.6)
+        s.mesh.surface(s.mat("mirror_ball", "mirror"), (rng.uniform(1, W - 1), r, rng.uniform(1, D - 1)), r, "sphere", seg=40)
+    s.flags = sun_through(rng, exposure)
+    eye = [rng.uniform(0.8, W - 0.8), rng.uniform(1.0, min(2.0, H - 0.4)), rng.uniform(0.6, D * 0.5)]
+    s.walk(eye, [rng.uniform(0.3, W - 0.3), rng.uniform(0.3, 1.5), D - rng.uniform(0.5, 3)], speed, rng.uniform(55, 80))
+
+
+def night_interior(s, rng, exposure, speed):
+    W, H, D = rng.uniform(4, 10), rng.uniform(2.5, 3.5), rng.uniform(4, 10)
+    s.room(W, H, D)
+    s.clutter(W, D, rng.randint(4, 12))
+    warm = [1.0, round(rng.uniform(0.55, 0.85), 3), round(rng.uniform(0.3, 0.6), 3)]
+    for i in range(rng.randint(8, 60)):
+        p = (rng.uniform(0.2, W - 0.2), rng.uniform(0.3, H - 0.1), rng.uniform(0.2, D - 0.2))
+        s.point_light(p, warm, rng.uniform(0.05, 0.6))
+    for i in range(rng.randint(0, 3)):  # small emissive lamp shades
+        r = rng.uniform(0.05, 0.15)
+        s.mesh.surface(s.mat(f"lamp_{i}", "emitter", [rng.uniform(5, 30) * exposure] * 3),
+                       (rng.uniform(0.5, W - 0.5), rng.uniform(0.8, H - 0.3), rng.uniform(0.5, D - 0.5)), r, "sphere", seg=12)
+    s.flags = ["--env", "none"]
+    eye = [rng.uniform(0.8, W - 0.8), rng.uniform(1.0, 1.8), rng.uniform(0.8, D - 0.8)]
+    s.walk(eye, [W - eye[0], 0.7, D - eye[2]], speed, rng.uniform(55, 80))
+
+
+def corridor(s, rng, exposure, speed):
+    W, H, D = rng.uniform(1.8, 3.2), rng.uniform(2.4, 3.2), rng.uniform(14, 30)
+    s.room(W, H, D)
+    panel = s.mat("panel", "emitter", [rng.uniform(4, 12) * exposure] * 3)
+    gap = rng.uniform(2, 5)
+    z = gap / 2
+    while z < D:
+        w, l = rng.uniform(0.3, W * 0.4), rng.uniform(0.4, 1.2)
+        c = W / 2
+        s.mesh.quad(panel, (c - w, H - 0.01, z - l), (c + w, H - 0.01, z - l), (c + w, H - 0.01, z + l), (c - w, H - 0.01, z + l))
+        z += gap
+    door = s.mat("door")
+    for i in range(rng.randint(2, 8)):
+        side = rng.choice([0.02, W - 0.02])
+        zc = rng.uniform(1, D - 1)
+        s.mesh.box(door, (side, 1.05, zc), (0.03, 1.05, 0.45), 0.0)
+    s.flags = ["--env", "none"]
+    eye = [W / 2 + rng.uniform(-0.3, 0.3), rng.uniform(1.4, 1.8), rng.uniform(0.8, 3)]
+    s.walk(eye, [W / 2 + rng.uniform(-0.5, 0.5), rng.uniform(0.8, 1.6), D - 0.5], speed, rng.uniform(50, 75))
+    # Walk along the corridor, not across it.
+    for k, key in enumerate(s.path["keyframes"]):
+        key["eye"] = [eye[0], eye[1], eye[2] + speed * k / 3]
+
+
+def outdoor(s, rng, exposure, speed):
+    m, size = s.mesh, rng.uniform(30, 60)
+    m.quad(s.mat("ground", rng.choice(["textured", "photo", "diffuse"])), (-size, 0, -size), (size, 0, -size), (size, 0, size), (-size, 0, size), uv_scale=size / 2)
+    for i in range(rng.randint(3, 12)):
+        h = (rng.uniform(1, 4), rng.uniform(2, 12), rng.uniform(1, 4))
+        m.box(s.mat(f"building_{i % 4}"), (rng.uniform(-20, 20), h[1], rng.uniform(-25, -4)), h, rng.uniform(0, math.pi))
+    leaf = s.mat("foliage", "diffuse", [0.08, round(rng.uniform(0.2, 0.45), 3), 0.05])
+    for i in range(rng.randint(2, 8)):  # trees: a trunk and crossed thin cards
+        x, z = rng.uniform(-15, 15), rng.uniform(-18, -2)
+        m.surface(s.mat("trunk", "diffuse", [0.25, 0.17, 0.1]), (x, 0, z), 0.12, "cylinder", seg=10, height=2.5)
+        for k in range(rng.randint(6, 14)):
+            a, y, r = rng.uniform(0, math.pi), rng.uniform(1.8, 4), rng.uniform(0.4, 1.2)
+            dx, dz = math.cos(a) * r, math.sin(a) * r
+            m.quad(leaf, (x - dx, y - 0.3, z - dz), (x + dx, y - 0.3, z + dz), (x + dx, y + 0.3, z + dz), (x - dx, y + 0.3, z - dz))
+    s.clutter(8, 8, rng.randint(2, 6), mats=["obj_0", "obj_1", "obj_2"])
+    s.flags = ["--sun", f"{rng.uniform(0, 360):.1f},{rng.uniform(8, 70):.1f},{rng.uniform(4, 12) * exposure:.3f}", "--sky"]
+    eye = [rng.uniform(-3, 3), rng.uniform(1.2, 2.5), rng.uniform(4, 10)]
+    s.walk(eye, [rng.uniform(-5, 5), rng.uniform(1, 4), rng.uniform(-15, -5)], speed * 3, rng.uniform(50, 75))
+
+
+def product(s, rng, exposure, speed):
+    m = s.mesh
+    back = s.mat("sweep", "diffuse", [round(rng.uniform(0.05, 0.9), 3)] * 3)
+    # A sweep: floor, a quarter-cylinder bend and a back wall, as quads.
+    R, n = 1.2, 8
+    m.quad(back, (-4, 0, -2 + R), (4, 0, -2 + R), (4, 0, 4), (-4, 0, 4), uv_scale=2)
+    for i in range(n):
+        a0, a1 = math.pi / 2 * i / n, math.pi / 2 * (i + 1) / n
+        p = lambda a, x: (x, R - R * math.cos(a), -2 + R - R * math.sin(a))  # noqa: E731
+        m.quad(back, p(a1, -4), p(a1, 4), p(a0, 4), p(a0, -4))
+    m.quad(back, (-4, R, -2), (4, R, -2), (4, 5, -2), (-4, 5, -2))
+    for i in range(rng.randint(1, 4)):
+        kind = rng.choice(["sphere", "sphere", "cylinder", "box"])
+        mat = s.mat(f"hero_{i}", rng.choice(["gold", "metal", "glossy", "coated", "mirror"]))
+        x, z = rng.uniform(-1.2, 1.2), rng.uniform(-0.5, 1.2)
+        if kind == "sphere":
+            r = rng.uniform(0.2, 0.5)
+            m.surface(mat, (x, r, z), r, "sphere", seg=48)
+        elif kind == "cylinder":
+            m.surface(mat, (x, 0, z), rng.uniform(0.1, 0.3), "cylinder", seg=32, height=rng.uniform(0.3, 1.0))
+        else:
+            h = rng.uniform(0.15, 0.35)
+            m.box(mat, (x, h, z), (h, h, h), rng.uniform(0, math.pi))
+    for i in range(rng.randint(1, 3)):  # softboxes
+        e = rng.uniform(3, 15) * exposure
+        box = s.mat(f"softbox_{i}", "emitter", [e, e * rng.uniform(0.85, 1), e * rng.uniform(0.7, 1)])
+        a, h, r, w = rng.uniform(0, 2 * math.pi), rng.uniform(1.5, 3), rng.uniform(2, 3), rng.uniform(0.3, 0.8)
+        cx, cz = math.cos(a) * r, 1 + math.sin(a) * r
+        tx, tz = -math.sin(a) * w, math.cos(a) * w
+        m.quad(box, (cx - tx, h - w, cz - tz), (cx + tx, h - w, cz + tz), (cx + tx, h + w, cz + tz), (cx - tx, h + w, cz - tz))
+    s.flags = ["--env", "constant:0.02,0.02,0.025"] if rng.random() < 0.5 else ["--env", "none"]
+    a0 = rng.uniform(0, math.pi)
+    dist, h = rng.uniform(2.5, 4), rng.uniform(0.6, 1.8)
+    span = speed * 0.4  # radians of orbit over the clip
+    keys = [{"time": k / 3, "eye": [math.cos(a0 + span * k / 3) * dist, h, 0.3 + math.sin(a0 + span * k / 3) * dist],
+             "target": [0, 0.3, 0.3], "vfov": rng.uniform(30, 50)} for k in range(4)]
+    s.path = {"keyframes": keys}
+
+
+def mirror_room(s, rng, exposure, speed):
+    W, H, D = rng.uniform(4, 8), rng.uniform(2.6, 3.6), rng.uniform(4, 8)
+    windowed = rng.random() < 0.5
+    s.room(W, H, D, window=(W * 0.3, W * 0.6, 0.8, min(H - 0.3, 2.3)) if windowed else None)
+    mirror = s.mat("mirror", "mirror")
+    m = s.mesh
+    for i in range(rng.randint(1, 3)):  # mirror panels on the side walls
+        z0 = rng.uniform(0.5, D - 2)
+        x = 0.02 if rng.random() < 0.5 else W - 0.02
+        zs = (z0, z0 + rng.uniform(0.8, 1.8)) if x < 1 else (z0 + rng.uniform(0.8, 1.8), z0)
+        m.quad(mirror, (x, 0.4, zs[0]), (x, 0.4, zs[1]), (x, 2.2, zs[1]), (x, 2.2, zs[0]))
+    for i in range(rng.randint(1, 3)):
+        r = rng.uniform(0.2, 0.6)
+        m.surface(s.mat(f"ball_{i}", rng.choice(["mirror", "coated", "gold"])), (rng.uniform(1, W - 1), r, rng.uniform(1, D - 1)), r, "sphere", seg=40)
+    s.clutter(W, D, rng.randint(2, 6))
+    if windowed:
+        s.flags = sun_through(rng, exposure)
+    else:
+        for i in range(rng.randint(2, 6)):
+            s.point_light((rng.uniform(0.5, W - 0.5), H - 0.3, rng.uniform(0.5, D - 0.5)), [1, 0.9, 0.8], rng.uniform(1, 4))
+        s.flags = ["--env", "none"]
+    eye = [rng.uniform(0.8, W - 0.8), rng.uniform(1.0, 1.8), rng.uniform(0.6, D * 0.4)]
+    s.walk(eye, [rng.uniform(0.5, W - 0.5), 0.6, D - 1], speed, rng.uniform(55, 80))
+
+
+def stairwell(s, rng, exposure, speed):
+    W, H, D = rng.uniform(3, 5), rng.uniform(6, 9), rng.uniform(4, 7)
+    s.room(W, H, D)
+    m = s.mesh
+    step, rail = s.mat("step"), s.mat("rail", rng.choice(["metal", "diffuse"]))
+    rise, run, width = rng.uniform(0.15, 0.2), rng.uniform(0.25, 0.32), rng.uniform(1.0, W / 2 - 0.1)
+    y, z, flight = 0.0, 0.5, 0
+    while y + rise < H - 2:
+        n = int(min((D - 1.2) / run, (H - 2 - y) / rise))
+        for i in range(n):
+            zz = z + i * run if flight % 2 == 0 else D - 0.5 - i * run
+            x0 = 0.0 if flight % 2 == 0 else W - width
+            m.box(step, (x0 + width / 2, y + rise * (i + 0.5), zz), (width / 2, rise / 2, run / 2), 0.0)
+            if i % 2 == 0:  # balusters: thin bars
+                m.surface(rail, (x0 + (width if flight % 2 == 0 else 0), y + rise * i, zz), 0.012, "cylinder", seg=6, height=0.9)
+        y += n * rise
+        flight += 1
+        if flight > 3:
+            break
+    m.surface(s.mat("lamp", "emitter", [rng.uniform(10, 40) * exposure] * 3), (W / 2, H - 0.4, D / 2), 0.15, "sphere", seg=12)
+    s.flags = ["--env", "none"]
+    eye = [W - 0.6, rng.uniform(1.2, 1.8), rng.uniform(0.6, 1.5)]
+    s.walk(eye, [W / 3, rng.uniform(1.5, 4), D - 1], speed, rng.uniform(60, 80))
+    for k, key in enumerate(s.path["keyframes"]):  # climb while looking around
+        key["eye"][1] = eye[1] + speed * 0.3 * k / 3
+
+
+def gallery(s, rng, exposure, speed):
+    W, H, D = rng.uniform(6, 12), rng.uniform(3, 4.5), rng.uniform(6, 12)
+    s.mat("room_wall", "diffuse", [0.8, 0.8, 0.78])
+    s.room(W, H, D)
+    m = s.mesh
+    for i in range(rng.randint(3, 8)):  # canvases on the walls
+        canvas = s.mat(f"canvas_{i}", rng.choice(["photo", "photo", "textured"]))
+        w, h = rng.uniform(0.5, 1.5), rng.uniform(0.5, 1.2)
+        y0 = rng.uniform(1.0, 1.6)
+        if rng.random() < 0.5:
+            x = rng.uniform(w + 0.3, W - w - 0.3)
+            m.quad(canvas, (x + w, y0, 0.03), (x - w, y0, 0.03), (x - w, y0 + h, 0.03), (x + w, y0 + h, 0.03))
+        else:
+            z = rng.uniform(w + 0.3, D - w - 0.3)
+            m.quad(canvas, (0.03, y0, z - w), (0.03, y0, z + w), (0.03, y0 + h, z + w), (0.03, y0 + h, z - w))
+        s.point_light((rng.uniform(1, W - 1), H - 0.2, rng.uniform(1, D - 1)), [1, 0.95, 0.85], rng.uniform(0.5, 3))
+    s.clutter(W, D, rng.randint(1, 4), kinds=("box", "cylinder"))
+    s.flags = ["--env", "none"]
+    eye = [rng.uniform(W * 0.4, W * 0.8), rng.uniform(1.4, 1.8), rng.uniform(D * 0.5, D - 1)]
+    s.walk(eye, [0.5, 1.4, rng.uniform(1, D - 1)], speed * 0.5, rng.uniform(50, 70))
+
+
+FAMILIES = {f.__name__: f for f in [sunlit_interior, night_interior, corridor, outdoor, product, mirror_room, stairwell, gallery]}
+
+
+def make(family, seed, out):
+    rng = random.Random(f"{family}:{seed}")
+    s = Scene(rng, out)
+    exposure, speed = exposure_and_speed(rng)
+    FAMILIES[family](s, rng, exposure, speed)
+    return s.write(family, seed, exposure)
+
+
+if __name__ == "__main__":
+    if sys.argv[1:] == ["--list"]:
+        for f in FAMILIES:
+            print(f, "heldout" if f in HELDOUT else "train")
+        sys.exit(0)
+    if len(sys.argv) != 4 or sys.argv[1] not in FAMILIES:
+        sys.exit(f"usage: families.py FAMILY SEED OUT_DIR  (families: {', '.join(FAMILIES)})")
+    print(json.dumps(make(sys.argv[1], int(sys.argv[2]), sys.argv[3])))

@@ -1,0 +1,212 @@
+// SVGF-like in real time (svgf.h): the frame's passes over reused buffers, the hot loops per
+// ISA in svgf_kernels.inl; and the steps both SVGF forms and the a-trous filter share.
+#include "denoise/svgf.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstring>
+
+#include "core/parallel.h"
+#include "core/timer.h"
+#include "kestrel/isa.h"
+
+namespace kestrel::denoise {
+
+namespace {
+
+template <class F>
+void rows(int h, F&& f) {
+  parallel_for(0, size_t(h), 4, [&](size_t begin, size_t end) { f(int(begin), int(end)); });
+}
+
+void ensure(Planes& p, int w, int h, int c) {
+  if (p.width != w || p.height != h || p.channels != c) p = Planes(w, h, c);
+}
+
+}  // namespace
+
+const SvgfKernels& svgf_kernels() {
+  switch (default_isa()) {
+    case Isa::avx512:
+      return svgf_kernels_avx512();
+    case Isa::avx2:
+      return svgf_kernels_avx2();
+    default:
+      return svgf_kernels_sse2();
+  }
+}
+
+// By albedo, except where the albedo is (nearly) black (emitters, black surfaces): there the
+// colour is filtered as it is, since dividing by ~0 would turn it into huge irradiance that
+// the filters then spread onto lit neighbours.
+void demodulate(const Planes& g, Planes& x, Planes& demod) {
+  const int W = g.width, H = g.height;
+  ensure(x, W, H, 3);
+  ensure(demod, W, H, 3);
+  const float *C0 = g.ch(0), *C1 = g.ch(1), *C2 = g.ch(2);
+  const float *B0 = g.ch(3), *B1 = g.ch(4), *B2 = g.ch(5);
+  float *X0 = x.ch(0), *X1 = x.ch(1), *X2 = x.ch(2);
+  float *D0 = demod.ch(0), *D1 = demod.ch(1), *D2 = demod.ch(2);
+  rows(H, [&](int r0, int r1) {
+    for (size_t p = size_t(r0) * size_t(W); p < size_t(r1) * size_t(W); ++p) {
+      const float a0 = B0[p], a1 = B1[p], a2 = B2[p];
+      const bool black = std::max(a0, std::max(a1, a2)) < kBlackAlbedo;
+      const float d0 = black ? 1.0f : std::max(a0, 0.0f) + kAlbedoEps;
+      const float d1 = black ? 1.0f : std::max(a1, 0.0f) + kAlbedoEps;
+      const float d2 = black ? 1.0f : std::max(a2, 0.0f) + kAlbedoEps;
+      D0[p] = d0, D1[p] = d1, D2[p] = d2;
+      X0[p] = C0[p] / d0, X1[p] = C1[p] / d1, X2[p] = C2[p] / d2;
+    }
+  });
+}
+
+void remodulate(const Planes& x, const Planes& demod, Planes& out) {
+  ensure(out, x.width, x.height, 3);
+  const size_t n = size_t(x.width) * size_t(x.height) * 3;
+  for (size_t i = 0; i < n; ++i) out.data[i] = std::max(x.data[i], 0.0f) * demod.data[i];
+}
+
+void svgf_temporal(const Planes& g, const Planes& x, const Planes& history, Planes& acc, float* m1,
+                   float* m2, float* len, float* var) {
+  const int W = g.width, H = g.height;
+  const bool have = history.width == W && history.height == H;
+  ensure(acc, W, H, 3);
+  const float *X0 = x.ch(0), *X1 = x.ch(1), *X2 = x.ch(2), *Z = g.ch(9);
+  const float *N0 = g.ch(6), *N1 = g.ch(7), *N2 = g.ch(8), *MX = g.ch(11), *MY = g.ch(12);
+  float *A0 = acc.ch(0), *A1 = acc.ch(1), *A2 = acc.ch(2);
+  const float* hist[10] = {};
+  if (have)
+    for (int c = 0; c < 10; ++c) hist[c] = history.ch(c);
+  rows(H, [&](int r0, int r1) {
+    for (int y = r0; y < r1; ++y)
+      for (int i = 0; i < W; ++i) {
+        const size_t p = size_t(y) * size_t(W) + size_t(i);
+        const float x0 = X0[p], x1 = X1[p], x2 = X2[p];
+        const float l = svgf_luminance(x0, x1, x2);
+        float h[5] = {0, 0, 0, 0, 0}, hl = 0;
+        if (have) {
+          // Bilinear reprojection using only the consistent taps (depth within 10 %,
+          // normals within ~25 degrees).
+          const float px = float(i) + MX[p], py = float(y) + MY[p];
+          const int x0i = int(std::floor(px)), y0i = int(std::floor(py));
+          const float fx = px - float(x0i), fy = py - float(y0i);
+          const float z = Z[p], n0 = N0[p], n1 = N1[p], n2 = N2[p];
+          const bool no_normal = n0 == 0 && n1 == 0 && n2 == 0;
+          const float zmax = 0.1f * std::max(z, kMinDepth);
+          float wsum = 0;
+          for (int k = 0; k < 4; ++k) {
+            const int sx = x0i + (k & 1), sy = y0i + (k >> 1);
+            if (sx < 0 || sy < 0 || sx >= W || sy >= H) continue;
+            const size_t q = size_t(sy) * size_t(W) + size_t(sx);
+            const float nd = n0 * hist[7][q] + n1 * hist[8][q] + n2 * hist[9][q];
+            if (std::abs(hist[6][q] - z) > zmax || !(no_normal || nd > 0.9f)) continue;
+            const float w = ((k & 1) ? fx : 1 - fx) * ((k >> 1) ? fy : 1 - fy);
+            for (int c = 0; c < 5; ++c) h[c] += w * hist[c][q];
+            hl += w * hist[5][q];
+            wsum += w;
+          }
+          if (wsum > 1e-3f) {
+            for (float& v : h) v /= wsum;
+            hl /= wsum;
+          } else {
+            hl = 0;
+          }
+        }
+        const float n = std::min(hl, 254.0f) + 1.0f;
+        const float a = std::max(1.0f / n, 0.2f);
+        const bool keep = hl > 0;
+        A0[p] = keep ? h[0] + a * (x0 - h[0]) : x0;
+        A1[p] = keep ? h[1] + a * (x1 - h[1]) : x1;
+        A2[p] = keep ? h[2] + a * (x2 - h[2]) : x2;
+        const float mm1 = keep ? h[3] + a * (l - h[3]) : l;
+        const float mm2 = keep ? h[4] + a * (l * l - h[4]) : l * l;
+        m1[p] = mm1, m2[p] = mm2, len[p] = n;
+        var[p] = std::max(0.0f, mm2 - mm1 * mm1);
+      }
+  });
+}
+
+void depth_gradient(const Planes& g, float* gx, float* gy) {
+  const int W = g.width, H = g.height;
+  const float* z = g.ch(9);
+  rows(H, [&](int r0, int r1) {
+    for (int y = r0; y < r1; ++y)
+      for (int x = 0; x < W; ++x) {
+        const size_t p = size_t(y) * size_t(W) + size_t(x);
+        const int xl = std::max(x - 1, 0), xr = std::min(x + 1, W - 1), yu = std::max(y - 1, 0),
+                  yd = std::min(y + 1, H - 1);
+        gx[p] = (z[size_t(y) * size_t(W) + size_t(xr)] - z[size_t(y) * size_t(W) + size_t(xl)]) /
+                float(std::max(xr - xl, 1));
+        gy[p] = (z[size_t(yd) * size_t(W) + size_t(x)] - z[size_t(yu) * size_t(W) + size_t(x)]) /
+                float(std::max(yd - yu, 1));
+      }
+  });
+}
+
+const Planes& Svgf::run(const Planes& g, SvgfTimes* times) {
+  Timer timer;
+  double last = 0;
+  auto lap = [&](double SvgfTimes::*slot) {
+    const double now = timer.ms();
+    if (times) times->*slot = now - last;
+    last = now;
+  };
+  const int W = g.width, H = g.height;
+  const size_t N = size_t(W) * size_t(H);
+  ensure(next_, W, H, 10);
+  ensure(tmp_, W, H, 3);
+  for (std::vector<float>* v : {&var_, &var2_, &inv_l_, &lum_, &gx_, &gy_}) v->resize(N);
+  demodulate(g, x_, demod_);
+  const SvgfKernels& k = svgf_kernels();
+  if (history_.width != W || history_.height != H) {  // the first frame
+    svgf_temporal(g, x_, history_, acc_, next_.ch(3), next_.ch(4), next_.ch(5), var_.data());
+  } else {
+    ensure(acc_, W, H, 3);
+    const float* hist[10];
+    for (int c = 0; c < 10; ++c) hist[c] = history_.ch(c);
+    SvgfTemporal te;
+    for (int c = 0; c < 3; ++c) te.x[c] = x_.ch(c), te.n[c] = g.ch(6 + c), te.acc[c] = acc_.ch(c);
+    te.z = g.ch(9), te.mx = g.ch(11), te.my = g.ch(12), te.hist = hist;
+    te.m1 = next_.ch(3), te.m2 = next_.ch(4), te.len = next_.ch(5), te.var = var_.data();
+    te.width = W, te.height = H;
+    rows(H, [&](int r0, int r1) { k.temporal(te, r0, r1); });
+  }
+  lap(&SvgfTimes::temporal);
+  SvgfVariance va;
+  va.m1 = next_.ch(3), va.m2 = next_.ch(4), va.len = next_.ch(5), va.var = var_.data();
+  va.z = g.ch(9);
+  for (int c = 0; c < 3; ++c) va.n[c] = g.ch(6 + c);
+  va.out = var2_.data(), va.width = W, va.height = H;
+  rows(H, [&](int r0, int r1) { k.variance(va, r0, r1); });
+  std::swap(var_, var2_);
+  depth_gradient(g, gx_.data(), gy_.data());
+  lap(&SvgfTimes::variance);
+  for (int it = 0; it < 5; ++it) {
+    SvgfBlur bl;
+    bl.var = var_.data(), bl.inv_l = inv_l_.data(), bl.width = W, bl.height = H;
+    bl.sigma_l = 4.0f;
+    SvgfPass pa;
+    for (int c = 0; c < 3; ++c) pa.x[c] = acc_.ch(c), pa.n[c] = g.ch(6 + c), pa.out[c] = tmp_.ch(c);
+    pa.lum = lum_.data(), pa.var = var_.data(), pa.inv_l = inv_l_.data(), pa.z = g.ch(9);
+    pa.gx = gx_.data(), pa.gy = gy_.data(), pa.var_out = var2_.data();
+    pa.width = W, pa.height = H, pa.dilation = 1 << it, pa.sigma_z = 1.0f;
+    rows(H, [&](int r0, int r1) {
+      k.blur(bl, r0, r1);
+      for (size_t p = size_t(r0) * size_t(W); p < size_t(r1) * size_t(W); ++p)
+        lum_[p] = svgf_luminance(acc_.ch(0)[p], acc_.ch(1)[p], acc_.ch(2)[p]);
+    });
+    rows(H, [&](int r0, int r1) { k.pass(pa, r0, r1); });
+    std::swap(acc_, tmp_);
+    std::swap(var_, var2_);
+    if (it == 0) std::memcpy(next_.ch(0), acc_.ch(0), sizeof(float) * N * 3);
+  }
+  lap(&SvgfTimes::passes);
+  std::memcpy(next_.ch(6), g.ch(9), sizeof(float) * N);
+  std::memcpy(next_.ch(7), g.ch(6), sizeof(float) * N * 3);
+  std::swap(history_, next_);
+  remodulate(acc_, demod_, out_);
+  lap(&SvgfTimes::output);
+  return out_;
+}
+
+}  // namespace kestrel::denoise

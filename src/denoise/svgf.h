@@ -1,0 +1,125 @@
+// The non-neural baselines: SVGF-like (Schied et al. 2017), real-time (vectorised per ISA,
+// parallel by rows), beside its plain scalar definition (the tests' oracle), and the
+// edge-avoiding a-trous filter (Dammertz et al. 2010). Planes as gather() makes them
+// (colour 0-2, albedo 3-5, normal 6-8, depth 9, roughness 10, motion 11-12), unpadded.
+#pragma once
+#include <vector>
+
+#include "denoise/neural.h"
+
+namespace kestrel::denoise {
+
+/// One variance-guided a-trous pass of SVGF over rows [y0, y1): 5x5 B3 taps at
+/// +-2 * dilation (taps outside the image are skipped, not clamped),
+///   out = sum w x(q) / sum w,  var_out = sum w^2 var(q) / (sum w)^2,
+///   w = h_q * wn * exp(-|l - l(q)| * inv_l - |z - z(q)| / (sigma_z |gx dx + gy dy| + 1e-3 z)),
+/// wn = 1 where the pixel has no normal, else max(0, n . n(q))^128.
+struct SvgfPass {
+  const float* x[3] = {};
+  const float* lum = nullptr;    ///< luminance of x
+  const float* var = nullptr;    ///< variance of the luminance
+  const float* inv_l = nullptr;  ///< 1 / (sigma_l sqrt(blurred variance) + 1e-4)
+  const float* z = nullptr;
+  const float* n[3] = {};
+  const float* gx = nullptr;  ///< screen-space depth gradient (central differences)
+  const float* gy = nullptr;
+  float* out[3] = {};
+  float* var_out = nullptr;
+  int width = 0, height = 0, dilation = 1;
+  float sigma_z = 1.0f;
+};
+
+/// SVGF's spatial variance estimate for short histories, rows [y0, y1): where len < 4,
+/// out = max(0, E[m2] - E[m1]^2) * 4 / len over a 7x7 window weighted by
+/// exp(-|z - z(q)| / max(z, 1e-3) / 0.05) * max(0, n . n(q))^32 (+1 at the centre);
+/// elsewhere out = var.
+struct SvgfVariance {
+  const float *m1 = nullptr, *m2 = nullptr, *len = nullptr, *var = nullptr, *z = nullptr;
+  const float* n[3] = {};
+  float* out = nullptr;
+  int width = 0, height = 0;
+};
+
+/// inv_l = 1 / (sigma_l sqrt(g) + 1e-4), g the 3x3 Gaussian blur of var (taps outside the
+/// image skipped, weights renormalised), rows [y0, y1).
+struct SvgfBlur {
+  const float* var = nullptr;
+  float* inv_l = nullptr;
+  int width = 0, height = 0;
+  float sigma_l = 4.0f;
+};
+
+/// SVGF's temporal step for rows [y0, y1) with a history (svgf_temporal() is its scalar
+/// definition): hist = irradiance 0-2, moments 3-4, length 5, depth 6, normal 7-9.
+struct SvgfTemporal {
+  const float* x[3] = {};  ///< demodulated colour
+  const float *z = nullptr, *mx = nullptr, *my = nullptr;
+  const float* n[3] = {};
+  const float* const* hist = nullptr;
+  float* acc[3] = {};
+  float *m1 = nullptr, *m2 = nullptr, *len = nullptr, *var = nullptr;
+  int width = 0, height = 0;
+};
+
+struct SvgfKernels {
+  void (*temporal)(const SvgfTemporal&, int y0, int y1);
+  void (*pass)(const SvgfPass&, int y0, int y1);
+  void (*variance)(const SvgfVariance&, int y0, int y1);
+  void (*blur)(const SvgfBlur&, int y0, int y1);
+};
+
+/// The table for the ISA in force (default_isa()), and each ISA's (kernels_<isa>.cpp).
+const SvgfKernels& svgf_kernels();
+const SvgfKernels& svgf_kernels_sse2();
+const SvgfKernels& svgf_kernels_avx2();
+const SvgfKernels& svgf_kernels_avx512();
+
+/// SVGF-like, real-time: temporal accumulation of demodulated irradiance and luminance
+/// moments (motion-vector reprojection, depth / normal test), variance from the moments (7x7
+/// estimate for histories < 4 frames), 5 passes of SvgfPass (dilation 1..16, sigma_l 4,
+/// sigma_n 128, sigma_z 1); the first pass's output is the next history. Buffers are kept
+/// from frame to frame.
+struct SvgfTimes {
+  double temporal = 0, variance = 0, passes = 0, output = 0;  ///< ms
+};
+
+class Svgf {
+ public:
+  /// Denoises one frame `g`; returns the colour (3 planes, owned by this object).
+  const Planes& run(const Planes& g, SvgfTimes* times = nullptr);
+  void reset() { history_ = Planes(); }
+
+ private:
+  Planes history_, next_;  // irradiance 0-2, moments 3-4, length 5, depth 6, normal 7-9
+  Planes x_, acc_, tmp_, demod_, out_;
+  std::vector<float> var_, var2_, inv_l_, lum_, gx_, gy_;
+};
+
+/// The same function written plainly (scalar loops, std::exp): the tests' oracle for Svgf.
+struct SvgfReference {
+  Planes history;
+  Planes run(const Planes& g);
+};
+
+/// Dammertz et al. 2010 on demodulated irradiance (scalar): 5 passes, dilation 1..16.
+Planes atrous_filter(const Planes& g);
+
+// Shared by both SVGF forms and the a-trous filter.
+
+inline float svgf_luminance(float r, float g, float b) {
+  return 0.2126f * r + 0.7152f * g + 0.0722f * b;
+}
+
+/// The baselines' demodulation factor per channel: albedo + 0.01, or 1 where the albedo is
+/// (nearly) black. demod gets 3 planes of it, x the demodulated colour.
+void demodulate(const Planes& g, Planes& x, Planes& demod);
+/// out = max(x, 0) * demod.
+void remodulate(const Planes& x, const Planes& demod, Planes& out);
+/// SVGF's temporal step, shared by both forms: reprojects `history` (empty: none) and
+/// accumulates x into acc (3 planes), moments m1 m2, history length and variance.
+void svgf_temporal(const Planes& g, const Planes& x, const Planes& history, Planes& acc, float* m1,
+                   float* m2, float* len, float* var);
+/// Central-difference depth gradient of plane 9.
+void depth_gradient(const Planes& g, float* gx, float* gy);
+
+}  // namespace kestrel::denoise
