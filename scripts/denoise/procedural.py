@@ -88,8 +88,12 @@ class Mesh:
             for j in range(cols):
                 a = (i * (cols + 1) + j)
                 b, cc, d = a + 1, a + cols + 1, a + cols + 2
-                faces.append([(base + a, tbase + a), (base + cc, tbase + cc), (base + b, tbase + b)])
-                faces.append([(base + b, tbase + b), (base + cc, tbase + cc), (base + d, tbase + d)])
+                # A sphere's first and last rows meet at the poles: one triangle of each quad
+                # there has zero area and is left out.
+                if not (kind == "sphere" and i == 0):
+                    faces.append([(base + a, tbase + a), (base + cc, tbase + cc), (base + b, tbase + b)])
+                if not (kind == "sphere" and i == rows - 1):
+                    faces.append([(base + b, tbase + b), (base + cc, tbase + cc), (base + d, tbase + d)])
         self.groups.append((mat, faces))
 
 

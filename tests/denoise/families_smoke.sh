@@ -16,7 +16,7 @@ for family in $("$python" "$gen" --list | cut -d' ' -f1); do
   "$kestrel" render-sequence "$dir/$family/a/scene.obj" --path "$dir/$family/a/path.json" --frames 2 \
     --res 32x18 --spp 1 --quiet "${flags[@]}" -o "$dir/$family/out" > /dev/null 2> "$dir/$family.err"
   test -s "$dir/$family/out/frame_0001.exr"
-  if grep -v "of zero area" "$dir/$family.err" | grep -q .; then cat "$dir/$family.err"; exit 1; fi
+  if grep -q . "$dir/$family.err"; then cat "$dir/$family.err"; exit 1; fi  # not even a warning
 done
 "$python" "$gen" --list | grep -q "gallery heldout"
 echo "families: $("$python" "$gen" --list | tr '\n' ' ')"
