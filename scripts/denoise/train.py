@@ -73,10 +73,9 @@ def losses(out, ref):
     """ref may be noisy (Noise2Noise, Lehtinen et al. 2018: an independent render of the same
     frames). The spatial term is L1 on log(1 + colour), as for converged references: the
     relative L2 that Noise2Noise prescribes for Monte Carlo targets, (o - r)^2 / (sg(o) +
-    0.01)^2, has the target's mean as minimiser but diverged here (the 64-spp targets'
-    fireflies on dark pixels gave batches of loss 40 and the gradient and temporal terms rose
-    5x within 250 steps); L1 is robust to them at the price of a bias toward the target's
-    median. The gradient-domain and temporal terms are L1 on log(1 + colour) too."""
+    0.01)^2, has the target's mean as minimiser but was stopped after 250 steps here (the
+    64-spp targets' fireflies on dark pixels gave batches of loss up to 39 against ~1); L1 is
+    robust to them at the price of a bias toward the target's median. The gradient-domain and temporal terms are L1 on log(1 + colour) too."""
     a, b = tr(out), tr(ref)
     spatial = (a - b).abs().mean()
     grad = ((a[..., :, 1:] - a[..., :, :-1]) - (b[..., :, 1:] - b[..., :, :-1])).abs().mean() + \
