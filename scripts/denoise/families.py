@@ -76,19 +76,8 @@ class Scene:
 
     def room(self, W, H, D, window=None, prefix="room"):
         """An inward-facing box room; window = (x0, x1, y0, y1) cut into the z = D wall."""
-        m = self.mesh
         floor, wall, ceil = (self.mat(f"{prefix}_floor"), self.mat(f"{prefix}_wall"), self.mat(f"{prefix}_ceiling", "diffuse"))
-        m.quad(floor, (0, 0, 0), (W, 0, 0), (W, 0, D), (0, 0, D), uv_scale=W / 2)
-        m.quad(ceil, (0, H, D), (W, H, D), (W, H, 0), (0, H, 0), uv_scale=W / 2)
-        m.quad(wall, (0, 0, 0), (0, 0, D), (0, H, D), (0, H, 0), uv_scale=D / 2)
-        m.quad(wall, (W, 0, D), (W, 0, 0), (W, H, 0), (W, H, D), uv_scale=D / 2)
-        m.quad(wall, (W, 0, 0), (0, 0, 0), (0, H, 0), (W, H, 0), uv_scale=W / 2)
-        if window:
-            x0, x1, y0, y1 = window
-            for (a0, a1, b0, b1) in [(0, x0, 0, H), (x1, W, 0, H), (x0, x1, 0, y0), (x0, x1, y1, H)]:
-                m.quad(wall, (a0, b0, D), (a1, b0, D), (a1, b1, D), (a0, b1, D), uv_scale=1)
-        else:
-            m.quad(wall, (0, 0, D), (W, 0, D), (W, H, D), (0, H, D), uv_scale=W / 2)
+        self.mesh.room_shell(floor, wall, wall, ceil, W, H, D, window)
 
     def clutter(self, W, D, n, kinds=("box", "box", "sphere", "cylinder"), mats=None, margin=0.6):
         rng, m = self.rng, self.mesh

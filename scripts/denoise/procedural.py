@@ -68,6 +68,22 @@ class Mesh:
         for q in f:
             self.quad(mat, *[p(*v) for v in q], uv_scale=uv_scale)
 
+    def room_shell(self, floor, side, back, ceiling, W, H, D, window=None):
+        """An inward-facing box [0, W] x [0, H] x [0, D]: floor, ceiling, side walls (x = 0, W),
+        back walls (z = 0, D); window = (x0, x1, y0, y1) is a hole in the z = D wall (built from
+        the four quads around it)."""
+        self.quad(floor, (0, 0, 0), (W, 0, 0), (W, 0, D), (0, 0, D), uv_scale=W / 2)
+        self.quad(ceiling, (0, H, D), (W, H, D), (W, H, 0), (0, H, 0), uv_scale=W / 2)
+        self.quad(side, (0, 0, 0), (0, 0, D), (0, H, D), (0, H, 0), uv_scale=D / 2)
+        self.quad(side, (W, 0, D), (W, 0, 0), (W, H, 0), (W, H, D), uv_scale=D / 2)
+        self.quad(back, (W, 0, 0), (0, 0, 0), (0, H, 0), (W, H, 0), uv_scale=W / 2)
+        if window:
+            x0, x1, y0, y1 = window
+            for (a0, a1, b0, b1) in [(0, x0, 0, H), (x1, W, 0, H), (x0, x1, 0, y0), (x0, x1, y1, H)]:
+                self.quad(back, (a0, b0, D), (a1, b0, D), (a1, b1, D), (a0, b1, D), uv_scale=1)
+        else:
+            self.quad(back, (0, 0, D), (W, 0, D), (W, H, D), (0, H, D), uv_scale=W / 2)
+
     def surface(self, mat, c, r, kind, seg=24, height=1.0):
         rows, cols = seg // 2, seg
         base, tbase = len(self.v), len(self.vt)
@@ -126,20 +142,13 @@ def room(seed, out):
     windowed = rng.random() < 0.5
     # Floor, ceiling, four walls (inward facing). A windowed room has a hole in one wall
     # (the wall is built from four quads around it); a closed room has ceiling lights.
-    mesh.quad("floor", (0, 0, 0), (W, 0, 0), (W, 0, D), (0, 0, D), uv_scale=W / 2)
-    mesh.quad("ceiling", (0, H, D), (W, H, D), (W, H, 0), (0, H, 0), uv_scale=W / 2)
-    mesh.quad("wall_a", (0, 0, 0), (0, 0, D), (0, H, D), (0, H, 0), uv_scale=D / 2)
-    mesh.quad("wall_a", (W, 0, D), (W, 0, 0), (W, H, 0), (W, H, D), uv_scale=D / 2)
-    mesh.quad("wall_b", (W, 0, 0), (0, 0, 0), (0, H, 0), (W, H, 0), uv_scale=W / 2)
+    window = None
     if windowed:
         x0, x1 = sorted(rng.uniform(0.5, W - 0.5) for _ in range(2))
         x1 = max(x1, x0 + 1.0)
-        y0, y1 = 0.8, min(H - 0.3, 0.8 + rng.uniform(1.0, 2.0))
-        z = D
-        for (a0, a1, b0, b1) in [(0, x0, 0, H), (x1, W, 0, H), (x0, x1, 0, y0), (x0, x1, y1, H)]:
-            mesh.quad("wall_b", (a0, b0, z), (a1, b0, z), (a1, b1, z), (a0, b1, z), uv_scale=1)
-    else:
-        mesh.quad("wall_b", (0, 0, D), (W, 0, D), (W, H, D), (0, H, D), uv_scale=W / 2)
+        window = (x0, x1, 0.8, min(H - 0.3, 0.8 + rng.uniform(1.0, 2.0)))
+    mesh.room_shell("floor", "wall_a", "wall_b", "ceiling", W, H, D, window)
+    if not windowed:
         for i in range(rng.randint(1, 3)):
             cx, cz = rng.uniform(1, W - 1), rng.uniform(1, D - 1)
             s = rng.uniform(0.2, 0.6)
