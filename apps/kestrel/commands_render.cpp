@@ -24,7 +24,7 @@ namespace {
 
 struct RenderArgs {
   std::string scene = "builtin:cornell_box", view, camera, res = "640x360", out, pfm, png, env,
-              path, denoise, upscale, sun, light_sampling = "power", lights;
+              path, denoise, upscale, sun, light_sampling = "power", lights, direct = "nee";
   bool sky = false;
   int spp = 1, max_depth = 8, threads = 0, frames = 0, frame = 0, factor = 2;
   uint64_t seed = 0;
@@ -61,6 +61,10 @@ void add_common(CLI::App& cmd, RenderArgs& a) {
   cmd.add_option("--light-sampling", a.light_sampling,
                  "How NEE picks a local light: power (default) | tree (a light tree: many lights)")
       ->capture_default_str();
+  cmd.add_option("--direct", a.direct,
+                 "Direct light at the first hit: nee (default) | restir (ReSTIR DI, biased) | "
+                 "restir-unbiased")
+      ->capture_default_str();
   cmd.add_option("--pfm", a.pfm, "Also write one PFM per AOV into this directory");
   cmd.add_option("--png", a.png, "Also write the tone-mapped colour as PNG");
   cmd.add_option("--exposure", a.exposure, "Exposure of the PNG, stops")->capture_default_str();
@@ -92,6 +96,11 @@ RenderSettings settings_of(const RenderArgs& a) {
   else if (a.light_sampling != "power")
     throw Error(ErrorCode::invalid_argument,
                 fmt::format("--light-sampling '{}': expected power or tree", a.light_sampling));
+  const auto direct = direct_lighting_from_name(a.direct);
+  if (!direct)
+    throw Error(ErrorCode::invalid_argument,
+                fmt::format("--direct '{}': expected nee, restir or restir-unbiased", a.direct));
+  s.direct = *direct;
   return s;
 }
 

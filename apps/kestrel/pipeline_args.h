@@ -15,7 +15,7 @@ namespace kestrel::cli {
 
 struct PipelineArgs {
   std::string scene = "builtin:cornell_box", res = "1280x720", internal, env, denoise = "neural",
-              upscale = "neural", sun;
+              upscale = "neural", sun, light_sampling = "power", direct = "nee";
   bool sky = false, auto_exposure = false;
   int factor = 2, spp = 1, max_depth = 4, threads = 0;
   float clamp = 16, exposure = 0;
@@ -50,6 +50,13 @@ struct PipelineArgs {
     cmd.add_flag(
         "--sky", sky,
         "The physical sky (Preetham) for the sun (default sun: azimuth 135, elevation 45)");
+    cmd.add_option("--light-sampling", light_sampling,
+                   "How NEE picks a local light: power | tree (a light tree: many lights)")
+        ->capture_default_str();
+    cmd.add_option("--direct", direct,
+                   "Direct light at the first hit: nee | restir (ReSTIR DI, biased) | "
+                   "restir-unbiased")
+        ->capture_default_str();
     cmd.add_flag("--auto-exposure", auto_exposure,
                  "Exposure follows the image's log-average luminance (key 0.18, smoothed)");
     cmd.add_option("--target-ms", target_ms,
@@ -93,6 +100,16 @@ struct PipelineArgs {
     s.spp = spp, s.max_depth = max_depth, s.clamp = clamp, s.exposure = exposure,
     s.target_ms = target_ms, s.seed = seed;
     s.sun = sun, s.sky = sky, s.auto_exposure = auto_exposure;
+    if (light_sampling == "tree")
+      s.light_sampling = LightSampling::tree;
+    else if (light_sampling != "power")
+      throw Error(ErrorCode::invalid_argument,
+                  fmt::format("--light-sampling '{}': expected power or tree", light_sampling));
+    const auto d = direct_lighting_from_name(direct);
+    if (!d)
+      throw Error(ErrorCode::invalid_argument,
+                  fmt::format("--direct '{}': expected nee, restir or restir-unbiased", direct));
+    s.direct = *d;
     return s;
   }
 };

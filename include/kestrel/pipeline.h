@@ -32,6 +32,8 @@ struct PipelineSettings {
   /// output (key 0.18, Reinhard et al. 2002), 10 % of the way per frame (the first frame
   /// jumps), clamped to +-16 stops. PipelineFrame::exposure says what was used.
   bool auto_exposure = false;
+  LightSampling light_sampling = LightSampling::power;  ///< NEE's choice of a local light
+  DirectLighting direct = DirectLighting::nee;          ///< the first hit's direct light
   std::string sun;       ///< "" or Sun::parse's AZIMUTH,ELEVATION[,INTENSITY] (make_lighting)
   bool sky = false;      ///< the physical sky (make_lighting)
   double target_ms = 0;  ///< > 0: change the factor (1, 2, 4) to hold this frame time

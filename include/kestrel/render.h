@@ -131,6 +131,19 @@ enum class LightSampling {
           ///< lights; scenes with directional lights fall back to power)
 };
 
+/// How the direct light at the first surface a camera ray hits is estimated.
+enum class DirectLighting {
+  nee,              ///< one light sample, MIS with the BSDF (the default; unbiased)
+  restir,           ///< ReSTIR DI (Bitterli et al. 2020): resampled candidates, visibility reuse,
+                    ///< temporal reuse (balance heuristic), spatial reuse (1/M weights). Biased
+                    ///< (darkens where visibility differs across reused pixels).
+  restir_unbiased,  ///< the same reuse without visibility reuse and with Alg. 6's spatial
+                    ///< normalisation (only reservoirs that could have produced the sample
+                    ///< count): unbiased, noisier under occlusion
+};
+/// "nee", "restir", "restir-unbiased"; nullopt for anything else.
+std::optional<DirectLighting> direct_lighting_from_name(const std::string& name);
+
 /// What a render does. The same settings and seed give the same bits for any thread count.
 struct RenderSettings {
   int width = 640, height = 360;
@@ -146,8 +159,14 @@ struct RenderSettings {
   int rr_depth = 3;   ///< Russian roulette from this bounce on
   float clamp = 0;    ///< > 0: clamp each sample's radiance (biased); 0 = off
   LightSampling light_sampling = LightSampling::power;
-  int threads = 0;        ///< 0 = all the library may use
-  bool progress = false;  ///< a progress bar on stderr
+  /// ReSTIR keeps reservoirs between renders of one Renderer: frame f's first pass reuses
+  /// the last pass of frame f - 1 (any other frame index starts afresh), later passes reuse
+  /// the pass before. Glossy-to-mirror surfaces (roughness < 0.2) keep NEE with MIS.
+  DirectLighting direct = DirectLighting::nee;
+  int restir_candidates = 8;  ///< light samples resampled per pixel (ReSTIR's M), 1..64
+  int restir_neighbors = 3;   ///< spatial reuse: neighbours within 16 px of the same tile, 0..16
+  int threads = 0;            ///< 0 = all the library may use
+  bool progress = false;      ///< a progress bar on stderr
 };
 
 /// Edge of the square tiles a render is split into, pixels; tiles are numbered row-major.

@@ -176,6 +176,23 @@ py::dict pipeline_frame_dict(const PipelineFrame& f) {
   return d;
 }
 
+// light_sampling "power" | "tree", direct "nee" | "restir" | "restir-unbiased".
+void set_lighting(const std::string& light_sampling, const std::string& direct, LightSampling& ls,
+                  DirectLighting& d) {
+  if (light_sampling == "tree")
+    ls = LightSampling::tree;
+  else if (light_sampling == "power")
+    ls = LightSampling::power;
+  else
+    throw py::value_error(
+        fmt::format("light_sampling: unknown '{}' (power, tree)", light_sampling));
+  const auto m = direct_lighting_from_name(direct);
+  if (!m)
+    throw py::value_error(
+        fmt::format("direct: unknown '{}' (nee, restir, restir-unbiased)", direct));
+  d = *m;
+}
+
 PipelineSettings pipeline_settings(std::pair<int, int> res, int factor,
                                    std::optional<std::string> denoiser, const std::string& upscaler,
                                    int spp, int max_depth, float clamp, float exposure,
@@ -299,8 +316,10 @@ void bind_render(py::module_& m) {
           "render",
           [](PyRenderer& r, const Camera& camera, int spp, py::handle res, uint64_t seed,
              int max_depth, int rr_depth, float clamp, uint32_t frame, bool jitter,
-             bool fixed_jitter, double time_limit, int threads, std::optional<Camera> prev_camera) {
+             bool fixed_jitter, double time_limit, int threads, std::optional<Camera> prev_camera,
+             const std::string& light_sampling, const std::string& direct) {
             RenderSettings s;
+            set_lighting(light_sampling, direct, s.light_sampling, s.direct);
             std::tie(s.width, s.height) = resolution(res);
             s.spp = spp;
             s.seed = seed;
@@ -323,11 +342,13 @@ void bind_render(py::module_& m) {
           py::arg("seed") = 0, py::arg("max_depth") = 8, py::arg("rr_depth") = 3,
           py::arg("clamp") = 0.0f, py::arg("frame") = 0, py::arg("jitter") = true,
           py::arg("fixed_jitter") = false, py::arg("time_limit") = 0.0, py::arg("threads") = 0,
-          py::arg("prev_camera") = py::none(),
+          py::arg("prev_camera") = py::none(), py::arg("light_sampling") = "power",
+          py::arg("direct") = "nee",
           "Renders one frame: a dict of AOVs color, albedo, normal, depth, roughness, motion, spp, "
           "variance, each a "
           "float32 (H, W, C) array (the same bits as `kestrel render` writes for the same "
-          "settings).")
+          "settings). light_sampling: 'power' | 'tree'; direct: 'nee' | 'restir' (ReSTIR DI, "
+          "biased) | 'restir-unbiased' (reservoirs are reused from the previous frame index).")
       .def_property_readonly("last_stats",
                              [](const PyRenderer& r) { return stats_dict(r.last_stats); })
       .def_property_readonly(
@@ -438,10 +459,12 @@ void bind_render(py::module_& m) {
                        std::optional<std::string> denoiser, const std::string& upscaler, int spp,
                        int max_depth, float clamp, float exposure, double target_ms, uint64_t seed,
                        const std::string& environment, const std::string& sun, bool sky,
-                       bool auto_exposure) {
+                       bool auto_exposure, const std::string& light_sampling,
+                       const std::string& direct) {
              PipelineSettings s =
                  pipeline_settings(resolution(res), factor, denoiser, upscaler, spp, max_depth,
                                    clamp, exposure, target_ms, seed);
+             set_lighting(light_sampling, direct, s.light_sampling, s.direct);
              s.sun = sun, s.sky = sky, s.auto_exposure = auto_exposure;
              py::gil_scoped_release release;
              return std::make_unique<Pipeline>(scene.string(), s, environment);
@@ -451,6 +474,7 @@ void bind_render(py::module_& m) {
            py::arg("max_depth") = 4, py::arg("clamp") = 16.0f, py::arg("exposure") = 0.0f,
            py::arg("target_ms") = 0.0, py::arg("seed") = 0, py::arg("environment") = "",
            py::arg("sun") = "", py::arg("sky") = false, py::arg("auto_exposure") = false,
+           py::arg("light_sampling") = "power", py::arg("direct") = "nee",
            "sun: 'AZIMUTH,ELEVATION[,INTENSITY]' (degrees; with the physical sky unless "
            "environment is "
            "given); sky: the physical sky; auto_exposure: the tone map follows the image.")

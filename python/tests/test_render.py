@@ -226,3 +226,23 @@ def test_sun_and_sky(cornell):
     loop = kestrel.Pipeline("builtin:cornell_box", res=(32, 24), factor=1, denoiser=None, sun="0,45", auto_exposure=True)
     f = loop.frame(cam)
     assert f["exposure"] != 0.0 and f["rgb8"].shape == (24, 32, 3)
+
+
+def test_restir_matches_the_cli(cli, tmp_path):
+    """ReSTIR DI from Python: the CLI's bits for the same settings; bad names are errors."""
+    hall = kestrel.load_scene("builtin:lamp_hall")
+    cam = kestrel.view(hall, "inside")
+    mine = kestrel.Renderer(hall).render(cam, res=RES, spp=2, seed=4, light_sampling="tree",
+                                         direct="restir")["color"]
+    cli("render", "builtin:lamp_hall", "--view", "inside", "--res", f"{RES[0]}x{RES[1]}", "--spp", 2,
+        "--seed", 4, "--light-sampling", "tree", "--direct", "restir", "--quiet",
+        "-o", tmp_path / "f.exr", "--pfm", tmp_path / "pfm")
+    pfm = kestrel.read_pfm(str(tmp_path / "pfm" / "color.pfm"))
+    assert np.array_equal(bits(mine), bits(pfm[..., :3]))
+    with pytest.raises(ValueError, match="direct"):
+        kestrel.Renderer(hall).render(cam, res=RES, direct="ris")
+    with pytest.raises(ValueError, match="light_sampling"):
+        kestrel.Renderer(hall).render(cam, res=RES, light_sampling="bvh")
+    loop = kestrel.Pipeline("builtin:lamp_hall", res=(32, 24), factor=1, denoiser=None,
+                            light_sampling="tree", direct="restir")
+    assert np.isfinite(loop.frame(cam)["rgb8"]).all()

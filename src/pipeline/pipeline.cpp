@@ -103,6 +103,7 @@ struct Pipeline::Impl {
     rs.max_depth = settings.max_depth, rs.clamp = settings.clamp,
     rs.fixed_jitter = settings.fixed_jitter;
     rs.jitter = settings.jitter, rs.threads = settings.threads;
+    rs.light_sampling = settings.light_sampling, rs.direct = settings.direct;
     return rs;
   }
 };
@@ -239,6 +240,7 @@ const PipelineFrame& Pipeline::accumulate(const Camera& camera, double time) {
   RenderSettings rs = m.render_settings(s.width, s.height, uint32_t(m.samples));
   rs.fixed_jitter = false;  // antialiased: a new jitter every sample
   rs.seed = s.seed + 1000003;
+  rs.direct = DirectLighting::nee;  // the reference: unbiased, no reuse between samples
   const Frame f = m.renderer->render(camera, rs);
   const double t2 = clock.ms();
   if (m.samples == 0) m.sum.assign(size_t(s.width) * size_t(s.height) * 3, 0.0);

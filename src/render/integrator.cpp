@@ -32,6 +32,7 @@ struct PathState {
   float bsdf_pdf = 0;         // pdf of the direction that led here (solid angle)
   Vec3 prev_normal{0, 0, 1};  // shading normal where that direction was sampled
   bool aov_pending = true;
+  bool restir = false;  // the first hit's direct light came from ReSTIR: BSDF rays skip it
 };
 
 struct PixelSample {
@@ -43,11 +44,6 @@ struct Shadow {
   Vec3 contribution;
   uint32_t path;
 };
-
-Vec3 offset_origin(Vec3 p, Vec3 n) {
-  const float scale = 1.0f + std::max({std::fabs(p.x), std::fabs(p.y), std::fabs(p.z)});
-  return p + n * (2e-5f * scale);
-}
 
 // One sample of a pixel into the sums: a NaN/Inf radiance is dropped (not smeared), then
 // clamped when asked; the luminance's running mean and M2 (Welford) give the variance AOV.
@@ -172,6 +168,41 @@ Renderer::Impl::Surface Renderer::Impl::surface_at(const SurfaceHit& h, const Ra
 
 // ---- next-event estimation -------------------------------------------------------------------
 
+bool Renderer::Impl::punctual_light(const Punctual& q, Vec3 origin, Vec3& wi, Vec3& dir, Vec3& le,
+                                    float& tmax) const {
+  if (q.type == Light::Type::directional) {
+    wi = dir = -q.direction;
+    le = q.intensity;  // irradiance
+    tmax = INFINITY;
+    return true;
+  }
+  dir = q.position - origin;
+  const float dist2 = dot(dir, dir);
+  if (!(dist2 > 0)) return false;
+  const float dist = std::sqrt(dist2);
+  wi = dir * (1.0f / dist);
+  float k = 1.0f / dist2;
+  if (q.range > 0) {  // glTF's recommended window: (1 - (d / range)^4)^2, clamped
+    const float x = dist / q.range, x4 = x * x * x * x;
+    const float win = std::clamp(1 - x4, 0.0f, 1.0f);
+    k *= win * win;
+  }
+  if (q.type == Light::Type::spot) {
+    const float a = std::clamp(dot(q.direction, -wi) * q.spot_scale + q.spot_offset, 0.0f, 1.0f);
+    k *= a * a;
+  }
+  le = q.intensity * k;
+  tmax = 1.0f - 1e-3f;
+  return true;
+}
+
+Vec3 Renderer::Impl::sun_sample(float u1, float u2) const {
+  const float cos_t = 1 - u1 * (1 - sun_cos_max),
+              sin_t = std::sqrt(std::max(0.0f, 1 - cos_t * cos_t));
+  const float phi = 2 * pi * u2;
+  return Basis(sun_dir).to_world({sin_t * std::cos(phi), sin_t * std::sin(phi), cos_t});
+}
+
 // One light sample at a surface: the environment, the sun, or a local light (an emissive
 // triangle or a punctual light, by power); MIS weighted against the BSDF except for punctual
 // lights (deltas): the shadow ray to trace and what it adds when unblocked.
@@ -192,10 +223,7 @@ bool Renderer::Impl::sample_light(const Surface& sf, const Basis& frame, Vec3 wo
     le = env_radiance(wi);
     dir = wi;
   } else if (ul < p_env + p_sun) {  // the sun: uniform in its cone
-    const float cos_t = 1 - u1 * (1 - sun_cos_max),
-                sin_t = std::sqrt(std::max(0.0f, 1 - cos_t * cos_t));
-    const float phi = 2 * pi * u2;
-    wi = Basis(sun_dir).to_world({sin_t * std::cos(phi), sin_t * std::sin(phi), cos_t});
+    wi = sun_sample(u1, u2);
     pdf = p_sun / sun_solid_angle;
     le = sun_radiance;
     dir = wi;
@@ -209,33 +237,10 @@ bool Renderer::Impl::sample_light(const Surface& sf, const Basis& frame, Vec3 wo
       li = light_dist.sample(u);
       local_pick = light_dist.pmf(li);
     }
-    if (li >= lights.size()) {  // a punctual light: a delta, no MIS
-      const Punctual& q = punctual[li - lights.size()];
+    if (li >= lights.size()) {                 // a punctual light: a delta, no MIS
       pdf = (1 - p_env - p_sun) * local_pick;  // a probability, not a density
       delta = true;
-      if (q.type == Light::Type::directional) {
-        wi = dir = -q.direction;
-        le = q.intensity;  // irradiance
-      } else {
-        dir = q.position - origin;
-        const float dist2 = dot(dir, dir);
-        if (!(dist2 > 0)) return false;
-        const float dist = std::sqrt(dist2);
-        wi = dir * (1.0f / dist);
-        float k = 1.0f / dist2;
-        if (q.range > 0) {  // glTF's recommended window: (1 - (d / range)^4)^2, clamped
-          const float x = dist / q.range, x4 = x * x * x * x;
-          const float win = std::clamp(1 - x4, 0.0f, 1.0f);
-          k *= win * win;
-        }
-        if (q.type == Light::Type::spot) {
-          const float a =
-              std::clamp(dot(q.direction, -wi) * q.spot_scale + q.spot_offset, 0.0f, 1.0f);
-          k *= a * a;
-        }
-        le = q.intensity * k;
-        tmax = 1.0f - 1e-3f;
-      }
+      if (!punctual_light(punctual[li - lights.size()], origin, wi, dir, le, tmax)) return false;
     } else {
       const LightTri& l = lights[li];
       const float su = std::sqrt(u1);
@@ -271,7 +276,7 @@ bool Renderer::Impl::sample_light(const Surface& sf, const Basis& frame, Vec3 wo
 
 void Renderer::Impl::render_tile(const CameraModel& cam, const CameraModel& prev_cam,
                                  const RenderSettings& s, int tx, int ty, int pass, float jx,
-                                 float jy, Accumulator& acc, double& trace_ms,
+                                 float jy, const RestirPass* rp, Accumulator& acc, double& trace_ms,
                                  uint64_t ray_counts[3]) const {
   const bool use_tree = s.light_sampling == LightSampling::tree && !light_tree.empty();
   const int x0 = tx * tile_size, y0 = ty * tile_size;
@@ -286,6 +291,10 @@ void Renderer::Impl::render_tile(const CameraModel& cam, const CameraModel& prev
   std::vector<Ray> shadow_rays;
   std::vector<Shadow> shadows;
   std::vector<uint8_t> blocked;
+  // ReSTIR: per pixel of the tile, the reservoir, the surface and the history's pixel.
+  std::vector<Reservoir> rres(rp ? count : 0);
+  std::vector<RestirSurface> rsurf(rp ? count : 0);
+  std::vector<int32_t> rprev(rp ? count : 0, -1);
   rngs.reserve(count);
   for (size_t i = 0; i < count; ++i) {
     const int x = x0 + int(i % size_t(x1 - x0)), y = y0 + int(i / size_t(x1 - x0));
@@ -343,7 +352,9 @@ void Renderer::Impl::render_tile(const CameraModel& cam, const CameraModel& prev
         float w = 1;
         if (depth > 0 && p_env > 0) {
           const float lp = p_env * env_pdf(ray.dir, ps.prev_normal);
-          w = ps.bsdf_pdf * ps.bsdf_pdf / (ps.bsdf_pdf * ps.bsdf_pdf + lp * lp);
+          w = ps.restir && depth == 1
+                  ? (lp > 0 ? 0.0f : 1.0f)  // what ReSTIR could sample, it has
+                  : ps.bsdf_pdf * ps.bsdf_pdf / (ps.bsdf_pdf * ps.bsdf_pdf + lp * lp);
         }
         ps.radiance = ps.radiance + ps.throughput * le * w;
         if (sun_on) {  // a ray that escapes into the sun's disk
@@ -352,7 +363,9 @@ void Renderer::Impl::render_tile(const CameraModel& cam, const CameraModel& prev
             float ws = 1;
             if (depth > 0) {
               const float lp = p_sun / sun_solid_angle;
-              ws = ps.bsdf_pdf * ps.bsdf_pdf / (ps.bsdf_pdf * ps.bsdf_pdf + lp * lp);
+              ws = ps.restir && depth == 1
+                       ? (lp > 0 ? 0.0f : 1.0f)
+                       : ps.bsdf_pdf * ps.bsdf_pdf / (ps.bsdf_pdf * ps.bsdf_pdf + lp * lp);
             }
             ps.radiance = ps.radiance + ps.throughput * ls * ws;
           }
@@ -374,8 +387,16 @@ void Renderer::Impl::render_tile(const CameraModel& cam, const CameraModel& prev
         out.depth = dot(p - cam.eye, cam.forward);
         const Vec3 p_prev = is.identity ? p : is.prev_xf.point(sf.p_obj);
         float fx, fy, gx, gy;
-        if (cam.project(p, fx, fy) && prev_cam.project(p_prev, gx, gy))
+        if (cam.project(p, fx, fy) && prev_cam.project(p_prev, gx, gy)) {
           out.mx = gx - fx, out.my = gy - fy;
+          if (rp && !rp->same_camera && gx >= 0 && gy >= 0 && gx < float(s.width) &&
+              gy < float(s.height))
+            rprev[ps.pixel] = int32_t(int(gy) * s.width + int(gx));
+        }
+        if (rp && rp->same_camera) {
+          const size_t i = ps.pixel;
+          rprev[i] = int32_t((y0 + int(i) / (x1 - x0)) * s.width + x0 + int(i) % (x1 - x0));
+        }
       }
       const bool specular_surface = bp.metallic >= 0.5f && bp.alpha < specular_alpha;
       if (ps.aov_pending) {
@@ -391,7 +412,9 @@ void Renderer::Impl::render_tile(const CameraModel& cam, const CameraModel& prev
         if (depth > 0) {
           const float lp =
               light_pdf(h.instance, h.prim, h.t * h.t, std::fabs(sf.cos_hit), ray.org, use_tree);
-          w = ps.bsdf_pdf * ps.bsdf_pdf / (ps.bsdf_pdf * ps.bsdf_pdf + lp * lp);
+          w = ps.restir && depth == 1
+                  ? (lp > 0 ? 0.0f : 1.0f)
+                  : ps.bsdf_pdf * ps.bsdf_pdf / (ps.bsdf_pdf * ps.bsdf_pdf + lp * lp);
         }
         ps.radiance = ps.radiance + ps.throughput * le * w;
       }
@@ -399,8 +422,13 @@ void Renderer::Impl::render_tile(const CameraModel& cam, const CameraModel& prev
       const Basis frame(ns);
       const Vec3 wo_l = frame.to_local(wo);
       const Vec3 origin = offset_origin(p, ng);
-      // Next-event estimation: one light sample (an emissive triangle or the environment).
-      if (p_env > 0 || p_sun > 0 || local_light_count() > 0) {
+      // Next-event estimation: one light sample (an emissive triangle or the environment),
+      // or at the first hit ReSTIR's reservoir (shaded once the tile's reuse is done).
+      if (rp && depth == 0 && restir_eligible(sf)) {
+        RestirSurface& g = rsurf[ps.pixel];
+        g = {sf.p, ng, ns, wo_l, bp, out.depth, true};
+        ps.restir = true;  // its reservoir comes after the loop, from its block's pool
+      } else if (p_env > 0 || p_sun > 0 || local_light_count() > 0) {
         Ray shadow;
         Vec3 contribution;
         if (sample_light(sf, frame, wo_l, origin, ps.throughput, rng, use_tree, shadow,
@@ -426,6 +454,35 @@ void Renderer::Impl::render_tile(const CameraModel& cam, const CameraModel& prev
       }
       next_rays.push_back(Ray{origin, wi, 0.0f, INFINITY});
       next_active.push_back(active[k]);
+    }
+    if (rp && depth == 0) {
+      // ReSTIR: visibility reuse (the biased mode drops initial samples that are blocked),
+      // temporal and spatial reuse, then one shadow ray per pixel for the reservoir's sample.
+      restir_candidates(s, x0, y0, x1 - x0, y1 - y0, pass, use_tree, rsurf, rres, rngs);
+      std::vector<Ray> vis;
+      std::vector<uint32_t> vis_pixel;
+      if (s.direct == DirectLighting::restir)
+        for (size_t i = 0; i < count; ++i) {
+          Ray r;
+          if (rsurf[i].valid && rres[i].W > 0 &&
+              luminance(restir_eval(rsurf[i], rres[i].y, &r)) > 0)
+            vis.push_back(r), vis_pixel.push_back(uint32_t(i));
+        }
+      if (!vis.empty()) {
+        blocked.resize(vis.size());
+        capture_batch(2, vis);
+        timed([&] { occluded(vis, blocked); }, 2, vis.size());
+        for (size_t j = 0; j < vis.size(); ++j)
+          if (blocked[j]) rres[vis_pixel[j]].W = 0;
+      }
+      restir_reuse(*rp, s, x0, y0, x1 - x0, y1 - y0, rres, rsurf, rprev, rngs);
+      for (size_t i = 0; i < count; ++i) {
+        if (!rsurf[i].valid || !(rres[i].W > 0)) continue;
+        Ray r;
+        const Vec3 c = restir_eval(rsurf[i], rres[i].y, &r) * rres[i].W;
+        if (luminance(c) > 0 && is_finite(c))
+          shadow_rays.push_back(r), shadows.push_back({c, uint32_t(i)});
+      }
     }
     if (!shadow_rays.empty()) {
       blocked.resize(shadow_rays.size());

@@ -17,6 +17,19 @@ void LightTree::build(const std::vector<Item>& items) {
   for (uint32_t i = 0; i < ids.size(); ++i) ids[i] = i;
   nodes_.reserve(2 * items.size());
   build(ids, 0, ids.size(), items, -1);
+  children_.assign(nodes_.size(), Children{});
+  for (size_t i = 0; i < nodes_.size(); ++i) {
+    if (nodes_[i].left < 0) continue;
+    Children& c = children_[i];
+    for (int k = 0; k < 2; ++k) {
+      const Node& n = nodes_[size_t(k ? nodes_[i].right : nodes_[i].left)];
+      const Vec3 m = center(n.box), half = extent(n.box) * 0.5f;
+      c.cx[k] = m.x, c.cy[k] = m.y, c.cz[k] = m.z, c.r2[k] = dot(half, half);
+      c.power[k] = n.power;
+      c.child[k] = k ? nodes_[i].right : nodes_[i].left;
+      c.light[k] = n.left < 0 ? n.light : -1;
+    }
+  }
 }
 
 int32_t LightTree::build(std::vector<uint32_t>& ids, size_t begin, size_t end,
@@ -54,35 +67,40 @@ int32_t LightTree::build(std::vector<uint32_t>& ids, size_t begin, size_t end,
   return index;
 }
 
-float LightTree::importance(const Node& n, Vec3 x) const {
-  const Vec3 c = center(n.box), d = x - c, half = extent(n.box) * 0.5f;
-  const float dist2 = std::max(dot(d, d), dot(half, half));
-  return dist2 > 0 ? n.power / dist2 : n.power * 1e30f;
+// importance_k = power_k / max(|x - centre_k|^2, r2_k); the left child's share of the two,
+// with one division: power_0 d_1 / (power_0 d_1 + power_1 d_0).
+namespace {
+template <class Children>
+inline __attribute__((always_inline)) float split(const Children& c, Vec3 x) {
+  float d[2];
+  for (int k = 0; k < 2; ++k) {
+    const float dx = x.x - c.cx[k], dy = x.y - c.cy[k], dz = x.z - c.cz[k];
+    d[k] = std::max(dx * dx + dy * dy + dz * dz, c.r2[k]);
+  }
+  const float a = c.power[0] * d[1], sum = a + c.power[1] * d[0];
+  return sum > 0 && sum < INFINITY ? a / sum : 0.5f;
 }
+}  // namespace
 
-float LightTree::left_probability(const Node& n, Vec3 x) const {
-  const float l = importance(nodes_[size_t(n.left)], x), r = importance(nodes_[size_t(n.right)], x);
-  const float sum = l + r;
-  return sum > 0 && std::isfinite(sum) ? l / sum : 0.5f;
+float LightTree::left_probability(size_t at, Vec3 x) const {
+  return split(children_[at], x);
 }
 
 size_t LightTree::sample(Vec3 x, float u, float& pmf) const {
   pmf = 1;
-  size_t at = 0;
-  while (nodes_[at].left >= 0) {
-    const Node& n = nodes_[at];
-    const float p = left_probability(n, x);
-    if (u < p) {
-      u = std::min(u / p, 0.99999994f);
-      pmf *= p;
-      at = size_t(n.left);
-    } else {
-      u = std::min((u - p) / (1 - p), 0.99999994f);
-      pmf *= 1 - p;
-      at = size_t(n.right);
-    }
+  if (nodes_[0].left < 0) return size_t(nodes_[0].light);
+  const Children* all = children_.data();
+  for (size_t at = 0;;) {
+    const Children& c = all[at];
+    const float p = split(c, x);
+    const bool right = !(u < p);
+    const float share = right ? 1 - p : p;
+    u = std::min((right ? u - p : u) / share, 0.99999994f);
+    pmf *= share;
+    const int32_t light = c.light[right], child = c.child[right];
+    if (light >= 0) return size_t(light);
+    at = size_t(child);
   }
-  return size_t(nodes_[at].light);
 }
 
 float LightTree::pmf(Vec3 x, size_t i) const {
@@ -91,9 +109,8 @@ float LightTree::pmf(Vec3 x, size_t i) const {
   int32_t child = leaf_of_[i];
   for (int32_t at = nodes_[size_t(child)].parent; at >= 0;
        child = at, at = nodes_[size_t(at)].parent) {
-    const Node& n = nodes_[size_t(at)];
-    const float p = left_probability(n, x);
-    pmf *= n.left == child ? p : 1 - p;
+    const float p = left_probability(size_t(at), x);
+    pmf *= nodes_[size_t(at)].left == child ? p : 1 - p;
   }
   return pmf;
 }

@@ -34,12 +34,18 @@ class LightTree {
     int32_t light = -1;             // a leaf's light
     int32_t parent = -1;
   };
-  float importance(const Node& n, Vec3 x) const;
-  // The probability of going to the left child of inner node n at x.
-  float left_probability(const Node& n, Vec3 x) const;
+  // An inner node's two children as importance needs them (one cache line per level).
+  struct Children {
+    float cx[2], cy[2], cz[2], r2[2], power[2];  // box centre, squared half diagonal, power
+    int32_t child[2];
+    int32_t light[2];  // a leaf child's light, else -1
+  };
+  // The probability of going to the left child of inner node `at` at x.
+  float left_probability(size_t at, Vec3 x) const;
   int32_t build(std::vector<uint32_t>& ids, size_t begin, size_t end,
                 const std::vector<Item>& items, int32_t parent);
   std::vector<Node> nodes_;
+  std::vector<Children> children_;  // per node (unused for leaves)
   std::vector<int32_t> leaf_of_;
 };
 

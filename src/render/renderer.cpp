@@ -118,6 +118,13 @@ std::array<double, 3> RendererTesting::retrace(const Renderer& renderer, const R
   return ms;
 }
 
+std::optional<DirectLighting> direct_lighting_from_name(const std::string& name) {
+  if (name == "nee") return DirectLighting::nee;
+  if (name == "restir") return DirectLighting::restir;
+  if (name == "restir-unbiased") return DirectLighting::restir_unbiased;
+  return std::nullopt;
+}
+
 void frame_jitter(uint32_t index, float& jx, float& jy) {
   jx = radical_inverse(2, index + 1), jy = radical_inverse(3, index + 1);
 }
@@ -139,6 +146,15 @@ void check_render_settings(const Camera& camera, const RenderSettings& s,
                 fmt::format("render: max depth must be positive, got {}", s.max_depth));
   if (!(s.time_limit_s >= 0) || !(s.clamp >= 0))
     throw Error(ErrorCode::invalid_argument, "render: time limit and clamp must be >= 0");
+  if (s.direct != DirectLighting::nee && s.direct != DirectLighting::restir &&
+      s.direct != DirectLighting::restir_unbiased)
+    throw Error(ErrorCode::invalid_argument, "render: unknown direct lighting method");
+  if (s.restir_candidates < 1 || s.restir_candidates > 64 || s.restir_neighbors < 0 ||
+      s.restir_neighbors > 16)
+    throw Error(ErrorCode::invalid_argument,
+                fmt::format("render: ReSTIR candidates must be in 1..64 and neighbours in 0..16, "
+                            "got {} and {}",
+                            s.restir_candidates, s.restir_neighbors));
 }
 
 // The frame's AOVs at pixel p: the means of the accumulated sums.
@@ -185,7 +201,25 @@ void Renderer::Impl::render_passes(const Camera& camera, const RenderSettings& s
   const double start = now_ms();
   int passes = 0;
   std::atomic<size_t> tiles_done{0};
+  const bool restir = s.direct != DirectLighting::nee;
+  if (!restir) restir_valid = false;
   for (int pass = 0; pass < s.spp; ++pass) {
+    // ReSTIR's buffers: the history is the last pass (of this frame, or of frame - 1).
+    RestirPass rp;
+    if (restir) {
+      RestirBuffer& last = this->restir[restir_last];
+      const bool history = restir_valid && last.width == s.width && last.height == s.height &&
+                           (pass > 0 || restir_frame + 1 == s.frame);
+      RestirBuffer& cur = this->restir[1 - restir_last];
+      const size_t pixels = size_t(s.width) * size_t(s.height);
+      // Every pixel of a tile is written; a render of some tiles clears the others.
+      if (only || cur.width != s.width || cur.height != s.height) {
+        cur.width = s.width, cur.height = s.height;
+        cur.res.assign(pixels, Reservoir{});
+        cur.surf.assign(pixels, RestirSurface{});
+      }
+      rp = {history ? &last : nullptr, &cur, pass > 0};
+    }
     float jx = 0.5f, jy = 0.5f;
     if (s.jitter)
       frame_jitter(s.fixed_jitter ? s.frame : s.frame * uint32_t(s.spp) + uint32_t(pass), jx, jy);
@@ -197,7 +231,7 @@ void Renderer::Impl::render_passes(const Camera& camera, const RenderSettings& s
         uint64_t counts[3] = {0, 0, 0};
         double tms = 0;
         render_tile(cam, prev, s, int(t % size_t(tiles_x)), int(t / size_t(tiles_x)), pass, jx, jy,
-                    acc, tms, counts);
+                    restir ? &rp : nullptr, acc, tms, counts);
         tile_trace[i] += tms;
         tile_total[i] += now_ms() - t0;
         for (int k = 0; k < 3; ++k) tile_rays[i][size_t(k)] += counts[k];
@@ -212,6 +246,7 @@ void Renderer::Impl::render_passes(const Camera& camera, const RenderSettings& s
       }
     });
     passes = pass + 1;
+    if (restir) restir_last = 1 - restir_last, restir_valid = true, restir_frame = s.frame;
     if (s.time_limit_s > 0 && now_ms() - start >= s.time_limit_s * 1000) break;
   }
   if (s.progress) std::fprintf(stderr, "\n");

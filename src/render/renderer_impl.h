@@ -2,6 +2,7 @@
 // tiles, scene sync), integrator.cpp (the wavefront path tracer of one tile), lights.cpp
 // (materials, area lights), environment.cpp (environment light), texture.cpp (texel fetches).
 #pragma once
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <memory>
@@ -85,6 +86,47 @@ struct CameraModel {
   }
 };
 
+// A ray origin off the surface at p along its geometric normal n, scaled with p's magnitude.
+inline Vec3 offset_origin(Vec3 p, Vec3 n) {
+  const float scale = 1.0f + std::max({std::fabs(p.x), std::fabs(p.y), std::fabs(p.z)});
+  return p + n * (2e-5f * scale);
+}
+
+// ---- ReSTIR DI's records (restir.cpp) ----
+// A light sample that can be evaluated again at any surface: a local light (an emissive
+// triangle's index with barycentrics (b1, b2) in v, or a punctual light's index) or a
+// direction v towards the environment or the sun.
+struct LightRef {
+  static constexpr uint32_t env = 0xFFFFFFF0u, sun = 0xFFFFFFF1u;
+  uint32_t id = invalid_id;
+  Vec3 v{0, 0, 0};
+};
+// A reservoir: the sample kept, the sum of resampling weights, the candidates it stands for,
+// its unbiased contribution weight W, and the target function at the surface it belongs to.
+struct Reservoir {
+  LightRef y;
+  float w_sum = 0, M = 0, W = 0, p_hat = 0;
+};
+// What reuse needs of the first surface a camera ray hit.
+struct RestirSurface {
+  Vec3 p, ng, n, wo_l;  // n: shading normal (the BSDF's frame); wo_l: the view in that frame
+  BsdfParams bp;
+  float depth = 0;
+  bool valid = false;
+};
+// One pass's reservoirs and surfaces, image-wide: the next pass's (or frame's) history.
+struct RestirBuffer {
+  int width = 0, height = 0;
+  std::vector<Reservoir> res;
+  std::vector<RestirSurface> surf;
+};
+// What render_tile needs for ReSTIR in one pass.
+struct RestirPass {
+  const RestirBuffer* prev = nullptr;  // null: no history
+  RestirBuffer* cur = nullptr;
+  bool same_camera = false;  // a later pass of the frame: history at the same pixel
+};
+
 inline double now_ms() {
   return std::chrono::duration<double, std::milli>(
              std::chrono::steady_clock::now().time_since_epoch())
@@ -161,6 +203,10 @@ struct Renderer::Impl {
   Bounds3 bounds;
   RayCapture* capture = nullptr;
   std::unique_ptr<Accumulator> tile_acc;  // render_tiles: sums kept between calls of one size
+  RestirBuffer restir[2];                 // ReSTIR: [restir_last] is the last pass's
+  int restir_last = 0;
+  bool restir_valid = false;  // restir[restir_last] holds a pass of frame restir_frame
+  uint32_t restir_frame = 0;
   void render_passes(const Camera& camera, const RenderSettings& s,
                      const std::optional<Camera>& prev_camera, const std::vector<uint32_t>* only,
                      Accumulator& acc, Frame& frame);
@@ -270,12 +316,38 @@ struct Renderer::Impl {
   Surface surface_at(const SurfaceHit& h, const Ray& ray) const;
   bool sample_light(const Surface& sf, const Basis& frame, Vec3 wo_l, Vec3 origin, Vec3 throughput,
                     Rng& rng, bool tree, Ray& shadow, Vec3& contribution) const;
+  // A punctual light seen from origin: direction, the ray's vector and end, radiance x falloff.
+  bool punctual_light(const Punctual& q, Vec3 origin, Vec3& wi, Vec3& dir, Vec3& le,
+                      float& tmax) const;
+  Vec3 sun_sample(float u1, float u2) const;  // uniform in the sun's cone
+  // restir.cpp
+  bool restir_eligible(const Surface& sf) const;
+  struct LightDraw {
+    LightRef y;
+    float pdf;  // of NEE's local-light strategy at the origin it was drawn for, y's measure
+  };
+  // One local light by NEE's choice (tree or power) at origin, a point on it by u1, u2.
+  LightDraw local_light_sample(Vec3 origin, bool tree, float u, float u1, float u2) const;
+  // Unshadowed f * Le * G of y at g, in the measure y was sampled in (area for emissive
+  // triangles, solid angle for directions, counting for punctual lights); the shadow ray.
+  Vec3 restir_eval(const RestirSurface& g, const LightRef& y, Ray* shadow) const;
+  // The initial reservoirs of a tile's pixels: per 8 x 8 block, a pool of samples of NEE's
+  // strategies at one surface of the block (light presampling); each pixel resamples
+  // s.restir_candidates of its block's pool by p_hat.
+  void restir_candidates(const RenderSettings& s, int x0, int y0, int w, int h, int pass, bool tree,
+                         std::span<const RestirSurface> surf, std::span<Reservoir> res,
+                         std::span<Rng> rngs) const;
+  // Temporal then spatial reuse over one tile (w x h pixels at x0, y0); res: the initial
+  // reservoirs in, the final ones out; prev_pixel: the pixel of the history (or -1).
+  void restir_reuse(const RestirPass& rp, const RenderSettings& s, int x0, int y0, int w, int h,
+                    std::span<Reservoir> res, std::span<const RestirSurface> surf,
+                    std::span<const int32_t> prev_pixel, std::span<Rng> rngs) const;
   void prefetch_indices(const SurfaceHit& h) const;
   void prefetch_vertices(const SurfaceHit& h) const;
   void prefetch_texels(const SurfaceHit& h) const;
   void render_tile(const CameraModel& cam, const CameraModel& prev_cam, const RenderSettings& s,
-                   int tx, int ty, int pass, float jx, float jy, Accumulator& acc, double& trace_ms,
-                   uint64_t ray_counts[3]) const;
+                   int tx, int ty, int pass, float jx, float jy, const RestirPass* rp,
+                   Accumulator& acc, double& trace_ms, uint64_t ray_counts[3]) const;
 };
 
 }  // namespace kestrel

@@ -1,0 +1,266 @@
+// ReSTIR DI (Bitterli et al. 2020) at the first surface of each camera ray: resampled
+// importance sampling of NEE's own strategies (the environment, the sun, the local lights by
+// power or the light tree, presampled per 4 x 4 pixels) with the unshadowed contribution as
+// the target, then temporal reuse (the history's reservoir at the pixel the motion vector
+// points to, balance-heuristic weights over the two surfaces) and spatial reuse (neighbours
+// of the same tile, so a tile depends on nothing another thread writes in this pass). Samples
+// are shifted by identity (the same point on the same light, or the same direction), so no
+// Jacobian enters. Spatial reuse normalises by 1/M (biased mode) or by the candidates of the
+// reservoirs that could have produced the sample (unbiased mode, Alg. 6).
+#include <algorithm>
+#include <cmath>
+
+#include "render/renderer_impl.h"
+
+namespace kestrel {
+
+using namespace render;
+
+namespace {
+
+constexpr float min_restir_alpha = 0.04f;  // roughness 0.2: sharper lobes keep NEE + MIS
+constexpr float history_cap = 20;          // temporal M is capped at 20 x the new candidates
+constexpr float spatial_radius = 16;       // pixels
+constexpr int block = 4;                   // light presampling: one pool per 4 x 4 pixels
+
+bool similar(const RestirSurface& a, const RestirSurface& b) {
+  return b.valid && dot(a.n, b.n) > 0.9f && std::fabs(a.depth - b.depth) <= 0.1f * a.depth;
+}
+
+// Streams reservoir r, whose target at the surface being shaded is p_hat, into out.
+bool stream(Reservoir& out, const Reservoir& r, float p_hat, Rng& rng) {
+  const float w = p_hat * r.W * r.M;
+  out.M += r.M;
+  const float u = rng.uniform();
+  if (!(w > 0) || !std::isfinite(w)) return false;
+  out.w_sum += w;
+  if (u * out.w_sum >= w) return false;
+  out.y = r.y, out.p_hat = p_hat;
+  return true;
+}
+
+}  // namespace
+
+bool Renderer::Impl::restir_eligible(const Surface& sf) const {
+  return sf.bp.alpha >= min_restir_alpha && (p_env > 0 || p_sun > 0 || local_light_count() > 0);
+}
+
+Vec3 Renderer::Impl::restir_eval(const RestirSurface& g, const LightRef& y, Ray* shadow) const {
+  const Vec3 origin = offset_origin(g.p, g.ng);
+  Vec3 wi, le, dir;
+  float geometry = 1, tmax = INFINITY;
+  if (y.id == LightRef::env) {
+    wi = dir = y.v;
+    le = env_radiance(wi);
+  } else if (y.id == LightRef::sun) {
+    wi = dir = y.v;
+    le = sun_on ? sun_radiance : Vec3{0, 0, 0};
+  } else if (y.id < lights.size()) {
+    const LightTri& l = lights[y.id];
+    const Vec3 q = l.p0 + l.e1 * y.v.x + l.e2 * y.v.y;
+    dir = q - origin;
+    const float dist2 = dot(dir, dir);
+    if (!(dist2 > 0)) return {0, 0, 0};
+    wi = dir * (1.0f / std::sqrt(dist2));
+    const float cos_l = std::fabs(dot(normalize(cross(l.e1, l.e2)), wi));
+    const InstanceShade& lis = instances[l.instance];
+    le = emission_at(material_of(*lis.mesh, l.prim), uv_at(*lis.mesh, l.prim, y.v.x, y.v.y));
+    geometry = cos_l / dist2;
+    tmax = 1.0f - 1e-3f;
+  } else if (y.id < local_light_count()) {
+    if (!punctual_light(punctual[y.id - lights.size()], origin, wi, dir, le, tmax))
+      return {0, 0, 0};
+  } else {
+    return {0, 0, 0};
+  }
+  if (!(dot(wi, g.ng) > 0) || !(luminance(le) > 0) || !(geometry > 0)) return {0, 0, 0};
+  const Vec3 f = bsdf_eval(g.bp, g.wo_l, Basis(g.n).to_local(wi));
+  if (shadow) *shadow = Ray{origin, dir, 0.0f, tmax};
+  return f * le * geometry;
+}
+
+Renderer::Impl::LightDraw Renderer::Impl::local_light_sample(Vec3 origin, bool tree, float u,
+                                                             float u1, float u2) const {
+  u = std::min(local_light_count() == 1 ? 0.5f : u, 0x1.fffffep-1f);
+  float pick = 0;
+  size_t li = 0;
+  if (tree) {
+    li = light_tree.sample(origin, u, pick);
+  } else {
+    li = light_dist.sample(u);
+    pick = light_dist.pmf(li);
+  }
+  LightDraw e{{uint32_t(li), {0, 0, 0}}, (1 - p_env - p_sun) * pick};
+  if (li < lights.size()) {  // uniform on the triangle: an area density
+    const float su = std::sqrt(u1);
+    e.y.v = {u2 * su, 1 - su, 0};
+    e.pdf /= lights[li].area;
+  }
+  return e;
+}
+
+void Renderer::Impl::restir_candidates(const RenderSettings& s, int x0, int y0, int w, int h,
+                                       int pass, bool tree, std::span<const RestirSurface> surf,
+                                       std::span<Reservoir> res, std::span<Rng> rngs) const {
+  using Entry = LightDraw;
+  Entry pool[block * block];
+  for (int by = 0; by < h; by += block)
+    for (int bx = 0; bx < w; bx += block) {
+      const int bw = std::min(block, w - bx), bh = std::min(block, h - by);
+      // The block's surface: its centre pixel's, else the first valid one.
+      const RestirSurface* g = nullptr;
+      const size_t centre = size_t(by + bh / 2) * size_t(w) + size_t(bx + bw / 2);
+      if (surf[centre].valid) g = &surf[centre];
+      for (int y = by; y < by + bh && !g; ++y)
+        for (int x = bx; x < bx + bw && !g; ++x)
+          if (surf[size_t(y) * size_t(w) + size_t(x)].valid)
+            g = &surf[size_t(y) * size_t(w) + size_t(x)];
+      if (!g) continue;
+      const uint64_t block_id = uint64_t(y0 + by) * uint64_t(s.width) + uint64_t(x0 + bx);
+      Rng rng(s.seed ^ 0x5E57125EEDull, s.frame, block_id, uint64_t(pass));
+      // The pool holds local lights only: the environment and the sun are sampled per pixel
+      // (cheap, and the environment's strategy depends on the pixel's normal).
+      const Vec3 origin = offset_origin(g->p, g->ng);
+      int n = 0;
+      for (int c = 0; c < block * block && local_light_count() > 0; ++c, ++n) {
+        const float u = rng.uniform(), u1 = rng.uniform(), u2 = rng.uniform();
+        pool[n] = local_light_sample(origin, tree, u, u1, u2);
+      }
+      // Each pixel: M candidates of NEE's mixture, a local light being one drawn uniformly
+      // from the pool (each entry is distributed as the pool's strategy, which is all RIS
+      // needs), resampled by the target at its surface. A pixel whose surface is not like
+      // the block's (across a depth edge) samples its own lights: the pool's probabilities
+      // there could be near zero for the lights that matter, fireflies that reuse spreads.
+      for (int y = by; y < by + bh; ++y)
+        for (int x = bx; x < bx + bw; ++x) {
+          const size_t i = size_t(y) * size_t(w) + size_t(x);
+          if (!surf[i].valid) continue;
+          const bool own = !similar(surf[i], *g);
+          const Vec3 own_origin = offset_origin(surf[i].p, surf[i].ng);
+          Reservoir r;
+          Rng& pr = rngs[i];
+          for (int c = 0; c < s.restir_candidates; ++c) {
+            const float ul = pr.uniform(), u1 = pr.uniform(), u2 = pr.uniform(), us = pr.uniform();
+            Entry e{{}, 0};
+            if (ul < p_env) {
+              float epdf = 0;
+              e.y = {LightRef::env, env_sample(u1, u2, surf[i].n, epdf)};
+              e.pdf = p_env * epdf;
+            } else if (ul < p_env + p_sun) {
+              e.y = {LightRef::sun, sun_sample(u1, u2)};
+              e.pdf = p_sun / sun_solid_angle;
+            } else if (own && n > 0) {
+              const float u = (ul - p_env - p_sun) / (1 - p_env - p_sun);
+              e = local_light_sample(own_origin, tree, u, u1, u2);
+            } else if (n > 0) {
+              e = pool[std::min(int(u1 * float(n)), n - 1)];
+            }
+            r.M += 1;
+            if (!(e.pdf > 0) || !std::isfinite(e.pdf)) continue;
+            const float p_hat = luminance(restir_eval(surf[i], e.y, nullptr));
+            const float wgt = p_hat / e.pdf;
+            if (!(wgt > 0) || !std::isfinite(wgt)) continue;
+            r.w_sum += wgt;
+            if (us * r.w_sum < wgt) r.y = e.y, r.p_hat = p_hat;
+          }
+          r.W = r.p_hat > 0 ? r.w_sum / (r.M * r.p_hat) : 0.0f;
+          res[i] = r;
+        }
+    }
+}
+
+void Renderer::Impl::restir_reuse(const RestirPass& rp, const RenderSettings& s, int x0, int y0,
+                                  int w, int h, std::span<Reservoir> res,
+                                  std::span<const RestirSurface> surf,
+                                  std::span<const int32_t> prev_pixel, std::span<Rng> rngs) const {
+  const bool unbiased = s.direct == DirectLighting::restir_unbiased;
+  const size_t count = size_t(w) * size_t(h);
+  // The reservoirs combined at x: each with the surface its target belongs to.
+  struct Source {
+    Reservoir r;
+    const RestirSurface* at;
+  };
+  Source in[1 + 16];
+  // Combines in[0..n) at x (in[0] is x's own); W normalised by 1/M or by Alg. 6's Z.
+  auto combine = [&](const RestirSurface& x, int n, Rng& rng) {
+    Reservoir out;
+    int chosen = -1;
+    for (int j = 0; j < n; ++j) {
+      const Reservoir& r = in[j].r;
+      const float p_hat = j == 0 ? r.p_hat : luminance(restir_eval(x, r.y, nullptr));
+      if (stream(out, r, p_hat, rng)) chosen = j;
+    }
+    if (chosen < 0 || !(out.p_hat > 0)) return Reservoir{{}, 0, out.M, 0, 0};
+    float z = out.M;
+    if (unbiased) {
+      z = 0;
+      for (int j = 0; j < n; ++j)
+        if (j == chosen || luminance(restir_eval(*in[j].at, out.y, nullptr)) > 0) z += in[j].r.M;
+    }
+    out.W = out.w_sum / (z * out.p_hat);
+    return out;
+  };
+  // Temporal reuse.
+  std::vector<Reservoir> temporal(res.begin(), res.end());
+  if (rp.prev)
+    for (size_t i = 0; i < count; ++i) {
+      const RestirSurface& x = surf[i];
+      if (!x.valid || prev_pixel[i] < 0) continue;
+      const size_t q = size_t(prev_pixel[i]);
+      if (q >= rp.prev->res.size() || !similar(x, rp.prev->surf[q])) continue;
+      // Two reservoirs, the new (c, at x) and the history (h, at its own surface), weighted
+      // by the balance heuristic over where each came from: m_c(y) = M_c p_x(y) / (M_c p_x(y)
+      // + M_h p_h(y)), and m_h likewise. Unbiased, and a sample that is bright here but was
+      // dim where it was found is not over-weighted (1/M weights would make it a firefly).
+      const RestirSurface& hs = rp.prev->surf[q];
+      const Reservoir& c = res[i];
+      Reservoir h = rp.prev->res[q];
+      h.M = std::min(h.M, history_cap * std::max(1.0f, c.M));
+      const float pc_x = c.p_hat, pc_h = c.W > 0 ? luminance(restir_eval(hs, c.y, nullptr)) : 0;
+      const float ph_h = h.p_hat, ph_x = h.W > 0 ? luminance(restir_eval(x, h.y, nullptr)) : 0;
+      auto mis = [](float m_a, float p_a, float m_b, float p_b) {
+        const float d = m_a * p_a + m_b * p_b;
+        return d > 0 ? m_a * p_a / d : 0.0f;
+      };
+      Reservoir out;
+      out.M = c.M + h.M;
+      const float wc = mis(c.M, pc_x, h.M, pc_h) * pc_x * c.W;
+      const float wh = mis(h.M, ph_h, c.M, ph_x) * ph_x * h.W;
+      Rng& rng = rngs[i];
+      const float u = rng.uniform();
+      if (wc > 0 && std::isfinite(wc)) out.w_sum += wc, out.y = c.y, out.p_hat = pc_x;
+      if (wh > 0 && std::isfinite(wh)) {
+        out.w_sum += wh;
+        if (u * out.w_sum < wh) out.y = h.y, out.p_hat = ph_x;
+      }
+      out.W = out.p_hat > 0 && out.w_sum > 0 ? out.w_sum / out.p_hat : 0.0f;
+      temporal[i] = out;
+    }
+  // Spatial reuse: neighbours in a disk, inside the tile, on a similar surface.
+  const int k = std::clamp(s.restir_neighbors, 0, 16);
+  for (size_t i = 0; i < count; ++i) {
+    const RestirSurface& x = surf[i];
+    if (!x.valid) continue;
+    Rng& rng = rngs[i];
+    const int px = int(i % size_t(w)), py = int(i / size_t(w));
+    in[0] = {temporal[i], &x};
+    int n = 1;
+    for (int j = 0; j < k; ++j) {
+      const float r = spatial_radius * std::sqrt(rng.uniform()), phi = 2 * pi * rng.uniform();
+      const int nx = px + int(std::lround(r * std::cos(phi))),
+                ny = py + int(std::lround(r * std::sin(phi)));
+      if (nx < 0 || ny < 0 || nx >= w || ny >= h || (nx == px && ny == py)) continue;
+      const size_t q = size_t(ny) * size_t(w) + size_t(nx);
+      if (!similar(x, surf[q])) continue;
+      in[n++] = {temporal[q], &surf[q]};
+    }
+    res[i] = n > 1 ? combine(x, n, rng) : temporal[i];
+  }
+  for (size_t i = 0; i < count; ++i) {
+    const size_t g = size_t(y0 + int(i / size_t(w))) * size_t(s.width) + size_t(x0) + i % size_t(w);
+    rp.cur->res[g] = res[i];
+    rp.cur->surf[g] = surf[i];
+  }
+}
+
+}  // namespace kestrel
