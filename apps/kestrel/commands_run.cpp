@@ -38,17 +38,25 @@ void run(RunArgs& a) {
   if (a.out.empty()) throw Error(ErrorCode::invalid_argument, "run: -o DIR is required");
   const PipelineSettings settings = a.p.settings();
   Pipeline pipeline(a.p.scene, settings, a.p.env);
+  const std::string lighting = fmt::format(
+      "{} ({}{})",
+      pipeline.direct_lighting() == DirectLighting::nee      ? "NEE"
+      : pipeline.direct_lighting() == DirectLighting::restir ? "ReSTIR, biased"
+                                                              : "ReSTIR, unbiased",
+      pipeline.light_sampling() == LightSampling::tree ? "light tree" : "power",
+      settings.auto_lighting ? ", auto" : "");
   const CameraPath path =
       camera_path_for(pipeline.asset(), a.path.empty() ? "orbit:30" : a.path, a.view);
   std::filesystem::create_directories(a.out);
   fmt::print("scene    {} ({} triangles)\n", pipeline.source(), pipeline.triangle_count());
   fmt::print(
-      "pipeline {}x{} output, internal {}x{} (x{}), denoise {}, upscale {}, {} spp, max depth {}\n",
+      "pipeline {}x{} output, internal {}x{} (x{}), denoise {}, upscale {}, {} spp, max depth {}, "
+      "direct light {}\n",
       settings.width, settings.height, settings.width / settings.factor,
       settings.height / settings.factor, settings.factor,
       settings.denoise ? denoise_method_name(settings.denoiser) : "none",
       settings.factor > 1 ? upscale_method_name(settings.upscaler) : "none", settings.spp,
-      settings.max_depth);
+      settings.max_depth, lighting);
   const double t0 = path.start(), t1 = path.end();
   std::vector<PipelineTimes> times;
   std::vector<double> mrays;
@@ -82,14 +90,14 @@ void run(RunArgs& a) {
   };
   std::string md = fmt::format(
       "# kestrel run: {}\n\n{}x{} output from {}x{} internal (x{}), denoiser {}, upsampler {}, {} "
-      "spp, max depth {}; {} "
+      "spp, max depth {}, direct light {}; {} "
       "frames ({} timed, the first is warm-up).\n\n| stage | median ms | p95 ms "
       "|\n|---|---:|---:|\n",
       pipeline.source(), settings.width, settings.height, settings.width / settings.factor,
       settings.height / settings.factor, settings.factor,
       settings.denoise ? denoise_method_name(settings.denoiser) : "none",
       settings.factor > 1 ? upscale_method_name(settings.upscaler) : "none", settings.spp,
-      settings.max_depth, a.frames, times.size() - skip);
+      settings.max_depth, lighting, a.frames, times.size() - skip);
   const std::pair<const char*, double PipelineTimes::*> stages[] = {
       {"scene update", &PipelineTimes::update}, {"render", &PipelineTimes::render},
       {"denoise", &PipelineTimes::denoise},     {"upscale", &PipelineTimes::upscale},

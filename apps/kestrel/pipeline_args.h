@@ -10,12 +10,13 @@
 #include "kestrel/error.h"
 #include "kestrel/parallel.h"
 #include "kestrel/pipeline.h"
+#include "kestrel/render.h"
 
 namespace kestrel::cli {
 
 struct PipelineArgs {
   std::string scene = "builtin:cornell_box", res = "1280x720", internal, env, denoise = "neural",
-              upscale = "neural", sun, light_sampling = "power", direct = "nee";
+              upscale = "neural", sun, light_sampling = "power", direct = "auto";
   bool sky = false, auto_exposure = false;
   int factor = 2, spp = 1, max_depth = 4, threads = 0;
   float clamp = 16, exposure = 0;
@@ -54,8 +55,8 @@ struct PipelineArgs {
                    "How NEE picks a local light: power | tree (a light tree: many lights)")
         ->capture_default_str();
     cmd.add_option("--direct", direct,
-                   "Direct light at the first hit: nee | restir (ReSTIR DI, biased) | "
-                   "restir-unbiased")
+                   "Direct light at the first hit: auto (restir with the light tree for >= 64 "
+                   "lights, else nee) | nee | restir (ReSTIR DI, biased) | restir-unbiased")
         ->capture_default_str();
     cmd.add_flag("--auto-exposure", auto_exposure,
                  "Exposure follows the image's log-average luminance (key 0.18, smoothed)");
@@ -69,6 +70,14 @@ struct PipelineArgs {
 
   PipelineSettings settings() {
     if (threads > 0) limit = std::make_shared<ThreadLimit>(threads);
+    // No lighting flag: the scene's views file may suggest one (Sponza: the sun).
+    if (env.empty() && sun.empty() && !sky)
+      if (const auto l = suggested_lighting(scene)) {
+        env = l->env, sun = l->sun, sky = l->sky;
+        fmt::print("lighting {}{}{} (the scene's views file; --env sky: the overcast sky)\n",
+                   l->sun.empty() ? "" : "sun " + l->sun, l->env.empty() ? "" : " env " + l->env,
+                   l->sky ? " sky" : "");
+      }
     PipelineSettings s;
     parse_resolution(res, s.width, s.height);
     s.factor = factor;
@@ -105,10 +114,12 @@ struct PipelineArgs {
     else if (light_sampling != "power")
       throw Error(ErrorCode::invalid_argument,
                   fmt::format("--light-sampling '{}': expected power or tree", light_sampling));
-    const auto d = direct_lighting_from_name(direct);
+    s.auto_lighting = direct == "auto";
+    const auto d = direct_lighting_from_name(s.auto_lighting ? "nee" : direct);
     if (!d)
-      throw Error(ErrorCode::invalid_argument,
-                  fmt::format("--direct '{}': expected nee, restir or restir-unbiased", direct));
+      throw Error(
+          ErrorCode::invalid_argument,
+          fmt::format("--direct '{}': expected auto, nee, restir or restir-unbiased", direct));
     s.direct = *d;
     return s;
   }

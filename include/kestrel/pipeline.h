@@ -34,6 +34,9 @@ struct PipelineSettings {
   bool auto_exposure = false;
   LightSampling light_sampling = LightSampling::power;  ///< NEE's choice of a local light
   DirectLighting direct = DirectLighting::nee;          ///< the first hit's direct light
+  /// Choose by the scene instead: with >= 64 lights, ReSTIR DI (biased) over the light tree,
+  /// else the two fields above (`kestrel run` / `view`'s default, `--direct auto`).
+  bool auto_lighting = false;
   std::string sun;       ///< "" or Sun::parse's AZIMUTH,ELEVATION[,INTENSITY] (make_lighting)
   bool sky = false;      ///< the physical sky (make_lighting)
   double target_ms = 0;  ///< > 0: change the factor (1, 2, 4) to hold this frame time
@@ -98,6 +101,9 @@ class Pipeline {
   void set_render_function(PipelineRenderFn render);
   const Asset& asset() const;
   const Renderer& renderer() const;
+  /// The direct lighting and light sampling the frames use (auto_lighting resolved).
+  DirectLighting direct_lighting() const;
+  LightSampling light_sampling() const;
   /// Bounds of the scene, the source's name, whether it animates (glTF animation).
   Bounds3 bounds() const;
   const std::string& source() const;

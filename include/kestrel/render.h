@@ -53,6 +53,17 @@ std::optional<Camera> find_view(const Scene& scene, const std::string& name);
 /// The same for a loaded asset (its source's views files, its bounds for "framing").
 std::optional<Camera> find_view(const Asset& asset, const std::string& name);
 
+/// The lighting a scene's views file suggests, `"lighting": {"env": SPEC, "sun":
+/// "AZ,EL[,I]", "sky": true}` (each optional; as make_lighting's arguments). `kestrel run` and
+/// `view` use it when no --env, --sun or --sky is given (Sponza: a sun through its opening).
+struct SceneLighting {
+  std::string env, sun;
+  bool sky = false;
+};
+/// The first views file of scene_path (view_files_for) with a "lighting" entry; nullopt when
+/// none has one. Throws Error naming the file for a malformed entry.
+std::optional<SceneLighting> suggested_lighting(const std::string& scene_path);
+
 /// A keyframed camera path: {"keyframes": [{"time": s, "eye": [...], "target": [...],
 /// "vfov": deg}, ...]} with increasing times; eye and target follow a centripetal
 /// Catmull-Rom spline through the keys, vfov / aperture / focus are interpolated linearly.

@@ -464,7 +464,9 @@ void bind_render(py::module_& m) {
              PipelineSettings s =
                  pipeline_settings(resolution(res), factor, denoiser, upscaler, spp, max_depth,
                                    clamp, exposure, target_ms, seed);
-             set_lighting(light_sampling, direct, s.light_sampling, s.direct);
+             s.auto_lighting = direct == "auto";
+             set_lighting(light_sampling, s.auto_lighting ? "nee" : direct, s.light_sampling,
+                          s.direct);
              s.sun = sun, s.sky = sky, s.auto_exposure = auto_exposure;
              py::gil_scoped_release release;
              return std::make_unique<Pipeline>(scene.string(), s, environment);
@@ -474,7 +476,9 @@ void bind_render(py::module_& m) {
            py::arg("max_depth") = 4, py::arg("clamp") = 16.0f, py::arg("exposure") = 0.0f,
            py::arg("target_ms") = 0.0, py::arg("seed") = 0, py::arg("environment") = "",
            py::arg("sun") = "", py::arg("sky") = false, py::arg("auto_exposure") = false,
-           py::arg("light_sampling") = "power", py::arg("direct") = "nee",
+           py::arg("light_sampling") = "power", py::arg("direct") = "auto",
+           "direct: 'auto' (ReSTIR over the light tree for >= 64 lights, else light_sampling "
+           "and NEE) | 'nee' | 'restir' | 'restir-unbiased'; "
            "sun: 'AZIMUTH,ELEVATION[,INTENSITY]' (degrees; with the physical sky unless "
            "environment is "
            "given); sky: the physical sky; auto_exposure: the tone map follows the image.")

@@ -243,6 +243,9 @@ def test_restir_matches_the_cli(cli, tmp_path):
         kestrel.Renderer(hall).render(cam, res=RES, direct="ris")
     with pytest.raises(ValueError, match="light_sampling"):
         kestrel.Renderer(hall).render(cam, res=RES, light_sampling="bvh")
-    loop = kestrel.Pipeline("builtin:lamp_hall", res=(32, 24), factor=1, denoiser=None,
-                            light_sampling="tree", direct="restir")
-    assert np.isfinite(loop.frame(cam)["rgb8"]).all()
+    for direct in ("restir", "auto"):
+        loop = kestrel.Pipeline("builtin:lamp_hall", res=(32, 24), factor=1, denoiser=None,
+                                light_sampling="tree", direct=direct)
+        assert np.isfinite(loop.frame(cam)["rgb8"]).all()
+    with pytest.raises(ValueError, match="direct"):
+        kestrel.Pipeline("builtin:lamp_hall", res=(32, 24), factor=1, direct="ris")

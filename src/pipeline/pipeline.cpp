@@ -97,13 +97,20 @@ struct Pipeline::Impl {
     last_time = time;
   }
 
+  // auto_lighting: many lights (ReSTIR's and the light tree's case) or the settings' choice.
+  bool many_lights() const { return settings.auto_lighting && renderer->light_count() >= 64; }
+  DirectLighting direct() const { return many_lights() ? DirectLighting::restir : settings.direct; }
+  LightSampling light_sampling() const {
+    return many_lights() ? LightSampling::tree : settings.light_sampling;
+  }
+
   RenderSettings render_settings(int w, int h, uint32_t frame) const {
     RenderSettings rs;
     rs.width = w, rs.height = h, rs.spp = settings.spp, rs.seed = settings.seed, rs.frame = frame;
     rs.max_depth = settings.max_depth, rs.clamp = settings.clamp,
     rs.fixed_jitter = settings.fixed_jitter;
     rs.jitter = settings.jitter, rs.threads = settings.threads;
-    rs.light_sampling = settings.light_sampling, rs.direct = settings.direct;
+    rs.light_sampling = light_sampling(), rs.direct = direct();
     return rs;
   }
 };
@@ -167,6 +174,12 @@ const Asset& Pipeline::asset() const {
 }
 const Renderer& Pipeline::renderer() const {
   return *impl_->renderer;
+}
+DirectLighting Pipeline::direct_lighting() const {
+  return impl_->direct();
+}
+LightSampling Pipeline::light_sampling() const {
+  return impl_->light_sampling();
 }
 int Pipeline::accumulated() const {
   return impl_->samples;

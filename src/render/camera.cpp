@@ -148,6 +148,38 @@ std::vector<std::string> view_files_for(const std::string& scene_path) {
   return files;
 }
 
+std::optional<SceneLighting> suggested_lighting(const std::string& scene_path) {
+  for (const std::string& file : view_files_for(scene_path)) {
+    if (!std::filesystem::is_regular_file(file)) continue;
+    const json j = read_json(file);
+    if (!j.is_object() || !j.contains("lighting")) continue;
+    const json& l = j["lighting"];
+    auto bad = [&](const char* what) {
+      return Error(ErrorCode::parse_error, fmt::format("{}: \"lighting\": {}", file, what));
+    };
+    if (!l.is_object()) throw bad("expected an object {\"env\", \"sun\", \"sky\"}");
+    SceneLighting out;
+    for (const auto& [key, v] : l.items()) {
+      if (key == "env" || key == "sun") {
+        if (!v.is_string()) throw bad("\"env\" and \"sun\" must be strings");
+        (key == "env" ? out.env : out.sun) = v.get<std::string>();
+      } else if (key == "sky") {
+        if (!v.is_boolean()) throw bad("\"sky\" must be true or false");
+        out.sky = v.get<bool>();
+      } else {
+        throw bad(("unknown key '" + key + "'").c_str());
+      }
+    }
+    try {
+      make_lighting(out.env, out.sun, out.sky);  // the specs are valid
+    } catch (const Error& e) {
+      throw Error(e.code(), fmt::format("{}: \"lighting\": {}", file, e.what()));
+    }
+    return out;
+  }
+  return std::nullopt;
+}
+
 namespace {
 std::optional<Camera> find_view(const std::string& source, const Bounds3& bounds,
                                 const std::string& name) {

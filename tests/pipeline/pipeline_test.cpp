@@ -5,6 +5,7 @@
 
 #include <cmath>
 
+#include "kestrel/asset.h"
 #include "kestrel/error.h"
 #include "kestrel/pipeline.h"
 #include "kestrel/render.h"
@@ -69,6 +70,35 @@ TEST(Pipeline, RendersAsTheRendererAndTakesARenderFunction) {
   EXPECT_EQ(calls, 1);
   EXPECT_EQ(g.render.width, 0);
   EXPECT_EQ(g.index, 2u);
+}
+
+// Lighting chosen by the scene: many lights get ReSTIR over the light tree, and the loop's
+// frames are the Renderer's ReSTIR frames (history from frame to frame); few lights keep the
+// settings' choice; without auto_lighting the settings rule.
+TEST(Pipeline, AutoLightingPicksRestirForManyLights) {
+  PipelineSettings s = small(1);
+  s.denoise = false, s.auto_lighting = true, s.max_depth = 2;
+  Pipeline hall("builtin:lamp_hall", s);
+  EXPECT_EQ(hall.direct_lighting(), DirectLighting::restir);
+  EXPECT_EQ(hall.light_sampling(), LightSampling::tree);
+  const Asset asset = Asset::load("builtin:lamp_hall");
+  const Camera cam = *find_view(asset, "inside");
+  Renderer r(asset.scene());
+  RenderSettings rs;
+  rs.width = 64, rs.height = 48, rs.max_depth = 2, rs.clamp = s.clamp, rs.fixed_jitter = true;
+  rs.direct = DirectLighting::restir, rs.light_sampling = LightSampling::tree;
+  std::optional<Camera> prev;
+  for (uint32_t f = 0; f < 3; ++f) {
+    rs.frame = f;
+    const Frame want = r.render(cam, rs, prev);
+    prev = cam;
+    EXPECT_EQ(hall.frame(cam, 0.0).noisy.pixels, want[Aov::color].pixels) << f;
+  }
+  Pipeline box("builtin:cornell_box", s);
+  EXPECT_EQ(box.direct_lighting(), DirectLighting::nee);
+  s.auto_lighting = false;
+  Pipeline fixed("builtin:lamp_hall", s);
+  EXPECT_EQ(fixed.direct_lighting(), DirectLighting::nee);
 }
 
 // Automatic exposure: a brighter scene gets fewer stops; the exposure moves 10 % of the way

@@ -4,6 +4,8 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <filesystem>
+#include <fstream>
 
 #include "core/vec.h"
 #include "kestrel/kestrel.h"
@@ -319,6 +321,45 @@ TEST(Lights, LightsFilesLoadAndBadOnesNameFileAndLight) {
     }
   }
   EXPECT_THROW(load_lights("/nonexistent/x.lights.json"), Error);
+}
+
+}  // namespace
+}  // namespace kestrel
+
+namespace kestrel {
+namespace {
+
+// A views file's suggested lighting (what `kestrel run` / `view` use without lighting flags):
+// read beside the scene, the shared Sponza's is the sun; bad entries name the file.
+TEST(Lights, ViewsFilesSuggestLighting) {
+  const std::filesystem::path dir =
+      std::filesystem::temp_directory_path() / "kestrel_suggested_lighting";
+  std::filesystem::create_directories(dir);
+  auto with = [&](const std::string& lighting) {
+    std::ofstream(dir / "room.views.json")
+        << "{\"lighting\": " << lighting << ", \"views\": {}}";
+    return suggested_lighting((dir / "room.obj").string());
+  };
+  const auto l = with(R"({"sun": "10,40,5", "sky": true})");
+  ASSERT_TRUE(l.has_value());
+  EXPECT_EQ(l->sun, "10,40,5");
+  EXPECT_TRUE(l->sky);
+  EXPECT_TRUE(l->env.empty());
+  for (const char* bad : {R"("sun")", R"({"sun": 3})", R"({"sun": "0,120"})",
+                          R"({"sky": "yes"})", R"({"lamp": 1})"}) {
+    try {
+      with(bad);
+      ADD_FAILURE() << bad << " was accepted";
+    } catch (const Error& e) {
+      EXPECT_NE(std::string(e.what()).find("room.views.json"), std::string::npos) << e.what();
+    }
+  }
+  std::filesystem::remove(dir / "room.views.json");
+  EXPECT_FALSE(suggested_lighting((dir / "room.obj").string()).has_value());
+  const auto sponza = suggested_lighting("dabrovic_sponza/sponza.obj");  // data/views
+  ASSERT_TRUE(sponza.has_value());
+  EXPECT_FALSE(sponza->sun.empty());
+  EXPECT_FALSE(suggested_lighting("builtin:cornell_box").has_value());
 }
 
 }  // namespace
