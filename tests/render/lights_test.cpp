@@ -336,8 +336,7 @@ TEST(Lights, ViewsFilesSuggestLighting) {
       std::filesystem::temp_directory_path() / "kestrel_suggested_lighting";
   std::filesystem::create_directories(dir);
   auto with = [&](const std::string& lighting) {
-    std::ofstream(dir / "room.views.json")
-        << "{\"lighting\": " << lighting << ", \"views\": {}}";
+    std::ofstream(dir / "room.views.json") << "{\"lighting\": " << lighting << ", \"views\": {}}";
     return suggested_lighting((dir / "room.obj").string());
   };
   const auto l = with(R"({"sun": "10,40,5", "sky": true})");
@@ -345,8 +344,8 @@ TEST(Lights, ViewsFilesSuggestLighting) {
   EXPECT_EQ(l->sun, "10,40,5");
   EXPECT_TRUE(l->sky);
   EXPECT_TRUE(l->env.empty());
-  for (const char* bad : {R"("sun")", R"({"sun": 3})", R"({"sun": "0,120"})",
-                          R"({"sky": "yes"})", R"({"lamp": 1})"}) {
+  for (const char* bad : {R"("sun")", R"({"sun": 3})", R"({"sun": "0,120"})", R"({"sky": "yes"})",
+                          R"({"lamp": 1})"}) {
     try {
       with(bad);
       ADD_FAILURE() << bad << " was accepted";
