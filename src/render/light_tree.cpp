@@ -17,19 +17,49 @@ void LightTree::build(const std::vector<Item>& items) {
   for (uint32_t i = 0; i < ids.size(); ++i) ids[i] = i;
   nodes_.reserve(2 * items.size());
   build(ids, 0, ids.size(), items, -1);
-  children_.assign(nodes_.size(), Children{});
-  for (size_t i = 0; i < nodes_.size(); ++i) {
-    if (nodes_[i].left < 0) continue;
-    Children& c = children_[i];
-    for (int k = 0; k < 2; ++k) {
-      const Node& n = nodes_[size_t(k ? nodes_[i].right : nodes_[i].left)];
-      const Vec3 m = center(n.box), half = extent(n.box) * 0.5f;
-      c.cx[k] = m.x, c.cy[k] = m.y, c.cz[k] = m.z, c.r2[k] = dot(half, half);
-      c.power[k] = n.power;
-      c.child[k] = k ? nodes_[i].right : nodes_[i].left;
-      c.light[k] = n.left < 0 ? n.light : -1;
+  wide_.clear();
+  slot_.assign(items.size(), {-1, 0});
+  if (nodes_[0].left >= 0) make_wide(0, -1, 0);
+}
+
+// The wide node for binary inner node `node`: its grandchildren (or children that are leaves).
+int32_t LightTree::make_wide(int32_t node, int32_t parent, int32_t slot) {
+  const int32_t index = int32_t(wide_.size());
+  wide_.push_back(Wide{});
+  int32_t kids[4];
+  int n = 0;
+  for (int32_t c : {nodes_[size_t(node)].left, nodes_[size_t(node)].right}) {
+    const Node& cn = nodes_[size_t(c)];
+    if (cn.left < 0) {
+      kids[n++] = c;
+    } else {
+      kids[n++] = cn.left;
+      kids[n++] = cn.right;
     }
   }
+  Wide w;
+  w.parent = parent, w.slot = slot, w.count = n;
+  for (int k = 0; k < 4; ++k) {
+    w.cx[k] = w.cy[k] = w.cz[k] = w.r2[k] = w.power[k] = 0;
+    w.child[k] = -1;
+  }
+  for (int k = 0; k < n; ++k) {
+    const Node& cn = nodes_[size_t(kids[k])];
+    const Vec3 m = center(cn.box), half = extent(cn.box) * 0.5f;
+    w.cx[k] = m.x, w.cy[k] = m.y, w.cz[k] = m.z, w.r2[k] = dot(half, half);
+    w.power[k] = cn.power;
+    if (cn.left < 0) {
+      w.child[k] = -1 - cn.light;
+      slot_[size_t(cn.light)] = {index, k};
+    }
+  }
+  wide_[size_t(index)] = w;
+  for (int k = 0; k < n; ++k)
+    if (nodes_[size_t(kids[k])].left >= 0) {
+      const int32_t child = make_wide(kids[k], index, k);
+      wide_[size_t(index)].child[k] = child;
+    }
+  return index;
 }
 
 int32_t LightTree::build(std::vector<uint32_t>& ids, size_t begin, size_t end,
@@ -67,50 +97,61 @@ int32_t LightTree::build(std::vector<uint32_t>& ids, size_t begin, size_t end,
   return index;
 }
 
-// importance_k = power_k / max(|x - centre_k|^2, r2_k); the left child's share of the two,
-// with one division: power_0 d_1 / (power_0 d_1 + power_1 d_0).
-namespace {
-template <class Children>
-inline __attribute__((always_inline)) float split(const Children& c, Vec3 x) {
-  float d[2];
-  for (int k = 0; k < 2; ++k) {
-    const float dx = x.x - c.cx[k], dy = x.y - c.cy[k], dz = x.z - c.cz[k];
-    d[k] = std::max(dx * dx + dy * dy + dz * dz, c.r2[k]);
+// importance_k = power_k / max(|x - centre_k|^2, r2_k) (an unused slot has power 0).
+float LightTree::importances(const Wide& w, Vec3 x, float imp[4]) const {
+  float sum = 0;
+  for (int k = 0; k < 4; ++k) {
+    const float dx = x.x - w.cx[k], dy = x.y - w.cy[k], dz = x.z - w.cz[k];
+    const float d = std::max(dx * dx + dy * dy + dz * dz, w.r2[k]);
+    imp[k] = d > 0 ? w.power[k] / d : w.power[k] * 1e30f;
+    sum += imp[k];
   }
-  const float a = c.power[0] * d[1], sum = a + c.power[1] * d[0];
-  return sum > 0 && sum < INFINITY ? a / sum : 0.5f;
-}
-}  // namespace
-
-float LightTree::left_probability(size_t at, Vec3 x) const {
-  return split(children_[at], x);
+  return sum;
 }
 
 size_t LightTree::sample(Vec3 x, float u, float& pmf) const {
   pmf = 1;
-  if (nodes_[0].left < 0) return size_t(nodes_[0].light);
-  const Children* all = children_.data();
+  if (wide_.empty()) return size_t(nodes_[0].light);
   for (size_t at = 0;;) {
-    const Children& c = all[at];
-    const float p = split(c, x);
-    const bool right = !(u < p);
-    const float share = right ? 1 - p : p;
-    u = std::min((right ? u - p : u) / share, 0.99999994f);
+    const Wide& w = wide_[at];
+    float imp[4];
+    const float sum = importances(w, x, imp);
+    const int n = w.count;
+    int k = 0;
+    float share = 0;
+    if (sum > 0 && sum < INFINITY) {
+      const float target = u * sum;
+      float before = 0;
+      while (k < n - 1 && before + imp[k] <= target) before += imp[k++];
+      while (imp[k] <= 0 && k > 0) before -= imp[--k];  // rounding past the last nonzero one
+      share = imp[k] / sum;
+      u = std::clamp((target - before) / imp[k], 0.0f, 0.99999994f);
+    } else {  // degenerate importances: uniform over the children
+      k = std::min(int(u * float(n)), n - 1);
+      share = 1.0f / float(n);
+      u = std::min(u * float(n) - float(k), 0.99999994f);
+    }
     pmf *= share;
-    const int32_t light = c.light[right], child = c.child[right];
-    if (light >= 0) return size_t(light);
-    at = size_t(child);
+    const int32_t c = w.child[k];
+    if (c < 0) return size_t(-1 - c);
+    at = size_t(c);
   }
 }
 
 float LightTree::pmf(Vec3 x, size_t i) const {
   if (i >= leaf_of_.size() || leaf_of_[i] < 0) return 0;
+  if (wide_.empty()) return 1;
   float pmf = 1;
-  int32_t child = leaf_of_[i];
-  for (int32_t at = nodes_[size_t(child)].parent; at >= 0;
-       child = at, at = nodes_[size_t(at)].parent) {
-    const float p = left_probability(size_t(at), x);
-    pmf *= nodes_[size_t(at)].left == child ? p : 1 - p;
+  for (auto [at, slot] = slot_[i]; at >= 0;) {
+    const Wide& w = wide_[size_t(at)];
+    float imp[4];
+    const float sum = importances(w, x, imp);
+    if (sum > 0 && sum < INFINITY) {
+      pmf *= imp[slot] / sum;
+    } else {
+      pmf *= 1.0f / float(w.count);
+    }
+    slot = w.slot, at = w.parent;
   }
   return pmf;
 }

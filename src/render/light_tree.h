@@ -3,9 +3,11 @@
 // without the orientation cones. A node's importance at x is its power over the squared
 // distance from x to its box's centre, the distance clamped below by the box's half
 // diagonal (so a point inside a cluster does not divide by zero); one light is reached by a
-// walk from the root that picks a child in proportion to importance.
+// walk from the root that picks a child in proportion to importance, over 4-wide nodes (a
+// binary tree built by median splits, read two levels at a time).
 #pragma once
 #include <cstdint>
+#include <utility>
 #include <vector>
 
 #include "kestrel/types.h"
@@ -34,19 +36,23 @@ class LightTree {
     int32_t light = -1;             // a leaf's light
     int32_t parent = -1;
   };
-  // An inner node's two children as importance needs them (one cache line per level).
-  struct Children {
-    float cx[2], cy[2], cz[2], r2[2], power[2];  // box centre, squared half diagonal, power
-    int32_t child[2];
-    int32_t light[2];  // a leaf child's light, else -1
+  // The walk runs over 4-wide nodes (the binary tree's nodes two levels at a time): half the
+  // steps, the four importances of a step independent of one another.
+  struct Wide {
+    float cx[4], cy[4], cz[4], r2[4], power[4];  // box centre, squared half diagonal, power
+    int32_t child[4];                            // a wide node, or -1 - light for a light
+    int32_t count = 0;                           // children used (2 to 4)
+    int32_t parent = -1, slot = 0;               // where this node sits in its parent
   };
-  // The probability of going to the left child of inner node `at` at x.
-  float left_probability(size_t at, Vec3 x) const;
+  // Importances of a wide node's children at x; returns their sum.
+  float importances(const Wide& w, Vec3 x, float imp[4]) const;
+  int32_t make_wide(int32_t node, int32_t parent, int32_t slot);
   int32_t build(std::vector<uint32_t>& ids, size_t begin, size_t end,
                 const std::vector<Item>& items, int32_t parent);
   std::vector<Node> nodes_;
-  std::vector<Children> children_;  // per node (unused for leaves)
-  std::vector<int32_t> leaf_of_;
+  std::vector<Wide> wide_;
+  std::vector<int32_t> leaf_of_;                   // light -> binary leaf node
+  std::vector<std::pair<int32_t, int32_t>> slot_;  // light -> (wide node, slot)
 };
 
 }  // namespace kestrel::render
