@@ -228,23 +228,16 @@ bool Renderer::Impl::sample_light(const Surface& sf, const Basis& frame, Vec3 wo
     le = sun_radiance;
     dir = wi;
   } else {
-    const float u = local_light_count() == 1 ? 0.5f : (ul - p_env - p_sun) / (1 - p_env - p_sun);
-    float local_pick = 0;
-    size_t li = 0;
-    if (tree) {
-      li = light_tree.sample(origin, u, local_pick);
-    } else {
-      li = light_dist.sample(u);
-      local_pick = light_dist.pmf(li);
-    }
-    if (li >= lights.size()) {                 // a punctual light: a delta, no MIS
-      pdf = (1 - p_env - p_sun) * local_pick;  // a probability, not a density
+    const LightDraw d =
+        local_light_sample(origin, tree, (ul - p_env - p_sun) / (1 - p_env - p_sun), u1, u2);
+    const size_t li = d.y.id;
+    if (li >= lights.size()) {  // a punctual light: a delta, no MIS
+      pdf = d.pdf;              // a probability, not a density
       delta = true;
       if (!punctual_light(punctual[li - lights.size()], origin, wi, dir, le, tmax)) return false;
     } else {
       const LightTri& l = lights[li];
-      const float su = std::sqrt(u1);
-      const float lb1 = u2 * su, lb2 = 1 - su;  // weights of vertices 1 and 2
+      const float lb1 = d.y.v.x, lb2 = d.y.v.y;  // weights of vertices 1 and 2
       const Vec3 q = l.p0 + l.e1 * lb1 + l.e2 * lb2;
       dir = q - origin;
       const float dist2 = dot(dir, dir);
@@ -254,7 +247,7 @@ bool Renderer::Impl::sample_light(const Surface& sf, const Basis& frame, Vec3 wo
       const InstanceShade& lis = instances[l.instance];
       const Material& lm = material_of(*lis.mesh, l.prim);
       le = emission_at(lm, uv_at(*lis.mesh, l.prim, lb1, lb2));
-      pdf = light_pdf_of(li, dist2, cos_l, local_pick);
+      pdf = cos_l > 0 && l.area > 0 ? d.pdf * dist2 / cos_l : 0.0f;  // area -> solid angle
       tmax = 1.0f - 1e-3f;
     }
   }

@@ -20,15 +20,7 @@ constexpr float kAlbedo = 0.5f;
 
 // A 40 x 40 Lambertian plane at z = -5 facing +z (the camera at the origin looks at it).
 Scene plane() {
-  Scene s;
-  s.source = "test:lit_plane";
-  s.materials = {Material{.name = "white", .base_color = {kAlbedo, kAlbedo, kAlbedo}}};
-  TriangleMesh m;
-  m.positions = {{-20, -20, -5}, {20, -20, -5}, {20, 20, -5}, {-20, 20, -5}};
-  m.indices = {0, 1, 2, 0, 2, 3};
-  m.material_ids = {0, 0};
-  s.meshes.push_back(m);
-  return s;
+  return test::lit_plane(kAlbedo, "test:lit_plane");
 }
 
 // The radiance of the pixel looking straight at (x, y, -5) (one pixel, no jitter), direct

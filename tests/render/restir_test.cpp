@@ -8,6 +8,7 @@
 #include <cstdio>
 
 #include "kestrel/kestrel.h"
+#include "support/oracles.h"
 
 namespace kestrel {
 namespace {
@@ -17,15 +18,7 @@ constexpr float kAlbedo = 0.5f;
 
 // A 40 x 40 Lambertian plane at z = -5 facing +z.
 Scene plane() {
-  Scene s;
-  s.source = "test:restir_plane";
-  s.materials = {Material{.name = "white", .base_color = {kAlbedo, kAlbedo, kAlbedo}}};
-  TriangleMesh m;
-  m.positions = {{-20, -20, -5}, {20, -20, -5}, {20, 20, -5}, {-20, 20, -5}};
-  m.indices = {0, 1, 2, 0, 2, 3};
-  m.material_ids = {0, 0};
-  s.meshes.push_back(m);
-  return s;
+  return test::lit_plane(kAlbedo, "test:restir_plane");
 }
 
 double mean(const FloatImage& img, int y0, int y1) {

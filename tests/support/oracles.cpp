@@ -88,6 +88,18 @@ Scene closed_sphere(int subdivisions, Vec3 c, float radius) {
   return scene;
 }
 
+Scene lit_plane(float albedo, const std::string& source) {
+  Scene s;
+  s.source = source;
+  s.materials = {Material{.name = "white", .base_color = {albedo, albedo, albedo}}};
+  TriangleMesh m;
+  m.positions = {{-20, -20, -5}, {20, -20, -5}, {20, 20, -5}, {-20, 20, -5}};
+  m.indices = {0, 1, 2, 0, 2, 3};
+  m.material_ids = {0, 0};
+  s.meshes.push_back(m);
+  return s;
+}
+
 Scene closed_box(Vec3 lo, Vec3 hi) {
   Scene scene;
   scene.source = "test:box";

@@ -26,6 +26,11 @@ Scene random_soup(size_t n, float size, uint64_t seed);
 /// A closed, watertight triangulated sphere (subdivided icosahedron), vertices shared.
 Scene closed_sphere(int subdivisions, Vec3 center, float radius);
 
+/// A 40 x 40 Lambertian plane of reflectance `albedo` at z = -5 facing +z (two triangles,
+/// material "white"): lit-plane oracles, where a pixel looking straight at it sees albedo / pi
+/// x the irradiance a light gives it.
+Scene lit_plane(float albedo, const std::string& source);
+
 /// A closed axis-aligned box of 12 triangles (many rays hit its edges exactly).
 Scene closed_box(Vec3 lo, Vec3 hi);
 
