@@ -69,8 +69,9 @@ TEST(Cli, BadInputIsAOneLineErrorAndNonZeroExit) {
 TEST(Cli, BvhReportsMetricsAsJson) {
   const CliRun r = run("bvh builtin:cornell_box --builder sweep --threads 1 --repeat 2 --json");
   ASSERT_EQ(r.status, 0) << r.out;
-  for (const char* key : {"\"sah_cost\"", "\"build_ms\"", "\"leaf_size_histogram\"",
-                          "\"bytes_per_prim\"", "\"valid\": true"})
+  for (const char* key :
+       {"\"sah_cost\"", "\"build_ms\"", "\"leaf_size_histogram\"", "\"bytes_per_prim\"",
+        "\"valid\": true", "\"accel_build_ms\"", "\"accel_layout\""})
     EXPECT_NE(r.out.find(key), std::string::npos) << key;
 }
 
