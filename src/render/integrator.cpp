@@ -242,11 +242,8 @@ bool Renderer::Impl::sample_light(const Surface& sf, const Basis& frame, Vec3 wo
       dir = q - origin;
       const float dist2 = dot(dir, dir);
       wi = dir * (1.0f / std::sqrt(dist2));
-      Vec3 nl = cross(l.e1, l.e2);
-      const float cos_l = std::fabs(dot(normalize(nl), wi));
-      const InstanceShade& lis = instances[l.instance];
-      const Material& lm = material_of(*lis.mesh, l.prim);
-      le = emission_at(lm, uv_at(*lis.mesh, l.prim, lb1, lb2));
+      const float cos_l = std::fabs(dot(l.normal, wi));
+      le = light_emission(l, lb1, lb2);
       pdf = cos_l > 0 && l.area > 0 ? d.pdf * dist2 / cos_l : 0.0f;  // area -> solid angle
       tmax = 1.0f - 1e-3f;
     }

@@ -56,7 +56,8 @@ void Renderer::Impl::sync_lights() {
       Vec3 p0, p1, p2;
       world_triangle(is, p, p0, p1, p2);
       const float area = 0.5f * length(cross(p1 - p0, p2 - p0));
-      lights.push_back({i, p, p0, p1 - p0, p2 - p0, area});
+      lights.push_back({i, p, p0, p1 - p0, p2 - p0, area, normalize(cross(p1 - p0, p2 - p0)),
+                        &material_of(*is.mesh, p)});
       power.push_back(area > 0 ? luminance(material_of(*is.mesh, p).emission) * area * 2 * pi
                                : 0.0f);
     }

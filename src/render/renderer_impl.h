@@ -172,7 +172,15 @@ struct Renderer::Impl {
     uint32_t instance, prim;
     Vec3 p0, e1, e2;
     float area;
+    Vec3 normal;          // unit, of cross(e1, e2)
+    const Material* mat;  // its material (materials outlive the lights: sync)
   };
+  // The emission of light l at barycentrics (b1, b2).
+  Vec3 light_emission(const LightTri& l, float b1, float b2) const {
+    if (l.mat->emission_texture < 0) return l.mat->emission;
+    const TriangleMesh& m = *instances[l.instance].mesh;
+    return emission_at(*l.mat, uv_at(m, l.prim, b1, b2));
+  }
 
   const InstancedScene* scene = nullptr;  // referenced: it outlives the renderer
   uint64_t generation = 0;                // the scene's commit the shading data are of

@@ -62,9 +62,8 @@ Vec3 Renderer::Impl::restir_eval(const RestirSurface& g, const LightRef& y, Ray*
     const float dist2 = dot(dir, dir);
     if (!(dist2 > 0)) return {0, 0, 0};
     wi = dir * (1.0f / std::sqrt(dist2));
-    const float cos_l = std::fabs(dot(normalize(cross(l.e1, l.e2)), wi));
-    const InstanceShade& lis = instances[l.instance];
-    le = emission_at(material_of(*lis.mesh, l.prim), uv_at(*lis.mesh, l.prim, y.v.x, y.v.y));
+    const float cos_l = std::fabs(dot(l.normal, wi));
+    le = light_emission(l, y.v.x, y.v.y);
     geometry = cos_l / dist2;
     tmax = 1.0f - 1e-3f;
   } else if (y.id < local_light_count()) {
@@ -135,7 +134,7 @@ void Renderer::Impl::restir_candidates(const RenderSettings& s, int x0, int y0, 
         for (int x = bx; x < bx + bw; ++x) {
           const size_t i = size_t(y) * size_t(w) + size_t(x);
           if (!surf[i].valid) continue;
-          const bool own = !similar(surf[i], *g);
+          const bool own = tree && !similar(surf[i], *g);  // power: the same everywhere
           const Vec3 own_origin = offset_origin(surf[i].p, surf[i].ng);
           Reservoir r;
           Rng& pr = rngs[i];
