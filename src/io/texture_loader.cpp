@@ -39,15 +39,16 @@ bool drop_empty_png_idat(const unsigned char* p, size_t n, std::string& out) {
   bool dropped = false;
   size_t at = 8;
   std::string kept(reinterpret_cast<const char*>(p), 8);
-  while (at + 12 <= n) {
+  while (at + 8 <= n) {  // a chunk's length and type are there (its data and CRC may not be)
     const size_t length =
         (size_t(p[at]) << 24) | (size_t(p[at + 1]) << 16) | (size_t(p[at + 2]) << 8) | p[at + 3];
-    if (length > n - at - 12) break;  // malformed: the rest goes as it is and stb_image reports it
-    const bool empty_idat = length == 0 && std::memcmp(p + at + 4, "IDAT", 4) == 0;
-    if (empty_idat)
-      dropped = true;
-    else
-      kept.append(reinterpret_cast<const char*>(p + at), 12 + length);
+    if (length == 0 && std::memcmp(p + at + 4, "IDAT", 4) == 0) {
+      dropped = true;  // also when the file ends inside its CRC: stb_image reads no further
+      at += std::min<size_t>(12, n - at);
+      continue;
+    }
+    if (at + 12 > n || length > n - at - 12) break;  // malformed: the rest goes as it is
+    kept.append(reinterpret_cast<const char*>(p + at), 12 + length);
     at += 12 + length;
   }
   if (!dropped) return false;
