@@ -21,6 +21,8 @@ const char* embree_quality_name(EmbreeQuality q) {
       return "MEDIUM";
     case EmbreeQuality::high:
       return "HIGH";
+    case EmbreeQuality::refit:
+      return "REFIT";
   }
   return "?";
 }
@@ -51,8 +53,11 @@ struct EmbreeScene::Impl {
     release_scene();
     memory_before_build = memory.load();
     scene = rtcNewScene(device);
-    rtcSetSceneBuildQuality(scene, quality);
-    rtcSetSceneFlags(scene, RTC_SCENE_FLAG_NONE);
+    // REFIT is a geometry quality: Embree refits a geometry's BVH only under its two-level
+    // builder, which a dynamic LOW-quality scene selects.
+    const bool refit = quality == RTC_BUILD_QUALITY_REFIT;
+    rtcSetSceneBuildQuality(scene, refit ? RTC_BUILD_QUALITY_LOW : quality);
+    rtcSetSceneFlags(scene, refit ? RTC_SCENE_FLAG_DYNAMIC : RTC_SCENE_FLAG_NONE);
     RTCGeometry geom = rtcNewGeometry(device, RTC_GEOMETRY_TYPE_TRIANGLE);
     rtcSetGeometryBuildQuality(geom, quality);
     rtcSetSharedGeometryBuffer(geom, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3, vertices.data(),
@@ -78,6 +83,7 @@ EmbreeScene::EmbreeScene(const Scene& scene, EmbreeQuality quality, int threads)
   rtcSetDeviceMemoryMonitorFunction(m.device, memory_monitor, &m.memory);
   m.quality = quality == EmbreeQuality::low      ? RTC_BUILD_QUALITY_LOW
               : quality == EmbreeQuality::medium ? RTC_BUILD_QUALITY_MEDIUM
+              : quality == EmbreeQuality::refit  ? RTC_BUILD_QUALITY_REFIT
                                                  : RTC_BUILD_QUALITY_HIGH;
   const SceneValidation validation = validate_scene(scene);
   size_t gid = 0;
@@ -105,6 +111,24 @@ EmbreeScene::~EmbreeScene() {
 double EmbreeScene::rebuild() {
   return impl_->build();
 }
+double EmbreeScene::update_vertices(std::span<const Vec3> positions) {
+  Impl& m = *impl_;
+  if (positions.size() != (m.vertices.size() - 1) / 3)
+    throw std::runtime_error("Embree peer: update_vertices got a different vertex count");
+  for (size_t i = 0; i < positions.size(); ++i) {
+    m.vertices[3 * i + 0] = std::isfinite(positions[i].x) ? positions[i].x : 0.0f;
+    m.vertices[3 * i + 1] = std::isfinite(positions[i].y) ? positions[i].y : 0.0f;
+    m.vertices[3 * i + 2] = std::isfinite(positions[i].z) ? positions[i].z : 0.0f;
+  }
+  RTCGeometry geom = rtcGetGeometry(m.scene, 0);
+  rtcUpdateGeometryBuffer(geom, RTC_BUFFER_TYPE_VERTEX, 0);
+  rtcCommitGeometry(geom);
+  Timer t;
+  rtcCommitScene(m.scene);
+  m.build_ms = t.ms();
+  return m.build_ms;
+}
+
 double EmbreeScene::last_build_ms() const {
   return impl_->build_ms;
 }

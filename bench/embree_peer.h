@@ -9,8 +9,9 @@
 
 namespace kestrel::peer {
 
-/// Embree's build qualities (RTC_BUILD_QUALITY_LOW / MEDIUM / HIGH).
-enum class EmbreeQuality { low, medium, high };
+/// Embree's build qualities (RTC_BUILD_QUALITY_LOW / MEDIUM / HIGH / REFIT: the geometry's
+/// BVH is refitted, not rebuilt, when its vertices change).
+enum class EmbreeQuality { low, medium, high, refit };
 const char* embree_quality_name(EmbreeQuality q);
 
 /// An Embree device + scene over the valid triangles of a kestrel scene (invalid triangles
@@ -26,6 +27,9 @@ class EmbreeScene {
   /// Builds (rtcCommitScene) again from scratch and returns its wall time in ms.
   double rebuild();
   double last_build_ms() const;
+  /// New vertex positions (every mesh's, concatenated in scene order), then rtcCommitScene:
+  /// a refit for EmbreeQuality::refit. Returns rtcCommitScene's wall time in ms.
+  double update_vertices(std::span<const Vec3> positions);
   Hit intersect(const Ray& ray) const;
   /// Any hit: t is set to tmax's hit marker (Embree reports no distance for occlusion):
   /// returns a Hit whose prim_id is 0 (not a real id) when occluded, else a miss.

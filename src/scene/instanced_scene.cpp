@@ -311,9 +311,7 @@ CommitStats InstancedScene::commit() {
     }
     bool rebuild = false;
     try {
-      refit_accel(m.blas, m.scene);
-      const double sah = s.layout == Layout::bvh4 ? wide_sah_cost(m.blas.nodes->bvh4)
-                                                  : wide_sah_cost(m.blas.nodes->bvh8);
+      const double sah = refit_accel_cost(m.blas, m.scene);
       rebuild = sah > double(s.config.refit_sah_factor) * m.sah_built;
     } catch (const Error&) {
       rebuild = true;  // a triangle became invalid (or valid): the tree must be rebuilt

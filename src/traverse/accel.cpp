@@ -1,8 +1,10 @@
 // Scene -> Accel: validation, prim refs, the BVH, then either triangles copied into leaf
 // order (bvh2) or the collapse to a wide layout; refit of an existing Accel.
 #include <fmt/format.h>
+#include <xmmintrin.h>
 
 #include <algorithm>
+#include <cmath>
 #include <cstring>
 
 #include "core/parallel.h"
@@ -104,56 +106,104 @@ Accel build_accel(const Scene& scene, const BuildConfig& config) {
 
 namespace {
 // Wide layouts: every block lane is re-read from its mesh by prim id (it must still have
-// finite vertices and valid indices); the boxes are recomputed in the same pass.
+// finite vertices and valid indices); the block pass then recomputes the boxes. Blocks are in
+// tree order and vertices in mesh order, so each lane's index and vertex reads are gathers:
+// the indices are prefetched 16 blocks ahead (measured on the Lamborghini: 1.4x faster; also
+// prefetching the vertices was not), and a block's 12 vertices become its 9 coordinate rows by
+// three 4x4 transposes. Padding lanes repeat a prim id, so gathering them repeats the lane as the
+// layout wants.
 class BlockRewriter {
  public:
-  explicit BlockRewriter(const Scene& scene) : scene_(scene), one_mesh_(scene.meshes.size() == 1) {
+  explicit BlockRewriter(const Scene& scene) : scene_(scene) {
     size_t offset = 0;
     for (const TriangleMesh& mesh : scene.meshes) {
       first_.push_back(offset);
       offset += mesh.triangle_count();
     }
   }
-  void operator()(TriangleBlock& blk) const {
-    for (int lane = 0; lane < 4; ++lane) {
-      const uint32_t id = blk.prim_id[lane] & ~block_last_bit;
-      if (lane > 0 &&
-          id == (blk.prim_id[lane - 1] & ~block_last_bit)) {  // padding: repeat the lane
-        for (int k = 0; k < 3; ++k)
-          for (int a = 0; a < 3; ++a) blk.v[k][a][lane] = blk.v[k][a][lane - 1];
-        continue;
-      }
-      const size_t m = one_mesh_
-                           ? 0
-                           : size_t(std::upper_bound(first_.begin(), first_.end(), size_t(id)) -
-                                    first_.begin()) -
-                                 1;
-      const TriangleMesh& mesh = scene_.meshes[m];
-      const size_t t = id - first_[m];
-      // A triangle that became NaN/Inf or lost a vertex cannot stay; one that became
-      // degenerate can (no ray hits it), so only finiteness and indices are checked.
-      const uint32_t* idx = &mesh.indices[3 * t];
-      const size_t nv = mesh.positions.size();
-      if (idx[0] >= nv || idx[1] >= nv || idx[2] >= nv || !is_finite(mesh.positions[idx[0]]) ||
-          !is_finite(mesh.positions[idx[1]]) || !is_finite(mesh.positions[idx[2]]))
-        throw Error(
-            ErrorCode::invalid_argument,
-            fmt::format(
-                "refit: triangle {} is no longer valid (NaN/Inf vertex or bad index); rebuild",
-                id));
-      write_block_lane(blk, lane,
-                       {mesh.positions[idx[0]], mesh.positions[idx[1]], mesh.positions[idx[2]]});
+  uint32_t operator()(std::span<TriangleBlock> blocks) const {
+    if (scene_.meshes.size() == 1) {
+      const TriangleMesh& mesh = scene_.meshes[0];
+      return rewrite(
+          blocks, [&](uint32_t) { return &mesh; }, [](uint32_t id) { return id; });
     }
+    const auto mesh_index = [&](uint32_t id) {
+      return size_t(std::upper_bound(first_.begin(), first_.end(), size_t(id)) - first_.begin()) -
+             1;
+    };
+    return rewrite(
+        blocks, [&](uint32_t id) { return &scene_.meshes[mesh_index(id)]; },
+        [&](uint32_t id) { return id - first_[mesh_index(id)]; });
   }
 
  private:
+  static constexpr size_t index_ahead = 16;
+
+  static uint32_t lane_id(const TriangleBlock& b, int lane) {
+    return b.prim_id[lane] & ~block_last_bit;
+  }
+
+  // Vertex v of a mesh as x, y, z, (junk): a 16-byte load unless it is the last vertex.
+  static __m128 load_vertex(const TriangleMesh& mesh, uint32_t v) {
+    const float* p = &mesh.positions[v].x;
+    return v + 1 < mesh.positions.size() ? _mm_loadu_ps(p) : _mm_setr_ps(p[0], p[1], p[2], 0.0f);
+  }
+
+  template <class MeshOf, class LocalId>
+  static uint32_t rewrite(std::span<TriangleBlock> blocks, const MeshOf& mesh_of,
+                          const LocalId& local) {
+    uint32_t bad = ~0u;
+    for (size_t b = 0; b < blocks.size(); ++b) {
+      if (b + index_ahead < blocks.size())
+        for (int lane = 0; lane < 4; ++lane) {
+          const uint32_t id = lane_id(blocks[b + index_ahead], lane);
+          __builtin_prefetch(mesh_of(id)->indices.data() + 3 * size_t(local(id)));
+        }
+      TriangleBlock& blk = blocks[b];
+      __m128 rows[3][4];  // [vertex k][lane] as x, y, z, junk
+      bool indices_ok = true;
+      for (int lane = 0; lane < 4; ++lane) {
+        const uint32_t id = lane_id(blk, lane);
+        const TriangleMesh& mesh = *mesh_of(id);
+        const size_t t = local(id), nv = mesh.positions.size();
+        const uint32_t* idx = &mesh.indices[3 * t];
+        if (idx[0] >= nv || idx[1] >= nv || idx[2] >= nv) {
+          indices_ok = false;
+          bad = std::min(bad, id);
+          break;
+        }
+        for (int k = 0; k < 3; ++k) rows[k][lane] = load_vertex(mesh, idx[k]);
+      }
+      if (!indices_ok) continue;
+      __m128 nonfinite = _mm_setzero_ps();  // x * 0 is NaN exactly for NaN / Inf x
+      for (int k = 0; k < 3; ++k) {
+        _MM_TRANSPOSE4_PS(rows[k][0], rows[k][1], rows[k][2], rows[k][3]);
+        for (int a = 0; a < 3; ++a) {
+          _mm_storeu_ps(blk.v[k][a], rows[k][a]);
+          nonfinite = _mm_add_ps(nonfinite, _mm_mul_ps(rows[k][a], _mm_setzero_ps()));
+        }
+      }
+      if (_mm_movemask_ps(_mm_cmpunord_ps(nonfinite, nonfinite)) != 0)
+        for (int lane = 0; lane < 4; ++lane)
+          for (int k = 0; k < 3; ++k)
+            if (!std::isfinite(blk.v[k][0][lane]) || !std::isfinite(blk.v[k][1][lane]) ||
+                !std::isfinite(blk.v[k][2][lane]))
+              bad = std::min(bad, lane_id(blk, lane));
+    }
+    return bad;
+  }
+
   const Scene& scene_;
-  bool one_mesh_;
   std::vector<size_t> first_;
 };
 }  // namespace
 
 void refit_accel(Accel& accel, const Scene& scene) {
+  refit_accel_cost(accel, scene);
+}
+
+double refit_accel_cost(Accel& accel, const Scene& scene) {
+  double cost = 0;
   const size_t count = scene.triangle_count();
   if (count != accel.validation.valid.size())
     throw Error(
@@ -163,10 +213,10 @@ void refit_accel(Accel& accel, const Scene& scene) {
   Bounds3 box;
   switch (accel.layout) {
     case Layout::bvh4:
-      refit_wide(accel.nodes->bvh4, BlockRewriter(scene));
+      cost = refit_wide(accel.nodes->bvh4, BlockRewriter(scene));
       break;
     case Layout::bvh8:
-      refit_wide(accel.nodes->bvh8, BlockRewriter(scene));
+      cost = refit_wide(accel.nodes->bvh8, BlockRewriter(scene));
       break;
     default: {
       SceneValidation now = validate_scene(scene);
@@ -191,6 +241,7 @@ void refit_accel(Accel& accel, const Scene& scene) {
     box = {accel.nodes->bvh.nodes[0].lo, accel.nodes->bvh.nodes[0].hi};
   }
   accel.bounds = box;
+  return cost;
 }
 
 }  // namespace kestrel

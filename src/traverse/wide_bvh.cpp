@@ -2,9 +2,11 @@
 
 #include <algorithm>
 #include <cmath>
-#include <functional>
 #include <vector>
 
+#include <fmt/format.h>
+
+#include "core/parallel.h"
 #include "core/simd/vec4f.h"
 #include "kestrel/error.h"
 
@@ -223,37 +225,113 @@ float hmax(simd::Vec4f v) {
 }
 
 template <int W, class Wide>
-void refit_nodes(Wide& bvh, const std::function<void(TriangleBlock&)>& rewrite) {
+Bounds3 root_bounds(const Wide& bvh) {
+  Bounds3 box;
+  if (bvh.empty()) return box;
+  const auto& r = bvh.nodes[0];
+  for (int j = 0; j < W; ++j)
+    if (r.child[j] != wide_empty) {
+      grow(box, {r.bounds[0][j], r.bounds[2][j], r.bounds[4][j]});
+      grow(box, {r.bounds[1][j], r.bounds[3][j], r.bounds[5][j]});
+    }
+  return box;
+}
+
+// One leaf block's box and whether it ends its leaf: what the node pass needs, written by the
+// block pass so the node pass never goes back to the (cold) blocks.
+struct BlockBox {
+  float lo[3];
+  uint32_t last;
+  float hi[3];
+  uint32_t pad;
+};
+
+// Pass 1, over the blocks in memory order (chunks in parallel): new vertices, then the
+// block's box while it is hot. Returns the smallest invalid prim id met, or ~0u.
+uint32_t refit_blocks(std::span<TriangleBlock> blocks, std::span<BlockBox> boxes,
+                      BlockRewrite rewrite) {
   using simd::Vec4f;
+  constexpr size_t grain = 2048;
+  const size_t chunks = chunk_count(blocks.size(), grain);
+  std::vector<uint32_t> bad(chunks, ~0u);
+  parallel_for(0, chunks, 1, [&](size_t c0, size_t c1) {
+    for (size_t c = c0; c < c1; ++c) {
+      const size_t b0 = c * grain, b1 = std::min(blocks.size(), b0 + grain);
+      bad[c] = rewrite(blocks.subspan(b0, b1 - b0));
+      for (size_t b = b0; b < b1; ++b) {
+        const TriangleBlock& blk = blocks[b];
+        BlockBox& out = boxes[b];
+        for (int a = 0; a < 3; ++a) {  // one row per vertex and axis: 4 lanes at once
+          const Vec4f v0 = Vec4f::load(blk.v[0][a]), v1 = Vec4f::load(blk.v[1][a]),
+                      v2 = Vec4f::load(blk.v[2][a]);
+          out.lo[a] = hmin(min(min(v0, v1), v2));
+          out.hi[a] = hmax(max(max(v0, v1), v2));
+        }
+        out.last = blk.prim_id[0] & block_last_bit;
+      }
+    }
+  });
+  uint32_t first_bad = ~0u;
+  for (uint32_t b : bad) first_bad = std::min(first_bad, b);
+  return first_bad;
+}
+
+double slot_area(float dx, float dy, float dz) {
+  return double(dx) * dy + double(dy) * dz + double(dz) * dx;
+}
+
+// Pass 2, bottom-up over the nodes (children follow their parent in the array): each slot's
+// box from its child node or its leaf's block boxes; the SAH cost on the way.
+template <int W, class Wide>
+double refit_nodes(Wide& bvh, BlockRewrite rewrite) {
+  using simd::Vec4f;
+  if (bvh.empty()) return 0;
+  std::vector<BlockBox> boxes(bvh.blocks.size());
+  const uint32_t bad = refit_blocks({bvh.blocks.data(), bvh.blocks.size()}, boxes, rewrite);
+  if (bad != ~0u)
+    throw Error(
+        ErrorCode::invalid_argument,
+        fmt::format("refit: triangle {} is no longer valid (NaN/Inf vertex or bad index); rebuild",
+                    bad));
   const float inf = INFINITY;
+  double cost = 0;
+  std::vector<BlockBox> node_box(bvh.nodes.size());  // each node's box, once its slots are set
+  constexpr size_t ahead = 4;  // leaf block boxes are gathers: prefetch a few nodes ahead
   for (size_t i = bvh.nodes.size(); i-- > 0;) {
+    if (i >= ahead)
+      for (const uint32_t ref : bvh.nodes[i - ahead].child)
+        if (ref != wide_empty && (ref & wide_leaf_bit))
+          __builtin_prefetch(&boxes[ref & ~wide_leaf_bit]);
     auto& node = bvh.nodes[i];
+    float nlo[3] = {inf, inf, inf}, nhi[3] = {-inf, -inf, -inf};
     for (int j = 0; j < W; ++j) {
       const uint32_t ref = node.child[j];
       if (ref == wide_empty) continue;
-      float lo[3] = {inf, inf, inf}, hi[3] = {-inf, -inf, -inf};
-      if (ref & wide_leaf_bit) {
-        for (TriangleBlock* blk = &bvh.blocks[ref & ~wide_leaf_bit];; ++blk) {
-          rewrite(*blk);                 // new vertices, then their box, while the block is hot
-          for (int a = 0; a < 3; ++a) {  // one row per vertex and axis: 4 lanes at once
-            const Vec4f v0 = Vec4f::load(blk->v[0][a]), v1 = Vec4f::load(blk->v[1][a]),
-                        v2 = Vec4f::load(blk->v[2][a]);
-            lo[a] = std::min(lo[a], hmin(min(min(v0, v1), v2)));
-            hi[a] = std::max(hi[a], hmax(max(max(v0, v1), v2)));
+      float lo[3], hi[3];
+      double weight = 1;
+      const BlockBox* b = ref & wide_leaf_bit ? &boxes[ref & ~wide_leaf_bit] : &node_box[ref];
+      for (int a = 0; a < 3; ++a) lo[a] = b->lo[a], hi[a] = b->hi[a];
+      if (ref & wide_leaf_bit)
+        for (; !b->last; weight += 1) {
+          ++b;
+          for (int a = 0; a < 3; ++a) {
+            lo[a] = std::min(lo[a], b->lo[a]);
+            hi[a] = std::max(hi[a], b->hi[a]);
           }
-          if (blk->prim_id[0] & block_last_bit) break;
         }
-      } else {
-        const auto& c = bvh.nodes[ref];
-        for (int a = 0; a < 3; ++a)
-          for (int l = 0; l < W; l += 4) {  // empty slots hold +inf / -inf: they never win
-            lo[a] = std::min(lo[a], hmin(Vec4f::loadu(&c.bounds[2 * a][l])));
-            hi[a] = std::max(hi[a], hmax(Vec4f::loadu(&c.bounds[2 * a + 1][l])));
-          }
-      }
       set_slot<W>(node, j, Bounds3{{lo[0], lo[1], lo[2]}, {hi[0], hi[1], hi[2]}}, ref);
+      cost += weight * slot_area(hi[0] - lo[0], hi[1] - lo[1], hi[2] - lo[2]);
+      for (int a = 0; a < 3; ++a) {
+        nlo[a] = std::min(nlo[a], lo[a]);
+        nhi[a] = std::max(nhi[a], hi[a]);
+      }
     }
+    BlockBox& nb = node_box[i];
+    for (int a = 0; a < 3; ++a) nb.lo[a] = nlo[a], nb.hi[a] = nhi[a];
   }
+  const Bounds3 box = root_bounds<W>(bvh);
+  const double root = slot_area(box.hi.x - box.lo.x, box.hi.y - box.lo.y, box.hi.z - box.lo.z);
+  return root > 0 ? 1.0 + cost / root : 1.0;
 }
 
 }  // namespace
@@ -269,11 +347,11 @@ Bvh4 collapse_to_bvh4(const Bvh2& bvh, std::span<const Triangle> t, uint32_t max
 Bvh8 collapse_to_bvh8(const Bvh2& bvh, std::span<const Triangle> t, uint32_t max_leaf) {
   return collapse<8, Bvh8Node, Bvh8>(bvh, t, max_leaf);
 }
-void refit_wide(Bvh4& bvh, const std::function<void(TriangleBlock&)>& rewrite) {
-  refit_nodes<4>(bvh, rewrite);
+double refit_wide(Bvh4& bvh, BlockRewrite rewrite) {
+  return refit_nodes<4>(bvh, rewrite);
 }
-void refit_wide(Bvh8& bvh, const std::function<void(TriangleBlock&)>& rewrite) {
-  refit_nodes<8>(bvh, rewrite);
+double refit_wide(Bvh8& bvh, BlockRewrite rewrite) {
+  return refit_nodes<8>(bvh, rewrite);
 }
 
 namespace {
@@ -294,19 +372,6 @@ Buffer<Node> collapse_instance_tree(const Bvh2& bvh) {
     return wide_leaf_bit | bvh.prim_ids[bvh.nodes[leaf].index];
   });
   return nodes;
-}
-
-template <int W, class Wide>
-Bounds3 root_bounds(const Wide& bvh) {
-  Bounds3 box;
-  if (bvh.empty()) return box;
-  const auto& r = bvh.nodes[0];
-  for (int j = 0; j < W; ++j)
-    if (r.child[j] != wide_empty) {
-      grow(box, {r.bounds[0][j], r.bounds[2][j], r.bounds[4][j]});
-      grow(box, {r.bounds[1][j], r.bounds[3][j], r.bounds[5][j]});
-    }
-  return box;
 }
 
 template <int W, class Wide>

@@ -1,7 +1,8 @@
 // Bvh2 -> Bvh4 / Bvh8 collapse and refit of the wide layouts.
 #pragma once
-#include <functional>
 #include <span>
+
+#include "core/parallel.h"
 
 #include "kestrel/trace.h"
 #include "traverse/accel_nodes.h"
@@ -19,11 +20,16 @@ Bvh8 collapse_to_bvh8(const Bvh2& bvh, std::span<const Triangle> leaf_triangles,
 
 /// Writes a triangle's vertices into one lane of a block (its prim id and flags are kept).
 void write_block_lane(TriangleBlock& block, int lane, const Triangle& triangle);
-/// Recomputes every node box bottom-up (children always follow their parent in the node
-/// array), calling rewrite(block) on every leaf block just before reading its vertices, so
-/// new vertices and new boxes take one pass over the blocks.
-void refit_wide(Bvh4& bvh, const std::function<void(TriangleBlock&)>& rewrite);
-void refit_wide(Bvh8& bvh, const std::function<void(TriangleBlock&)>& rewrite);
+/// Writes new vertices into a run of leaf blocks (a contiguous part of bvh.blocks; runs are
+/// disjoint and may be rewritten in parallel). Returns the smallest prim id whose triangle can
+/// no longer be traced (NaN/Inf vertex, bad index), or ~0u.
+using BlockRewrite = FunctionRef<uint32_t(std::span<TriangleBlock>)>;
+/// Refit in two passes: every block rewritten and boxed in memory order (prefetch-friendly,
+/// chunks in parallel), then every node box bottom-up (children follow their parent in the
+/// node array) from its children's boxes. Throws naming the triangle if rewrite reports one.
+/// Returns the refitted tree's SAH cost: wide_sah_cost(bvh) afterwards, summed in another order.
+double refit_wide(Bvh4& bvh, BlockRewrite rewrite);
+double refit_wide(Bvh8& bvh, BlockRewrite rewrite);
 
 /// A wide tree over instances: bvh's leaves hold one primitive each (max_leaf_size = 1), and
 /// become child references wide_leaf_bit | prim_id.
@@ -39,6 +45,9 @@ Bounds3 wide_bounds(const Bvh8& bvh);
 /// after its last full build.
 double wide_sah_cost(const Bvh4& bvh);
 double wide_sah_cost(const Bvh8& bvh);
+
+/// refit_accel that also returns the refitted tree's SAH cost (wide_sah_cost; 0 for bvh2).
+double refit_accel_cost(Accel& accel, const Scene& scene);
 
 /// Recomputes a Bvh2's boxes from triangles in leaf order.
 void refit_bvh2(Bvh2& bvh, std::span<const Triangle> leaf_triangles);

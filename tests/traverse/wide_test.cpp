@@ -3,6 +3,8 @@
 // agree on hit or miss. Refit against a fresh build and brute force; layout byte sizes.
 #include <gtest/gtest.h>
 
+#include <cstring>
+
 #include <cmath>
 #include <cstring>
 
@@ -13,6 +15,7 @@
 #include "kestrel/kestrel.h"
 #include "support/oracles.h"
 #include "traverse/accel_nodes.h"
+#include "traverse/wide_bvh.h"
 
 namespace kestrel {
 namespace {
@@ -288,6 +291,40 @@ TEST(Dispatch, IsaNamesAndUnsupportedIsaIsAnError) {
   std::vector<Ray> rays(3);
   std::vector<Hit> hits(2);
   EXPECT_THROW(trace(a, rays, hits), Error);  // sizes differ
+}
+
+// The two-pass refit: the SAH it returns is wide_sah_cost of the result, and the nodes and
+// blocks are the same bytes for one thread and two (blocks are rewritten in parallel chunks).
+TEST(Refit, ReturnsTheSahCostAndIsThreadCountIndependent) {
+  Scene scene = test::random_soup(40000, 0.02f, 9);
+  for (Layout layout : {Layout::bvh4, Layout::bvh8}) {
+    Scene moving = scene;
+    for (Vec3& p : moving.meshes[0].positions) p = {p.x * 1.1f, p.y + 0.05f * p.x * p.z, p.z};
+    Accel one = build(scene, Builder::binned, layout), two = build(scene, Builder::binned, layout);
+    double cost_one, cost_two;
+    {
+      ThreadLimit limit(1);
+      cost_one = refit_accel_cost(one, moving);
+    }
+    {
+      ThreadLimit limit(2);
+      cost_two = refit_accel_cost(two, moving);
+    }
+    EXPECT_EQ(cost_one, cost_two);
+    const auto same_bytes = [](const auto& a, const auto& b) {
+      return a.size() == b.size() && std::memcmp(a.data(), b.data(), sizeof(a[0]) * a.size()) == 0;
+    };
+    if (layout == Layout::bvh4) {
+      EXPECT_NEAR(cost_one, wide_sah_cost(one.nodes->bvh4), 1e-12 * cost_one);
+      EXPECT_TRUE(same_bytes(one.nodes->bvh4.nodes, two.nodes->bvh4.nodes));
+      EXPECT_TRUE(same_bytes(one.nodes->bvh4.blocks, two.nodes->bvh4.blocks));
+    } else {
+      EXPECT_NEAR(cost_one, wide_sah_cost(one.nodes->bvh8), 1e-12 * cost_one);
+      EXPECT_TRUE(same_bytes(one.nodes->bvh8.nodes, two.nodes->bvh8.nodes));
+      EXPECT_TRUE(same_bytes(one.nodes->bvh8.blocks, two.nodes->bvh8.blocks));
+    }
+    EXPECT_GT(cost_one, 1.0);
+  }
 }
 
 }  // namespace
