@@ -17,6 +17,8 @@
 #include <filesystem>
 #include <fstream>
 #include <memory>
+#include <optional>
+#include <random>
 #include <sstream>
 
 #include "common/ray_gen.h"
@@ -191,14 +193,26 @@ int main(int argc, char** argv) {
           {name, accel.prim_count,
            double(accel.memory_bytes()) / double(std::max<size_t>(1, accel.prim_count)), 0});
 #endif
+      // The diffuse rays again in a random order (a renderer's rays after compaction or
+      // sorting by material): what the stream mode is for; and any hit along them.
+      std::vector<Ray> shuffled = diffuse;
+      std::shuffle(shuffled.begin(), shuffled.end(), std::mt19937(11));
       struct Kind {
         const char* name;
         const std::vector<Ray>* rays;
         bool any_hit, packets;
+        std::optional<bool> stream = {};
       };
+      // The library's default takes the stream for the diffuse sets (>= 16 k incoherent
+      // rays); the "-nostream" rows trace the same rays in the caller's order.
       const Kind kinds[] = {{"primary", &primary, false, false},
                             {"shadow", &shadow, true, false},
                             {"diffuse", &diffuse, false, false},
+                            {"diffuse-nostream", &diffuse, false, false, false},
+                            {"diffuse-shuffled", &shuffled, false, false},
+                            {"shuffled-nostream", &shuffled, false, false, false},
+                            {"diffuse-any", &diffuse, true, false},
+                            {"any-nostream", &diffuse, true, false, false},
                             {"primary-packets", &primary, false, true}};
       for (const Kind& kind : kinds) {
         const std::vector<Ray>& rays = *kind.rays;
@@ -209,6 +223,7 @@ int main(int argc, char** argv) {
           if (kind.packets && variants[vi].layout == Layout::bvh2) continue;
           TraceOptions opt = variants[vi].options;
           if (kind.packets) opt.packets = true;
+          if (kind.stream) opt.stream = kind.stream;
           std::vector<double> a_ms, b_ms;
           for (int r = 0; r < repeat; ++r) {
             Timer ta;

@@ -81,6 +81,14 @@ struct TraceOptions {
   /// rays that look coherent (groups of 8 whose directions share signs and dominant axis:
   /// camera rays, shadow rays towards one light).
   std::optional<bool> packets;
+  /// Stream mode (wide layouts): the batch is traced in an order that groups rays by
+  /// direction octant, origin and direction (groups of up to 2^20 rays sorted by a 40-bit
+  /// key), as packets unless `packets` is false, and each hit is returned in the caller's
+  /// order: the same hits as single rays. Default: on for closest-hit batches of at least
+  /// 2^18 incoherent rays whose consecutive origins lie far apart (shuffled, compacted or
+  /// material-sorted bounces) over a tree of at least 4 MB, where it measured 1.3-1.5x
+  /// faster; off otherwise (pixel-order bounces gain nothing, small scenes and any hit lose).
+  std::optional<bool> stream;
 };
 
 /// Closest hit along the ray (watertight, Woop et al. 2013), or a miss. When several

@@ -492,30 +492,40 @@ void bind_geometry(py::module_& m) {
   m.def(
       "trace",
       [](std::shared_ptr<Accel> accel, py::handle rays, bool any_hit,
-         std::optional<std::string> isa, std::optional<bool> packets, int threads, py::object out) {
+         std::optional<std::string> isa, std::optional<bool> packets, int threads, py::object out,
+         std::optional<bool> stream) {
         return fields_of(
             ray_query<Hit>(rays, out, hit_dtype(), "kestrel.hit_dtype", isa, packets, threads,
                            [&](std::span<const Ray> r, std::span<Hit> hits, const TraceOptions& o) {
-                             trace(*accel, r, hits, any_hit, o);
+                             TraceOptions with = o;
+                             with.stream = stream;
+                             trace(*accel, r, hits, any_hit, with);
                            }));
       },
       py::arg("accel"), py::arg("rays"), py::arg("any_hit") = false, py::arg("isa") = py::none(),
       py::arg("packets") = py::none(), py::arg("threads") = 0, py::arg("out") = py::none(),
+      py::arg("stream") = py::none(),
       "Closest (or any) hits of (N, 8) float32 rays (org, dir, tmin, tmax): a dict of t, prim_id, "
       "u, v "
       "(views of one record array of kestrel.hit_dtype, or of out=). A miss: t = inf, prim_id = "
-      "invalid_id.");
+      "invalid_id. stream=True traces the batch reordered by origin and direction (same hits, "
+      "in the caller's order); None: kestrel's default (TraceOptions::stream).");
 
   m.def(
       "occluded",
       [](std::shared_ptr<Accel> accel, py::handle rays, std::optional<std::string> isa,
-         std::optional<bool> packets, int threads, py::object out) {
-        return ray_query<uint8_t>(rays, out, py::dtype("?"), "bool", isa, packets, threads,
-                                  [&](std::span<const Ray> r, std::span<uint8_t> flags,
-                                      const TraceOptions& o) { occluded(*accel, r, flags, o); });
+         std::optional<bool> packets, int threads, py::object out, std::optional<bool> stream) {
+        return ray_query<uint8_t>(
+            rays, out, py::dtype("?"), "bool", isa, packets, threads,
+            [&](std::span<const Ray> r, std::span<uint8_t> flags, const TraceOptions& o) {
+              TraceOptions with = o;
+              with.stream = stream;
+              occluded(*accel, r, flags, with);
+            });
       },
       py::arg("accel"), py::arg("rays"), py::arg("isa") = py::none(),
       py::arg("packets") = py::none(), py::arg("threads") = 0, py::arg("out") = py::none(),
+      py::arg("stream") = py::none(),
       "Whether each ray hits anything in (tmin, tmax): a bool array (N,) (or out=).");
 }
 

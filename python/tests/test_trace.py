@@ -102,9 +102,13 @@ def test_every_layout_and_isa_gives_the_same_hits(soup, layout):
         if not kestrel.isa_supported(isa):
             continue
         for packets in (False, True):
-            hits = kestrel.trace(accel, rays, isa=isa, packets=packets)
-            assert np.array_equal(bits(hits["t"]), bits(reference["t"])), (layout, isa, packets)
-            assert np.array_equal(hits["prim_id"], reference["prim_id"]), (layout, isa, packets)
+            for stream in (False, True):  # stream: reordered by origin and direction
+                hits = kestrel.trace(accel, rays, isa=isa, packets=packets, stream=stream)
+                what = (layout, isa, packets, stream)
+                assert np.array_equal(bits(hits["t"]), bits(reference["t"])), what
+                assert np.array_equal(hits["prim_id"], reference["prim_id"]), what
+        occluded = kestrel.occluded(accel, rays, isa=isa, stream=True)
+        assert np.array_equal(occluded, reference["prim_id"] != kestrel.invalid_id), (layout, isa)
 
 
 def test_rays_are_read_in_place_and_out_is_written_in_place(soup):

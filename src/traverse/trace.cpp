@@ -12,6 +12,7 @@
 #include "traverse/accel_nodes.h"
 #include "traverse/batches.h"
 #include "traverse/kernels.h"
+#include "traverse/stream.h"
 #include "traverse/traverse_bvh2.h"
 
 namespace kestrel {
@@ -123,6 +124,66 @@ bool looks_coherent(std::span<const Ray> rays) {
   return groups > 0 && coherent * 4 >= groups * 3;
 }
 
+// Stream mode: each group ordered (stream.h), gathered and traced in chunks, hits written
+// back. The gather and the write-back are random accesses: prefetched 16 rays ahead.
+void trace_stream(const Accel& accel, std::span<const Ray> rays, bool any_hit,
+                  const kernels::Table& k, bool packets,
+                  FunctionRef<void(size_t caller, const Hit& hit)> put,
+                  FunctionRef<void(size_t caller)> prefetch_put) {
+  RawArray<uint32_t> order;
+  RawArray<uint64_t> scratch;
+  for (size_t g0 = 0; g0 < rays.size(); g0 += stream_group) {
+    const auto group = rays.subspan(g0, std::min(stream_group, rays.size() - g0));
+    stream_order(group, accel.bounds, order, scratch);
+    parallel_for(0, group.size(), 1024, [&](size_t b, size_t e) {
+      constexpr size_t chunk = 256, ahead = 16;
+      Ray sorted[chunk];
+      Hit local[chunk];
+      for (size_t i = b; i < e; i += chunk) {
+        const size_t n = std::min(chunk, e - i);
+        for (size_t j = 0; j < n; ++j) {
+          if (i + j + ahead < e) __builtin_prefetch(&group[order[i + j + ahead]]);
+          sorted[j] = group[order[i + j]];
+        }
+        trace_range(accel, std::span<const Ray>(sorted, n), std::span(local, n), any_hit, k,
+                    packets);
+        for (size_t j = 0; j < n; ++j) {
+          if (j + ahead < n) prefetch_put(g0 + order[i + j + ahead]);
+          put(g0 + order[i + j], local[j]);
+        }
+      }
+    });
+  }
+}
+
+// Whether consecutive rays start far apart: sampled neighbour pairs whose origins are more
+// than 1/64 of the scene's diagonal apart, in the majority. A renderer's bounces in pixel
+// order start close to each other; rays compacted, sorted by material or shuffled do not.
+bool origins_unordered(std::span<const Ray> rays, const Bounds3& box) {
+  const Vec3 d = box.hi - box.lo;
+  const float near2 = (d.x * d.x + d.y * d.y + d.z * d.z) / (64.0f * 64.0f);
+  const size_t step = std::max<size_t>(1, rays.size() / 4096);
+  size_t pairs = 0, far = 0;
+  for (size_t i = 0; i + 1 < rays.size(); i += step) {
+    const Vec3 a = rays[i].org, b = rays[i + 1].org, e = b - a;
+    ++pairs;
+    far += !(e.x * e.x + e.y * e.y + e.z * e.z <= near2);  // NaN counts as far
+  }
+  return 2 * far > pairs;
+}
+
+// The stream's default (closest hit only; measured in docs/benchmarks.md): it pays where the
+// tree is larger than the caches, the batch large and its rays unordered; pixel-order bounces
+// trace as fast without it, small scenes and batches slower with it, and so does any hit.
+bool use_stream(const Accel& accel, std::span<const Ray> rays, bool any_hit,
+                const TraceOptions& options) {
+  if (accel.layout == Layout::bvh2) return false;
+  if (options.stream) return *options.stream;
+  return !any_hit && !options.packets && rays.size() >= stream_min_rays &&
+         accel.memory_bytes() >= stream_min_accel_bytes && !looks_coherent(rays) &&
+         origins_unordered(rays, accel.bounds);
+}
+
 void check_sizes(size_t rays, size_t out) {
   if (rays != out)
     throw Error(ErrorCode::invalid_argument,
@@ -150,6 +211,13 @@ void trace(const Accel& accel, std::span<const Ray> rays, std::span<Hit> hits, b
   const Isa isa = options.isa.value_or(default_isa());
   require_supported(isa);
   const kernels::Table& k = kernels::table_for(isa);
+  if (use_stream(accel, rays, any_hit, options)) {
+    trace_stream(
+        accel, rays, any_hit, k, options.packets.value_or(true),
+        [&](size_t i, const Hit& h) { hits[i] = h; },
+        [&](size_t i) { __builtin_prefetch(&hits[i], 1); });
+    return;
+  }
   parallel_for(0, rays.size(), 1024, [&](size_t b, size_t e) {
     const auto chunk = rays.subspan(b, e - b);
     const bool packets = options.packets.value_or(looks_coherent(chunk));
@@ -168,6 +236,13 @@ void occluded(const Accel& accel, std::span<const Ray> rays, std::span<uint8_t> 
   const Isa isa = options.isa.value_or(default_isa());
   require_supported(isa);
   const kernels::Table& k = kernels::table_for(isa);
+  if (use_stream(accel, rays, true, options)) {
+    trace_stream(
+        accel, rays, true, k, options.packets.value_or(true),
+        [&](size_t i, const Hit& h) { out[i] = h.hit(); },
+        [&](size_t i) { __builtin_prefetch(&out[i], 1); });
+    return;
+  }
   parallel_for(0, rays.size(), 1024, [&](size_t b, size_t e) {
     Hit local[256];
     for (size_t i = b; i < e; i += 256) {

@@ -15,6 +15,7 @@
 #include "kestrel/kestrel.h"
 #include "support/oracles.h"
 #include "traverse/accel_nodes.h"
+#include "traverse/stream.h"
 #include "traverse/wide_bvh.h"
 
 namespace kestrel {
@@ -47,26 +48,32 @@ void expect_same_as_reference(const Scene& scene, std::span<const Ray> rays, Bui
     for (Isa isa : test::supported_isas()) {
       SCOPED_TRACE(what + " " + layout_name(layout) + " " + isa_name(isa) + " " +
                    builder_name(builder));
-      for (bool packets : {false, true}) {
+      for (int mode = 0; mode < 4; ++mode) {  // packets off / on, stream off / on
+        const bool packets = mode & 1, stream = mode & 2;
         std::vector<Hit> got(rays.size());
         TraceOptions opt;
         opt.isa = isa;
         opt.packets = packets;
+        opt.stream = stream;
         trace(wide, rays, got, opt);
         for (size_t i = 0; i < rays.size(); ++i) {
-          ASSERT_EQ(got[i].prim_id, want[i].prim_id) << "ray " << i << " packets " << packets;
+          ASSERT_EQ(got[i].prim_id, want[i].prim_id)
+              << "ray " << i << " packets " << packets << " stream " << stream;
           ASSERT_EQ(bits(got[i].t), bits(want[i].t))
               << "ray " << i << " t " << got[i].t << " vs " << want[i].t;
           ASSERT_EQ(got[i].u, want[i].u) << "ray " << i;
           ASSERT_EQ(got[i].v, want[i].v) << "ray " << i;
         }
       }
-      std::vector<uint8_t> occ(rays.size());
-      TraceOptions opt;
-      opt.isa = isa;
-      occluded(wide, rays, occ, opt);
-      for (size_t i = 0; i < rays.size(); ++i)
-        ASSERT_EQ(bool(occ[i]), want_any[i].hit()) << "ray " << i;
+      for (bool stream : {false, true}) {
+        std::vector<uint8_t> occ(rays.size());
+        TraceOptions opt;
+        opt.isa = isa;
+        opt.stream = stream;
+        occluded(wide, rays, occ, opt);
+        for (size_t i = 0; i < rays.size(); ++i)
+          ASSERT_EQ(bool(occ[i]), want_any[i].hit()) << "ray " << i << " stream " << stream;
+      }
     }
   }
   EXPECT_GT(hits, rays.size() / 20) << what;  // the comparison is not vacuous
@@ -325,6 +332,83 @@ TEST(Refit, ReturnsTheSahCostAndIsThreadCountIndependent) {
     }
     EXPECT_GT(cost_one, 1.0);
   }
+}
+
+// Stream mode: the same hits, in the caller's
+// order, as single rays, for closest and any hit, on 1 and 2 threads, with untraceable rays
+// and origins outside the scene box.
+TEST(StreamMode, IncoherentBatchesGetTheSameHitsInTheCallersOrder) {
+  const Scene scene = test::random_soup(4000, 0.1f, 21);
+  std::vector<Ray> rays = test::random_rays(60000, 22);
+  for (size_t i = 0; i < rays.size(); i += 997) rays[i].org.x = std::nanf("");
+  for (size_t i = 5; i < rays.size(); i += 1009) rays[i].org = rays[i].org * 40.0f;
+  for (size_t i = 7; i < rays.size(); i += 1013) rays[i].dir = {0, 0, 0};
+  const Accel accel = build(scene, Builder::binned, Layout::bvh8);
+  TraceOptions single;
+  single.stream = false;
+  single.packets = false;
+  std::vector<Hit> want(rays.size()), want_any(rays.size());
+  trace(accel, rays, want, false, single);
+  trace(accel, rays, want_any, true, single);
+  size_t hits = 0;
+  for (const Hit& h : want) hits += h.hit();
+  EXPECT_GT(hits, rays.size() / 20);
+  for (int threads : {1, 2}) {
+    ThreadLimit limit(threads);
+    TraceOptions stream;
+    stream.stream = true;
+    std::vector<Hit> got(rays.size());
+    trace(accel, rays, got, stream);
+    std::vector<uint8_t> occ(rays.size());
+    occluded(accel, rays, occ, stream);
+    for (size_t i = 0; i < rays.size(); ++i) {
+      ASSERT_EQ(got[i].prim_id, want[i].prim_id) << "ray " << i << " threads " << threads;
+      ASSERT_EQ(bits(got[i].t), bits(want[i].t)) << "ray " << i;
+      ASSERT_EQ(bits(got[i].u), bits(want[i].u)) << "ray " << i;
+      ASSERT_EQ(bool(occ[i]), want_any[i].hit()) << "ray " << i;
+    }
+  }
+}
+
+// More rays than one sort group holds: the second group's hits land in their own slots.
+TEST(StreamMode, BatchesLargerThanOneGroup) {
+  const Scene scene = test::random_soup(64, 0.3f, 4);
+  const std::vector<Ray> rays = test::random_rays(stream_group + 40000, 6);
+  const Accel accel = build(scene, Builder::binned, Layout::bvh8);
+  TraceOptions single, stream;
+  single.stream = false;
+  stream.stream = true;
+  std::vector<Hit> want(rays.size()), got(rays.size());
+  trace(accel, rays, want, single);
+  trace(accel, rays, got, stream);
+  size_t hits = 0;
+  for (size_t i = 0; i < rays.size(); ++i) {
+    ASSERT_EQ(got[i].prim_id, want[i].prim_id) << "ray " << i;
+    ASSERT_EQ(bits(got[i].t), bits(want[i].t)) << "ray " << i;
+    hits += got[i].hit();
+  }
+  EXPECT_GT(hits, rays.size() / 50);
+}
+
+TEST(StreamMode, OrderIsAPermutationGroupingOctants) {
+  const std::vector<Ray> rays = test::random_rays(50000, 5);
+  Bounds3 box{{-1, -1, -1}, {1, 1, 1}};
+  RawArray<uint32_t> order;
+  RawArray<uint64_t> scratch;
+  stream_order(rays, box, order, scratch);
+  ASSERT_EQ(order.size(), rays.size());
+  std::vector<uint8_t> seen(rays.size());
+  int octant_changes = 0, last = -1;
+  for (uint32_t i : order) {
+    ASSERT_LT(i, rays.size());
+    ASSERT_FALSE(seen[i]) << "index " << i << " twice";
+    seen[i] = 1;
+    const Vec3& d = rays[i].dir;
+    const int oct = std::signbit(d.x) | std::signbit(d.y) << 1 | std::signbit(d.z) << 2;
+    octant_changes += oct != last;
+    last = oct;
+  }
+  EXPECT_LE(octant_changes, 8);  // octant is the key's top field
 }
 
 }  // namespace
