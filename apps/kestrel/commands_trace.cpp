@@ -17,7 +17,7 @@ namespace {
 struct TraceArgs {
   std::string scene, rays_path, hits_path;
   BuildOptions build;
-  std::string layout = "auto", isa = "auto", packets = "auto";
+  std::string layout = "auto", isa = "auto", packets = "auto", stream = "auto";
   bool any_hit = false;
   int repeat = 3;
 };
@@ -57,6 +57,13 @@ void run_trace(const TraceArgs& a) {
   else if (a.packets != "auto")
     throw Error(ErrorCode::invalid_argument,
                 fmt::format("--packets '{}': expected auto, on or off", a.packets));
+  if (a.stream == "on")
+    options.stream = true;
+  else if (a.stream == "off")
+    options.stream = false;
+  else if (a.stream != "auto")
+    throw Error(ErrorCode::invalid_argument,
+                fmt::format("--stream '{}': expected auto, on or off", a.stream));
   std::unique_ptr<ThreadLimit> limit;
   if (a.build.threads > 0) limit = std::make_unique<ThreadLimit>(a.build.threads);
   const std::vector<Ray> rays = read_rays(a.rays_path);
@@ -130,6 +137,9 @@ Action add_trace_command(CLI::App& cmd) {
   cmd.add_option("--packets", args->packets,
                  "auto | on | off: trace closest-hit rays in packets (16 rays per packet with "
                  "AVX-512, 8 otherwise)");
+  cmd.add_option("--stream", args->stream,
+                 "auto | on | off: trace the batch reordered by origin and direction (same hits, "
+                 "in the file's order); auto: for large unordered incoherent batches");
   args->build.add_to(cmd);
   return [args] { run_trace(*args); };
 }
