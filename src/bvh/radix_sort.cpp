@@ -1,6 +1,7 @@
 #include "bvh/radix_sort.h"
 
 #include <algorithm>
+#include <array>
 #include <vector>
 
 #include "core/parallel.h"
@@ -130,6 +131,29 @@ void radix_sort(RawArray<uint64_t>& keys, RawArray<uint32_t>& values, int key_bi
         v = r.value;
       },
       [](const KeyValue64& r) { return r.key; });
+}
+
+uint64_t* radix_sort_packed(uint64_t* a, uint64_t* b, size_t n, int first_bit, int key_bits) {
+  const int passes = (key_bits + 7) / 8;
+  std::vector<std::array<uint32_t, 256>> start(static_cast<size_t>(passes));
+  for (auto& s : start) s.fill(0);
+  for (size_t i = 0; i < n; ++i)  // every digit's counts in one read
+    for (int p = 0; p < passes; ++p) ++start[p][(a[i] >> (first_bit + 8 * p)) & 0xFF];
+  for (int p = 0; p < passes; ++p) {
+    uint32_t sum = 0;
+    bool one_digit = false;
+    for (uint32_t& s : start[p]) {
+      const uint32_t c = s;
+      one_digit |= c == n;
+      s = sum;
+      sum += c;
+    }
+    if (one_digit) continue;  // every record has the same digit: the pass would move nothing
+    const int shift = first_bit + 8 * p;
+    for (size_t i = 0; i < n; ++i) b[start[p][(a[i] >> shift) & 0xFF]++] = a[i];
+    std::swap(a, b);
+  }
+  return a;
 }
 
 }  // namespace kestrel

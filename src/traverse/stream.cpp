@@ -1,10 +1,10 @@
 #include "traverse/stream.h"
 
 #include <algorithm>
-#include <array>
 #include <cmath>
 
 #include "bvh/morton.h"
+#include "bvh/radix_sort.h"
 #include "core/parallel.h"
 
 namespace kestrel {
@@ -53,23 +53,7 @@ void stream_order(std::span<const Ray> rays, const Bounds3& box, RawArray<uint32
   parallel_for(0, n, 8192, [&](size_t i0, size_t i1) {
     for (size_t i = i0; i < i1; ++i) a[i] = key(rays[i]) << index_bits | i;
   });
-  // Serial LSD passes: every digit's counts in one read, then one scatter per digit. At this
-  // machine's one-core speed the scatter is memory-bound; splitting it would not pay.
-  constexpr int passes = key_bits / 8;
-  std::array<std::array<uint32_t, 256>, passes> start{};
-  for (size_t i = 0; i < n; ++i)
-    for (int p = 0; p < passes; ++p) ++start[p][(a[i] >> (index_bits + 8 * p)) & 0xFF];
-  for (int p = 0; p < passes; ++p) {
-    uint32_t sum = 0;
-    for (uint32_t& s : start[p]) {
-      const uint32_t c = s;
-      s = sum;
-      sum += c;
-    }
-    const int shift = index_bits + 8 * p;
-    for (size_t i = 0; i < n; ++i) b[start[p][(a[i] >> shift) & 0xFF]++] = a[i];
-    std::swap(a, b);
-  }
+  a = radix_sort_packed(a, b, n, index_bits, key_bits);
   order.resize(n);
   for (size_t i = 0; i < n; ++i) order[i] = uint32_t(a[i] & ((1u << index_bits) - 1));
 }
