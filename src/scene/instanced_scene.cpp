@@ -10,12 +10,14 @@
 #include "core/file_io.h"
 #include "core/parallel.h"
 #include "core/timer.h"
+#include "core/vec.h"
 #include "geometry/triangle_intersect.h"
 #include "kestrel/error.h"
 #include "kestrel/instances.h"
 #include "scene/instance_tree.h"
 #include "traverse/batches.h"
 #include "traverse/kernels.h"
+#include "traverse/stream.h"
 #include "traverse/wide_bvh.h"
 
 namespace kestrel {
@@ -187,6 +189,7 @@ struct InstancedScene::Impl {
   Buffer<Bvh8Node> tlas8;
   std::vector<kernels::InstanceData> data;
   Buffer<PrimRef> refs;  // kept between commits: no fresh pages every frame
+  Bounds3 world;         // of the instances' world boxes, as of the last commit()
   InstanceTreeScratch tree_scratch;
 
   MeshSlot& mesh(MeshId id, const char* what) {
@@ -329,6 +332,7 @@ CommitStats InstancedScene::commit() {
   // TLAS over the instances whose mesh has triangles.
   Timer tt;
   s.data.clear();
+  s.world = Bounds3{};
   Buffer<PrimRef>& refs = s.refs;
   refs.clear();
   refs.reserve(s.instances.size());
@@ -359,6 +363,7 @@ CommitStats InstancedScene::commit() {
     PrimRef r;
     r.lo = {lo[0], lo[1], lo[2]};
     r.hi = {hi[0], hi[1], hi[2]};
+    s.world = {min(s.world.lo, r.lo), max(s.world.hi, r.hi)};
     r.prim_id = uint32_t(s.data.size());
     refs.push_back(r);
     kernels::InstanceData d;
@@ -451,12 +456,21 @@ void InstancedScene::trace(std::span<const Ray> rays, std::span<InstanceHit> hit
     }
     return;
   }
-  parallel_for(0, rays.size(), 1024, [&](size_t b, size_t e) {
-    kernels::for_each_traceable_run(rays.subspan(b, e - b), hits.data() + b,
-                                    [&](const Ray* r, InstanceHit* h, size_t n) {
-                                      q.fn(q.tlas, s.data.data(), r, h, n, ray_mask);
-                                    });
-  });
+  const auto run = [&](std::span<const Ray> r, InstanceHit* h) {
+    kernels::for_each_traceable_run(r, h, [&](const Ray* rr, InstanceHit* hh, size_t n) {
+      q.fn(q.tlas, s.data.data(), rr, hh, n, ray_mask);
+    });
+  };
+  if (stream_by_default(rays, s.world, memory_bytes(), false, options)) {  // traverse/stream.h
+    for_each_stream_chunk(rays, s.world, [&](const Ray* r, const uint32_t* callers, size_t n) {
+      InstanceHit local[stream_chunk];
+      run(std::span<const Ray>(r, n), local);
+      for (size_t j = 0; j < n; ++j) hits[callers[j]] = local[j];
+    });
+    return;
+  }
+  parallel_for(0, rays.size(), 1024,
+               [&](size_t b, size_t e) { run(rays.subspan(b, e - b), hits.data() + b); });
 }
 
 void InstancedScene::occluded(std::span<const Ray> rays, std::span<uint8_t> out, uint32_t ray_mask,
@@ -472,16 +486,22 @@ void InstancedScene::occluded(std::span<const Ray> rays, std::span<uint8_t> out,
     kestrel::occluded(*direct, rays, out, options);
     return;
   }
+  const auto run = [&](std::span<const Ray> r, const uint32_t* callers, size_t first) {
+    InstanceHit local[stream_chunk];
+    kernels::for_each_traceable_run(r, local, [&](const Ray* rr, InstanceHit* h, size_t m) {
+      q.fn(q.tlas, s.data.data(), rr, h, m, ray_mask);
+    });
+    for (size_t j = 0; j < r.size(); ++j) out[callers ? callers[j] : first + j] = local[j].hit();
+  };
+  if (stream_by_default(rays, s.world, memory_bytes(), true, options)) {
+    for_each_stream_chunk(rays, s.world, [&](const Ray* r, const uint32_t* callers, size_t n) {
+      run(std::span<const Ray>(r, n), callers, 0);
+    });
+    return;
+  }
   parallel_for(0, rays.size(), 1024, [&](size_t b, size_t e) {
-    InstanceHit local[256];
-    for (size_t i = b; i < e; i += 256) {
-      const size_t n = std::min<size_t>(256, e - i);
-      kernels::for_each_traceable_run(rays.subspan(i, n), local,
-                                      [&](const Ray* r, InstanceHit* h, size_t m) {
-                                        q.fn(q.tlas, s.data.data(), r, h, m, ray_mask);
-                                      });
-      for (size_t j = 0; j < n; ++j) out[i + j] = local[j].hit();
-    }
+    for (size_t i = b; i < e; i += stream_chunk)
+      run(rays.subspan(i, std::min(stream_chunk, e - i)), nullptr, i);
   });
 }
 

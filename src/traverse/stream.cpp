@@ -58,4 +58,85 @@ void stream_order(std::span<const Ray> rays, const Bounds3& box, RawArray<uint32
   for (size_t i = 0; i < n; ++i) order[i] = uint32_t(a[i] & ((1u << index_bits) - 1));
 }
 
+namespace {
+int dominant_axis(const Vec3& d) {
+  const float ax = std::fabs(d.x), ay = std::fabs(d.y), az = std::fabs(d.z);
+  return ax >= ay ? (ax >= az ? 0 : 2) : (ay >= az ? 1 : 2);
+}
+
+// Whether consecutive rays start far apart: sampled neighbour pairs whose origins are more
+// than 1/64 of the scene's diagonal apart, in the majority. A renderer's bounces in pixel
+// order start close to each other; rays compacted, sorted by material or shuffled do not.
+bool origins_unordered(std::span<const Ray> rays, const Bounds3& box) {
+  const Vec3 d = box.hi - box.lo;
+  const float near2 = (d.x * d.x + d.y * d.y + d.z * d.z) / (64.0f * 64.0f);
+  const size_t step = std::max<size_t>(1, rays.size() / 4096);
+  size_t pairs = 0, far = 0;
+  for (size_t i = 0; i + 1 < rays.size(); i += step) {
+    const Vec3 e = rays[i + 1].org - rays[i].org;
+    ++pairs;
+    far += !(e.x * e.x + e.y * e.y + e.z * e.z <= near2);  // NaN counts as far
+  }
+  return 2 * far > pairs;
+}
+}  // namespace
+
+// Coherent rays trace faster as packets: camera rays, and shadow rays from neighbouring
+// points towards one light. The default samples each chunk: a group of 8 consecutive rays
+// counts as coherent when its directions agree in sign on every axis and in their dominant
+// axis (random bounce directions almost never do); packets are used when 3 groups in 4 are.
+bool looks_coherent(std::span<const Ray> rays) {
+  size_t groups = 0, coherent = 0;
+  for (size_t g = 0; g + 8 <= rays.size(); g += 64) {
+    ++groups;
+    const Ray& a = rays[g];
+    const int axis = dominant_axis(a.dir);
+    bool same = true;
+    for (size_t k = 1; k < 8 && same; ++k) {
+      const Ray& b = rays[g + k];
+      same = std::signbit(b.dir.x) == std::signbit(a.dir.x) &&
+             std::signbit(b.dir.y) == std::signbit(a.dir.y) &&
+             std::signbit(b.dir.z) == std::signbit(a.dir.z) && dominant_axis(b.dir) == axis;
+    }
+    coherent += same;
+  }
+  return groups > 0 && coherent * 4 >= groups * 3;
+}
+
+// Measured in docs/benchmarks.md: the stream pays where the tree is larger than the caches,
+// the batch large and its rays unordered; pixel-order bounces trace as fast without it, small
+// scenes and batches slower with it, and so does any hit.
+bool stream_by_default(std::span<const Ray> rays, const Bounds3& box, size_t tree_bytes,
+                       bool any_hit, const TraceOptions& options) {
+  if (options.stream) return *options.stream;
+  return !any_hit && !options.packets && rays.size() >= stream_min_rays &&
+         tree_bytes >= stream_min_accel_bytes && !looks_coherent(rays) &&
+         origins_unordered(rays, box);
+}
+
+void for_each_stream_chunk(
+    std::span<const Ray> rays, const Bounds3& box,
+    FunctionRef<void(const Ray* rays, const uint32_t* callers, size_t n)> chunk) {
+  RawArray<uint32_t> order;
+  RawArray<uint64_t> scratch;
+  for (size_t g0 = 0; g0 < rays.size(); g0 += stream_group) {
+    const auto group = rays.subspan(g0, std::min(stream_group, rays.size() - g0));
+    stream_order(group, box, order, scratch);
+    parallel_for(0, group.size(), 1024, [&](size_t b, size_t e) {
+      constexpr size_t ahead = 16;  // the gather is random: prefetched
+      Ray sorted[stream_chunk];
+      uint32_t callers[stream_chunk];
+      for (size_t i = b; i < e; i += stream_chunk) {
+        const size_t n = std::min(stream_chunk, e - i);
+        for (size_t j = 0; j < n; ++j) {
+          if (i + j + ahead < e) __builtin_prefetch(&group[order[i + j + ahead]]);
+          sorted[j] = group[order[i + j]];
+          callers[j] = uint32_t(g0 + order[i + j]);
+        }
+        chunk(sorted, callers, n);
+      }
+    });
+  }
+}
+
 }  // namespace kestrel

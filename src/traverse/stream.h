@@ -15,6 +15,7 @@
 #include <cstdint>
 #include <span>
 
+#include "core/parallel.h"
 #include "core/raw_array.h"
 #include "kestrel/trace.h"
 
@@ -26,6 +27,26 @@ inline constexpr size_t stream_group = size_t(1) << 20;
 /// unordered rays (trace.cpp: use_stream) over a tree of at least this many bytes.
 inline constexpr size_t stream_min_rays = size_t(1) << 18;
 inline constexpr size_t stream_min_accel_bytes = size_t(4) << 20;
+
+/// Rays per chunk the stream driver hands to its caller (a stack buffer of hits fits).
+inline constexpr size_t stream_chunk = 256;
+
+/// Whether a batch looks coherent (camera rays, shadow rays towards one light): groups of 8
+/// consecutive rays whose directions share signs and dominant axis, in 3 of 4 sampled groups.
+bool looks_coherent(std::span<const Ray> rays);
+
+/// TraceOptions::stream's default for a batch over a tree of `tree_bytes` bounded by `box`:
+/// closest hit, no forced packets, >= stream_min_rays rays, not coherent, consecutive
+/// origins far apart (unordered), tree >= stream_min_accel_bytes. An explicit option wins.
+bool stream_by_default(std::span<const Ray> rays, const Bounds3& box, size_t tree_bytes,
+                       bool any_hit, const TraceOptions& options);
+
+/// The stream driver: orders each group of the batch (stream_order), gathers chunks of up
+/// to stream_chunk rays in that order and calls chunk(rays, callers, n), which traces
+/// rays[0, n) and writes hit j to the caller's slot callers[j]. Chunks run in parallel.
+void for_each_stream_chunk(
+    std::span<const Ray> rays, const Bounds3& box,
+    FunctionRef<void(const Ray* rays, const uint32_t* callers, size_t n)> chunk);
 
 /// The trace order of a group (at most stream_group rays): order[i] = caller's index.
 /// `scratch` is reused between calls.

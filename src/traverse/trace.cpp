@@ -97,91 +97,25 @@ void trace_range(const Accel& accel, std::span<const Ray> rays, std::span<Hit> h
   for (Hit& h : hits) h = Hit{};  // empty wide BVH
 }
 
-// Coherent rays trace faster as packets: camera rays, and shadow rays from neighbouring
-// points towards one light. The default samples each chunk: a group of 8 consecutive rays
-// counts as coherent when its directions agree in sign on every axis and in their dominant
-// axis (random bounce directions almost never do); packets are used when 3 groups in 4 are.
-int dominant_axis(const Vec3& d) {
-  const float ax = std::fabs(d.x), ay = std::fabs(d.y), az = std::fabs(d.z);
-  return ax >= ay ? (ax >= az ? 0 : 2) : (ay >= az ? 1 : 2);
-}
-
-bool looks_coherent(std::span<const Ray> rays) {
-  size_t groups = 0, coherent = 0;
-  for (size_t g = 0; g + 8 <= rays.size(); g += 64) {
-    ++groups;
-    const Ray& a = rays[g];
-    const int axis = dominant_axis(a.dir);
-    bool same = true;
-    for (size_t k = 1; k < 8 && same; ++k) {
-      const Ray& b = rays[g + k];
-      same = std::signbit(b.dir.x) == std::signbit(a.dir.x) &&
-             std::signbit(b.dir.y) == std::signbit(a.dir.y) &&
-             std::signbit(b.dir.z) == std::signbit(a.dir.z) && dominant_axis(b.dir) == axis;
-    }
-    coherent += same;
-  }
-  return groups > 0 && coherent * 4 >= groups * 3;
-}
-
-// Stream mode: each group ordered (stream.h), gathered and traced in chunks, hits written
-// back. The gather and the write-back are random accesses: prefetched 16 rays ahead.
+// Stream mode: the hits of each sorted chunk written back to the caller's slots.
 void trace_stream(const Accel& accel, std::span<const Ray> rays, bool any_hit,
                   const kernels::Table& k, bool packets,
                   FunctionRef<void(size_t caller, const Hit& hit)> put,
                   FunctionRef<void(size_t caller)> prefetch_put) {
-  RawArray<uint32_t> order;
-  RawArray<uint64_t> scratch;
-  for (size_t g0 = 0; g0 < rays.size(); g0 += stream_group) {
-    const auto group = rays.subspan(g0, std::min(stream_group, rays.size() - g0));
-    stream_order(group, accel.bounds, order, scratch);
-    parallel_for(0, group.size(), 1024, [&](size_t b, size_t e) {
-      constexpr size_t chunk = 256, ahead = 16;
-      Ray sorted[chunk];
-      Hit local[chunk];
-      for (size_t i = b; i < e; i += chunk) {
-        const size_t n = std::min(chunk, e - i);
-        for (size_t j = 0; j < n; ++j) {
-          if (i + j + ahead < e) __builtin_prefetch(&group[order[i + j + ahead]]);
-          sorted[j] = group[order[i + j]];
-        }
-        trace_range(accel, std::span<const Ray>(sorted, n), std::span(local, n), any_hit, k,
-                    packets);
-        for (size_t j = 0; j < n; ++j) {
-          if (j + ahead < n) prefetch_put(g0 + order[i + j + ahead]);
-          put(g0 + order[i + j], local[j]);
-        }
-      }
-    });
-  }
+  for_each_stream_chunk(rays, accel.bounds, [&](const Ray* r, const uint32_t* callers, size_t n) {
+    Hit local[stream_chunk];
+    trace_range(accel, std::span<const Ray>(r, n), std::span(local, n), any_hit, k, packets);
+    for (size_t j = 0; j < n; ++j) {
+      if (j + 16 < n) prefetch_put(callers[j + 16]);
+      put(callers[j], local[j]);
+    }
+  });
 }
 
-// Whether consecutive rays start far apart: sampled neighbour pairs whose origins are more
-// than 1/64 of the scene's diagonal apart, in the majority. A renderer's bounces in pixel
-// order start close to each other; rays compacted, sorted by material or shuffled do not.
-bool origins_unordered(std::span<const Ray> rays, const Bounds3& box) {
-  const Vec3 d = box.hi - box.lo;
-  const float near2 = (d.x * d.x + d.y * d.y + d.z * d.z) / (64.0f * 64.0f);
-  const size_t step = std::max<size_t>(1, rays.size() / 4096);
-  size_t pairs = 0, far = 0;
-  for (size_t i = 0; i + 1 < rays.size(); i += step) {
-    const Vec3 a = rays[i].org, b = rays[i + 1].org, e = b - a;
-    ++pairs;
-    far += !(e.x * e.x + e.y * e.y + e.z * e.z <= near2);  // NaN counts as far
-  }
-  return 2 * far > pairs;
-}
-
-// The stream's default (closest hit only; measured in docs/benchmarks.md): it pays where the
-// tree is larger than the caches, the batch large and its rays unordered; pixel-order bounces
-// trace as fast without it, small scenes and batches slower with it, and so does any hit.
 bool use_stream(const Accel& accel, std::span<const Ray> rays, bool any_hit,
                 const TraceOptions& options) {
-  if (accel.layout == Layout::bvh2) return false;
-  if (options.stream) return *options.stream;
-  return !any_hit && !options.packets && rays.size() >= stream_min_rays &&
-         accel.memory_bytes() >= stream_min_accel_bytes && !looks_coherent(rays) &&
-         origins_unordered(rays, accel.bounds);
+  return accel.layout != Layout::bvh2 &&
+         stream_by_default(rays, accel.bounds, accel.memory_bytes(), any_hit, options);
 }
 
 void check_sizes(size_t rays, size_t out) {

@@ -26,6 +26,37 @@ TEST(Instances, SameHitsAsTheFlattenedScene) {
   expect_matches_flattened(f.scene, f.ids, "initial");
 }
 
+// Stream mode through the TLAS: rays reordered, hits identical and in the caller's order.
+TEST(Instances, StreamModeGivesTheSameHitsInTheCallersOrder) {
+  Fixture f = make_fixture();
+  f.scene.commit();
+  const std::vector<Ray> rays = rays_through(f.scene.flatten(), 20000, 23);
+  TraceOptions off, on;
+  off.stream = false;
+  on.stream = true;
+  std::vector<InstanceHit> want(rays.size());
+  std::vector<uint8_t> want_occ(rays.size());
+  f.scene.trace(rays, want, 0xFFFFFFFFu, off);
+  f.scene.occluded(rays, want_occ, 0xFFFFFFFFu, off);
+  size_t hits = 0;
+  for (const InstanceHit& h : want) hits += h.hit();
+  EXPECT_GT(hits, rays.size() / 10);
+  for (int threads : {1, 2}) {
+    ThreadLimit limit(threads);
+    std::vector<InstanceHit> got(rays.size());
+    std::vector<uint8_t> occ(rays.size());
+    f.scene.trace(rays, got, 0xFFFFFFFFu, on);
+    f.scene.occluded(rays, occ, 0xFFFFFFFFu, on);
+    for (size_t i = 0; i < rays.size(); ++i) {
+      ASSERT_EQ(got[i].instance_id, want[i].instance_id) << "ray " << i;
+      ASSERT_EQ(got[i].prim_id, want[i].prim_id) << "ray " << i;
+      ASSERT_EQ(got[i].t, want[i].t) << "ray " << i;
+      ASSERT_EQ(got[i].u, want[i].u) << "ray " << i;
+      ASSERT_EQ(occ[i], want_occ[i]) << "ray " << i;
+    }
+  }
+}
+
 TEST(Instances, UpdatingATransformMovesTheHits) {
   Fixture f = make_fixture();
   f.scene.commit();
