@@ -31,6 +31,14 @@ Accel load_and_build(const std::string& path, const BuildConfig& config) {
   return accel;
 }
 
+// "auto" -> the library's default, "on" / "off" -> forced.
+std::optional<bool> auto_on_off(const char* flag, const std::string& value) {
+  if (value == "auto") return std::nullopt;
+  if (value == "on" || value == "off") return value == "on";
+  throw Error(ErrorCode::invalid_argument,
+              fmt::format("{} '{}': expected auto, on or off", flag, value));
+}
+
 void run_trace(const TraceArgs& a) {
   BuildConfig config = a.build.config();
   auto layout = layout_from_name(a.layout);
@@ -50,20 +58,8 @@ void run_trace(const TraceArgs& a) {
                               isa_name(host_isa())));
     set_default_isa(*options.isa);  // also picks the layout `auto` resolves to
   }
-  if (a.packets == "on")
-    options.packets = true;
-  else if (a.packets == "off")
-    options.packets = false;
-  else if (a.packets != "auto")
-    throw Error(ErrorCode::invalid_argument,
-                fmt::format("--packets '{}': expected auto, on or off", a.packets));
-  if (a.stream == "on")
-    options.stream = true;
-  else if (a.stream == "off")
-    options.stream = false;
-  else if (a.stream != "auto")
-    throw Error(ErrorCode::invalid_argument,
-                fmt::format("--stream '{}': expected auto, on or off", a.stream));
+  options.packets = auto_on_off("--packets", a.packets);
+  options.stream = auto_on_off("--stream", a.stream);
   std::unique_ptr<ThreadLimit> limit;
   if (a.build.threads > 0) limit = std::make_unique<ThreadLimit>(a.build.threads);
   const std::vector<Ray> rays = read_rays(a.rays_path);

@@ -108,8 +108,9 @@ TEST(Cli, RaysTraceHitsRoundTripMatchesTheLibrary) {
       return read_hits(hits);
     }();
     std::vector<std::string> variants = {
-        "--layout bvh4 --isa sse2", "--layout bvh8 --isa sse2 --packets on",
-        "--layout bvh8 --packets off", "--quality auto --expected-rays 1e9"};
+        "--layout bvh4 --isa sse2",    "--layout bvh8 --isa sse2 --packets on",
+        "--layout bvh8 --packets off", "--quality auto --expected-rays 1e9",
+        "--layout bvh8 --stream on",   "--layout bvh4 --stream on --packets off"};
     for (const char* isa : {"avx2", "avx512"})
       if (isa_supported(*isa_from_name(isa)))
         variants.push_back(std::string("--layout bvh8 --packets on --isa ") + isa);
@@ -130,6 +131,10 @@ TEST(Cli, RaysTraceHitsRoundTripMatchesTheLibrary) {
   bad = run("trace builtin:cornell_box --layout bvh16 --rays " + rays + " --hits " + hits);
   EXPECT_EQ(bad.status, 1);
   EXPECT_NE(bad.out.find("unknown layout 'bvh16'"), std::string::npos) << bad.out;
+  bad = run("trace builtin:cornell_box --stream maybe --rays " + rays + " --hits " + hits);
+  EXPECT_EQ(bad.status, 1);
+  EXPECT_NE(bad.out.find("--stream 'maybe': expected auto, on or off"), std::string::npos)
+      << bad.out;
 }
 
 TEST(Cli, PreviewWritesAPng) {
