@@ -36,7 +36,7 @@ inline constexpr size_t stream_chunk = 256;
 bool looks_coherent(std::span<const Ray> rays);
 
 /// TraceOptions::stream's default for a batch over a tree of `tree_bytes` bounded by `box`:
-/// closest hit, no forced packets, >= stream_min_rays rays, not coherent, consecutive
+/// closest hit, `packets` unset, >= stream_min_rays rays, not coherent, consecutive
 /// origins far apart (unordered), tree >= stream_min_accel_bytes. An explicit option wins.
 bool stream_by_default(std::span<const Ray> rays, const Bounds3& box, size_t tree_bytes,
                        bool any_hit, const TraceOptions& options);
