@@ -461,7 +461,8 @@ void InstancedScene::trace(std::span<const Ray> rays, std::span<InstanceHit> hit
       q.fn(q.tlas, s.data.data(), rr, hh, n, ray_mask);
     });
   };
-  if (stream_by_default(rays, s.world, memory_bytes(), false, options)) {  // traverse/stream.h
+  const size_t bytes = rays.size() >= stream_min_rays ? memory_bytes() : 0;  // walks the meshes
+  if (stream_by_default(rays, s.world, bytes, false, options)) {             // traverse/stream.h
     for_each_stream_chunk(rays, s.world, [&](const Ray* r, const uint32_t* callers, size_t n) {
       InstanceHit local[stream_chunk];
       run(std::span<const Ray>(r, n), local);
@@ -493,7 +494,7 @@ void InstancedScene::occluded(std::span<const Ray> rays, std::span<uint8_t> out,
     });
     for (size_t j = 0; j < r.size(); ++j) out[callers ? callers[j] : first + j] = local[j].hit();
   };
-  if (stream_by_default(rays, s.world, memory_bytes(), true, options)) {
+  if (stream_by_default(rays, s.world, 0, true, options)) {  // any hit: only when asked
     for_each_stream_chunk(rays, s.world, [&](const Ray* r, const uint32_t* callers, size_t n) {
       run(std::span<const Ray>(r, n), callers, 0);
     });
