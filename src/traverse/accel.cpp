@@ -124,20 +124,21 @@ class BlockRewriter {
   uint32_t operator()(std::span<TriangleBlock> blocks) const {
     if (scene_.meshes.size() == 1) {
       const TriangleMesh& mesh = scene_.meshes[0];
-      return rewrite(
-          blocks, [&](uint32_t) { return &mesh; }, [](uint32_t id) { return id; });
+      return rewrite(blocks, [&](uint32_t id) { return Located{&mesh, id}; });
     }
-    const auto mesh_index = [&](uint32_t id) {
-      return size_t(std::upper_bound(first_.begin(), first_.end(), size_t(id)) - first_.begin()) -
-             1;
-    };
-    return rewrite(
-        blocks, [&](uint32_t id) { return &scene_.meshes[mesh_index(id)]; },
-        [&](uint32_t id) { return id - first_[mesh_index(id)]; });
+    return rewrite(blocks, [&](uint32_t id) {  // one binary search per lane
+      const size_t m =
+          size_t(std::upper_bound(first_.begin(), first_.end(), size_t(id)) - first_.begin()) - 1;
+      return Located{&scene_.meshes[m], id - first_[m]};
+    });
   }
 
  private:
   static constexpr size_t index_ahead = 16;
+  struct Located {  // a global prim id's mesh and triangle index in it
+    const TriangleMesh* mesh;
+    size_t t;
+  };
 
   static uint32_t lane_id(const TriangleBlock& b, int lane) {
     return b.prim_id[lane] & ~block_last_bit;
@@ -149,23 +150,24 @@ class BlockRewriter {
     return v + 1 < mesh.positions.size() ? _mm_loadu_ps(p) : _mm_setr_ps(p[0], p[1], p[2], 0.0f);
   }
 
-  template <class MeshOf, class LocalId>
-  static uint32_t rewrite(std::span<TriangleBlock> blocks, const MeshOf& mesh_of,
-                          const LocalId& local) {
+  template <class Locate>
+  static uint32_t rewrite(std::span<TriangleBlock> blocks, const Locate& locate) {
     uint32_t bad = ~0u;
     for (size_t b = 0; b < blocks.size(); ++b) {
       if (b + index_ahead < blocks.size())
         for (int lane = 0; lane < 4; ++lane) {
           const uint32_t id = lane_id(blocks[b + index_ahead], lane);
-          __builtin_prefetch(mesh_of(id)->indices.data() + 3 * size_t(local(id)));
+          const Located l = locate(id);
+          __builtin_prefetch(l.mesh->indices.data() + 3 * l.t);
         }
       TriangleBlock& blk = blocks[b];
       __m128 rows[3][4];  // [vertex k][lane] as x, y, z, junk
       bool indices_ok = true;
       for (int lane = 0; lane < 4; ++lane) {
         const uint32_t id = lane_id(blk, lane);
-        const TriangleMesh& mesh = *mesh_of(id);
-        const size_t t = local(id), nv = mesh.positions.size();
+        const Located l = locate(id);
+        const TriangleMesh& mesh = *l.mesh;
+        const size_t t = l.t, nv = mesh.positions.size();
         const uint32_t* idx = &mesh.indices[3 * t];
         if (idx[0] >= nv || idx[1] >= nv || idx[2] >= nv) {
           indices_ok = false;
