@@ -50,8 +50,11 @@ def export_kdw(model, path, magic, architecture):
         f.write(blob)
 
 
-def load_kdw(model, path, magic, architecture):
-    """Reads a file written by export_kdw into `model` (checks magic, version, hash)."""
+def load_kdw(model, path, magic, architecture, partial=False):
+    """Reads a file written by export_kdw into `model` (checks magic, version, hash).
+    partial: an initialisation from an older architecture whose tensors are the leading part
+    of the model's (more input channels or outputs): the common slice is copied, new input
+    channels start at 0, new outputs keep the model's initial values."""
     blob = open(path, "rb").read()
     assert blob[:8] == magic, f"{path}: not a kestrel {magic.decode()} weights file"
     assert struct.unpack("<Q", blob[-8:])[0] == fnv1a(blob[:-8]), f"{path}: checksum mismatch"
@@ -65,5 +68,13 @@ def load_kdw(model, path, magic, architecture):
             (rank,) = struct.unpack("<I", blob[at:at + 4]); at += 4
             dims = struct.unpack(f"<{rank}I", blob[at:at + 4 * rank]); at += 4 * rank
             size = int(np.prod(dims))
-            params[name].copy_(torch.from_numpy(np.frombuffer(blob[at:at + 4 * size], dtype="<f4").reshape(dims).copy()))
+            src = torch.from_numpy(np.frombuffer(blob[at:at + 4 * size], dtype="<f4").reshape(dims).copy())
+            dst = params[name]
+            if partial and tuple(dst.shape) != tuple(dims):
+                assert dst.dim() == rank and all(d >= s for d, s in zip(dst.shape, dims)), f"{path}: {name} {dims}"
+                if rank > 1 and dst.shape[1] > dims[1]:
+                    dst[:, dims[1]:] = 0
+                dst[tuple(slice(0, s) for s in dims)] = src
+            else:
+                dst.copy_(src)
             at += 4 * size

@@ -366,6 +366,24 @@ def gallery(s, rng, exposure, speed):
     s.walk(eye, [0.5, 1.4, rng.uniform(1, D - 1)], speed * 0.5, rng.uniform(50, 70))
 
 
+def mirror_sphere_probe(out):
+    """Not a family: the fixed scene of the brightness test (tests/denoise/mirror_bound.sh):
+    a white room lit by the sun and sky through one window, a mirror sphere standing in the
+    sun patch, a static camera. Its 1-spp frames are full of fireflies (sun paths through the
+    mirror), its reference's brightest pixels are the sun's reflection."""
+    s = Scene(random.Random("probe"), out)
+    W, H, D = 5.0, 3.0, 5.0
+    s.mat("room_floor", "diffuse", [0.8, 0.8, 0.8])
+    s.mat("room_wall", "diffuse", [0.85, 0.85, 0.85])
+    s.mat("room_ceiling", "diffuse", [0.85, 0.85, 0.85])
+    s.room(W, H, D, window=(1.5, 3.5, 0.8, 2.4))
+    s.mesh.surface(s.mat("mirror_ball", "mirror"), (2.5, 0.5, 3.4), 0.5, "sphere", seg=40)
+    s.flags = ["--sun", "180,35,8", "--sky"]
+    key = {"eye": [2.5, 1.4, 0.5], "target": [2.5, 0.7, 3.4], "vfov": 65}
+    s.path = {"keyframes": [dict(time=0.0, **key), dict(time=1.0, **key)]}
+    return s.write("mirror_sphere_probe", 0, 1.0)
+
+
 FAMILIES = {f.__name__: f for f in [sunlit_interior, night_interior, corridor, outdoor, product, mirror_room, stairwell, gallery]}
 
 
@@ -378,10 +396,13 @@ def make(family, seed, out):
 
 
 if __name__ == "__main__":
+    if len(sys.argv) == 3 and sys.argv[1] == "--probe":
+        print(json.dumps(mirror_sphere_probe(sys.argv[2])))
+        sys.exit(0)
     if sys.argv[1:] == ["--list"]:
         for f in FAMILIES:
             print(f, "heldout" if f in HELDOUT else "train")
         sys.exit(0)
     if len(sys.argv) != 4 or sys.argv[1] not in FAMILIES:
-        sys.exit(f"usage: families.py FAMILY SEED OUT_DIR  (families: {', '.join(FAMILIES)})")
+        sys.exit(f"usage: families.py FAMILY SEED OUT_DIR | --probe OUT_DIR | --list  (families: {', '.join(FAMILIES)})")
     print(json.dumps(make(sys.argv[1], int(sys.argv[2]), sys.argv[3])))

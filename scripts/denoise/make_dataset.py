@@ -8,7 +8,7 @@ training: Sponza, the Lamborghini and procedural rooms with seeds >= 1000.
     make_dataset.py [--out out/denoise_dataset] [--split train|test|all] [--ref-spp 256]
                     [--test-ref-spp 1024] [--res 256x144] [--frames 6] [--rooms 10]
 
-With --families (the dataset of architecture 3): the training clips are the TRAIN families
+With --families (the dataset of architectures 3 and 4): the training clips are the TRAIN families
 of families.py (--seeds each) and their targets independent noisy renders (Noise2Noise, at
 --ref-spp); the test clips are the HELDOUT families (--test-seeds each, never seen in
 training) and the shared Sponza and Lamborghini, with --test-frames frames and references at

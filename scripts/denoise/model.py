@@ -1,34 +1,53 @@
 """kestrel's denoiser, the reference definition (training; the C++ engine in
 src/denoise/kernels.inl computes the same function, checked by tests/denoise parity).
 
-Architecture 3. Per frame, at full resolution H x W (padded to multiples of 8 by edge
+Architecture 4. Per frame, at full resolution H x W (padded to multiples of 8 by edge
 replication):
   d  = albedo + EPS, or 1 where the albedo is (nearly) black (max < 0.02): demodulation only
        where it is safe (emitters, black and mirror-black pixels are filtered as colour)
   r  = colour / d                                  demodulated irradiance (linear)
   x  = log(1 + r)                                  its HDR transfer (features, guides)
-  yw, zw = previous output irradiance and depth warped by the motion vectors (bilinear,
-           clamped); valid = the previous position lies inside the image and its depth
-           is within 10 % (disocclusion: the history is rejected, 0 on frame 0)
-  yw = min(yw, B): the history clamped to the brightest current sample near p (B = 3x3 max
-       over quarter-res cells of the 4x4 block maxima of r, per channel: a 12x12 window),
-       which rejects history that lighting changes made too bright and bounds the state
-  features (17): x, albedo, normal, roughness, log(1 + yw), valid, |zw - z| / z, relative
-                 depth gradient, mean(x)^2
-A small CNN at 1/4 and 1/8 resolution (4x4 average pool in) predicts 17 maps per
+  yw, zw, nw = the previous frame's state (accumulated irradiance after the first filter
+           level, depth, history length) warped
+           by the motion vectors (bilinear, clamped); valid = the previous position lies
+           inside the image and its depth is within 10 % (disocclusion: the history is
+           rejected, 0 on frame 0); nw = 0 where not valid
+  yw = clamp(yw, A, B): the history clamped to the darkest and brightest current samples
+       near p (A, B = 3x3 min / max over quarter-res cells of the 4x4 block minima / maxima
+       of r, per channel: a 12x12 window), which rejects history that a lighting change made
+       too bright (a light went out) or too dark (a light came on; at 1 spp A is 0 in most
+       windows, but not where every sample is lit), and bounds the state
+  features (18): x, albedo, normal, roughness, log(1 + yw), valid, |zw - z| / z, relative
+                 depth gradient, mean(x)^2, 1 / (1 + nw)
+A small CNN at 1/4 and 1/8 resolution (4x4 average pool in) predicts 18 maps per
 quarter-res pixel, activated there (sigmoid / softplus) and bilinearly upsampled: a temporal
-blend weight alpha and, for each of 4 a-trous levels (3x3 taps, dilation 1, 2, 4, 8),
-edge-stopping strengths for colour, normal and depth and a mix weight beta. The filter
-averages *linear* irradiance (no log-domain bias) with weights from log irradiance:
-  r0 = r + alpha * valid * (yw - r)
-  r_{l+1} = r_l + beta_l * (sum_q h_q w_q r_l(q) / sum_q h_q w_q - r_l)
+blend weight alpha, for each of 4 a-trous levels (3x3 taps, dilation 1, 2, 4, 8)
+edge-stopping strengths for colour, normal (at least SN_MIN = 2) and depth (at least
+SZ_MIN = 3) and a mix weight beta, and a firefly allowance kappa.
+  rc = min(r, max(m + kappa * mu, 4 yw valid))     fireflies of this frame: m = the second
+       largest of the 8 neighbours' r (per channel; neighbours outside the image count as 0,
+       so a firefly on the border is not its own neighbour, and a pair does not shield
+       itself), mu = the mean r of a 12x12 window (3x3 box over quarter-res cells of 4x4
+       block means); kappa -> 0 is a full neighbourhood clamp, kappa large leaves r alone;
+       where the history is valid nothing up to 4x it is cut (ordinary noise of a static
+       scene passes, so its mean converges; a firefly 100x the history is cut to 4x).
+       Cut before it enters the history: a firefly in the state would be smeared over 2x2
+       pixels by the next warp, where no neighbourhood test finds it
+  a  = alpha * nw / (1 + nw)                       the history's weight: at most a running
+                                                   mean over the frames it holds
+  r0 = rc + a * (yw - rc),  n = min(1 / (1 - a), NMAX)
+The filter averages *linear* irradiance (no log-domain bias) with weights from log irradiance:
+  r_{l+1} = r_l + beta_l * (sum_q h_q w_q r_l(q) / sum_q h_q w_q - r_l),  from r0
   w_q = exp(-sc |g(p) - g(q)|^2 - sn max(0, n_p.n_p - n_p.n_q) - sz |z_p - z_q| / max(z_p, 1e-3)),
   g = log(1 + r_l)
   (n_p.n_p rather than 1: the centre tap weighs exactly 1 even where there is no normal, so
   the sum of weights never vanishes)
-The output colour is max(r_4, 0) * d; r_4 and z are the recurrent state. Every step is a
-convex combination (alpha, beta in (0, 1), normalised positive weights, bilinear warps), so no
-output irradiance exceeds the brightest current sample of its 12x12 window or of the filter's
+The output colour is max(r_4, 0) * d; (r_1, z, n) is the recurrent state: the first level's
+output, as SVGF's first pass (architecture 3 fed back r_4, filtered at dilations up to 8,
+which blurs more every frame, so the network had kept its weight small; r0 itself converged
+~5x slower on a static noisy sequence). Every step is a convex combination or a clamp from above (alpha,
+beta in (0, 1), normalised positive weights, bilinear warps, rc <= r), so no output
+irradiance exceeds the brightest current sample of its 12x12 window or of the filter's
 footprint: the recurrence cannot amplify.
 """
 import torch
@@ -39,9 +58,12 @@ EPS = 0.01
 BLACK = 0.02  # albedo below this (every channel): no demodulation
 DISOCCLUDED = 0.1  # relative depth change that rejects the history
 LEVELS = 4
-FEATURES = 17
-OUTPUTS = 1 + 4 * LEVELS
+FEATURES = 18
+OUTPUTS = 2 + 4 * LEVELS  # alpha, 4 x (sc, sn, sz, beta), kappa
 ZMIN = 1e-3
+NMAX = 32.0  # the longest history (frames) the state counts
+SN_MIN, SZ_MIN = 2.0, 3.0  # the weakest normal and depth edge stops: geometry edges always hold
+HISTORY_ALLOWANCE = 4.0  # a sample up to 4x its (valid) history is never cut as a firefly
 # 3x3 a-trous taps (dy, dx, h): h = (1/4, 1/2, 1/4) x (1/4, 1/2, 1/4), times 4 (centre 1).
 TAPS = [(dy, dx, (2.0 if dy == 0 else 1.0) * (2.0 if dx == 0 else 1.0) / 4.0) for dy in (-1, 0, 1) for dx in (-1, 0, 1)]
 
@@ -84,6 +106,42 @@ def demodulation(albedo):
     return (a + EPS) * (1 - black) + black
 
 
+def shift0(t, dy, dx):
+    """t(p + (dy, dx)), 0 outside."""
+    h, w = t.shape[-2:]
+    tp = F.pad(t, (1, 1, 1, 1))
+    return tp[..., 1 + dy:1 + dy + h, 1 + dx:1 + dx + w]
+
+
+def firefly_clamp(r, kappa, size=None, history=None):
+    """min(r, max(m + kappa * mu, HISTORY_ALLOWANCE * history)): m the second largest of the 8 neighbours inside the image (size
+    = (h, w) of the image inside the padding, None: all; outside neighbours count as 0, so a
+    firefly on the border is not its own neighbour; the second largest, so a pair of
+    fireflies does not shield itself), mu the 12x12 window mean (3x3 box over quarter-res 4x4
+    block means, edge replicated, nearest upsampled); history = the warped history where
+    valid, 0 elsewhere (None: no history)."""
+    inside = r
+    if size is not None:
+        h, w = size
+        mask = torch.zeros_like(r[:, :1])
+        mask[..., :h, :w] = 1
+        inside = r * mask
+    top1, top2 = torch.zeros_like(r), torch.zeros_like(r)
+    for dy in (-1, 0, 1):
+        for dx in (-1, 0, 1):
+            if dy or dx:
+                q = shift0(inside, dy, dx)
+                top2 = torch.maximum(top2, torch.minimum(top1, q))
+                top1 = torch.maximum(top1, q)
+    mu = F.avg_pool2d(r, 4)
+    mu = F.avg_pool2d(F.pad(mu, (1, 1, 1, 1), mode="replicate"), 3, stride=1)
+    mu = F.interpolate(mu, scale_factor=4, mode="nearest")
+    bound = top2 + kappa * mu
+    if history is not None:
+        bound = torch.maximum(bound, HISTORY_ALLOWANCE * history)
+    return torch.minimum(r, bound)
+
+
 class Denoiser(nn.Module):
     def __init__(self):
         super().__init__()
@@ -98,6 +156,7 @@ class Denoiser(nn.Module):
             b[0] = 0.0
             for l in range(LEVELS):
                 b[1 + 4 * l:5 + 4 * l] = torch.tensor([1.0, 3.0, 3.0, 2.0])
+            b[OUTPUTS - 1] = 8.0  # kappa ~ 8: fireflies barely clamped at first
             self.head.bias.copy_(b)
 
     def params(self, feat):
@@ -109,34 +168,44 @@ class Denoiser(nn.Module):
         d1 = F.relu(self.dec1(torch.cat([u, e1], dim=1)))
         o = self.head(d1)
         act = [torch.sigmoid(o[:, 0:1])]
+        floor = torch.tensor([0.0, SN_MIN, SZ_MIN], dtype=o.dtype).view(1, 3, 1, 1)
         for l in range(LEVELS):
-            act += [F.softplus(o[:, 1 + 4 * l:4 + 4 * l]), torch.sigmoid(o[:, 4 + 4 * l:5 + 4 * l])]
+            act += [F.softplus(o[:, 1 + 4 * l:4 + 4 * l]) + floor, torch.sigmoid(o[:, 4 + 4 * l:5 + 4 * l])]
+        act.append(F.softplus(o[:, OUTPUTS - 1:OUTPUTS]))
         return F.interpolate(torch.cat(act, dim=1), scale_factor=4, mode="bilinear", align_corners=False)
 
-    def forward(self, color, albedo, normal, depth, rough, motion, state=None, recurrent=True):
-        """All inputs (B,C,H,W) with H, W multiples of 8. state = (y, z) of the previous
-        frame or None. Returns (colour, new state)."""
+    def forward(self, color, albedo, normal, depth, rough, motion, state=None, recurrent=True, size=None):
+        """All inputs (B,C,H,W) with H, W multiples of 8 (size: the (h, w) of the image inside
+        the padding, None: all of it). state = (h, z, n) of the previous frame or None.
+        Returns (colour, new state)."""
         dm = demodulation(albedo)
         x_lin = color.clamp(min=0) / dm
         x = torch.log1p(x_lin)
         z = depth
         zc = z.clamp(min=ZMIN)
         if state is None or not recurrent:
-            yw_lin, zw, valid = x_lin, z, torch.zeros_like(z)
+            yw_lin, zw, valid, nw = x_lin, z, torch.zeros_like(z), torch.zeros_like(z)
         else:
             yw_lin, valid = warp(state[0], motion)
             zw, _ = warp(state[1], motion)
+            nw, _ = warp(state[2], motion)
             valid = valid * ((zw - z).abs() <= DISOCCLUDED * zc).to(z.dtype)
-            bound = F.max_pool2d(F.max_pool2d(x_lin, 4), 3, stride=1, padding=1)
-            yw_lin = torch.minimum(yw_lin, F.interpolate(bound, scale_factor=4, mode="nearest"))
+            nw = nw * valid
+            hi = F.max_pool2d(F.max_pool2d(x_lin, 4), 3, stride=1, padding=1)
+            lo = -F.max_pool2d(F.max_pool2d(-x_lin, 4), 3, stride=1, padding=1)
+            yw_lin = torch.minimum(yw_lin, F.interpolate(hi, scale_factor=4, mode="nearest"))
+            yw_lin = torch.maximum(yw_lin, F.interpolate(lo, scale_factor=4, mode="nearest"))
         yw = torch.log1p(yw_lin.clamp(min=0))
         dz = ((zw - z).abs() / zc).clamp(max=1.0) * valid
         zg = (((shift(z, 0, 1) - z).abs() + (shift(z, 1, 0) - z).abs()) / zc).clamp(max=1.0)
         xl = x.mean(dim=1, keepdim=True)
-        feat = torch.cat([x, albedo, normal, rough, yw, valid, dz, zg, xl * xl], dim=1)
+        feat = torch.cat([x, albedo, normal, rough, yw, valid, dz, zg, xl * xl, 1.0 / (1.0 + nw)], dim=1)
         o = self.params(feat)
-        alpha = o[:, 0:1] * valid
-        xi = x_lin + alpha * (yw_lin - x_lin)
+        alpha = o[:, 0:1] * (nw / (1.0 + nw))
+        xc = firefly_clamp(x_lin, o[:, OUTPUTS - 1:OUTPUTS], size, yw_lin * valid)
+        r0 = xc + alpha * (yw_lin - xc)
+        n_new = (1.0 / (1.0 - alpha)).clamp(max=NMAX)
+        xi = r0
         nn_p = (normal * normal).sum(1, keepdim=True)
         for l in range(LEVELS):
             d = 1 << l
@@ -157,8 +226,10 @@ class Denoiser(nn.Module):
                 acc = acc + wq * q[:, 7:10]
                 wsum = wsum + wq
             xi = xi + beta * (acc / wsum - xi)
+            if l == 0:
+                h_new = xi
         out = xi.clamp(min=0) * dm
-        return out, (xi, z)
+        return out, (h_new, z, n_new)
 
 
 def parameter_count(model):

@@ -85,7 +85,8 @@ def losses(out, ref):
 
 
 W_SPATIAL, W_GRAD, W_TEMPORAL = 1.0, 0.25, 0.5  # defaults of --w-spatial, --w-grad, --w-temporal
-ARCHITECTURE = 3  # model.py's network (1: the filter in log space; 2: unsafe demodulation, no history clamp)
+ARCHITECTURE = 4  # model.py's network (1: the filter in log space; 2: unsafe demodulation, no history clamp;
+#                   3: the filtered output as state, no firefly clamp)
 
 
 def export_weights(model, path):
@@ -93,25 +94,26 @@ def export_weights(model, path):
 
 
 def load_weights(model, path, architecture=ARCHITECTURE):
-    kestrel_nn.load_kdw(model, path, b"KSTRLDNW", architecture)
+    kestrel_nn.load_kdw(model, path, b"KSTRLDNW", architecture, partial=architecture != ARCHITECTURE)
 
 
 def write_fixture(model, clip, out_dir):
     """Two frames of a 44 x 30 crop (not a multiple of 8: exercises the padding) from the
-    middle of a clip (it must show content: the Cornell box), their inputs as PFMs and the
-    model's outputs."""
+    middle of a clip (it must show content), the second 4x brighter (both history clamps act),
+    their inputs as PFMs and the model's outputs."""
     os.makedirs(out_dir, exist_ok=True)
     T, H, W, _ = clip.shape
     y0, x0 = H // 2 - 15, W // 2 - 22
-    ins = clip[:2, y0:y0 + 30, x0:x0 + 44]  # T,H,W,13
+    ins = clip[:2, y0:y0 + 30, x0:x0 + 44].copy()  # T,H,W,13
+    ins[1, :, :, 0:3] *= 4  # a light comes on: the history's lower clamp acts where all is lit
     seq = torch.from_numpy(ins).permute(0, 3, 1, 2)[None].contiguous()
     with torch.no_grad():
         state = None
         for t in range(2):
             x = split_inputs(seq[:, t])
             h, w = x["color"].shape[-2:]
-            padded_state = None if state is None else (M.pad8(state[0]), M.pad8(state[1]))
-            o, state = model(**{k: M.pad8(v) for k, v in x.items()}, state=padded_state)
+            padded_state = None if state is None else tuple(M.pad8(s) for s in state)
+            o, state = model(**{k: M.pad8(v) for k, v in x.items()}, state=padded_state, size=(h, w))
             d = os.path.join(out_dir, f"frame_{t}")
             os.makedirs(d, exist_ok=True)
             f = ins[t]
@@ -122,7 +124,7 @@ def write_fixture(model, clip, out_dir):
             write_pfm(os.path.join(d, "roughness.pfm"), f[:, :, 10])
             write_pfm(os.path.join(d, "motion.pfm"), np.concatenate([f[:, :, 11:13], np.zeros_like(f[:, :, :1])], 2))
             write_pfm(os.path.join(d, "expected.pfm"), o[0, :, :h, :w].permute(1, 2, 0).numpy())
-            state = (state[0][..., :h, :w], state[1][..., :h, :w])
+            state = tuple(s[..., :h, :w] for s in state)
 
 
 def main():
@@ -143,7 +145,9 @@ def main():
     ap.add_argument("--checkpoint", default=os.path.join(ROOT, "out", "denoise_train.ckpt"),
                     help="saved every 100 steps; --resume continues from it")
     ap.add_argument("--resume", action="store_true")
-    ap.add_argument("--init", help="start from these weights (architecture 2 or 3: the same tensors)")
+    ap.add_argument("--init", help="start from these weights (architecture 2 or 3: the same tensors but enc1's "
+                                   "input for the history length and head's output kappa, which start at 0 and "
+                                   "the initial kappa)")
     args = ap.parse_args()
     torch.set_num_threads(args.threads)
     torch.set_flush_denormal(True)  # exp() of large negative arguments: denormals are ~50x slower
@@ -165,7 +169,11 @@ def main():
     model = M.Denoiser()
     if args.init:
         blob = open(args.init, "rb").read()
-        load_weights(model, args.init, struct.unpack("<I", blob[12:16])[0])
+        init_arch = struct.unpack("<I", blob[12:16])[0]
+        load_weights(model, args.init, init_arch)
+        if init_arch < 4:  # its alpha weighed a filtered state; an accumulated one may weigh more
+            with torch.no_grad():
+                model.head.bias[0] += 2.0
         print("initialised from", args.init, flush=True)
     opt = torch.optim.Adam(model.parameters(), lr=args.lr)
     sched = torch.optim.lr_scheduler.OneCycleLR(opt, max_lr=args.lr, total_steps=args.steps, pct_start=0.1)

@@ -119,6 +119,7 @@ void gather(const DenoiseInput& in, int align, Planes& p) {
   check(in.motion, "motion", 2);
   const int W = (c.width + align - 1) / align * align, H = (c.height + align - 1) / align * align;
   if (p.width != W || p.height != H || p.channels != 13) p = Planes(W, H, 13);
+  p.image_width = c.width, p.image_height = c.height;
   struct Source {
     const FloatImage* img;
     int first, count;

@@ -22,6 +22,7 @@ struct AtrousArgs {
   const float* param[4] = {};  ///< sc, sn, sz, beta: horizontally upsampled quarter-res rows
   int param_rows = 0;
   float* out[3] = {};
+  float* gout[3] = {};  ///< if set: log(1 + max(out, 0)), the next level's guide
   int width = 0, height = 0, dilation = 1;
 };
 

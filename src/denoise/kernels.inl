@@ -34,6 +34,22 @@ static UpTap up_tap(int i, int in, float scale) {
   return {i0, i0 < in - 1 ? i0 + 1 : i0, s - float(i0)};
 }
 
+// log(1 + v) for v >= 0: u = 1 + v = m 2^e, m in [sqrt(1/2), sqrt(2)), log m by the atanh
+// series (s = (m-1)/(m+1), |s| < 0.172, 5 terms): absolute error < 1e-7.
+static inline float log1p_pos(float v) {
+  const float u = 1.0f + v;
+  const int bits = __builtin_bit_cast(int, u);
+  int e = ((bits >> 23) & 255) - 127;
+  float m = __builtin_bit_cast(float, (bits & 0x7FFFFF) | 0x3F800000);
+  const bool big = m > 1.41421356f;
+  m = big ? m * 0.5f : m;
+  e = big ? e + 1 : e;
+  const float s = (m - 1.0f) / (m + 1.0f), s2 = s * s;
+  const float series =
+      s * (2.0f + s2 * (0.6666667f + s2 * (0.4f + s2 * (0.2857143f + s2 * 0.2222222f))));
+  return float(e) * 0.69314718f + series;
+}
+
 // One pixel's 8 outer taps (the centre weighs exactly 1: every difference is 0 and
 // n.n - n.n = 0), the accumulation and the mix. `off[t]` are the taps' index offsets from
 // p; `h[t]` their spline weights. Inlined into a vectorised interior loop and a scalar one
@@ -81,11 +97,15 @@ static inline void atrous_pixel(const AtrousArgs& a, size_t p, int i, const Para
   a.out[0][p] = x0 + beta * (acc0 * inv - x0);
   a.out[1][p] = x1 + beta * (acc1 * inv - x1);
   a.out[2][p] = x2 + beta * (acc2 * inv - x2);
+  if (a.gout[0])
+    for (int c = 0; c < 3; ++c) a.gout[c][p] = log1p_pos(a.out[c][p] > 0.0f ? a.out[c][p] : 0.0f);
 }
 
 // The interior pixels [i0, i1) of a row: every tap inside the image, fixed offsets. The
 // arrays are restrict-qualified parameters (GCC's dependence analysis honours restrict on
-// parameters, not on locals), so the loop vectorises across pixels.
+// parameters, not on locals), so the loop vectorises across pixels. kGuide: also the next
+// level's guide log(1 + max(out, 0)) into GO (saves a pass over the image per level).
+template <bool kGuide>
 static void atrous_interior_impl(
     size_t row, int i0, int i1, float fy, const long* off, const float* h,
     const float* __restrict X0, const float* __restrict X1, const float* __restrict X2,
@@ -94,7 +114,8 @@ static void atrous_interior_impl(
     const float* __restrict Z, const float* __restrict SCt, const float* __restrict SCb,
     const float* __restrict SNt, const float* __restrict SNb, const float* __restrict SZt,
     const float* __restrict SZb, const float* __restrict Bt, const float* __restrict Bb,
-    float* __restrict O0, float* __restrict O1, float* __restrict O2) {
+    float* __restrict O0, float* __restrict O1, float* __restrict O2, float* __restrict GO0,
+    float* __restrict GO1, float* __restrict GO2) {
   long o[8];
   float hh[8];
   for (int t = 0; t < 8; ++t) o[t] = off[t], hh[t] = h[t];
@@ -124,17 +145,28 @@ static void atrous_interior_impl(
       wsum += wq;
     }
     const float inv = 1.0f / wsum, beta = Bt[i] * gy + Bb[i] * fy;
-    O0[p] = x0 + beta * (acc0 * inv - x0);
-    O1[p] = x1 + beta * (acc1 * inv - x1);
-    O2[p] = x2 + beta * (acc2 * inv - x2);
+    const float o0 = x0 + beta * (acc0 * inv - x0), o1 = x1 + beta * (acc1 * inv - x1),
+                o2 = x2 + beta * (acc2 * inv - x2);
+    O0[p] = o0, O1[p] = o1, O2[p] = o2;
+    if constexpr (kGuide) {
+      GO0[p] = log1p_pos(o0 > 0.0f ? o0 : 0.0f);
+      GO1[p] = log1p_pos(o1 > 0.0f ? o1 : 0.0f);
+      GO2[p] = log1p_pos(o2 > 0.0f ? o2 : 0.0f);
+    }
   }
 }
 
 static void atrous_interior(const AtrousArgs& a, size_t row, int i0, int i1, const ParamRows& r,
                             const TapSet& taps) {
-  atrous_interior_impl(row, i0, i1, r.fy, taps.off, taps.h, a.x[0], a.x[1], a.x[2], a.g[0], a.g[1],
-                       a.g[2], a.n[0], a.n[1], a.n[2], a.z, r.top[0], r.bot[0], r.top[1], r.bot[1],
-                       r.top[2], r.bot[2], r.top[3], r.bot[3], a.out[0], a.out[1], a.out[2]);
+  auto run = [&](auto impl) {
+    impl(row, i0, i1, r.fy, taps.off, taps.h, a.x[0], a.x[1], a.x[2], a.g[0], a.g[1], a.g[2],
+         a.n[0], a.n[1], a.n[2], a.z, r.top[0], r.bot[0], r.top[1], r.bot[1], r.top[2], r.bot[2],
+         r.top[3], r.bot[3], a.out[0], a.out[1], a.out[2], a.gout[0], a.gout[1], a.gout[2]);
+  };
+  if (a.gout[0])
+    run(atrous_interior_impl<true>);
+  else
+    run(atrous_interior_impl<false>);
 }
 
 static void atrous_rows(const AtrousArgs& a, int row0, int row1) {
@@ -184,22 +216,6 @@ static void atrous_rows(const AtrousArgs& a, int row0, int row1) {
 
 // ---- The whole network per frame (model.py's forward), with this file's ISA. ----
 
-// log(1 + v) for v >= 0: u = 1 + v = m 2^e, m in [sqrt(1/2), sqrt(2)), log m by the atanh
-// series (s = (m-1)/(m+1), |s| < 0.172, 5 terms): absolute error < 1e-7.
-static inline float log1p_pos(float v) {
-  const float u = 1.0f + v;
-  const int bits = __builtin_bit_cast(int, u);
-  int e = ((bits >> 23) & 255) - 127;
-  float m = __builtin_bit_cast(float, (bits & 0x7FFFFF) | 0x3F800000);
-  const bool big = m > 1.41421356f;
-  m = big ? m * 0.5f : m;
-  e = big ? e + 1 : e;
-  const float s = (m - 1.0f) / (m + 1.0f), s2 = s * s;
-  const float series =
-      s * (2.0f + s2 * (0.6666667f + s2 * (0.4f + s2 * (0.2857143f + s2 * 0.2222222f))));
-  return float(e) * 0.69314718f + series;
-}
-
 // exp(x) for x in [-36, 88] (0 below, clamped above).
 static inline float exp_any(float x) {
   x = x > 88.0f ? 88.0f : x;
@@ -240,48 +256,32 @@ static inline float demodulation(float a0, float a1, float a2, float a) {
   return black ? 1.0f : (a > 0.0f ? a : 0.0f) + kAlbedoEps;
 }
 
-// The history clamp (model.py): yw = min(yw, B), B per channel the 3x3 maximum over
-// quarter-res cells of the 4x4 block maxima of the current irradiance (a 12x12 window).
-static void clamp_history(Workspace& ws, int W, int H) {
-  const int Wq = W / 4, Hq = H / 4;
-  ws.bound.resize(size_t(3) * size_t(Wq) * size_t(Hq));
-  ws.bound3.resize(ws.bound.size());
-  const size_t Nq = size_t(Wq) * size_t(Hq);
-  parallel_rows(Hq, 8, [&](int r0, int r1) {
-    for (int c = 0; c < 3; ++c)
-      for (int qy = r0; qy < r1; ++qy)
-        for (int qx = 0; qx < Wq; ++qx) {
-          float m = 0.0f;  // irradiance is >= 0
-          for (int sy = 0; sy < 4; ++sy) {
-            const float* x = ws.xlin.ch(c) + size_t(qy * 4 + sy) * size_t(W) + size_t(qx * 4);
-            for (int sx = 0; sx < 4; ++sx) m = x[sx] > m ? x[sx] : m;
-          }
-          ws.bound[size_t(c) * Nq + size_t(qy) * size_t(Wq) + size_t(qx)] = m;
-        }
-  });
-  parallel_rows(Hq, 8, [&](int r0, int r1) {
-    for (int c = 0; c < 3; ++c)
-      for (int qy = r0; qy < r1; ++qy)
-        for (int qx = 0; qx < Wq; ++qx) {
-          float m = 0.0f;
-          for (int dy = -1; dy <= 1; ++dy)
-            for (int dx = -1; dx <= 1; ++dx) {
-              const int y = qy + dy, x = qx + dx;
-              if (y < 0 || y >= Hq || x < 0 || x >= Wq) continue;
-              const float v = ws.bound[size_t(c) * Nq + size_t(y) * size_t(Wq) + size_t(x)];
-              m = v > m ? v : m;
-            }
-          ws.bound3[size_t(c) * Nq + size_t(qy) * size_t(Wq) + size_t(qx)] = m;
-        }
-  });
-  parallel_rows(H, 8, [&](int r0, int r1) {
-    for (int c = 0; c < 3; ++c)
-      for (int y = r0; y < r1; ++y) {
-        const float* b = ws.bound3.data() + size_t(c) * Nq + size_t(y / 4) * size_t(Wq);
-        float* yw = ws.yw.ch(c) + size_t(y) * size_t(W);
-        for (int i = 0; i < W; ++i) yw[i] = yw[i] < b[i / 4] ? yw[i] : b[i / 4];
-      }
-  });
+#include "denoise/kernels_history.inl"
+
+// The row loops below take restrict-qualified parameters so that they vectorise (with
+// pointers into shared planes GCC must otherwise assume they alias).
+// d = demodulation, x = max(colour, 0) / d, g = log(1 + x).
+static void demodulate_row(int n, const float* __restrict col, const float* __restrict a0,
+                           const float* __restrict a1, const float* __restrict a2,
+                           const float* __restrict alb, float* __restrict d, float* __restrict x,
+                           float* __restrict g) {
+  for (int i = 0; i < n; ++i) {
+    d[i] = demodulation(a0[i], a1[i], a2[i], alb[i]);
+    const float v = col[i] > 0.0f ? col[i] : 0.0f;
+    x[i] = v / d[i];
+    g[i] = log1p_pos(x[i]);
+  }
+}
+
+// h = xi = x + a (yw - x), g = log(1 + max(h, 0)).
+static void blend_row(int n, const float* __restrict x, const float* __restrict yw,
+                      const float* __restrict a, float* __restrict h, float* __restrict xi,
+                      float* __restrict g) {
+  for (int i = 0; i < n; ++i) {
+    const float v = x[i] + a[i] * (yw[i] - x[i]);
+    h[i] = v, xi[i] = v;
+    g[i] = log1p_pos(v > 0.0f ? v : 0.0f);
+  }
 }
 
 static const Planes& network(const NeuralWeights& nw, const Planes& in, Planes& state,
@@ -302,9 +302,10 @@ static const Planes& network(const NeuralWeights& nw, const Planes& in, Planes& 
   ensure(ws.xlin, W, H, 3);
   ensure(ws.demod, W, H, 3);
   ensure(ws.yw, W, H, 3);
-  ws.zw.resize(N), ws.valid.resize(N), ws.zc.resize(N);
+  ws.zw.resize(N), ws.nw.resize(N), ws.valid.resize(N), ws.zc.resize(N);
   const float* z = in.ch(9);
-  const bool have_state = recurrent && state.width == W && state.height == H && state.channels == 4;
+  const bool have_state =
+      recurrent && state.width == W && state.height == H && state.channels == kStateChannels;
   // x = log1p(demodulated colour); the previous output and depth warped by the motion.
   parallel_rows(H, 8, [&](int r0, int r1) {
     struct {
@@ -325,12 +326,7 @@ static const Planes& network(const NeuralWeights& nw, const Planes& in, Planes& 
         float* xo = ws.x.ch(c) + row;
         float* xl = ws.xlin.ch(c) + row;
         float* dm = ws.demod.ch(c) + row;
-        for (int i = 0; i < W; ++i) {
-          dm[i] = demodulation(a0[i], a1[i], a2[i], alb[i]);
-          const float v = col[i] > 0.0f ? col[i] : 0.0f;
-          xl[i] = v / dm[i];
-          xo[i] = log1p_pos(xl[i]);
-        }
+        demodulate_row(W, col, a0, a1, a2, alb, dm, xl, xo);
       }
       for (int i = 0; i < W; ++i)
         ws.zc[row + size_t(i)] = z[row + size_t(i)] > kMinDepth ? z[row + size_t(i)] : kMinDepth;
@@ -340,6 +336,8 @@ static const Planes& network(const NeuralWeights& nw, const Planes& in, Planes& 
         std::memcpy(ws.zw.data() + row, z + row, sizeof(float) * size_t(W));
         std::fill(ws.valid.begin() + std::ptrdiff_t(row),
                   ws.valid.begin() + std::ptrdiff_t(row + size_t(W)), 0.0f);
+        std::fill(ws.nw.begin() + std::ptrdiff_t(row),
+                  ws.nw.begin() + std::ptrdiff_t(row + size_t(W)), 0.0f);
         continue;
       }
       // Bilinear taps of p + motion (clamped), then the four planes gathered.
@@ -374,21 +372,25 @@ static const Planes& network(const NeuralWeights& nw, const Planes& in, Planes& 
       };
       for (int c = 0; c < 3; ++c) gather4(state.ch(c), ws.yw.ch(c) + row);
       gather4(state.ch(3), ws.zw.data() + row);
-      // Disocclusion: the history's depth more than 10 % off rejects it.
+      gather4(state.ch(4), ws.nw.data() + row);
+      // Disocclusion: the history's depth more than 10 % off rejects it (and its length).
       const float* zw = ws.zw.data() + row;
       const float* zc = ws.zc.data() + row;
       const float* zr = z + row;
-      for (int i = 0; i < W; ++i)
+      float* nw = ws.nw.data() + row;
+      for (int i = 0; i < W; ++i) {
         valid[i] = std::fabs(zw[i] - zr[i]) <= kDisoccluded * zc[i] ? valid[i] : 0.0f;
+        nw[i] *= valid[i];
+      }
     }
   });
   if (have_state) clamp_history(ws, W, H);
   lap(&st.prepare);
   // Features, 4x4 average pooled to quarter resolution (channels last). Per quarter row:
-  // 13 features are input planes, 4 are computed per full-res row; each is summed over 4x4.
+  // 13 features are (warped) planes, 5 are computed per full-res row; each is summed over 4x4.
   ws.feat.resize(size_t(Wq) * size_t(Hq) * kFeatures);
   parallel_rows(Hq, 2, [&](int r0, int r1) {
-    std::vector<float> sum(size_t(kFeatures) * size_t(Wq)), tmp(size_t(7) * size_t(W));
+    std::vector<float> sum(size_t(kFeatures) * size_t(Wq)), tmp(size_t(8) * size_t(W));
     const float* planes[10] = {ws.x.ch(0), ws.x.ch(1), ws.x.ch(2), in.ch(3), in.ch(4),
                                in.ch(5),   in.ch(6),   in.ch(7),   in.ch(8), in.ch(10)};
     for (int qy = r0; qy < r1; ++qy) {
@@ -402,6 +404,7 @@ static const Planes& network(const NeuralWeights& nw, const Planes& in, Planes& 
         float* dz = valid + W;
         float* zg = dz + W;
         float* xl2 = zg + W;
+        float* ninv = xl2 + W;
         for (int i = 0; i < W; ++i) {
           const size_t p = row + size_t(i);
           for (int c = 0; c < 3; ++c) {
@@ -418,9 +421,10 @@ static const Planes& network(const NeuralWeights& nw, const Planes& in, Planes& 
           zg[i] = g < 1.0f ? g : 1.0f;
           const float xl = (ws.x.ch(0)[p] + ws.x.ch(1)[p] + ws.x.ch(2)[p]) / 3.0f;
           xl2[i] = xl * xl;
+          ninv[i] = 1.0f / (1.0f + ws.nw[p]);
         }
         // Feature order: x 0-2, albedo 3-5, normal 6-8, roughness 9, yw 10-12, valid 13,
-        // dz 14, zg 15, mean(x)^2 16.
+        // dz 14, zg 15, mean(x)^2 16, 1 / (1 + nw) 17.
         for (int k = 0; k < kFeatures; ++k) {
           const float* src = k < 10 ? planes[k] + row : tmp.data() + size_t(k - 10) * size_t(W);
           float* acc = sum.data() + size_t(k) * size_t(Wq);
@@ -472,13 +476,16 @@ static const Planes& network(const NeuralWeights& nw, const Planes& in, Planes& 
     for (int k = 0; k < kOutputs; ++k) {
       const float* v = ws.o.data() + size_t(k);
       float* out = ws.act.data() + size_t(k) * Nq;
-      if (k == 0 || k % 4 == 0) {  // alpha and the betas: sigmoid
+      if (k == 0 || k % 4 == 0) {  // alpha and the betas: sigmoid (kappa, 17: softplus)
         for (size_t p = range_begin; p < range_end; ++p)
           out[p] = 1.0f / (1.0f + exp_any(-v[p * ostride]));
-      } else {  // the edge-stopping strengths: softplus
+      } else {  // the edge-stopping strengths and kappa: softplus (+ the floors of sn, sz)
+        const float floor = k < kOutputs - 1 && k % 4 == 2
+                                ? kMinNormalStop
+                                : (k < kOutputs - 1 && k % 4 == 3 ? kMinDepthStop : 0.0f);
         for (size_t p = range_begin; p < range_end; ++p) {
           const float x = v[p * ostride];
-          out[p] = x > 20.0f ? x : log1p_pos(exp_any(x));
+          out[p] = (x > 20.0f ? x : log1p_pos(exp_any(x))) + floor;
         }
       }
     }
@@ -506,49 +513,61 @@ static const Planes& network(const NeuralWeights& nw, const Planes& in, Planes& 
   });
   ensure(ws.xi, W, H, 3);
   ensure(ws.xo, W, H, 3);
+  ensure(ws.next_state, W, H, kStateChannels);
+  ensure(ws.lg, W, H, 3);
+  // This frame's fireflies cut (ws.xo), then the temporal blend into the new state:
+  // r0 = xc + a (yw - xc), a = alpha nw / (1 + nw), n = min(1 / (1 - a), kMaxHistory); r0
+  // is also the filter's input (ws.xi) and log(1 + r0) its first guide (ws.lg).
+  firefly_clamp(ws, W, H, in.image_width > 0 ? in.image_width : W,
+                in.image_height > 0 ? in.image_height : H);
   parallel_rows(H, 8, [&](int r0, int r1) {
+    std::vector<float> a(static_cast<size_t>(W));
     for (int y = r0; y < r1; ++y) {
       const UpTap ty = up_tap(y, Hq, 0.25f);
       const float* top = ws.hrows.data() + size_t(ty.i0) * size_t(W);
       const float* bot = ws.hrows.data() + size_t(ty.i1) * size_t(W);
       const size_t row = size_t(y) * size_t(W);
+      const float* nw = ws.nw.data() + row;
+      float* n = ws.next_state.ch(4) + row;
+      for (int i = 0; i < W; ++i) {
+        const float alpha = top[i] * (1 - ty.f) + bot[i] * ty.f;
+        a[size_t(i)] = alpha * (nw[i] / (1.0f + nw[i]));
+        const float len = 1.0f / (1.0f - a[size_t(i)]);
+        n[i] = len < kMaxHistory ? len : kMaxHistory;
+      }
       for (int c = 0; c < 3; ++c) {
-        const float* x = ws.xlin.ch(c) + row;
+        const float* x = ws.xo.ch(c) + row;
         const float* yw = ws.yw.ch(c) + row;
-        const float* valid = ws.valid.data() + row;
-        float* xi = ws.xi.ch(c) + row;
-        for (int i = 0; i < W; ++i) {
-          const float alpha = top[i] * (1 - ty.f) + bot[i] * ty.f;
-          xi[i] = x[i] + alpha * valid[i] * (yw[i] - x[i]);
-        }
+        blend_row(W, x, yw, a.data(), ws.next_state.ch(c) + row, ws.xi.ch(c) + row,
+                  ws.lg.ch(c) + row);
       }
     }
   });
   lap(&st.temporal);
-  // The a-trous levels.
-  ensure(ws.lg, W, H, 3);
+  // The a-trous levels; each writes the next one's guide (the first guide: firefly_clamp).
+  ensure(ws.lg2, W, H, 3);
   for (int l = 0; l < kLevels; ++l) {
-    parallel_rows(H, 8, [&](int r0, int r1) {  // the guide: log(1 + irradiance)
-      const size_t b = size_t(r0) * size_t(W), e = size_t(r1) * size_t(W);
-      for (int c = 0; c < 3; ++c) {
-        const float* xi = ws.xi.ch(c);
-        float* g = ws.lg.ch(c);
-        for (size_t p = b; p < e; ++p) g[p] = log1p_pos(xi[p] > 0.0f ? xi[p] : 0.0f);
-      }
-    });
     AtrousArgs a;
-    for (int c = 0; c < 3; ++c)
+    for (int c = 0; c < 3; ++c) {
       a.x[c] = ws.xi.ch(c), a.g[c] = ws.lg.ch(c), a.n[c] = in.ch(6 + c), a.out[c] = ws.xo.ch(c);
+      a.gout[c] = l + 1 < kLevels ? ws.lg2.ch(c) : nullptr;
+    }
     a.z = z;
     for (int k = 0; k < 4; ++k) a.param[k] = ws.hrows.data() + size_t(1 + 4 * l + k) * hplane;
     a.param_rows = Hq;
     a.width = W, a.height = H, a.dilation = 1 << l;
     parallel_rows(H, 4, [&](int r0, int r1) { atrous_rows(a, r0, r1); });
     std::swap(ws.xi, ws.xo);
+    if (l == 0)  // the first level's output is the next frame's history (as SVGF's)
+      parallel_rows(H, 8, [&](int r0, int r1) {
+        const size_t b = size_t(r0) * size_t(W), n = size_t(r1 - r0) * size_t(W);
+        for (int c = 0; c < 3; ++c)
+          std::memcpy(ws.next_state.ch(c) + b, ws.xi.ch(c) + b, sizeof(float) * n);
+      });
+    std::swap(ws.lg, ws.lg2);
   }
   lap(&st.filter);
   ensure(ws.out, W, H, 3);
-  ensure(ws.next_state, W, H, 4);
   parallel_rows(H, 8, [&](int r0, int r1) {
     for (int c = 0; c < 3; ++c) {
       const size_t b = size_t(r0) * size_t(W), e = size_t(r1) * size_t(W);
@@ -556,7 +575,6 @@ static const Planes& network(const NeuralWeights& nw, const Planes& in, Planes& 
       const float* dm = ws.demod.ch(c);
       float* o = ws.out.ch(c);
       for (size_t p = b; p < e; ++p) o[p] = (xi[p] > 0.0f ? xi[p] : 0.0f) * dm[p];
-      std::memcpy(ws.next_state.ch(c) + b, xi + b, sizeof(float) * (e - b));
     }
     std::memcpy(ws.next_state.ch(3) + size_t(r0) * size_t(W), z + size_t(r0) * size_t(W),
                 sizeof(float) * size_t(r1 - r0) * size_t(W));

@@ -15,6 +15,7 @@ struct Planes {
   int width = 0, height = 0;
   std::vector<float> data;  ///< channel-major: channel c at data[c * width * height]
   int channels = 0;
+  int image_width = 0, image_height = 0;  ///< the image inside the padding (0: all of it)
   Planes() = default;
   Planes(int w, int h, int c)
       : width(w), height(h), data(size_t(w) * size_t(h) * size_t(c), 0.0f), channels(c) {}
@@ -33,9 +34,14 @@ struct NeuralWeights {
   static NeuralWeights load(const std::string& path);
 };
 
-constexpr int kFeatures = 17;
+constexpr int kFeatures = 18;
 constexpr int kLevels = 4;
-constexpr int kOutputs = 1 + 4 * kLevels;
+constexpr int kOutputs = 2 + 4 * kLevels;  ///< alpha, kLevels x (sc, sn, sz, beta), kappa
+constexpr int kStateChannels = 5;          ///< accumulated irradiance 0-2, depth 3, length 4
+constexpr float kMaxHistory = 32.0f;       ///< the longest history (frames) the state counts
+constexpr float kMinNormalStop = 2.0f;     ///< sn >= 2, sz >= 3: geometry edges always hold
+constexpr float kMinDepthStop = 3.0f;
+constexpr float kHistoryAllowance = 4.0f;  ///< never cut as a firefly: up to 4x the history
 constexpr float kAlbedoEps = 0.01f;
 constexpr float kBlackAlbedo = 0.02f;  ///< below this in every channel: no demodulation
 constexpr float kDisoccluded = 0.1f;   ///< relative depth change that rejects the history
@@ -43,9 +49,9 @@ constexpr float kMinDepth = 1e-3f;
 
 /// Buffers reused from frame to frame (no allocation or page faults once warm).
 struct Workspace {
-  Planes x, xlin, demod, yw, xi, xo, lg, out, next_state;
-  std::vector<float> bound, bound3;
-  std::vector<float> zw, valid, zc, feat, e1, pooled, e2, e3, cat, d1, o, act, padded, hrows;
+  Planes x, xlin, demod, yw, xi, xo, lg, lg2, out, next_state;
+  std::vector<float> bound, bound3, mu, mu3;
+  std::vector<float> zw, nw, valid, zc, feat, e1, pooled, e2, e3, cat, d1, o, act, padded, hrows;
 };
 
 /// Milliseconds per stage of the last frame (KESTREL_DENOISE_PROFILE=1 prints them).
@@ -54,7 +60,8 @@ struct StageTimes {
 };
 
 /// Inputs of one frame as planes (padded): color 0-2, albedo 3-5, normal 6-8, depth 9,
-/// roughness 10, motion 11-12. state: y 0-2, z 3 (empty on the first frame).
+/// roughness 10, motion 11-12. state: accumulated irradiance 0-2, depth 3, history length 4
+/// (empty on the first frame).
 /// Returns the output colour planes (3, in ws.out) and replaces state.
 const Planes& run_network(const NeuralWeights& w, const Planes& in, Planes& state, bool recurrent,
                           Workspace& ws, StageTimes* times = nullptr);

@@ -1,0 +1,179 @@
+// Included by kernels.inl (inside namespace kestrel::denoise::KESTREL_ISA_NS): the two bounds
+// of the neural denoiser's recurrence, the history clamp and the firefly clamp (model.py).
+
+// The history clamp (model.py): yw = clamp(yw, A, B), A and B per channel the 3x3 minimum
+// and maximum over quarter-res cells of the 4x4 block minima and maxima of the current
+// irradiance (a 12x12 window).
+static void clamp_history(Workspace& ws, int W, int H) {
+  const int Wq = W / 4, Hq = H / 4;
+  const size_t Nq = size_t(Wq) * size_t(Hq);
+  ws.bound.resize(6 * Nq);  // per channel: block maxima, then block minima
+  ws.bound3.resize(ws.bound.size());
+  parallel_rows(Hq, 8, [&](int r0, int r1) {
+    for (int c = 0; c < 3; ++c)
+      for (int qy = r0; qy < r1; ++qy)
+        for (int qx = 0; qx < Wq; ++qx) {
+          const float* x0 = ws.xlin.ch(c) + size_t(qy * 4) * size_t(W) + size_t(qx * 4);
+          float hi = x0[0], lo = x0[0];
+          for (int sy = 0; sy < 4; ++sy) {
+            const float* x = x0 + size_t(sy) * size_t(W);
+            for (int sx = 0; sx < 4; ++sx) {
+              hi = x[sx] > hi ? x[sx] : hi;
+              lo = x[sx] < lo ? x[sx] : lo;
+            }
+          }
+          const size_t q = size_t(qy) * size_t(Wq) + size_t(qx);
+          ws.bound[size_t(2 * c) * Nq + q] = hi;
+          ws.bound[size_t(2 * c + 1) * Nq + q] = lo;
+        }
+  });
+  parallel_rows(Hq, 8, [&](int r0, int r1) {
+    for (int c = 0; c < 3; ++c)
+      for (int qy = r0; qy < r1; ++qy)
+        for (int qx = 0; qx < Wq; ++qx) {
+          const size_t q = size_t(qy) * size_t(Wq) + size_t(qx);
+          const float* bh = ws.bound.data() + size_t(2 * c) * Nq;
+          const float* bl = bh + Nq;
+          float hi = bh[q], lo = bl[q];
+          for (int dy = -1; dy <= 1; ++dy)
+            for (int dx = -1; dx <= 1; ++dx) {
+              const int y = qy + dy, x = qx + dx;
+              if (y < 0 || y >= Hq || x < 0 || x >= Wq) continue;
+              const size_t k = size_t(y) * size_t(Wq) + size_t(x);
+              hi = bh[k] > hi ? bh[k] : hi;
+              lo = bl[k] < lo ? bl[k] : lo;
+            }
+          ws.bound3[size_t(2 * c) * Nq + q] = hi;
+          ws.bound3[size_t(2 * c + 1) * Nq + q] = lo;
+        }
+  });
+  parallel_rows(H, 8, [&](int r0, int r1) {
+    for (int c = 0; c < 3; ++c)
+      for (int y = r0; y < r1; ++y) {
+        const float* hi = ws.bound3.data() + size_t(2 * c) * Nq + size_t(y / 4) * size_t(Wq);
+        const float* lo = hi + Nq;
+        float* yw = ws.yw.ch(c) + size_t(y) * size_t(W);
+        for (int i = 0; i < W; ++i) {
+          const float v = yw[i] < hi[i / 4] ? yw[i] : hi[i / 4];
+          yw[i] = v > lo[i / 4] ? v : lo[i / 4];
+        }
+      }
+  });
+}
+
+// The second largest so far (top2 = max(top2, min(top1, q)), top1 = max(top1, q): model.py's
+// order).
+static inline void add_neighbour(float& top1, float& top2, float q) {
+  const float lo = top1 < q ? top1 : q;
+  top2 = top2 > lo ? top2 : lo;
+  top1 = top1 > q ? top1 : q;
+}
+
+// The firefly bound over pixels [i0, i1) of a row whose neighbours are all inside the image:
+// a, b, d the rows above, at and below; restrict-qualified so that it vectorises.
+static void firefly_row(int i0, int i1, const float* __restrict a, const float* __restrict b,
+                        const float* __restrict d, const float* __restrict kappa,
+                        const float* __restrict mu, const float* __restrict yw,
+                        const float* __restrict valid, float* __restrict out) {
+  for (int i = i0; i < i1; ++i) {
+    float top1 = 0.0f, top2 = 0.0f;
+    add_neighbour(top1, top2, a[i - 1]);
+    add_neighbour(top1, top2, a[i]);
+    add_neighbour(top1, top2, a[i + 1]);
+    add_neighbour(top1, top2, b[i - 1]);
+    add_neighbour(top1, top2, b[i + 1]);
+    add_neighbour(top1, top2, d[i - 1]);
+    add_neighbour(top1, top2, d[i]);
+    add_neighbour(top1, top2, d[i + 1]);
+    const float t = top2 + kappa[i] * mu[i];
+    const float hist = kHistoryAllowance * (yw[i] * valid[i]);
+    const float bound = t > hist ? t : hist;
+    out[i] = b[i] < bound ? b[i] : bound;
+  }
+}
+
+// model.py's firefly_clamp on this frame's irradiance (ws.xlin) into ws.xo:
+// min(r, max(m + kappa mu, 4 yw valid)), m the second largest of the 8 neighbours inside the
+// image_w x image_h image (outside ones count as 0: a firefly on the border is not its own
+// neighbour), mu the 3x3 box (edge replicated) over quarter-res cells of 4x4 block means, kappa the
+// activation map 17 upsampled as alpha is (ws.hrows).
+static void firefly_clamp(Workspace& ws, int W, int H, int image_w, int image_h) {
+  const int Wq = W / 4, Hq = H / 4;
+  const size_t Nq = size_t(Wq) * size_t(Hq);
+  ws.mu.resize(3 * Nq), ws.mu3.resize(3 * Nq);
+  const Planes& r = ws.xlin;
+  parallel_rows(Hq, 8, [&](int r0, int r1) {
+    for (int c = 0; c < 3; ++c)
+      for (int qy = r0; qy < r1; ++qy)
+        for (int qx = 0; qx < Wq; ++qx) {
+          float s = 0.0f;
+          for (int sy = 0; sy < 4; ++sy) {
+            const float* x = r.ch(c) + size_t(qy * 4 + sy) * size_t(W) + size_t(qx * 4);
+            s += x[0] + x[1] + x[2] + x[3];
+          }
+          ws.mu[size_t(c) * Nq + size_t(qy) * size_t(Wq) + size_t(qx)] = s * (1.0f / 16.0f);
+        }
+  });
+  parallel_rows(Hq, 8, [&](int r0, int r1) {
+    for (int c = 0; c < 3; ++c)
+      for (int qy = r0; qy < r1; ++qy)
+        for (int qx = 0; qx < Wq; ++qx) {
+          float s = 0.0f;
+          for (int dy = -1; dy <= 1; ++dy)
+            for (int dx = -1; dx <= 1; ++dx) {
+              const int y = std::clamp(qy + dy, 0, Hq - 1), x = std::clamp(qx + dx, 0, Wq - 1);
+              s += ws.mu[size_t(c) * Nq + size_t(y) * size_t(Wq) + size_t(x)];
+            }
+          ws.mu3[size_t(c) * Nq + size_t(qy) * size_t(Wq) + size_t(qx)] = s * (1.0f / 9.0f);
+        }
+  });
+  const size_t hplane = size_t(Hq) * size_t(W);
+  parallel_rows(H, 8, [&](int r0, int r1) {
+    std::vector<float> kappa(static_cast<size_t>(W)), mu_row(static_cast<size_t>(W));
+    for (int y = r0; y < r1; ++y) {
+      const UpTap ty = up_tap(y, Hq, 0.25f);
+      const float* top =
+          ws.hrows.data() + size_t(kOutputs - 1) * hplane + size_t(ty.i0) * size_t(W);
+      const float* bot =
+          ws.hrows.data() + size_t(kOutputs - 1) * hplane + size_t(ty.i1) * size_t(W);
+      for (int i = 0; i < W; ++i) kappa[size_t(i)] = top[i] * (1 - ty.f) + bot[i] * ty.f;
+      // Neighbours outside the image (the padding included) count as 0: the rows and columns
+      // at the image's edges and beyond it take the checked path, the rest the plain one.
+      const size_t row = size_t(y) * size_t(W);
+      const bool inner_row = y >= 1 && y + 1 < image_h;
+      for (int c = 0; c < 3; ++c) {
+        const float* b = r.ch(c) + row;
+        const float *a = b - (y >= 1 ? W : 0), *d = b + (y + 1 < H ? W : 0);
+        const float* mu = ws.mu3.data() + size_t(c) * Nq + size_t(y / 4) * size_t(Wq);
+        float* out = ws.xo.ch(c) + row;
+        const float* yw = ws.yw.ch(c) + row;
+        const float* valid = ws.valid.data() + row;
+        auto finish = [&](int i, float m) {
+          const float t = m + kappa[size_t(i)] * mu[i / 4];
+          const float hist = kHistoryAllowance * (yw[i] * valid[i]);
+          const float bound = t > hist ? t : hist;
+          out[i] = b[i] < bound ? b[i] : bound;
+        };
+        auto checked = [&](int i) {
+          float top1 = 0.0f, top2 = 0.0f;
+          for (int dy = -1; dy <= 1; ++dy)
+            for (int dx = -1; dx <= 1; ++dx) {
+              const int yy = y + dy, xx = i + dx;
+              if (dy == 0 && dx == 0) continue;
+              const bool inside = yy >= 0 && yy < image_h && xx >= 0 && xx < image_w;
+              add_neighbour(top1, top2,
+                            inside ? r.ch(c)[size_t(yy) * size_t(W) + size_t(xx)] : 0.0f);
+            }
+          finish(i, top2);
+        };
+        const int i1 = inner_row ? std::min(image_w - 1, W) : 0;
+        if (i1 > 0) checked(0);
+        if (i1 > 1) {
+          for (int i = 1; i < i1; ++i) mu_row[size_t(i)] = mu[i / 4];
+          firefly_row(1, i1, a, b, d, kappa.data(), mu_row.data(), yw, valid, out);
+        }
+        for (int i = i1 > 0 ? i1 : 0; i < W; ++i) checked(i);
+      }
+    }
+  });
+}
