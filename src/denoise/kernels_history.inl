@@ -69,6 +69,14 @@ static inline void add_neighbour(float& top1, float& top2, float q) {
   top1 = top1 > q ? top1 : q;
 }
 
+// r cut to max(m + kappa mu, 4 yw valid): m the second largest neighbour, yw the history.
+static inline float firefly_cut(float r, float m, float kappa, float mu, float yw, float valid) {
+  const float t = m + kappa * mu;
+  const float hist = kHistoryAllowance * (yw * valid);
+  const float bound = t > hist ? t : hist;
+  return r < bound ? r : bound;
+}
+
 // The firefly bound over pixels [i0, i1) of a row whose neighbours are all inside the image:
 // a, b, d the rows above, at and below; restrict-qualified so that it vectorises.
 static void firefly_row(int i0, int i1, const float* __restrict a, const float* __restrict b,
@@ -85,10 +93,7 @@ static void firefly_row(int i0, int i1, const float* __restrict a, const float* 
     add_neighbour(top1, top2, d[i - 1]);
     add_neighbour(top1, top2, d[i]);
     add_neighbour(top1, top2, d[i + 1]);
-    const float t = top2 + kappa[i] * mu[i];
-    const float hist = kHistoryAllowance * (yw[i] * valid[i]);
-    const float bound = t > hist ? t : hist;
-    out[i] = b[i] < bound ? b[i] : bound;
+    out[i] = firefly_cut(b[i], top2, kappa[i], mu[i], yw[i], valid[i]);
   }
 }
 
@@ -148,12 +153,6 @@ static void firefly_clamp(Workspace& ws, int W, int H, int image_w, int image_h)
         float* out = ws.xo.ch(c) + row;
         const float* yw = ws.yw.ch(c) + row;
         const float* valid = ws.valid.data() + row;
-        auto finish = [&](int i, float m) {
-          const float t = m + kappa[size_t(i)] * mu[i / 4];
-          const float hist = kHistoryAllowance * (yw[i] * valid[i]);
-          const float bound = t > hist ? t : hist;
-          out[i] = b[i] < bound ? b[i] : bound;
-        };
         auto checked = [&](int i) {
           float top1 = 0.0f, top2 = 0.0f;
           for (int dy = -1; dy <= 1; ++dy)
@@ -164,7 +163,7 @@ static void firefly_clamp(Workspace& ws, int W, int H, int image_w, int image_h)
               add_neighbour(top1, top2,
                             inside ? r.ch(c)[size_t(yy) * size_t(W) + size_t(xx)] : 0.0f);
             }
-          finish(i, top2);
+          out[i] = firefly_cut(b[i], top2, kappa[size_t(i)], mu[i / 4], yw[i], valid[i]);
         };
         const int i1 = inner_row ? std::min(image_w - 1, W) : 0;
         if (i1 > 0) checked(0);
