@@ -273,13 +273,12 @@ static void demodulate_row(int n, const float* __restrict col, const float* __re
   }
 }
 
-// h = xi = x + a (yw - x), g = log(1 + max(h, 0)).
+// xi = x + a (yw - x), g = log(1 + max(xi, 0)).
 static void blend_row(int n, const float* __restrict x, const float* __restrict yw,
-                      const float* __restrict a, float* __restrict h, float* __restrict xi,
-                      float* __restrict g) {
+                      const float* __restrict a, float* __restrict xi, float* __restrict g) {
   for (int i = 0; i < n; ++i) {
     const float v = x[i] + a[i] * (yw[i] - x[i]);
-    h[i] = v, xi[i] = v;
+    xi[i] = v;
     g[i] = log1p_pos(v > 0.0f ? v : 0.0f);
   }
 }
@@ -515,9 +514,10 @@ static const Planes& network(const NeuralWeights& nw, const Planes& in, Planes& 
   ensure(ws.xo, W, H, 3);
   ensure(ws.next_state, W, H, kStateChannels);
   ensure(ws.lg, W, H, 3);
-  // This frame's fireflies cut (ws.xo), then the temporal blend into the new state:
-  // r0 = xc + a (yw - xc), a = alpha nw / (1 + nw), n = min(1 / (1 - a), kMaxHistory); r0
-  // is also the filter's input (ws.xi) and log(1 + r0) its first guide (ws.lg).
+  // This frame's fireflies cut (ws.xo), then the temporal blend: r0 = xc + a (yw - xc),
+  // a = alpha nw / (1 + nw), into the filter's input (ws.xi) with log(1 + r0) its first
+  // guide (ws.lg); the new history length n = min(1 / (1 - a), kMaxHistory) into the state
+  // (whose irradiance is the first filter level's output, copied below).
   firefly_clamp(ws, W, H, in.image_width > 0 ? in.image_width : W,
                 in.image_height > 0 ? in.image_height : H);
   parallel_rows(H, 8, [&](int r0, int r1) {
@@ -538,8 +538,7 @@ static const Planes& network(const NeuralWeights& nw, const Planes& in, Planes& 
       for (int c = 0; c < 3; ++c) {
         const float* x = ws.xo.ch(c) + row;
         const float* yw = ws.yw.ch(c) + row;
-        blend_row(W, x, yw, a.data(), ws.next_state.ch(c) + row, ws.xi.ch(c) + row,
-                  ws.lg.ch(c) + row);
+        blend_row(W, x, yw, a.data(), ws.xi.ch(c) + row, ws.lg.ch(c) + row);
       }
     }
   });

@@ -15,7 +15,7 @@ namespace kestrel::denoise {
 
 namespace {
 constexpr char kMagic[9] = "KSTRLDNW";
-constexpr uint32_t kArchitecture = 4;  // 4: accumulated history, firefly clamp (model.py)
+constexpr uint32_t kArchitecture = 4;  // 4: firefly cut, accumulated history (model.py)
 }  // namespace
 
 NeuralWeights NeuralWeights::load(const std::string& path) {

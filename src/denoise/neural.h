@@ -37,9 +37,10 @@ struct NeuralWeights {
 constexpr int kFeatures = 18;
 constexpr int kLevels = 4;
 constexpr int kOutputs = 2 + 4 * kLevels;  ///< alpha, kLevels x (sc, sn, sz, beta), kappa
-constexpr int kStateChannels = 5;          ///< accumulated irradiance 0-2, depth 3, length 4
-constexpr float kMaxHistory = 32.0f;       ///< the longest history (frames) the state counts
-constexpr float kMinNormalStop = 2.0f;     ///< sn >= 2, sz >= 3: geometry edges always hold
+constexpr int kStateChannels =
+    5;  ///< irradiance after the first filter level 0-2, depth 3, length 4
+constexpr float kMaxHistory = 32.0f;    ///< the longest history (frames) the state counts
+constexpr float kMinNormalStop = 2.0f;  ///< sn >= 2, sz >= 3: geometry edges always hold
 constexpr float kMinDepthStop = 3.0f;
 constexpr float kHistoryAllowance = 4.0f;  ///< never cut as a firefly: up to 4x the history
 constexpr float kAlbedoEps = 0.01f;
@@ -60,8 +61,8 @@ struct StageTimes {
 };
 
 /// Inputs of one frame as planes (padded): color 0-2, albedo 3-5, normal 6-8, depth 9,
-/// roughness 10, motion 11-12. state: accumulated irradiance 0-2, depth 3, history length 4
-/// (empty on the first frame).
+/// roughness 10, motion 11-12. state: accumulated irradiance after the first filter level 0-2,
+/// depth 3, history length 4 (empty on the first frame).
 /// Returns the output colour planes (3, in ws.out) and replaces state.
 const Planes& run_network(const NeuralWeights& w, const Planes& in, Planes& state, bool recurrent,
                           Workspace& ws, StageTimes* times = nullptr);
