@@ -96,7 +96,8 @@ void run_upscale(const UpscaleArgs& a) {
   if (!method)
     throw Error(
         ErrorCode::invalid_argument,
-        fmt::format("upscale: unknown --method '{}' (neural, taau, bicubic, bilinear)", a.method));
+        fmt::format("upscale: unknown --method '{}' (neural, taau, bicubic, bilinear, nsrr)",
+                    a.method));
   UpscalerOptions o;
   o.method = *method, o.factor = a.factor, o.weights = a.weights;
   Upscaler up(o);
@@ -145,7 +146,9 @@ Action add_upscale_command(CLI::App& cmd) {
   cmd.add_option("-o,--output", a->out, "Output .exr or .pfm (a %04d pattern with --sequence)")
       ->required();
   cmd.add_option("--factor", a->factor, "2 or 4")->capture_default_str();
-  cmd.add_option("--method", a->method, "neural | taau | bicubic | bilinear")
+  cmd.add_option(
+         "--method", a->method,
+         "neural | taau | bicubic | bilinear | nsrr (needs --weights until trained weights land)")
       ->capture_default_str();
   cmd.add_option("--weights", a->weights, "Neural weights file (default: weights/upscaler.kdw)");
   cmd.add_option("--jitter", a->jitter,

@@ -3,7 +3,10 @@
 // history: its blend weight, the width of its neighbourhood clamp and how fast the current
 // frame's weight falls off with the distance to its samples) and three baselines: a
 // TAAU-like upsampler (the same reconstruction with constants), bicubic (Catmull-Rom) and
-// bilinear of the current frame. See docs/upscaler.md.
+// bilinear of the current frame; and `nsrr`, neural supersampling after Xiao et al. 2020 (the
+// current and three previous frames' features zero-upsampled, warped by the accumulated motion,
+// reweighted and reconstructed by a U-Net at the output resolution: a quality mode, far from
+// real time). See docs/upscaler.md.
 #pragma once
 #include <memory>
 #include <optional>
@@ -14,7 +17,7 @@
 
 namespace kestrel {
 
-enum class UpscaleMethod { neural, taau, bicubic, bilinear };
+enum class UpscaleMethod { neural, taau, bicubic, bilinear, nsrr };
 const char* upscale_method_name(UpscaleMethod m);
 std::optional<UpscaleMethod> upscale_method_from_name(std::string_view name);
 
@@ -35,11 +38,13 @@ struct UpscaleInput {
 struct UpscalerOptions {
   UpscaleMethod method = UpscaleMethod::neural;
   int factor = 2;       ///< 2 or 4: the output is factor x the input in each dimension
-  std::string weights;  ///< neural: weights file ("" = default_upscaler_weights())
+  std::string weights;  ///< neural, nsrr: weights file ("" = default_upscaler_weights(method))
+  bool bf16 = true;     ///< nsrr: bf16 convolutions where the CPU has them (else fp32)
 };
 
-/// $KESTREL_WEIGHTS_DIR/upscaler.kdw, else the source tree's weights/upscaler.kdw.
-std::string default_upscaler_weights();
+/// $KESTREL_WEIGHTS_DIR/upscaler.kdw (upscaler_nsrr.kdw for nsrr), else the source tree's
+/// weights/ file of that name.
+std::string default_upscaler_weights(UpscaleMethod method = UpscaleMethod::neural);
 
 /// An upsampler for one sequence (the history carries from frame to frame; reset() starts a
 /// new sequence, as does a change of input size). Work runs on the caller's TBB arena.
@@ -61,6 +66,7 @@ class Upscaler {
   UpscaleMethod method() const;
   int factor() const;
   size_t parameter_count() const;  ///< 0 for the baselines
+  bool uses_bf16() const;          ///< nsrr running its convolutions in bf16
   /// Milliseconds of the last frame's stages: features, network, reconstruction.
   struct Times {
     double features = 0, network = 0, reconstruct = 0;

@@ -13,6 +13,17 @@ clips' scenes are never used in training: Sponza, the Lamborghini and rooms with
                     [--frames 12] [--test-frames 16] [--ref-spp 256] [--test-ref-spp 384]
                     [--in-spp 128] [--rooms 8] [--max-depth 3] [--clamp 8]
 
+With --families (the dataset of the nsrr upsampler and of issue 19's evaluation): the training
+clips are the TRAIN families of ../denoise/families.py (--seeds each), the test clips the
+HELDOUT families (--test-seeds each, never seen in training) and the shared Sponza and
+Lamborghini:
+
+    make_dataset.py --families --out out/upscale_families --ref-spp 128 --test-ref-spp 256 \
+                    --in-spp 64
+
+Each family's own light flags (sun, sky, lights file) are kept; --max-depth and --clamp apply
+to inputs and targets alike.
+
 Re-running skips finished clips (a clip is finished when its manifest entry exists).
 """
 import argparse
@@ -25,12 +36,32 @@ import time
 sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), ".."))
 import kestrel_mpi  # noqa: E402
 
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "denoise"))
+import families  # noqa: E402
+
 HERE = os.path.dirname(os.path.abspath(__file__))
 ROOT = os.path.normpath(os.path.join(HERE, "..", ".."))
 SCENES = os.path.normpath(os.path.join(ROOT, "..", "shared", "scenes"))
 
 
+def family_clips(args):
+    out = []
+    for f in families.TRAIN:
+        for s in range(args.seeds):
+            out.append(dict(name=f"{f}_{s:03d}", split="train", family=f, seed=s))
+    for f in families.HELDOUT:
+        for s in range(args.test_seeds):
+            out.append(dict(name=f"test_{f}_{1000 + s}", split="test", family=f, seed=1000 + s))
+    out.append(dict(name="test_sponza", split="test", scene=os.path.join(SCENES, "dabrovic_sponza/sponza.obj"),
+                    path=os.path.join(ROOT, "data/paths/sponza_short.json")))
+    out.append(dict(name="test_lamborghini", split="test", scene=os.path.join(SCENES, "lamborghini/lamborghini.obj"),
+                    path="orbit:32"))
+    return out
+
+
 def clips(args):
+    if args.families:
+        return family_clips(args)
     out = []
     shared = [
         ("cornell_box", "cornell_box/cornell_box.obj", "orbit:24"),
@@ -70,6 +101,9 @@ def main():
     ap.add_argument("--rooms", type=int, default=8)
     ap.add_argument("--max-depth", type=int, default=3, help="path vertices (fewer: less noise, what matters here is detail)")
     ap.add_argument("--clamp", type=float, default=8.0, help="sample radiance clamp (no fireflies in the targets)")
+    ap.add_argument("--families", action="store_true", help="scene families (../denoise/families.py) instead of rooms and shared scenes")
+    ap.add_argument("--seeds", type=int, default=6, help="--families: seeds per training family")
+    ap.add_argument("--test-seeds", type=int, default=2, help="--families: seeds per held-out family")
     kestrel_mpi.add_arguments(ap)
     args = ap.parse_args()
     w, h = (int(v) for v in args.res.split("x"))
@@ -86,8 +120,11 @@ def main():
             continue
         d = os.path.join(args.out, clip["name"])
         t0 = time.time()
-        scene, path, env = clip.get("scene"), clip.get("path"), None
-        if "room" in clip:
+        scene, path, env, flags = clip.get("scene"), clip.get("path"), None, []
+        if "family" in clip:
+            info = families.make(clip["family"], clip["seed"], os.path.join(d, "scene"))
+            scene, path, flags = info["scene"], info["path"], info["flags"]
+        elif "room" in clip:
             rd = os.path.join(d, "scene")
             run([sys.executable, os.path.join(HERE, "..", "denoise", "procedural.py"), str(clip["room"]), rd])
             scene, path = os.path.join(rd, "room.obj"), os.path.join(rd, "path.json")
@@ -95,7 +132,7 @@ def main():
         test = clip["split"] == "test"
         frames = args.test_frames if test else args.frames
         base = kestrel_mpi.prefix(args) + [args.kestrel, "render-sequence", scene, "--path", path, "--frames", str(frames), "--quiet",
-                "--max-depth", str(args.max_depth), "--clamp", str(args.clamp)]
+                "--max-depth", str(args.max_depth), "--clamp", str(args.clamp)] + flags
         if env and env != "none":
             base += ["--env", env]
         for f in (2, 4):
@@ -105,7 +142,9 @@ def main():
         ref_spp = args.test_ref_spp if test else args.ref_spp
         run(base + ["--res", args.res, "--spp", str(ref_spp), "--seed", "7", "-o", os.path.join(d, "full"), "--pfm",
                     os.path.join(d, "full", "pfm"), "--png", "1"])
+        manifest.setdefault("commands", {})[clip["split"]] = "python3 scripts/upscale/make_dataset.py " + " ".join(sys.argv[1:])
         manifest["clips"][clip["name"]] = dict(split=clip["split"], scene=scene, path=path, env=env or "default",
+                                               family=clip.get("family", ""), flags=flags,
                                                frames=frames, res=args.res, ref_spp=ref_spp, in_spp=args.in_spp,
                                                max_depth=args.max_depth, clamp=args.clamp,
                                                seconds=round(time.time() - t0, 1))

@@ -17,6 +17,7 @@
 #include "kestrel/error.h"
 #include "nn/conv.h"
 #include "nn/weights.h"
+#include "upscale/nsrr.h"
 #include "upscale/reconstruct.h"
 
 namespace kestrel {
@@ -133,21 +134,24 @@ const char* upscale_method_name(UpscaleMethod m) {
       return "bicubic";
     case UpscaleMethod::bilinear:
       return "bilinear";
+    case UpscaleMethod::nsrr:
+      return "nsrr";
   }
   return "?";
 }
 
 std::optional<UpscaleMethod> upscale_method_from_name(std::string_view name) {
   for (UpscaleMethod m : {UpscaleMethod::neural, UpscaleMethod::taau, UpscaleMethod::bicubic,
-                          UpscaleMethod::bilinear})
+                          UpscaleMethod::bilinear, UpscaleMethod::nsrr})
     if (name == upscale_method_name(m)) return m;
   return std::nullopt;
 }
 
-std::string default_upscaler_weights() {
+std::string default_upscaler_weights(UpscaleMethod method) {
+  const char* name = method == UpscaleMethod::nsrr ? "upscaler_nsrr.kdw" : "upscaler.kdw";
   if (const char* dir = std::getenv("KESTREL_WEIGHTS_DIR"); dir && *dir)
-    return std::string(dir) + "/upscaler.kdw";
-  return std::string(KESTREL_SOURCE_DIR) + "/weights/upscaler.kdw";
+    return std::string(dir) + "/" + name;
+  return std::string(KESTREL_SOURCE_DIR) + "/weights/" + name;
 }
 
 struct Upscaler::Impl {
@@ -163,6 +167,7 @@ struct Upscaler::Impl {
       prev_depth;
   Axis ax, ay;
   GridAxis gx, gy;
+  std::unique_ptr<upscale::Nsrr> nsrr;
 
   void prepare(const UpscaleInput& in);
   void spatial(const UpscaleInput& in, FloatImage& out, bool cubic);
@@ -174,6 +179,12 @@ Upscaler::Upscaler(const UpscalerOptions& options) : impl_(std::make_unique<Impl
     throw Error(ErrorCode::invalid_argument,
                 fmt::format("upscale: factor must be 2 or 4, got {}", options.factor));
   impl_->options = options;
+  if (options.method == UpscaleMethod::nsrr) {
+    impl_->nsrr = std::make_unique<upscale::Nsrr>(
+        options.weights.empty() ? default_upscaler_weights(options.method) : options.weights,
+        options.factor, options.bf16);
+    impl_->parameters = impl_->nsrr->parameters();
+  }
   if (options.method == UpscaleMethod::neural) {
     const std::string path = options.weights.empty() ? default_upscaler_weights() : options.weights;
     impl_->layers = nn::load_layers(
@@ -190,6 +201,10 @@ Upscaler& Upscaler::operator=(Upscaler&&) noexcept = default;
 
 void Upscaler::reset() {
   impl_->has_history = false;
+  if (impl_->nsrr) impl_->nsrr->reset();
+}
+bool Upscaler::uses_bf16() const {
+  return impl_->nsrr && impl_->nsrr->bf16();
 }
 UpscaleMethod Upscaler::method() const {
   return impl_->options.method;
@@ -225,6 +240,12 @@ void Upscaler::upscale(const UpscaleInput& input, FloatImage& out) {
       break;
     case UpscaleMethod::bicubic:
       m.spatial(input, out, true);
+      break;
+    case UpscaleMethod::nsrr:
+      if (!input.depth || !input.motion)
+        throw Error(ErrorCode::invalid_argument,
+                    "upscale: nsrr needs the depth and the motion vectors of every frame");
+      m.nsrr->run(input, out, m.times);
       break;
     default:
       m.temporal(input, out);

@@ -1,0 +1,177 @@
+"""kestrel's `nsrr` upsampler, the reference definition: neural supersampling as Xiao et al.
+2020 describe it (align several recent frames, reweight them, reconstruct with a U-Net). The
+engine computes the same function (src/upscale/nsrr.cpp, convolutions through oneDNN);
+docs/upscaler.md explains the design and what it costs.
+
+Per frame t (low resolution h x w, point-sampled at its jitter (jx, jy): pixel (i, j) holds
+the sample at (i + jx, j + jy); depth z, 0 = sky; motion m in low-resolution pixels, "p + m is
+where the surface was in the previous frame"), output f h x f w, f in {2, 4}:
+
+  x      = [y(c), d(z)]              y(c) = c / (1 + L(c)); d(z) = z / (z + s), 1 for the sky;
+                                     s = mean depth of the current frame's non-sky pixels (1 if
+                                     none), shared by the whole window
+  F      = [x, E(x)]                 E: 3 convolutions 3x3 (4 -> 32 -> 32 -> 8, ReLU), the same
+                                     weights for every frame: 12 channels at low resolution
+  Z_k    = F of frame t-k zero-upsampled: its sample (i, j) is written to the output pixel
+           (floor(f (i + jx)), floor(f (j + jy))) of its own jitter, every other pixel 0
+  P_0    = X + 1/2;  P_k = P_{k-1} + f m_{t-k+1}(P_{k-1} / f)   (bilinear m, in output pixels)
+  W_k    = Z_k at floor(P_k) (0 off screen or where frame t-k does not exist), k = 1..N
+  w      = 5 (1 + tanh R([Z_0[:4], W_1[:4], ..., W_N[:4]]))   R: 3 convolutions 3x3
+           (4 (N+1) -> 32 -> 32 -> N, ReLU between): the feature reweighting, w_k in [0, 10]
+  out    = from_y(U([Z_0, w_1 W_1, ..., w_N W_N, f / 4]))       U: the U-Net below
+
+U (as Xiao et al.'s, channels 64, 32 | 64, 64 | 128, 128 | 64, 64 | 32, 3): two 3x3
+convolutions per level, ReLU, 2x2 max pooling down, bilinear 2x upsampling up (edges
+clamped), skip connections by concatenation; the input is padded with zeros to multiples of
+4 (the output cropped back); the output is y, clamped to [0, 0.999].
+"""
+import torch
+import torch.nn as nn
+import torch.nn.functional as F
+
+import model as M
+
+FRAMES = 3  # previous frames (N); the current frame makes N + 1
+FEATURE_CHANNELS = 12
+REWEIGHT_MAX = 10.0
+Y_MAX = 0.999
+
+
+def depth_scale(depth):
+    """s: the mean depth of the non-sky pixels (depth (B,1,h,w)) -> (B,1,1,1); 1 if none."""
+    valid = (depth > 0).float()
+    n = valid.sum(dim=(1, 2, 3), keepdim=True)
+    total = (depth * valid).sum(dim=(1, 2, 3), keepdim=True)
+    return torch.where(n > 0, total / torch.clamp(n, min=1.0), torch.ones_like(n))
+
+
+def clean(color, depth, motion):
+    color = torch.clamp(torch.nan_to_num(color, nan=0.0, posinf=0.0, neginf=0.0), min=0.0)
+    depth = torch.nan_to_num(depth, nan=0.0, posinf=0.0, neginf=0.0).clamp(min=0.0)
+    motion = torch.nan_to_num(motion, nan=0.0, posinf=0.0, neginf=0.0).clamp(-65536.0, 65536.0)
+    return color, depth, motion
+
+
+def zero_upsample(feat, jx, jy, f):
+    """(B,C,h,w) at jitter (jx, jy) (B,) -> (B,C,f h,f w): each sample in the output pixel
+    that contains it, zeros elsewhere."""
+    B, C, h, w = feat.shape
+    dev = feat.device
+    ii = torch.arange(w, device=dev, dtype=torch.float32).view(1, 1, w).expand(B, h, w)
+    jj = torch.arange(h, device=dev, dtype=torch.float32).view(1, h, 1).expand(B, h, w)
+    X = torch.floor(f * (ii + jx.view(B, 1, 1))).long().clamp(0, f * w - 1)
+    Y = torch.floor(f * (jj + jy.view(B, 1, 1))).long().clamp(0, f * h - 1)
+    idx = (Y * (f * w) + X).view(B, 1, -1).expand(B, C, -1)
+    out = torch.zeros(B, C, f * h * f * w, device=dev, dtype=feat.dtype)
+    out.scatter_(2, idx, feat.reshape(B, C, -1))
+    return out.view(B, C, f * h, f * w)
+
+
+def warp_positions(motions, f, H, W):
+    """motions: [m_t, m_{t-1}, ...] (B,2,h,w) -> [P_1, P_2, ...] (each (B,2,H,W), output
+    pixels): P_k = P_{k-1} + f m_{t-k+1}(P_{k-1} / f), bilinear, P_0 = pixel centres."""
+    B = motions[0].shape[0]
+    dev = motions[0].device
+    X = torch.arange(W, device=dev, dtype=torch.float32).view(1, 1, 1, W).expand(B, 1, H, W) + 0.5
+    Y = torch.arange(H, device=dev, dtype=torch.float32).view(1, 1, H, 1).expand(B, 1, H, W) + 0.5
+    out = []
+    for m in motions:
+        mv = M.bilinear_at(m, X / f, Y / f)
+        X, Y = X + f * mv[:, 0:1], Y + f * mv[:, 1:2]
+        out.append(torch.cat([X, Y], 1))
+    return out
+
+
+def gather_nearest(img, pos):
+    """img (B,C,H,W), pos (B,2,H,W) continuous -> img at floor(pos), 0 off screen."""
+    B, C, H, W = img.shape
+    x, y = torch.floor(pos[:, 0:1]), torch.floor(pos[:, 1:2])
+    inside = ((x >= 0) & (x < W) & (y >= 0) & (y < H)).float()
+    g = M.gather2d(img, x.long().clamp(0, W - 1), y.long().clamp(0, H - 1))
+    return g * inside
+
+
+def conv(cin, cout):
+    return nn.Conv2d(cin, cout, 3, padding=1)
+
+
+def upsample2(x):
+    """Bilinear 2x, pixel centres aligned, edges clamped (oneDNN's resampling, linear)."""
+    return F.interpolate(x, scale_factor=2, mode="bilinear", align_corners=False)
+
+
+class NSRR(nn.Module):
+    def __init__(self, frames=FRAMES, extract=(32, 32, 8), reweight=(32, 32), unet=(64, 32, 64, 64, 128, 128, 64, 64, 32)):
+        super().__init__()
+        self.frames = frames
+        e1, e2, e3 = extract
+        assert 4 + e3 == FEATURE_CHANNELS
+        self.e1, self.e2, self.e3 = conv(4, e1), conv(e1, e2), conv(e2, e3)
+        r1, r2 = reweight
+        self.r1, self.r2, self.r3 = conv(4 * (frames + 1), r1), conv(r1, r2), conv(r2, frames)
+        a1, a2, b1, b2, c1, c2, d1, d2, o1 = unet
+        cin = FEATURE_CHANNELS * (frames + 1) + 1
+        self.u1a, self.u1b = conv(cin, a1), conv(a1, a2)
+        self.u2a, self.u2b = conv(a2, b1), conv(b1, b2)
+        self.u3a, self.u3b = conv(b2, c1), conv(c1, c2)
+        self.u4a, self.u4b = conv(c2 + b2, d1), conv(d1, d2)
+        self.u5a, self.u5b = conv(d2 + a2, o1), conv(o1, 3)
+        with torch.no_grad():  # start near a mid-grey y rather than at the clamp
+            self.u5b.bias.fill_(0.25)
+
+    def extract(self, x):
+        """x (B,4,h,w) -> the frame's 12 features."""
+        e = F.relu(self.e1(x))
+        e = F.relu(self.e2(e))
+        e = F.relu(self.e3(e))
+        return torch.cat([x, e], 1)
+
+    def reweight(self, z0, warped):
+        r = torch.cat([z0[:, :4]] + [w[:, :4] for w in warped], 1)
+        r = F.relu(self.r1(r))
+        r = F.relu(self.r2(r))
+        return 0.5 * REWEIGHT_MAX * (1.0 + torch.tanh(self.r3(r)))
+
+    def reconstruct(self, x):
+        """The U-Net; the input is padded with zeros to multiples of 4 and the output cropped."""
+        H, W = x.shape[2:]
+        x = F.pad(x, (0, -W % 4, 0, -H % 4))
+        a = F.relu(self.u1b(F.relu(self.u1a(x))))
+        b = F.relu(self.u2b(F.relu(self.u2a(F.max_pool2d(a, 2)))))
+        c = F.relu(self.u3b(F.relu(self.u3a(F.max_pool2d(b, 2)))))
+        d = F.relu(self.u4b(F.relu(self.u4a(torch.cat([upsample2(c), b], 1)))))
+        return self.u5b(F.relu(self.u5a(torch.cat([upsample2(d), a], 1))))[:, :, :H, :W]
+
+    def forward(self, frames, f, scale=None):
+        """frames: [current, previous, ...] (at most N + 1), each (color (B,3,h,w), depth
+        (B,1,h,w), motion (B,2,h,w), jitter (B,2)); a frame that does not exist is None.
+        scale: the depth scale s (B,1,1,1), else depth_scale of the current frame.
+        -> the linear output (B,3,f h,f w) and its y."""
+        cur = frames[0]
+        color, depth, motion = clean(*cur[:3])
+        B, _, h, w = color.shape
+        H, W = f * h, f * w
+        s = depth_scale(depth) if scale is None else scale
+        zs, motions = [], []
+        for k in range(self.frames + 1):
+            fr = frames[k] if k < len(frames) else None
+            if fr is None:
+                zs.append(None)
+                continue
+            c, z, m = clean(*fr[:3])
+            x = torch.cat([M.to_y(c), torch.where(z > 0, z / (z + s), torch.ones_like(z))], 1)
+            zs.append(zero_upsample(self.extract(x), fr[3][:, 0].float(), fr[3][:, 1].float(), f))
+        # Motion of frame t-k+1 moves P_{k-1} (in frame t-k+1) to P_k (in frame t-k).
+        for k in range(1, self.frames + 1):
+            fr = frames[k - 1] if k - 1 < len(frames) else None
+            motions.append(clean(*fr[:3])[2] if fr is not None else torch.zeros_like(motion))
+        pos = warp_positions(motions, f, H, W)
+        warped = []
+        for k in range(1, self.frames + 1):
+            z = zs[k]
+            warped.append(gather_nearest(z, pos[k - 1]) if z is not None else torch.zeros_like(zs[0]))
+        wts = self.reweight(zs[0], warped)
+        x = torch.cat([zs[0]] + [wts[:, k:k + 1] * warped[k] for k in range(self.frames)] +
+                      [torch.full_like(zs[0][:, :1], f / 4.0)], 1)
+        y = torch.clamp(self.reconstruct(x), 0.0, Y_MAX)
+        return M.from_y(y), y
