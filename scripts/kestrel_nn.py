@@ -78,3 +78,21 @@ def load_kdw(model, path, magic, architecture, partial=False):
             else:
                 dst.copy_(src)
             at += 4 * size
+
+
+def plot_loss(history, path, window, label="L1 (tone-mapped)"):
+    """history: (step, factor, loss, ...) tuples -> a PNG of each factor's running mean."""
+    try:
+        import matplotlib
+        matplotlib.use("Agg")
+        import matplotlib.pyplot as plt
+    except ImportError:
+        return
+    fig, ax = plt.subplots(figsize=(7, 3.5))
+    for fac in sorted({h[1] for h in history}):
+        pts = [(h[0], h[2]) for h in history if h[1] == fac]
+        ys = np.convolve([p[1] for p in pts], np.ones(window) / window, mode="valid")
+        ax.plot([p[0] for p in pts][window - 1:], ys, label=f"x{fac} {label}, {window}-step mean")
+    ax.set_xlabel("step"), ax.set_ylabel("loss"), ax.legend(), ax.grid(alpha=0.3)
+    fig.tight_layout()
+    fig.savefig(path, dpi=100)

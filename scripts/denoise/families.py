@@ -387,6 +387,19 @@ def mirror_sphere_probe(out):
 FAMILIES = {f.__name__: f for f in [sunlit_interior, night_interior, corridor, outdoor, product, mirror_room, stairwell, gallery]}
 
 
+def dataset_clips(seeds, test_seeds, shared):
+    """A dataset's clips: the TRAIN families x `seeds` (split train), the HELDOUT families x
+    `test_seeds` (seeds from 1000, split test), then the `shared` clips (dicts, split test)."""
+    out = []
+    for f in TRAIN:
+        for s in range(seeds):
+            out.append(dict(name=f"{f}_{s:03d}", split="train", family=f, seed=s))
+    for f in HELDOUT:
+        for s in range(test_seeds):
+            out.append(dict(name=f"test_{f}_{1000 + s}", split="test", family=f, seed=1000 + s))
+    return out + [dict(c, split="test") for c in shared]
+
+
 def make(family, seed, out):
     rng = random.Random(f"{family}:{seed}")
     s = Scene(rng, out)

@@ -40,18 +40,11 @@ SCENES = os.path.normpath(os.path.join(ROOT, "..", "shared", "scenes"))
 def family_clips(args):
     """--families: TRAIN families x --seeds for training (Noise2Noise targets), HELDOUT
     families x --test-seeds and the shared Sponza and Lamborghini for evaluation."""
-    out = []
-    for f in families.TRAIN:
-        for s in range(args.seeds):
-            out.append(dict(name=f"{f}_{s:03d}", split="train", family=f, seed=s))
-    for f in families.HELDOUT:
-        for s in range(args.test_seeds):
-            out.append(dict(name=f"test_{f}_{1000 + s}", split="test", family=f, seed=1000 + s))
-    out.append(dict(name="test_sponza", split="test", scene=os.path.join(SCENES, "dabrovic_sponza/sponza.obj"),
-                    path=os.path.join(ROOT, "data/paths/sponza_short.json"), env=None))
-    out.append(dict(name="test_lamborghini", split="test", scene=os.path.join(SCENES, "lamborghini/lamborghini.obj"),
-                    path="orbit:24", env=None))
-    return out
+    return families.dataset_clips(args.seeds, args.test_seeds, [
+        dict(name="test_sponza", scene=os.path.join(SCENES, "dabrovic_sponza/sponza.obj"),
+             path=os.path.join(ROOT, "data/paths/sponza_short.json"), env=None),
+        dict(name="test_lamborghini", scene=os.path.join(SCENES, "lamborghini/lamborghini.obj"), path="orbit:24",
+             env=None)])
 
 
 def clips(args):

@@ -45,18 +45,10 @@ SCENES = os.path.normpath(os.path.join(ROOT, "..", "shared", "scenes"))
 
 
 def family_clips(args):
-    out = []
-    for f in families.TRAIN:
-        for s in range(args.seeds):
-            out.append(dict(name=f"{f}_{s:03d}", split="train", family=f, seed=s))
-    for f in families.HELDOUT:
-        for s in range(args.test_seeds):
-            out.append(dict(name=f"test_{f}_{1000 + s}", split="test", family=f, seed=1000 + s))
-    out.append(dict(name="test_sponza", split="test", scene=os.path.join(SCENES, "dabrovic_sponza/sponza.obj"),
-                    path=os.path.join(ROOT, "data/paths/sponza_short.json")))
-    out.append(dict(name="test_lamborghini", split="test", scene=os.path.join(SCENES, "lamborghini/lamborghini.obj"),
-                    path="orbit:32"))
-    return out
+    return families.dataset_clips(args.seeds, args.test_seeds, [
+        dict(name="test_sponza", scene=os.path.join(SCENES, "dabrovic_sponza/sponza.obj"),
+             path=os.path.join(ROOT, "data/paths/sponza_short.json")),
+        dict(name="test_lamborghini", scene=os.path.join(SCENES, "lamborghini/lamborghini.obj"), path="orbit:32")])
 
 
 def clips(args):

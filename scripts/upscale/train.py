@@ -235,21 +235,7 @@ def main():
         git=subprocess.run(["git", "-C", ROOT, "rev-parse", "--short", "HEAD"], capture_output=True, text=True).stdout.strip(),
     )
     json.dump(prov, open(os.path.splitext(args.weights)[0] + ".json", "w"), indent=1)
-    try:
-        import matplotlib
-        matplotlib.use("Agg")
-        import matplotlib.pyplot as plt
-        fig, ax = plt.subplots(figsize=(7, 3.5))
-        for fac in (2, 4):
-            pts = [(h[0], h[2]) for h in history if h[1] == fac]
-            k = 20
-            ys = np.convolve([p[1] for p in pts], np.ones(k) / k, mode="valid")
-            ax.plot([p[0] for p in pts][k - 1:], ys, label=f"x{fac} L1 (tone-mapped), 20-step mean")
-        ax.set_xlabel("step"), ax.set_ylabel("loss"), ax.legend(), ax.grid(alpha=0.3)
-        fig.tight_layout()
-        fig.savefig(os.path.splitext(args.weights)[0] + "_loss.png", dpi=100)
-    except ImportError:
-        pass
+    kestrel_nn.plot_loss(history, os.path.splitext(args.weights)[0] + "_loss.png", 20)
     test = [n for n, c in manifest["clips"].items() if n == "test_room_1000"]
     if test:
         write_fixture(model, load_clip(args.data, test[0], 3), fixture_dir)
