@@ -117,6 +117,15 @@ def tune_taau(clips, grid, space):
     return best[1]
 
 
+def write_fixture_inputs(x, out_dir, f, t):
+    """Frame t of a fixture (x: (1,6,h,w) colour, depth, motion) as x{f}_{color,depth,motion}_{t}.pfm."""
+    for name, sl in (("color", slice(0, 3)), ("depth", slice(3, 4)), ("motion", slice(4, 6))):
+        a = x[0, sl].numpy().transpose(1, 2, 0)
+        if a.shape[2] == 2:
+            a = np.concatenate([a, np.zeros_like(a[:, :, :1])], 2)
+        write_pfm(os.path.join(out_dir, f"x{f}_{name}_{t}.pfm"), a)
+
+
 def write_fixture(model, clip, out_dir, frames=3, H=48, W=64):
     """A crop of a held-out clip, both factors: inputs, jitter and the model's outputs."""
     os.makedirs(out_dir, exist_ok=True)
@@ -128,11 +137,7 @@ def write_fixture(model, clip, out_dir, frames=3, H=48, W=64):
             state = None
             for t in range(frames):
                 x = seq[:, t]
-                for name, sl in (("color", slice(0, 3)), ("depth", slice(3, 4)), ("motion", slice(4, 6))):
-                    a = x[0, sl].numpy().transpose(1, 2, 0)
-                    if a.shape[2] == 2:
-                        a = np.concatenate([a, np.zeros_like(a[:, :, :1])], 2)
-                    write_pfm(os.path.join(out_dir, f"x{f}_{name}_{t}.pfm"), a)
+                write_fixture_inputs(x, out_dir, f, t)
                 lin, _, state = M.step(x[:, 0:3], x[:, 3:4], x[:, 4:6], jitters(frames)[None, t], f, state, model=model)
                 write_pfm(os.path.join(out_dir, f"x{f}_out_{t}.pfm"), lin[0].numpy().transpose(1, 2, 0))
     json.dump(meta, open(os.path.join(out_dir, "fixture.json"), "w"), indent=1)

@@ -30,7 +30,7 @@ import torch
 
 import model as M
 import nsrr as N
-from train import aces_srgb, jitters, load_clip
+from train import aces_srgb, jitters, load_clip, write_fixture_inputs
 
 sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), ".."))
 import kestrel_nn  # noqa: E402
@@ -64,11 +64,7 @@ def write_fixture(model, clip, out_dir, name=FIXTURE_CLIP, frames=4, H=48, W=64)
             jit = jitters(frames)[None]
             for t in range(frames):
                 x = seq[:, t]
-                for name, sl in (("color", slice(0, 3)), ("depth", slice(3, 4)), ("motion", slice(4, 6))):
-                    a = x[0, sl].numpy().transpose(1, 2, 0)
-                    if a.shape[2] == 2:
-                        a = np.concatenate([a, np.zeros_like(a[:, :, :1])], 2)
-                    write_pfm(os.path.join(out_dir, f"x{f}_{name}_{t}.pfm"), a)
+                write_fixture_inputs(x, out_dir, f, t)
                 lin, _ = model(frames_at(seq, jit, t, min(t, model.frames)), f)
                 write_pfm(os.path.join(out_dir, f"x{f}_out_{t}.pfm"), lin[0].numpy().transpose(1, 2, 0))
     json.dump(meta, open(os.path.join(out_dir, "fixture.json"), "w"), indent=1)
