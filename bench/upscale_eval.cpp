@@ -53,7 +53,8 @@ struct Scores {
 };
 
 const UpscaleMethod kMethods[] = {UpscaleMethod::bilinear, UpscaleMethod::bicubic,
-                                  UpscaleMethod::taau, UpscaleMethod::neural};
+                                  UpscaleMethod::taau,     UpscaleMethod::neural,
+                                  UpscaleMethod::nsrr_rt,  UpscaleMethod::nsrr};
 
 const char* label(UpscaleMethod m) {
   switch (m) {
@@ -63,15 +64,27 @@ const char* label(UpscaleMethod m) {
       return "bicubic (Catmull-Rom)";
     case UpscaleMethod::taau:
       return "TAAU-like";
+    case UpscaleMethod::nsrr:
+      return "nsrr (Xiao et al.)";
+    case UpscaleMethod::nsrr_rt:
+      return "nsrr-rt (real-time)";
     default:
       return "neural (learned TAAU)";
   }
 }
 
+// The inputs an upsampler is fed: the clean point-sampled frames (x<f>/), and the same frames
+// at 1 spp through the denoiser (x<f>_dn/, make_dataset.py --denoised) where the clip has them.
+struct Variant {
+  const char* name;
+  const char* suffix;
+};
+const Variant kVariants[] = {{"clean", ""}, {"denoised 1 spp", "_dn"}};
+
 }  // namespace
 
 int main(int argc, char** argv) {
-  std::string dataset = std::string(KESTREL_SOURCE_DIR) + "/out/upscale_dataset";
+  std::string dataset = std::string(KESTREL_SOURCE_DIR) + "/out/upscale_families";
   std::string out_dir = std::string(KESTREL_SOURCE_DIR) + "/docs/upscaler";
   std::string weights;
   int threads = int(std::thread::hardware_concurrency()), repeat = 9;
@@ -81,7 +94,7 @@ int main(int argc, char** argv) {
       ->capture_default_str();
   app.add_option("--out", out_dir, "Where eval.md, eval.json and the crops go")
       ->capture_default_str();
-  app.add_option("--weights", weights, "Neural weights (default: weights/upscaler.kdw)");
+  app.add_option("--weights", weights, "Learned TAAU weights (default: weights/upscaler.kdw)");
   app.add_option("--threads", threads, "Worker threads")->capture_default_str();
   app.add_option("--repeat", repeat, "Timed frames (median)")->capture_default_str();
   app.add_flag("--quick", quick, "Three frames per clip (smoke test)");
@@ -96,19 +109,36 @@ int main(int argc, char** argv) {
                               dataset));
     const nlohmann::json manifest = nlohmann::json::parse(mf);
     std::vector<std::string> clips;
+    std::map<std::string, std::string> family;  // clip -> its family (shared scenes: the clip)
     for (const auto& [name, c] : manifest.at("clips").items())
-      if (c.at("split") == "test") clips.push_back(name);
+      if (c.at("split") == "test") {
+        clips.push_back(name);
+        const std::string fam = c.value("family", std::string());
+        family[name] = fam.empty() ? name : fam;
+      }
     if (clips.empty())
       throw Error(ErrorCode::parse_error,
                   fmt::format("{}: no test clips in the manifest", dataset));
     fs::create_directories(out_dir);
     auto options = [&](UpscaleMethod m, int f) {
       UpscalerOptions o;
-      o.method = m, o.factor = f, o.weights = weights;
+      o.method = m, o.factor = f;
+      if (m == UpscaleMethod::neural) o.weights = weights;
       return o;
     };
-    const size_t params = Upscaler(options(UpscaleMethod::neural, 2)).parameter_count();
-    std::map<int, std::map<UpscaleMethod, Scores>> total;
+    // The methods whose weights load (a missing network is reported, not fatal).
+    std::vector<UpscaleMethod> methods;
+    std::map<UpscaleMethod, size_t> params;
+    for (UpscaleMethod m : kMethods) try {
+        params[m] = Upscaler(options(m, 2)).parameter_count();
+        methods.push_back(m);
+      } catch (const Error& e) {
+        fmt::print("skipping {}: {}\n", label(m), e.what());
+      }
+    // scores[variant][f][family][method], summed over the family's clips.
+    std::map<std::string, std::map<int, std::map<std::string, std::map<UpscaleMethod, Scores>>>>
+        scores;
+    std::map<std::string, std::map<int, std::map<UpscaleMethod, Scores>>> total;
     nlohmann::json json_clips = nlohmann::json::array();
     std::string per_clip;
     for (const std::string& clip : clips) {
@@ -118,69 +148,82 @@ int main(int argc, char** argv) {
       if (quick) frames = std::min(frames, 3);
       std::vector<FloatImage> refs;
       std::vector<std::vector<float>> refs_tm;
+      float ref_max = 0;
       for (int t = 0; t < frames; ++t) {
         refs.push_back(read_pfm(
             (root / "full" / "pfm" / fmt::format("frame_{:04d}", t) / "color.pfm").string()));
         refs_tm.push_back(tonemapped(refs.back()));
+        for (float v : refs.back().pixels) ref_max = std::max(ref_max, v);
       }
-      for (int f : {2, 4}) {
-        std::vector<LowFrame> low;
-        for (int t = 0; t < frames; ++t)
-          low.push_back(
-              load_low(root / fmt::format("x{}", f) / "pfm" / fmt::format("frame_{:04d}", t), t));
-        std::vector<FloatImage> last;
-        for (UpscaleMethod m : kMethods) {
-          Upscaler up(options(m, f));
-          Scores s;
-          std::vector<float> prev;
-          FloatImage out;
-          for (int t = 0; t < frames; ++t) {
-            up.upscale(low[size_t(t)].input(), out);
-            if (out.width != refs[size_t(t)].width || out.height != refs[size_t(t)].height)
-              throw Error(
-                  ErrorCode::invalid_argument,
-                  fmt::format("{}: x{} frames do not upsample to the reference size", clip, f));
-            const std::vector<float> to = tonemapped(out);
-            const std::vector<float>& tr = refs_tm[size_t(t)];
-            s.psnr += psnr(to, tr);
-            s.ssim += ssim(to, tr, out.width, out.height);
-            if (t > 0) {
-              double e = 0;
-              const std::vector<float>& pr = refs_tm[size_t(t - 1)];
-              for (size_t i = 0; i < to.size(); ++i)
-                e += std::abs((to[i] - prev[i]) - (tr[i] - pr[i]));
-              s.terr += e / double(to.size());
+      for (const Variant& var : kVariants)
+        for (int f : {2, 4}) {
+          const fs::path low_dir = root / fmt::format("x{}{}", f, var.suffix);
+          if (!fs::exists(low_dir)) continue;
+          std::vector<LowFrame> low;
+          for (int t = 0; t < frames; ++t)
+            low.push_back(load_low(low_dir / "pfm" / fmt::format("frame_{:04d}", t), t));
+          std::vector<FloatImage> last;
+          for (UpscaleMethod m : methods) {
+            Upscaler up(options(m, f));
+            Scores s;
+            std::vector<float> prev;
+            FloatImage out;
+            float out_max = 0;
+            for (int t = 0; t < frames; ++t) {
+              up.upscale(low[size_t(t)].input(), out);
+              if (out.width != refs[size_t(t)].width || out.height != refs[size_t(t)].height)
+                throw Error(
+                    ErrorCode::invalid_argument,
+                    fmt::format("{}: x{} frames do not upsample to the reference size", clip, f));
+              for (float v : out.pixels) out_max = std::max(out_max, v);
+              const std::vector<float> to = tonemapped(out);
+              const std::vector<float>& tr = refs_tm[size_t(t)];
+              s.psnr += psnr(to, tr);
+              s.ssim += ssim(to, tr, out.width, out.height);
+              if (t > 0) {
+                double e = 0;
+                const std::vector<float>& pr = refs_tm[size_t(t - 1)];
+                for (size_t i = 0; i < to.size(); ++i)
+                  e += std::abs((to[i] - prev[i]) - (tr[i] - pr[i]));
+                s.terr += e / double(to.size());
+              }
+              prev = to;
             }
-            prev = to;
+            s.psnr /= frames, s.ssim /= frames, s.terr /= std::max(frames - 1, 1), s.n = 1;
+            const double bright = out_max / std::max(ref_max, 1e-6f);
+            per_clip += fmt::format("| {} | {} | x{} | {} | {:.2f} | {:.4f} | {:.5f} | {:.2f} |\n",
+                                    clip, var.name, f, label(m), s.psnr, s.ssim, s.terr, bright);
+            fmt::print(
+                "{:24s} {:14s} x{}  {:24s} PSNR {:6.2f}  SSIM {:.4f}  tErr {:.5f}  max/ref "
+                "{:.2f}\n",
+                clip, var.name, f, label(m), s.psnr, s.ssim, s.terr, bright);
+            json_clips.push_back({{"clip", clip},
+                                  {"family", family[clip]},
+                                  {"input", var.name},
+                                  {"factor", f},
+                                  {"method", upscale_method_name(m)},
+                                  {"psnr", s.psnr},
+                                  {"ssim", s.ssim},
+                                  {"terr", s.terr},
+                                  {"max_over_ref_max", bright},
+                                  {"frames", frames}});
+            for (Scores* tt : {&scores[var.name][f][family[clip]][m], &total[var.name][f][m]})
+              tt->psnr += s.psnr, tt->ssim += s.ssim, tt->terr += s.terr, tt->n += 1;
+            last.push_back(out);
           }
-          s.psnr /= frames, s.ssim /= frames, s.terr /= std::max(frames - 1, 1), s.n = 1;
-          per_clip += fmt::format("| {} | x{} | {} | {:.2f} | {:.4f} | {:.5f} |\n", clip, f,
-                                  label(m), s.psnr, s.ssim, s.terr);
-          fmt::print("{:18s} x{}  {:24s} PSNR {:6.2f}  SSIM {:.4f}  tErr {:.5f}\n", clip, f,
-                     label(m), s.psnr, s.ssim, s.terr);
-          json_clips.push_back({{"clip", clip},
-                                {"factor", f},
-                                {"method", upscale_method_name(m)},
-                                {"psnr", s.psnr},
-                                {"ssim", s.ssim},
-                                {"terr", s.terr},
-                                {"frames", frames}});
-          Scores& tt = total[f][m];
-          tt.psnr += s.psnr, tt.ssim += s.ssim, tt.terr += s.terr, tt.n += 1;
-          last.push_back(out);
+          std::vector<const FloatImage*> imgs;
+          for (const FloatImage& o : last) imgs.push_back(&o);
+          imgs.push_back(&refs.back());
+          const int cw = std::min(96, refs.back().width), ch = std::min(72, refs.back().height);
+          write_crop_png(
+              (fs::path(out_dir) / fmt::format("{}{}_x{}_crops.png", clip, var.suffix, f)).string(),
+              imgs, (refs.back().width - cw) / 2, (refs.back().height - ch) / 2, cw, ch);
         }
-        std::vector<const FloatImage*> imgs;
-        for (const FloatImage& o : last) imgs.push_back(&o);
-        imgs.push_back(&refs.back());
-        const int cw = std::min(96, refs.back().width), ch = std::min(72, refs.back().height);
-        write_crop_png((fs::path(out_dir) / fmt::format("{}_x{}_crops.png", clip, f)).string(),
-                       imgs, (refs.back().width - cw) / 2, (refs.back().height - ch) / 2, cw, ch);
-      }
     }
     // Timing per 1280x720 output: the first clip's low-resolution frames tiled to 640x360 /
     // 320x180.
     std::map<int, std::map<UpscaleMethod, double>> ms;
-    std::map<int, std::map<std::string, double>> stages;
+    std::map<int, std::map<UpscaleMethod, std::map<std::string, double>>> stages;
     for (int f : {2, 4}) {
       const int lw = 1280 / f, lh = 720 / f;
       auto tile = [&](const FloatImage& s) {
@@ -197,11 +240,12 @@ int main(int argc, char** argv) {
                               t);
         big.push_back({tile(s.color), tile(s.depth), tile(s.motion), s.jx, s.jy});
       }
-      for (UpscaleMethod m : kMethods) {
+      for (UpscaleMethod m : methods) {
         Upscaler up(options(m, f));
         std::vector<double> times, feat, net, rec;
         FloatImage out;
-        for (int r = 0; r < repeat + 2; ++r) {
+        const int timed = m == UpscaleMethod::nsrr ? std::min(repeat, 3) : repeat;
+        for (int r = 0; r < timed + 2; ++r) {
           const auto t0 = std::chrono::steady_clock::now();
           up.upscale(big[size_t(r % 2)].input(), out);
           const double t =
@@ -214,62 +258,93 @@ int main(int argc, char** argv) {
           }
         }
         ms[f][m] = median(times);
-        if (m == UpscaleMethod::neural)
-          stages[f] = {
-              {"features", median(feat)}, {"network", median(net)}, {"reconstruct", median(rec)}};
+        stages[f][m] = {
+            {"features", median(feat)}, {"network", median(net)}, {"reconstruct", median(rec)}};
         fmt::print("x{} {:24s} {:.1f} ms per 1280x720 output ({} threads, median of {})\n", f,
-                   label(m), ms[f][m], threads, repeat);
+                   label(m), ms[f][m], threads, timed);
       }
     }
     std::string md = fmt::format(
         "# Upsampler evaluation\n\nWritten by `kestrel_upscale_eval` (bench/upscale_eval.cpp) on "
-        "the held-out test clips of "
-        "`{}`: {}. Inputs: the clips rendered at 1/2 and 1/4 of the reference resolution, "
-        "point-sampled at kestrel's "
-        "per-frame Halton jitter (clean: `--fixed-jitter`, many samples). References: the full "
-        "resolution, many samples per "
+        "the held-out test clips of `{}`: {}. Held-out clips are of families never seen in "
+        "training (and the shared scenes). Inputs: the clips rendered at 1/2 and 1/4 of the "
+        "reference resolution at kestrel's per-frame Halton jitter, either clean (point-sampled, "
+        "many samples: `--fixed-jitter`) or at 1 spp through the neural denoiser (what the "
+        "real-time loop feeds the upsampler). References: the full resolution, many samples per "
         "pixel. Means over clips of per-clip means over every frame (the first frame has no "
-        "history). PSNR / SSIM on "
-        "tone-mapped sRGB (ACES fit, exposure 0); tErr = mean |(o_t - o_(t-1)) - (r_t - r_(t-1))|, "
-        "tone-mapped. Time: ms "
-        "per 1280x720 output frame (tiled test frames), {} threads, median of {} after 2 warm-up "
-        "frames. Neural network: "
-        "{} parameters.\n\n",
-        fs::relative(dataset, KESTREL_SOURCE_DIR).string(), fmt::join(clips, ", "), threads, repeat,
-        params);
+        "history). PSNR / SSIM on tone-mapped sRGB (ACES fit, exposure 0); tErr = mean |(o_t - "
+        "o_(t-1)) - (r_t - r_(t-1))|, tone-mapped; max/ref: the brightest output value over the "
+        "brightest reference value. Time: ms per 1280x720 output frame (tiled test frames), {} "
+        "threads, median of {} after 2 warm-up frames (nsrr: of 3). Parameters:",
+        fs::relative(dataset, KESTREL_SOURCE_DIR).string(), fmt::join(clips, ", "), threads,
+        repeat);
+    for (UpscaleMethod m : methods)
+      if (params[m]) md += fmt::format(" {} {};", label(m), params[m]);
+    md += "\n\n";
     nlohmann::json json_total = nlohmann::json::array();
-    for (int f : {2, 4}) {
-      md += fmt::format(
-          "## Factor {}x{} ({}x{} -> 1280x720 timing)\n\n| method | PSNR dB | SSIM | tErr | ms "
-          "|\n|---|---:|---:|---:|---:|\n",
-          f, f, 1280 / f, 720 / f);
-      for (UpscaleMethod m : kMethods) {
-        const Scores& s = total[f][m];
-        md += fmt::format("| {} | {:.2f} | {:.4f} | {:.5f} | {:.1f} |\n", label(m), s.psnr / s.n,
-                          s.ssim / s.n, s.terr / s.n, ms[f][m]);
-        json_total.push_back({{"factor", f},
-                              {"method", upscale_method_name(m)},
-                              {"psnr", s.psnr / s.n},
-                              {"ssim", s.ssim / s.n},
-                              {"terr", s.terr / s.n},
-                              {"ms_1280x720", ms[f][m]}});
+    for (const Variant& var : kVariants)
+      for (int f : {2, 4}) {
+        if (!total[var.name].count(f)) continue;
+        md += fmt::format("## {} inputs, factor {}x{}\n\n| method | PSNR dB | SSIM | tErr |",
+                          var.name, f, f);
+        if (var.suffix[0] == 0) md += fmt::format(" ms ({}x{} -> 1280x720) |", 1280 / f, 720 / f);
+        md += var.suffix[0] == 0 ? "\n|---|---:|---:|---:|---:|\n" : "\n|---|---:|---:|---:|\n";
+        for (UpscaleMethod m : methods) {
+          const Scores& s = total[var.name][f][m];
+          md += fmt::format("| {} | {:.2f} | {:.4f} | {:.5f} |", label(m), s.psnr / s.n,
+                            s.ssim / s.n, s.terr / s.n);
+          if (var.suffix[0] == 0) md += fmt::format(" {:.1f} |", ms[f][m]);
+          md += "\n";
+          json_total.push_back({{"input", var.name},
+                                {"factor", f},
+                                {"method", upscale_method_name(m)},
+                                {"psnr", s.psnr / s.n},
+                                {"ssim", s.ssim / s.n},
+                                {"terr", s.terr / s.n},
+                                {"ms_1280x720", ms[f][m]}});
+        }
+        // Per family: PSNR of each method, and the learned ones against TAAU-like.
+        md += "\nPSNR dB per family";
+        for (UpscaleMethod m : methods) md += fmt::format(" | {}", label(m));
+        md += " | neural - TAAU | nsrr-rt - TAAU | nsrr - TAAU |\n|---";
+        for (size_t i = 0; i < methods.size() + 3; ++i) md += "|---:";
+        md += "|\n";
+        for (const auto& [fam, by_method] : scores[var.name][f]) {
+          md += "| " + fam;
+          auto mean = [&](UpscaleMethod m) {
+            const auto it = by_method.find(m);
+            return it == by_method.end() ? NAN : it->second.psnr / it->second.n;
+          };
+          for (UpscaleMethod m : methods) md += fmt::format(" | {:.2f}", mean(m));
+          const double taau = mean(UpscaleMethod::taau);
+          for (UpscaleMethod m :
+               {UpscaleMethod::neural, UpscaleMethod::nsrr_rt, UpscaleMethod::nsrr})
+            md += fmt::format(" | {:+.2f}", mean(m) - taau);
+          md += " |\n";
+        }
+        if (var.suffix[0] == 0)
+          for (UpscaleMethod m :
+               {UpscaleMethod::neural, UpscaleMethod::nsrr_rt, UpscaleMethod::nsrr})
+            if (stages[f].count(m))
+              md += fmt::format(
+                  "\n{} stages (ms): features {:.1f}, networks {:.1f}, output {:.1f}.\n", label(m),
+                  stages[f][m]["features"], stages[f][m]["network"], stages[f][m]["reconstruct"]);
+        md += "\n";
       }
-      md += fmt::format(
-          "\nNeural stages (ms): features {:.1f}, network {:.1f}, reconstruction {:.1f}.\n\n",
-          stages[f]["features"], stages[f]["network"], stages[f]["reconstruct"]);
-    }
     md +=
-        "## Per clip\n\n| clip | factor | method | PSNR dB | SSIM | tErr "
-        "|\n|---|---|---|---:|---:|---:|\n" +
+        "## Per clip\n\n| clip | input | factor | method | PSNR dB | SSIM | tErr | max/ref "
+        "|\n|---|---|---|---|---:|---:|---:|---:|\n" +
         per_clip;
     md +=
-        "\nCrops (`<clip>_x<f>_crops.png`, last frame, centre, 2x nearest): bilinear, bicubic, "
-        "TAAU-like, neural, reference.\n";
+        "\nCrops (`<clip>[_dn]_x<f>_crops.png`, last frame, centre, 2x nearest): each method in "
+        "the order of the tables, then the reference.\n";
     std::ofstream((fs::path(out_dir) / "eval.md").string()) << md;
+    nlohmann::json jp;
+    for (UpscaleMethod m : methods) jp[upscale_method_name(m)] = params[m];
     std::ofstream((fs::path(out_dir) / "eval.json").string()) << nlohmann::json{
         {"threads", threads},
         {"repeat", repeat},
-        {"parameters", params},
+        {"parameters", jp},
         {"means", json_total},
         {"clips", json_clips}}.dump(1);
     fmt::print("wrote {}/eval.md, eval.json and crops\n", out_dir);

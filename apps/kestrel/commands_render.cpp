@@ -335,9 +335,8 @@ void run_sequence(const RenderArgs& a) {
                              // jitter
     const auto m = upscale_method_from_name(a.upscale);
     if (!m)
-      throw Error(
-          ErrorCode::invalid_argument,
-          fmt::format("--upscale '{}': expected neural, taau, bicubic or bilinear", a.upscale));
+      throw Error(ErrorCode::invalid_argument, fmt::format("--upscale '{}': expected one of {}",
+                                                           a.upscale, upscale_method_list()));
     if (a.factor != 2 && a.factor != 4)
       throw Error(ErrorCode::invalid_argument,
                   fmt::format("render-sequence: --factor must be 2 or 4, got {}", a.factor));
@@ -408,10 +407,10 @@ Action add_render_sequence_command(CLI::App& cmd) {
   cmd.add_option("--frames", a->frames, "Frames, evenly spread over the path's time span")
       ->required()
       ->check(CLI::Range(1, 1000000));
-  cmd.add_option("--upscale", a->upscale,
-                 "Render at --res / --factor (fixed jitter), then upsample: neural | taau | "
-                 "bicubic | bilinear "
-                 "(frame_NNNN.exr: the upsampled colour; low/: the low-resolution frames)");
+  cmd.add_option(
+      "--upscale", a->upscale,
+      "Render at --res / --factor (fixed jitter), then upsample: " + upscale_method_list(" | ") +
+          " (frame_NNNN.exr: the upsampled colour; low/: the low-resolution frames)");
   cmd.add_option("--factor", a->factor, "Upsampling factor, 2 or 4")->capture_default_str();
   cmd.add_option("-o,--out", a->out,
                  "Output directory: frame_NNNN.exr (+ .png with --png x, PFMs under --pfm DIR)")

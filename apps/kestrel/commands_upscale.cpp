@@ -94,10 +94,8 @@ void run_upscale(const UpscaleArgs& a) {
                 "c.pfm [--depth --motion]");
   const auto method = upscale_method_from_name(a.method);
   if (!method)
-    throw Error(
-        ErrorCode::invalid_argument,
-        fmt::format("upscale: unknown --method '{}' (neural, taau, bicubic, bilinear, nsrr)",
-                    a.method));
+    throw Error(ErrorCode::invalid_argument, fmt::format("upscale: unknown --method '{}' ({})",
+                                                         a.method, upscale_method_list()));
   UpscalerOptions o;
   o.method = *method, o.factor = a.factor, o.weights = a.weights;
   Upscaler up(o);
@@ -148,9 +146,13 @@ Action add_upscale_command(CLI::App& cmd) {
   cmd.add_option("--factor", a->factor, "2 or 4")->capture_default_str();
   cmd.add_option(
          "--method", a->method,
-         "neural | taau | bicubic | bilinear | nsrr (needs --weights until trained weights land)")
+         upscale_method_list(" | ") +
+             " (nsrr: Xiao et al. 2020's neural supersampling, far from real time; nsrr-rt: its "
+             "real-time member)")
       ->capture_default_str();
-  cmd.add_option("--weights", a->weights, "Neural weights file (default: weights/upscaler.kdw)");
+  cmd.add_option("--weights", a->weights,
+                 "Weights file (default: weights/upscaler.kdw, upscaler_nsrr.kdw, "
+                 "upscaler_nsrr_rt.kdw)");
   cmd.add_option("--jitter", a->jitter,
                  "Sample position in each input pixel: halton (kestrel's 1-spp sequence by frame "
                  "number), center, or X,Y")

@@ -7,13 +7,14 @@
 #include "commands.h"
 #include "distributed/distributed.h"
 #include "kestrel/error.h"
+#include "kestrel/upscale.h"
 
 int main(int argc, char** argv) {
   kestrel::distributed::init(&argc, &argv);  // under mpirun: one rank of many (docs/distributed.md)
   CLI::App app{"kestrel: CPU ray tracing engine (BVH builders, traversal, tools)"};
   app.require_subcommand(1);
   std::vector<std::pair<CLI::App*, kestrel::cli::Action>> commands;
-  auto add = [&](auto fn, const char* name, const char* help) {
+  auto add = [&](auto fn, const char* name, const std::string& help) {
     CLI::App* sub = app.add_subcommand(name, help);
     commands.push_back({sub, fn(*sub)});
   };
@@ -29,7 +30,7 @@ int main(int argc, char** argv) {
   add(kestrel::cli::add_denoise_command, "denoise",
       "Denoise a frame or a sequence (neural, svgf, atrous)");
   add(kestrel::cli::add_upscale_command, "upscale",
-      "Upsample a jittered low-resolution sequence (neural, taau, bicubic, bilinear)");
+      "Upsample a jittered low-resolution sequence (" + kestrel::upscale_method_list() + ")");
   add(kestrel::cli::add_run_command, "run",
       "The real-time pipeline headless along a camera path: frames and stage timings");
   add(kestrel::cli::add_view_command, "view",

@@ -33,8 +33,7 @@ struct PipelineArgs {
     cmd.add_option("--factor", factor, "Output / internal resolution: 1, 2 or 4")
         ->capture_default_str();
     cmd.add_option("--denoise", denoise, "neural | svgf | atrous | none")->capture_default_str();
-    cmd.add_option("--upscale", upscale, "neural | taau | bicubic | bilinear")
-        ->capture_default_str();
+    cmd.add_option("--upscale", upscale, upscale_method_list(" | "))->capture_default_str();
     cmd.add_option("--spp", spp, "Samples per pixel per frame")
         ->capture_default_str()
         ->check(CLI::Range(1, 1 << 16));
@@ -102,9 +101,8 @@ struct PipelineArgs {
     }
     const auto u = upscale_method_from_name(upscale);
     if (!u)
-      throw Error(
-          ErrorCode::invalid_argument,
-          fmt::format("--upscale '{}': expected neural, taau, bicubic or bilinear", upscale));
+      throw Error(ErrorCode::invalid_argument, fmt::format("--upscale '{}': expected one of {}",
+                                                           upscale, upscale_method_list()));
     s.upscaler = *u;
     s.spp = spp, s.max_depth = max_depth, s.clamp = clamp, s.exposure = exposure,
     s.target_ms = target_ms, s.seed = seed;

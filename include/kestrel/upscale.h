@@ -17,9 +17,11 @@
 
 namespace kestrel {
 
-enum class UpscaleMethod { neural, taau, bicubic, bilinear, nsrr };
+enum class UpscaleMethod { neural, taau, bicubic, bilinear, nsrr, nsrr_rt };
 const char* upscale_method_name(UpscaleMethod m);
 std::optional<UpscaleMethod> upscale_method_from_name(std::string_view name);
+/// Every method's name, separated by `sep` (for help texts and errors).
+std::string upscale_method_list(const char* sep = ", ");
 
 /// One low-resolution frame (pointers, not owned). colour (3 channels, linear HDR) is
 /// point-sampled: pixel (i, j) holds the sample at (i + jitter_x, j + jitter_y), jitter in
@@ -38,12 +40,12 @@ struct UpscaleInput {
 struct UpscalerOptions {
   UpscaleMethod method = UpscaleMethod::neural;
   int factor = 2;       ///< 2 or 4: the output is factor x the input in each dimension
-  std::string weights;  ///< neural, nsrr: weights file ("" = default_upscaler_weights(method))
-  bool bf16 = true;     ///< nsrr: bf16 convolutions where the CPU has them (else fp32)
+  std::string weights;  ///< neural, nsrr, nsrr-rt: weights ("" = default_upscaler_weights(method))
+  bool bf16 = true;     ///< nsrr, nsrr-rt: bf16 convolutions where the CPU has them (else fp32)
 };
 
-/// $KESTREL_WEIGHTS_DIR/upscaler.kdw (upscaler_nsrr.kdw for nsrr), else the source tree's
-/// weights/ file of that name.
+/// $KESTREL_WEIGHTS_DIR/upscaler.kdw (upscaler_nsrr.kdw for nsrr, upscaler_nsrr_rt.kdw for
+/// nsrr-rt), else the source tree's weights/ file of that name.
 std::string default_upscaler_weights(UpscaleMethod method = UpscaleMethod::neural);
 
 /// An upsampler for one sequence (the history carries from frame to frame; reset() starts a
@@ -66,7 +68,7 @@ class Upscaler {
   UpscaleMethod method() const;
   int factor() const;
   size_t parameter_count() const;  ///< 0 for the baselines
-  bool uses_bf16() const;          ///< nsrr running its convolutions in bf16
+  bool uses_bf16() const;          ///< nsrr / nsrr-rt running its convolutions in bf16
   /// Milliseconds of the last frame's stages: features, network, reconstruction.
   struct Times {
     double features = 0, network = 0, reconstruct = 0;

@@ -83,7 +83,7 @@ UpscalerOptions upscaler_options(const std::string& method, int factor,
   auto m = upscale_method_from_name(method);
   if (!m)
     throw py::value_error(
-        fmt::format("method: unknown upsampler '{}' (neural, taau, bicubic, bilinear)", method));
+        fmt::format("method: unknown upsampler '{}' ({})", method, upscale_method_list()));
   if (factor != 2 && factor != 4)
     throw py::value_error(fmt::format("factor: must be 2 or 4, got {}", factor));
   o.method = *m;
@@ -211,8 +211,8 @@ PipelineSettings pipeline_settings(std::pair<int, int> res, int factor,
   }
   auto u = upscale_method_from_name(upscaler);
   if (!u)
-    throw py::value_error(fmt::format(
-        "upscaler: unknown upsampler '{}' (neural, taau, bicubic, bilinear)", upscaler));
+    throw py::value_error(
+        fmt::format("upscaler: unknown upsampler '{}' ({})", upscaler, upscale_method_list()));
   s.upscaler = *u;
   s.spp = spp;
   s.max_depth = max_depth;

@@ -173,6 +173,17 @@ def test_upscale(frame):
         kestrel.upscale(frame["color"], depth=np.zeros((4, 4), np.float32))
 
 
+@pytest.mark.parametrize("method", ["nsrr-rt", "nsrr"])
+def test_upscale_nsrr_family(frame, method):
+    u = kestrel.Upscaler(method, factor=2)
+    assert u.method == method and u.parameter_count > 0
+    for t in range(3):  # a window of frames: the first has no previous ones
+        big = u.upscale(frame["color"], depth=frame["depth"], motion=frame["motion"], jitter=(0.5, 0.5))
+        assert big.shape == (2 * RES[1], 2 * RES[0], 3) and np.isfinite(big).all()
+    with pytest.raises(ValueError, match="depth"):  # the family needs depth and motion
+        u.upscale(frame["color"], motion=frame["motion"])
+
+
 def test_pipeline_steps_frame_by_frame(cornell):
     p = kestrel.Pipeline("builtin:cornell_box", res=(96, 64), factor=2)
     cam = kestrel.view(cornell)

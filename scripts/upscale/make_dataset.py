@@ -5,7 +5,9 @@ path and frames at three resolutions:
     (antialiased, as the high-resolution frame should look);
   - x2/, x4/: the inputs at 1/2 and 1/4 of the resolution, point-sampled at the frame's
     Halton jitter (--fixed-jitter) with --in-spp samples: the clean low-resolution frames a
-    real-time renderer would produce after denoising, with depth and motion vectors.
+    real-time renderer would produce after denoising, with depth and motion vectors;
+  - x2_dn/, x4_dn/ (--denoised METHOD): the same frames at 1 spp through kestrel's denoiser,
+    what the real-time loop actually feeds the upsampler.
 Clips: shared scenes (turntables) and procedural rooms (../denoise/procedural.py). The test
 clips' scenes are never used in training: Sponza, the Lamborghini and rooms with seeds >= 1000.
 
@@ -18,8 +20,8 @@ clips are the TRAIN families of ../denoise/families.py (--seeds each), the test 
 HELDOUT families (--test-seeds each, never seen in training) and the shared Sponza and
 Lamborghini:
 
-    make_dataset.py --families --out out/upscale_families --ref-spp 128 --test-ref-spp 256 \
-                    --in-spp 64
+    make_dataset.py --families --out out/upscale_families --ref-spp 64 --test-ref-spp 256 \
+                    --in-spp 64 --denoised neural
 
 Each family's own light flags (sun, sky, lights file) are kept; --max-depth and --clamp apply
 to inputs and targets alike.
@@ -96,6 +98,8 @@ def main():
     ap.add_argument("--families", action="store_true", help="scene families (../denoise/families.py) instead of rooms and shared scenes")
     ap.add_argument("--seeds", type=int, default=6, help="--families: seeds per training family")
     ap.add_argument("--test-seeds", type=int, default=2, help="--families: seeds per held-out family")
+    ap.add_argument("--denoised", default="", metavar="METHOD",
+                    help="also x2_dn/, x4_dn/: the inputs at 1 spp denoised by METHOD (neural | svgf | atrous)")
     kestrel_mpi.add_arguments(ap)
     args = ap.parse_args()
     w, h = (int(v) for v in args.res.split("x"))
@@ -131,6 +135,10 @@ def main():
             sub = os.path.join(d, f"x{f}")
             run(base + ["--res", f"{w // f}x{h // f}", "--spp", str(args.in_spp), "--fixed-jitter", "--seed", "11",
                         "-o", sub, "--pfm", os.path.join(sub, "pfm")])
+            if args.denoised:  # what the real-time loop feeds the upsampler: 1 spp, denoised
+                sub = os.path.join(d, f"x{f}_dn")
+                run(base + ["--res", f"{w // f}x{h // f}", "--spp", "1", "--fixed-jitter", "--seed", "13",
+                            "--denoise", args.denoised, "-o", sub, "--pfm", os.path.join(sub, "pfm")])
         ref_spp = args.test_ref_spp if test else args.ref_spp
         run(base + ["--res", args.res, "--spp", str(ref_spp), "--seed", "7", "-o", os.path.join(d, "full"), "--pfm",
                     os.path.join(d, "full", "pfm"), "--png", "1"])
@@ -138,7 +146,7 @@ def main():
         manifest["clips"][clip["name"]] = dict(split=clip["split"], scene=scene, path=path, env=env or "default",
                                                family=clip.get("family", ""), flags=flags,
                                                frames=frames, res=args.res, ref_spp=ref_spp, in_spp=args.in_spp,
-                                               max_depth=args.max_depth, clamp=args.clamp,
+                                               max_depth=args.max_depth, clamp=args.clamp, denoised=args.denoised,
                                                seconds=round(time.time() - t0, 1))
         json.dump(manifest, open(manifest_path, "w"), indent=1)
         print(f"{clip['name']}: {time.time() - t0:.0f} s", flush=True)

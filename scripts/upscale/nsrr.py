@@ -18,12 +18,14 @@ where the surface was in the previous frame"), output f h x f w, f in {2, 4}:
   W_k    = Z_k at floor(P_k) (0 off screen or where frame t-k does not exist), k = 1..N
   w      = 5 (1 + tanh R([Z_0[:4], W_1[:4], ..., W_N[:4]]))   R: 3 convolutions 3x3
            (4 (N+1) -> 32 -> 32 -> N, ReLU between): the feature reweighting, w_k in [0, 10]
-  out    = from_y(U([Z_0, w_1 W_1, ..., w_N W_N, f / 4]))       U: the U-Net below
+  out    = from_y(B + U([Z_0, w_1 W_1, ..., w_N W_N, f / 4]))   U: the U-Net below; B the
+           current frame's y bilinearly upsampled (bilinear_base): U predicts a correction
 
 U (as Xiao et al.'s, channels 64, 32 | 64, 64 | 128, 128 | 64, 64 | 32, 3): two 3x3
 convolutions per level, ReLU, 2x2 max pooling down, bilinear 2x upsampling up (edges
 clamped), skip connections by concatenation; the input is padded with zeros to multiples of
-4 (the output cropped back); the output is y, clamped to [0, 0.999].
+4 (the output cropped back); B + its output is y, clamped to [0, 0.999]. Its last layer
+starts at a tenth of PyTorch's initialisation and bias 0 (close to B before training).
 """
 import torch
 import torch.nn as nn
@@ -95,6 +97,17 @@ def conv(cin, cout):
     return nn.Conv2d(cin, cout, 3, padding=1)
 
 
+def bilinear_base(color, jitter, f):
+    """The current frame's y bilinearly upsampled (model.bilinear_at at (X + 1/2) / f - j + 1/2:
+    its samples where they were taken), what both networks predict a correction of."""
+    B, _, h, w = color.shape
+    H, W = f * h, f * w
+    X = torch.arange(W, dtype=torch.float32).view(1, 1, 1, W).expand(B, 1, H, W)
+    Y = torch.arange(H, dtype=torch.float32).view(1, 1, H, 1).expand(B, 1, H, W)
+    jx, jy = jitter[:, 0].float().view(B, 1, 1, 1), jitter[:, 1].float().view(B, 1, 1, 1)
+    return M.bilinear_at(M.to_y(color), (X + 0.5) / f - jx + 0.5, (Y + 0.5) / f - jy + 0.5)
+
+
 def upsample2(x):
     """Bilinear 2x, pixel centres aligned, edges clamped (oneDNN's resampling, linear)."""
     return F.interpolate(x, scale_factor=2, mode="bilinear", align_corners=False)
@@ -117,7 +130,10 @@ class NSRR(nn.Module):
         self.u4a, self.u4b = conv(c2 + b2, d1), conv(d1, d2)
         self.u5a, self.u5b = conv(d2 + a2, o1), conv(o1, 3)
         with torch.no_grad():  # start near a mid-grey y rather than at the clamp
-            self.u5b.bias.fill_(0.25)
+            # The correction of the bilinear base starts small (not 0: with a zero last layer
+            # no gradient reaches the ones before it, and their ReLUs died in training).
+            self.u5b.weight.mul_(0.1)
+            self.u5b.bias.zero_()
 
     def extract(self, x):
         """x (B,4,h,w) -> the frame's 12 features."""
@@ -173,5 +189,77 @@ class NSRR(nn.Module):
         wts = self.reweight(zs[0], warped)
         x = torch.cat([zs[0]] + [wts[:, k:k + 1] * warped[k] for k in range(self.frames)] +
                       [torch.full_like(zs[0][:, :1], f / 4.0)], 1)
-        y = torch.clamp(self.reconstruct(x), 0.0, Y_MAX)
+        y = torch.clamp(bilinear_base(color, cur[3], f) + self.reconstruct(x), 0.0, Y_MAX)
+        return M.from_y(y), y
+
+
+RT_FRAMES = 2  # previous frames of the real-time member
+GRID = 4  # its networks run on cells of 4 x 4 output pixels
+RT_CELLS = GRID * GRID
+
+
+class NSRRRealTime(nn.Module):
+    """`nsrr-rt`, the real-time member of the family: the same align -> reweight -> reconstruct
+    structure with fewer frames (N = 2), no extraction network (a frame's features are its
+    x = [y, d(z)]) and networks that run on a grid of 4 x 4 output pixels per cell (1/4 of the
+    output resolution at either factor), the output pixels of a cell folded into channels:
+
+      Z_k, W_k    as NSRR's, 4 channels, at the output resolution padded to multiples of 8
+      G           = [unshuffle([Z_0, W_1, ..., W_N]), f / 4]   unshuffle: F.pixel_unshuffle(., 4),
+                    channel (4 k + c) 16 + s for frame k, channel c, cell pixel s = 4 dy + dx
+      w           = 5 (1 + tanh R(G))      R: 1x1 convolutions 4 16 (N+1) + 1 -> 16 -> 16 N;
+                    w[16 (k-1) + s] weighs W_k at cell pixel s (all 4 channels)
+      a           = c2(c1(G'))             G' = G with the W_k weighed; c1 1x1 -> 32, c2 3x3 -> 24
+      b           = c3(maxpool2(a))        3x3 24 -> 24 at half the grid
+      out         = from_y(B + shuffle(c5(c4([upsample2(b), a]))))   c4 1x1 48 -> 24, c5 1x1 24 -> 48,
+                    shuffle: F.pixel_shuffle(., 4) (channel 16 c + s), cropped, y clamped to
+                    [0, 0.999]; B the current frame's y bilinearly upsampled (model.bilinear_at
+                    at (X + 1/2) / f - j + 1/2): the networks predict a correction of it
+
+    ReLU after every convolution but R's last and c5."""
+
+    def __init__(self, frames=RT_FRAMES):
+        super().__init__()
+        self.frames = frames
+        cin = 4 * RT_CELLS * (frames + 1) + 1
+        self.r1, self.r2 = nn.Conv2d(cin, 16, 1), nn.Conv2d(16, RT_CELLS * frames, 1)
+        self.c1, self.c2 = nn.Conv2d(cin, 32, 1), conv(32, 24)
+        self.c3 = conv(24, 24)
+        self.c4, self.c5 = nn.Conv2d(48, 24, 1), nn.Conv2d(24, 3 * RT_CELLS, 1)
+        with torch.no_grad():  # the correction of the bilinear base starts small (see NSRR)
+            self.c5.weight.mul_(0.1)
+            self.c5.bias.zero_()
+
+    def forward(self, frames, f, scale=None):
+        """As NSRR.forward (frames beyond the first N + 1 are ignored)."""
+        cur = frames[0]
+        color, depth, motion = clean(*cur[:3])
+        B, _, h, w = color.shape
+        H, W = f * h, f * w
+        s = depth_scale(depth) if scale is None else scale
+        zs = []
+        for k in range(self.frames + 1):
+            fr = frames[k] if k < len(frames) else None
+            if fr is None:
+                zs.append(None)
+                continue
+            c, z, _ = clean(*fr[:3])
+            x = torch.cat([M.to_y(c), torch.where(z > 0, z / (z + s), torch.ones_like(z))], 1)
+            zs.append(zero_upsample(x, fr[3][:, 0].float(), fr[3][:, 1].float(), f))
+        motions = [clean(*frames[k - 1][:3])[2] if k - 1 < len(frames) and frames[k - 1] is not None
+                   else torch.zeros_like(motion) for k in range(1, self.frames + 1)]
+        pos = warp_positions(motions, f, H, W)
+        feats = [zs[0]] + [gather_nearest(zs[k], pos[k - 1]) if zs[k] is not None else torch.zeros_like(zs[0])
+                           for k in range(1, self.frames + 1)]
+        pad = (0, -W % (2 * GRID), 0, -H % (2 * GRID))
+        g = [F.pixel_unshuffle(F.pad(x, pad), GRID) for x in feats]
+        fc = torch.full_like(g[0][:, :1], f / 4.0)
+        x = torch.cat(g + [fc], 1)
+        wts = 0.5 * REWEIGHT_MAX * (1.0 + torch.tanh(self.r2(F.relu(self.r1(x)))))
+        x = torch.cat([g[0]] + [g[k] * wts[:, RT_CELLS * (k - 1):RT_CELLS * k].repeat(1, 4, 1, 1)
+                                for k in range(1, self.frames + 1)] + [fc], 1)
+        a = F.relu(self.c2(F.relu(self.c1(x))))
+        b = F.relu(self.c3(F.max_pool2d(a, 2)))
+        o = self.c5(F.relu(self.c4(torch.cat([upsample2(b), a], 1))))
+        y = torch.clamp(bilinear_base(color, cur[3], f) + F.pixel_shuffle(o, GRID)[:, :, :H, :W], 0.0, Y_MAX)
         return M.from_y(y), y

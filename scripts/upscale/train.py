@@ -38,13 +38,14 @@ ARCHITECTURE = 1
 MAGIC = b"KSTRLUPW"
 
 
-def load_clip(root, name, frames):
-    """-> {2: (T,6,h,w), 4: (T,6,h,w)} inputs (colour, depth, motion) and the (T,3,H,W) targets."""
+def load_clip(root, name, frames, suffix=""):
+    """-> {2: (T,6,h,w), 4: (T,6,h,w)} inputs (colour, depth, motion) and the (T,3,H,W) targets.
+    suffix "_dn": the denoised 1-spp inputs (make_dataset.py --denoised) instead of the clean ones."""
     ins = {}
     for f in (2, 4):
         seq = []
         for i in range(frames):
-            d = os.path.join(root, name, f"x{f}", "pfm", f"frame_{i:04d}")
+            d = os.path.join(root, name, f"x{f}{suffix}", "pfm", f"frame_{i:04d}")
             c = read_pfm(os.path.join(d, "color.pfm"))
             z = read_pfm(os.path.join(d, "depth.pfm"))[:, :, :1]
             m = read_pfm(os.path.join(d, "motion.pfm"))[:, :, :2]

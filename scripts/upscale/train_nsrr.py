@@ -1,18 +1,23 @@
 #!/usr/bin/env python3
-"""Trains kestrel's `nsrr` upsampler (nsrr.py, after Xiao et al. 2020) on the train clips of
-make_dataset.py --families, one network for both factors (f / 4 is an input channel), and writes
-  weights/upscaler_nsrr.kdw     the weights (format v1 of docs/denoiser.md, magic KSTRLNSR)
-  weights/upscaler_nsrr.json    provenance: dataset, command, steps, seed, losses, git revision
-  weights/upscaler_nsrr_loss.png
-  tests/data/upscale_nsrr/      a parity fixture: four frames of a held-out clip, both factors,
+"""Trains kestrel's `nsrr` upsampler (nsrr.NSRR, after Xiao et al. 2020) or, with --arch rt,
+its real-time member `nsrr-rt` (nsrr.NSRRRealTime) on the train clips of make_dataset.py
+--families, one network for both factors (f / 4 is an input channel), and writes (NAME:
+upscaler_nsrr, or upscaler_nsrr_rt with --arch rt)
+  weights/NAME.kdw              the weights (format v1 of docs/denoiser.md, magic KSTRLNSR,
+                                architecture 1 (nsrr) or 2 (nsrr-rt))
+  weights/NAME.json             provenance: dataset, command, steps, seed, losses, git revision
+  weights/NAME_loss.png
+  tests/data/NAME/              a parity fixture: four frames of a held-out clip, both factors,
                                 and the weights it was made with (weights.kdw)
 
-    train_nsrr.py [--data out/upscale_families] [--steps 3000] [--crop 64] [--batch 4]
-                  [--lr 1e-3] [--seed 1] [--threads 2] [--checkpoint out/nsrr_train.pt]
-                  [--fixture-only]
+    train_nsrr.py [--arch full|rt] [--data out/upscale_families] [--steps 3000] [--crop 64]
+                  [--batch 4] [--lr 1e-3] [--seed 1] [--threads 2]
+                  [--checkpoint out/NAME_train.pt] [--fixture-only]
 
 A sample is one output frame and the N = 3 frames before it (fewer at the start of a clip,
-the missing ones absent as at the start of a sequence); crops of --crop output pixels,
+the missing ones absent as at the start of a sequence), its inputs the clean point-sampled
+frames or, for --denoised-fraction of the samples, the same frames rendered at 1 spp and
+denoised (what the real-time loop feeds the upsampler); crops of --crop output pixels,
 horizontal mirroring (motion and jitter mirrored too). Loss: L1 after the evaluation's tone
 map (ACES fit + sRGB). Adam, one-cycle schedule. The checkpoint (every 100 steps) makes the run
 resumable: re-running the same command continues it.
@@ -38,7 +43,8 @@ from kestrel_nn import write_pfm  # noqa: E402
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 ROOT = os.path.normpath(os.path.join(HERE, "..", ".."))
-ARCHITECTURE = 1
+ARCHITECTURES = {"full": 4, "rt": 3}  # 1, 2: before the bilinear base
+NAMES = {"full": "upscaler_nsrr", "rt": "upscaler_nsrr_rt"}
 MAGIC = b"KSTRLNSR"
 FIXTURE_CLIP = "test_gallery_1000"
 
@@ -52,7 +58,7 @@ def frames_at(ins, jit, t, n_prev):
     return out
 
 
-def write_fixture(model, clip, out_dir, name=FIXTURE_CLIP, frames=4, H=48, W=64):
+def write_fixture(model, arch, clip, out_dir, name=FIXTURE_CLIP, frames=4, H=48, W=64):
     """Frames 0..3 of a crop of a held-out clip, both factors: inputs and the model's outputs
     (frame t sees frames t, t-1, ..., 0: the start of a sequence)."""
     os.makedirs(out_dir, exist_ok=True)
@@ -68,7 +74,7 @@ def write_fixture(model, clip, out_dir, name=FIXTURE_CLIP, frames=4, H=48, W=64)
                 lin, _ = model(frames_at(seq, jit, t, min(t, model.frames)), f)
                 write_pfm(os.path.join(out_dir, f"x{f}_out_{t}.pfm"), lin[0].numpy().transpose(1, 2, 0))
     json.dump(meta, open(os.path.join(out_dir, "fixture.json"), "w"), indent=1)
-    kestrel_nn.export_kdw(model, os.path.join(out_dir, "weights.kdw"), MAGIC, ARCHITECTURE)
+    kestrel_nn.export_kdw(model, os.path.join(out_dir, "weights.kdw"), MAGIC, arch)
 
 
 def main():
@@ -80,12 +86,21 @@ def main():
     ap.add_argument("--lr", type=float, default=1e-3)
     ap.add_argument("--seed", type=int, default=1)
     ap.add_argument("--threads", type=int, default=2)
-    ap.add_argument("--checkpoint", default=os.path.join(ROOT, "out", "nsrr_train.pt"))
+    ap.add_argument("--denoised-fraction", type=float, default=0.5,
+                    help="share of samples whose inputs are the denoised 1-spp frames (x2_dn/, x4_dn/)")
+    ap.add_argument("--checkpoint", default="", help="default out/NAME_train.pt")
     ap.add_argument("--fixture-only", action="store_true", help="only write the fixture of --weights")
     ap.add_argument("--fixture-clip", default=FIXTURE_CLIP)
     ap.add_argument("--init-only", action="store_true", help="write --weights at the seed's initialisation")
-    ap.add_argument("--weights", default=os.path.join(ROOT, "weights", "upscaler_nsrr.kdw"))
+    ap.add_argument("--weights", default="", help="default weights/NAME.kdw")
+    ap.add_argument("--bf16", action="store_true", help="train under bf16 autocast (about twice as fast on AMX/AVX-512 bf16)")
+    ap.add_argument("--arch", default="full", choices=sorted(ARCHITECTURES),
+                    help="full: nsrr (Xiao et al.'s network); rt: nsrr-rt, the real-time member")
     args = ap.parse_args()
+    name = NAMES[args.arch]
+    args.weights = args.weights or os.path.join(ROOT, "weights", name + ".kdw")
+    args.checkpoint = args.checkpoint or os.path.join(ROOT, "out", name + "_train.pt")
+    ARCHITECTURE = ARCHITECTURES[args.arch]
     if args.crop % 16:
         sys.exit(f"--crop {args.crop}: must be a multiple of 16 (4x4 inputs, two poolings)")
     torch.set_num_threads(args.threads)
@@ -93,8 +108,8 @@ def main():
     torch.manual_seed(args.seed)
     rng = random.Random(args.seed)
     manifest = json.load(open(os.path.join(args.data, "manifest.json")))
-    fixture_dir = os.path.join(ROOT, "tests", "data", "upscale_nsrr")
-    model = N.NSRR()
+    fixture_dir = os.path.join(ROOT, "tests", "data", name.replace("upscaler", "upscale"))
+    model = N.NSRR() if args.arch == "full" else N.NSRRRealTime()
     if args.init_only:  # the seed's initialisation (what the parity fixture may be made with)
         os.makedirs(os.path.dirname(args.weights), exist_ok=True)
         kestrel_nn.export_kdw(model, args.weights, MAGIC, ARCHITECTURE)
@@ -102,11 +117,16 @@ def main():
         return
     if args.fixture_only:
         kestrel_nn.load_kdw(model, args.weights, MAGIC, ARCHITECTURE)
-        write_fixture(model, load_clip(args.data, args.fixture_clip, 4), fixture_dir, args.fixture_clip)
+        write_fixture(model, ARCHITECTURE, load_clip(args.data, args.fixture_clip, 4), fixture_dir, args.fixture_clip)
         print(f"wrote {fixture_dir}")
         return
     names = sorted(n for n, c in manifest["clips"].items() if c["split"] == "train")
     clips = [load_clip(args.data, n, manifest["clips"][n]["frames"]) for n in names]
+    # The same frames at 1 spp through the denoiser (make_dataset.py --denoised), the same targets.
+    denoised = [load_clip(args.data, n, manifest["clips"][n]["frames"], "_dn")[0] if manifest["clips"][n].get("denoised")
+                else None for n in names]
+    if args.denoised_fraction > 0 and not any(d is not None for d in denoised):
+        sys.exit(f"{args.data}: no denoised inputs (make_dataset.py --denoised); pass --denoised-fraction 0")
     # The depth scale of every frame, from the whole frame (what inference sees).
     scales = [{f: N.depth_scale(ins[f][:, 3:4]) for f in (2, 4)} for ins, _ in clips]
     print(f"{len(clips)} training clips: {', '.join(names)}", flush=True)
@@ -127,11 +147,13 @@ def main():
     for step in range(start, args.steps):
         f = 2 if step % 2 == 0 else 4
         # Fewer than N previous frames in 1 batch of 8: the start of a sequence.
-        n_prev = rng.randint(0, N.FRAMES - 1) if rng.random() < 0.125 else N.FRAMES
+        n_prev = rng.randint(0, model.frames - 1) if rng.random() < 0.125 else model.frames
         seqs, refs, jits, ss = [], [], [], []
         for _ in range(args.batch):
             k = rng.randrange(len(clips))
             ins, ref = clips[k]
+            if denoised[k] is not None and rng.random() < args.denoised_fraction:
+                ins = denoised[k]
             T, _, Hf, Wf = ref.shape
             t = rng.randint(n_prev, T - 1)
             cx = rng.randrange(0, (Wf - c) // 4 + 1) * 4
@@ -147,7 +169,9 @@ def main():
                 jit[:, 0] = 1.0 - jit[:, 0]
             seqs.append(seq), refs.append(r), jits.append(jit), ss.append(scales[k][f][t])
         seq, ref, jit, s = torch.stack(seqs), torch.stack(refs), torch.stack(jits), torch.stack(ss)
-        lin, _ = model(frames_at(seq, jit, n_prev, n_prev), f, scale=s)
+        with torch.autocast("cpu", dtype=torch.bfloat16, enabled=args.bf16):
+            lin, _ = model(frames_at(seq, jit, n_prev, n_prev), f, scale=s)
+        lin = lin.float()
         m = 4
         loss = torch.mean(torch.abs(aces_srgb(lin) - aces_srgb(ref))[:, :, m:-m, m:-m])
         opt.zero_grad()
@@ -168,13 +192,14 @@ def main():
     kestrel_nn.export_kdw(model, args.weights, MAGIC, ARCHITECTURE)
     tail = history[-100:]
     prov = dict(
-        network="kestrel nsrr upsampler, architecture 1 (scripts/upscale/nsrr.py; Xiao et al. 2020)",
+        network=(f"kestrel {'nsrr' if args.arch == 'full' else 'nsrr-rt'} upsampler, architecture {ARCHITECTURE} "
+                 f"(scripts/upscale/nsrr.py {type(model).__name__}; after Xiao et al. 2020)"),
         parameters=params,
         dataset=os.path.relpath(args.data, ROOT),
         dataset_commands=manifest.get("commands", {}),
         clips=names,
         command="python3 scripts/upscale/train_nsrr.py " + " ".join(sys.argv[1:]),
-        loss="L1 after ACES fit + sRGB", steps=args.steps, crop=args.crop, batch=args.batch, lr=args.lr, seed=args.seed,
+        loss="L1 after ACES fit + sRGB", denoised_fraction=args.denoised_fraction, steps=args.steps, crop=args.crop, batch=args.batch, lr=args.lr, seed=args.seed,
         final_l1_x2=float(np.mean([h[2] for h in tail if h[1] == 2])),
         final_l1_x4=float(np.mean([h[2] for h in tail if h[1] == 4])),
         seconds=round(time.time() - t_start), torch=torch.__version__,
@@ -183,7 +208,7 @@ def main():
     json.dump(prov, open(os.path.splitext(args.weights)[0] + ".json", "w"), indent=1)
     kestrel_nn.plot_loss(history, os.path.splitext(args.weights)[0] + "_loss.png", 25)
     if FIXTURE_CLIP in manifest["clips"]:
-        write_fixture(model, load_clip(args.data, FIXTURE_CLIP, 4), fixture_dir)
+        write_fixture(model, ARCHITECTURE, load_clip(args.data, FIXTURE_CLIP, 4), fixture_dir)
     print(f"wrote {args.weights}")
 
 

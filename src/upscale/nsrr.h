@@ -1,6 +1,7 @@
-// The `nsrr` upsampler (Xiao et al. 2020): features of the current and the N = 3 previous
-// frames, zero-upsampled, backward-warped by the accumulated motion, reweighted, and a U-Net
-// reconstruction at the output resolution. scripts/upscale/nsrr.py is the reference
+// The nsrr family of upsamplers: `nsrr` (Xiao et al. 2020: features of the current and the
+// N = 3 previous frames, zero-upsampled, backward-warped by the accumulated motion, reweighted,
+// and a U-Net reconstruction at the output resolution) and `nsrr-rt`, its real-time member
+// (N = 2, networks on cells of 4 x 4 output pixels). scripts/upscale/nsrr.py is the reference
 // definition; the convolutions run through oneDNN (bf16 where the CPU has it).
 #pragma once
 #include <memory>
@@ -11,24 +12,19 @@
 
 namespace kestrel::upscale {
 
-class Nsrr {
+class NsrrNetwork {
  public:
-  /// Throws Error naming the file for a missing, corrupt or mismatched weights file.
-  Nsrr(const std::string& weights, int factor, bool bf16);
-  ~Nsrr();
-  Nsrr(Nsrr&&) noexcept;
-  Nsrr& operator=(Nsrr&&) noexcept;
-
+  virtual ~NsrrNetwork() = default;
   /// One frame (the input already checked by the Upscaler): out becomes factor x its size.
-  /// times: features (extraction, zero-upsampling, warping), networks, output.
-  void run(const UpscaleInput& in, FloatImage& out, Upscaler::Times& times);
-  void reset();
-  size_t parameters() const;
-  bool bf16() const;  ///< whether the convolutions run in bf16
-
- private:
-  struct Impl;
-  std::unique_ptr<Impl> impl_;
+  /// times: features (clean-up, zero-upsampling, warping), networks, output.
+  virtual void run(const UpscaleInput& in, FloatImage& out, Upscaler::Times& times) = 0;
+  virtual void reset() = 0;
+  virtual size_t parameters() const = 0;
+  virtual bool bf16() const = 0;  ///< whether the convolutions run in bf16
 };
+
+/// Throw Error naming the file for a missing, corrupt or mismatched weights file.
+std::unique_ptr<NsrrNetwork> make_nsrr(const std::string& weights, int factor, bool bf16);
+std::unique_ptr<NsrrNetwork> make_nsrr_rt(const std::string& weights, int factor, bool bf16);
 
 }  // namespace kestrel::upscale

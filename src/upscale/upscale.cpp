@@ -136,19 +136,35 @@ const char* upscale_method_name(UpscaleMethod m) {
       return "bilinear";
     case UpscaleMethod::nsrr:
       return "nsrr";
+    case UpscaleMethod::nsrr_rt:
+      return "nsrr-rt";
   }
   return "?";
 }
 
+namespace {
+constexpr UpscaleMethod kAllMethods[] = {UpscaleMethod::neural,  UpscaleMethod::taau,
+                                         UpscaleMethod::bicubic, UpscaleMethod::bilinear,
+                                         UpscaleMethod::nsrr,    UpscaleMethod::nsrr_rt};
+}  // namespace
+
 std::optional<UpscaleMethod> upscale_method_from_name(std::string_view name) {
-  for (UpscaleMethod m : {UpscaleMethod::neural, UpscaleMethod::taau, UpscaleMethod::bicubic,
-                          UpscaleMethod::bilinear, UpscaleMethod::nsrr})
+  for (UpscaleMethod m : kAllMethods)
     if (name == upscale_method_name(m)) return m;
   return std::nullopt;
 }
 
+std::string upscale_method_list(const char* sep) {
+  std::string out;
+  for (UpscaleMethod m : kAllMethods)
+    out += (out.empty() ? "" : sep) + std::string(upscale_method_name(m));
+  return out;
+}
+
 std::string default_upscaler_weights(UpscaleMethod method) {
-  const char* name = method == UpscaleMethod::nsrr ? "upscaler_nsrr.kdw" : "upscaler.kdw";
+  const char* name = method == UpscaleMethod::nsrr      ? "upscaler_nsrr.kdw"
+                     : method == UpscaleMethod::nsrr_rt ? "upscaler_nsrr_rt.kdw"
+                                                        : "upscaler.kdw";
   if (const char* dir = std::getenv("KESTREL_WEIGHTS_DIR"); dir && *dir)
     return std::string(dir) + "/" + name;
   return std::string(KESTREL_SOURCE_DIR) + "/weights/" + name;
@@ -167,7 +183,7 @@ struct Upscaler::Impl {
       prev_depth;
   Axis ax, ay;
   GridAxis gx, gy;
-  std::unique_ptr<upscale::Nsrr> nsrr;
+  std::unique_ptr<upscale::NsrrNetwork> nsrr;
 
   void prepare(const UpscaleInput& in);
   void spatial(const UpscaleInput& in, FloatImage& out, bool cubic);
@@ -179,10 +195,12 @@ Upscaler::Upscaler(const UpscalerOptions& options) : impl_(std::make_unique<Impl
     throw Error(ErrorCode::invalid_argument,
                 fmt::format("upscale: factor must be 2 or 4, got {}", options.factor));
   impl_->options = options;
-  if (options.method == UpscaleMethod::nsrr) {
-    impl_->nsrr = std::make_unique<upscale::Nsrr>(
-        options.weights.empty() ? default_upscaler_weights(options.method) : options.weights,
-        options.factor, options.bf16);
+  if (options.method == UpscaleMethod::nsrr || options.method == UpscaleMethod::nsrr_rt) {
+    const std::string path =
+        options.weights.empty() ? default_upscaler_weights(options.method) : options.weights;
+    impl_->nsrr = options.method == UpscaleMethod::nsrr
+                      ? upscale::make_nsrr(path, options.factor, options.bf16)
+                      : upscale::make_nsrr_rt(path, options.factor, options.bf16);
     impl_->parameters = impl_->nsrr->parameters();
   }
   if (options.method == UpscaleMethod::neural) {
@@ -242,9 +260,11 @@ void Upscaler::upscale(const UpscaleInput& input, FloatImage& out) {
       m.spatial(input, out, true);
       break;
     case UpscaleMethod::nsrr:
+    case UpscaleMethod::nsrr_rt:
       if (!input.depth || !input.motion)
         throw Error(ErrorCode::invalid_argument,
-                    "upscale: nsrr needs the depth and the motion vectors of every frame");
+                    fmt::format("upscale: {} needs the depth and the motion vectors of every frame",
+                                upscale_method_name(m.options.method)));
       m.nsrr->run(input, out, m.times);
       break;
     default:

@@ -1,0 +1,190 @@
+// `nsrr-rt`, the real-time member of the nsrr family: scripts/upscale/nsrr.py (NSRRRealTime)
+// is the reference definition, this computes the same function (tests/upscale compares them
+// on a fixture). Align (zero-upsampling, the accumulated backward warp: nsrr_parts.cpp) as
+// nsrr does, with N = 2 previous frames and a frame's x = [y, d(z)] as its features; the
+// reweighting and reconstruction networks run on cells of 4 x 4 output pixels (the cell's
+// pixels folded into channels, pixel_unshuffle / pixel_shuffle order), a quarter of the
+// output resolution at either factor; their output corrects the current frame's bilinear
+// upsampling. The per-output-pixel loops (warp, grid) are nsrr_warp.h's, scalar or AVX-512.
+#include <fmt/format.h>
+
+#include <algorithm>
+#include <vector>
+
+#include "core/parallel.h"
+#include "core/timer.h"
+#include "kestrel/error.h"
+#include "upscale/nsrr.h"
+#include "upscale/nsrr_parts.h"
+
+namespace kestrel::upscale {
+
+namespace {
+
+using namespace nsrr;
+using dnnl::memory;
+using tag = memory::format_tag;
+using dt = memory::data_type;
+
+constexpr int kPrevious = 2, kCell = 4, kCells = kCell * kCell, kX = 4;
+constexpr int kIn = kX * kCells * (kPrevious + 1) + 1;
+constexpr uint32_t kArchitecture = 3;  // 2: before the bilinear base
+static_assert(kIn == GridFill::kChannels && kPrevious + 1 == GridFill::kFrames &&
+              kX == GridFill::kX);
+
+// The tensors of weights/upscaler_nsrr_rt.kdw, in order (nsrr.NSRRRealTime's named_parameters).
+enum Layer { r1, r2, c1, c2, c3, c4, c5 };
+const std::vector<nn::LayerSpec> kSpecs = {
+    {"r1", 16, kIn, 1},       {"r2", kCells* kPrevious, 16, 1},
+    {"c1", 32, kIn, 1},       {"c2", 24, 32, 3},
+    {"c3", 24, 24, 3},        {"c4", 24, 48, 1},
+    {"c5", 3 * kCells, 24, 1}};
+
+class RealTime final : public Member {
+ public:
+  RealTime(const std::string& weights, int factor, bool bf16);
+  void run(const UpscaleInput& in, FloatImage& out, Upscaler::Times& times) override;
+
+ private:
+  // Built per input size: the output padded to multiples of 8 (two cells, for the pooling),
+  // the grid of cells Gw x Gh.
+  int w = 0, h = 0, W = 0, H = 0, Gw = 0, Gh = 0;
+  Net reweight, reconstruct;
+  memory grid_in, reweight_out, out_grid;
+  std::vector<int32_t> src;   // N x H x W: the low-res pixel behind W_k at each output pixel, -1
+  std::vector<float> packed;  // per window frame and low-res pixel: x = [y, d(z)]
+
+  void build(int w_, int h_);
+  // The grid from the window and src (nsrr_warp.h: GridFill).
+  void fill_grid(float depth_scale);
+  // W_k weighed in the grid by the reweighting network's output.
+  template <typename T>
+  void weigh(T* g) const;
+};
+
+float load(float v) {
+  return v;
+}
+float load(uint16_t v) {
+  return bf16_to_float(v);
+}
+void store(float& d, float v) {
+  d = v;
+}
+void store(uint16_t& d, float v) {
+  d = float_to_bf16(v);
+}
+
+void RealTime::fill_grid(float depth_scale) {
+  // Each frame's x = [y, d(z)] packed per low-res pixel (one load per gathered sample).
+  const size_t n = size_t(w) * size_t(h), N = size_t(W) * size_t(H);
+  packed.resize(window.size() * kX * n);
+  parallel_for(0, window.size() * n, 4096, [&](size_t p0, size_t p1) {
+    for (size_t p = p0; p < p1; ++p) {
+      const Frame& fr = window[p / n];
+      const size_t i = p % n;
+      float* x = &packed[kX * p];
+      for (size_t c = 0; c < 3; ++c) x[c] = fr.y[c * n + i];
+      const float z = fr.depth[i];
+      x[3] = z > 0 ? z / (z + depth_scale) : 1.0f;
+    }
+  });
+  GridFill a{};
+  a.frames = int(std::min(window.size(), size_t(kPrevious) + 1));
+  a.at[0] = window[0].sample_at.data();
+  for (size_t k = 1; k < size_t(a.frames); ++k) a.at[k] = src.data() + (k - 1) * N;
+  a.packed = packed.data(), a.n = n, a.W = W, a.H = H, a.Gw = Gw;
+  a.last = float(f) / 4.0f;
+  a.bf16 = dnn.bf16, a.grid = grid_in.get_data_handle();
+  const GridRowsFn rows = grid_rows_for(default_isa());
+  parallel_for(0, size_t(Gh), 1, [&](size_t y0, size_t y1) { rows(a, y0, y1); });
+}
+
+template <typename T>
+void RealTime::weigh(T* g) const {
+  // Channel (4 k + c) 16 + sub times w[16 (k - 1) + sub].
+  const float* rw = static_cast<const float*>(reweight_out.get_data_handle());
+  parallel_for(0, size_t(Gw) * size_t(Gh), 256, [&](size_t p0, size_t p1) {
+    for (size_t p = p0; p < p1; ++p) {
+      T* gc = g + p * size_t(kIn) + kX * kCells;
+      const float* wc = rw + p * size_t(kPrevious * kCells);
+      for (size_t k = 0; k < size_t(kPrevious); ++k)
+        for (size_t c = 0; c < size_t(kX); ++c)
+          for (size_t sub = 0; sub < size_t(kCells); ++sub) {
+            T& v = gc[(k * kX + c) * kCells + sub];
+            store(v, load(v) * wc[k * kCells + sub]);
+          }
+    }
+  });
+}
+
+RealTime::RealTime(const std::string& weights, int factor, bool bf16)
+    : Member(weights, factor, bf16, kArchitecture, kSpecs, "nsrr-rt upsampler") {}
+
+void RealTime::build(int w_, int h_) {
+  w = w_, h = h_, W = f * w, H = f * h;
+  Gw = (W + 2 * kCell - 1) / (2 * kCell) * 2, Gh = (H + 2 * kCell - 1) / (2 * kCell) * 2;
+  reweight = reconstruct = Net{};
+  // Both networks read grid_in: the reweighting first, then (its W_k weighed in place) the
+  // reconstruction.
+  grid_in = memory({{1, kIn, Gh, Gw}, dnn.act(), tag::nhwc}, dnn.eng);
+  memory x = conv(reweight, grid_in, r1, true, false);
+  dnnl::post_ops tanh_po;
+  tanh_po.append_eltwise(1.0f, dnnl::algorithm::eltwise_tanh, 0.0f, 0.0f);
+  tanh_po.append_eltwise(1.0f, dnnl::algorithm::eltwise_linear, 0.5f * kReweightMax,
+                         0.5f * kReweightMax);
+  reweight_out = conv(reweight, x, r2, false, true, &tanh_po, tag::nhwc);
+  memory a = conv(reconstruct, grid_in, c1, true, false);
+  a = conv(reconstruct, a, c2, true, false);
+  memory b = conv(reconstruct, dnn.pool(reconstruct, a), c3, true, false);
+  memory d = conv(reconstruct, dnn.up_concat(reconstruct, b, a), c4, true, false);
+  out_grid = conv(reconstruct, d, c5, false, true, nullptr, tag::nhwc);
+}
+
+void RealTime::run(const UpscaleInput& in, FloatImage& out, Upscaler::Times& times) {
+  Timer timer;
+  try {
+    if (in.color->width != w || in.color->height != h) {
+      window.clear();
+      build(in.color->width, in.color->height);
+    }
+  } catch (const dnnl::error& e) {
+    throw Error(ErrorCode::unsupported, fmt::format("nsrr-rt upsampler: oneDNN: {}", e.what()));
+  }
+  const float s = window.push(in, f, kPrevious);
+  window.warp(f, W, H, kPrevious, src);
+  fill_grid(s);
+  times.features = timer.ms();
+  Timer net_timer;
+  try {
+    reweight.run(dnn.strm);
+    dnn.strm.wait();
+    if (dnn.bf16)
+      weigh(static_cast<uint16_t*>(grid_in.get_data_handle()));
+    else
+      weigh(static_cast<float*>(grid_in.get_data_handle()));
+    reconstruct.run(dnn.strm);
+    dnn.strm.wait();
+  } catch (const dnnl::error& e) {
+    throw Error(ErrorCode::unsupported, fmt::format("nsrr-rt upsampler: oneDNN: {}", e.what()));
+  }
+  times.network = net_timer.ms();
+  Timer out_timer;
+  const float* o = static_cast<const float*>(out_grid.get_data_handle());
+  // The networks' correction (cell (X / 4, Y / 4), pixel_shuffle order) of the base.
+  base.build(window[0], f, W);
+  write_output(base, W, H, out, [&](size_t X, size_t Y, float y[3]) {
+    const float* oc = o + ((Y / kCell) * size_t(Gw) + X / kCell) * size_t(3 * kCells);
+    const size_t sub = (Y % kCell) * kCell + X % kCell;
+    for (size_t c = 0; c < 3; ++c) y[c] = oc[c * kCells + sub];
+  });
+  times.reconstruct = out_timer.ms();
+}
+
+}  // namespace
+
+std::unique_ptr<NsrrNetwork> make_nsrr_rt(const std::string& weights, int factor, bool bf16) {
+  return std::make_unique<RealTime>(weights, factor, bf16);
+}
+
+}  // namespace kestrel::upscale
