@@ -91,7 +91,9 @@ void warp_row_scalar(const WarpRow& a, float* pos, int32_t* out) {
   }
 }
 
-void grid_rows_scalar(const GridFill& a, size_t gy0, size_t gy1) {
+namespace {
+template <typename T>
+void grid_rows(const GridFill& a, T* grid, size_t gy0, size_t gy1) {
   constexpr size_t kC = size_t(GridFill::kChannels), kX = size_t(GridFill::kX);
   const float zero[GridFill::kX] = {0.0f, 0.0f, 0.0f, 0.0f};
   for (size_t gy = gy0; gy < gy1; ++gy)
@@ -104,22 +106,20 @@ void grid_rows_scalar(const GridFill& a, size_t gy0, size_t gy1) {
         for (size_t k = 0; k < size_t(GridFill::kFrames); ++k) {
           const int32_t i = inside && k < size_t(a.frames) ? a.at[k][q] : -1;
           const float* x = i < 0 ? zero : a.packed + kX * (k * a.n + size_t(i));
-          const size_t at = cell + kX * k * 16 + sub;
-          for (size_t c = 0; c < kX; ++c) {
-            if (a.bf16)
-              static_cast<uint16_t*>(a.grid)[at + 16 * c] = float_to_bf16(x[c]);
-            else
-              static_cast<float*>(a.grid)[at + 16 * c] = x[c];
-          }
+          T* g = grid + cell + kX * k * 16 + sub;
+          for (size_t c = 0; c < kX; ++c) store(g[16 * c], x[c]);
         }
-        if (sub == 0) {
-          if (a.bf16)
-            static_cast<uint16_t*>(a.grid)[cell + kC - 1] = float_to_bf16(a.last);
-          else
-            static_cast<float*>(a.grid)[cell + kC - 1] = a.last;
-        }
+        if (sub == 0) store(grid[cell + kC - 1], a.last);
       }
     }
+}
+}  // namespace
+
+void grid_rows_scalar(const GridFill& a, size_t gy0, size_t gy1) {
+  if (a.bf16)
+    grid_rows(a, static_cast<uint16_t*>(a.grid), gy0, gy1);
+  else
+    grid_rows(a, static_cast<float*>(a.grid), gy0, gy1);
 }
 
 GridRowsFn grid_rows_for(Isa isa) {

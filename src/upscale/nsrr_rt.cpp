@@ -62,19 +62,6 @@ class RealTime final : public Member {
   void weigh(T* g) const;
 };
 
-float load(float v) {
-  return v;
-}
-float load(uint16_t v) {
-  return bf16_to_float(v);
-}
-void store(float& d, float v) {
-  d = v;
-}
-void store(uint16_t& d, float v) {
-  d = float_to_bf16(v);
-}
-
 void RealTime::fill_grid(float depth_scale) {
   // Each frame's x = [y, d(z)] packed per low-res pixel (one load per gathered sample).
   const size_t n = size_t(w) * size_t(h), N = size_t(W) * size_t(H);

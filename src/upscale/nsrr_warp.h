@@ -26,6 +26,19 @@ inline float bf16_to_float(uint16_t b) {
   std::memcpy(&x, &u, 4);
   return x;
 }
+/// A grid element (float or bf16 as uint16_t) read and written as float.
+inline float load(float v) {
+  return v;
+}
+inline float load(uint16_t v) {
+  return bf16_to_float(v);
+}
+inline void store(float& d, float v) {
+  d = v;
+}
+inline void store(uint16_t& d, float v) {
+  d = float_to_bf16(v);
+}
 
 struct WarpRow {
   const float *mx, *my;  // frame t-k+1's motion (low resolution, planar x then y)
