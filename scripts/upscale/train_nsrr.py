@@ -4,7 +4,7 @@ its real-time member `nsrr-rt` (nsrr.NSRRRealTime) on the train clips of make_da
 --families, one network for both factors (f / 4 is an input channel), and writes (NAME:
 upscaler_nsrr, or upscaler_nsrr_rt with --arch rt)
   weights/NAME.kdw              the weights (format v1 of docs/denoiser.md, magic KSTRLNSR,
-                                architecture 1 (nsrr) or 2 (nsrr-rt))
+                                architecture 4 (nsrr) or 3 (nsrr-rt))
   weights/NAME.json             provenance: dataset, command, steps, seed, losses, git revision
   weights/NAME_loss.png
   tests/data/NAME/              a parity fixture: four frames of a held-out clip, both factors,
