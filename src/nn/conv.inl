@@ -8,22 +8,36 @@ struct FlushDenormals {
 };
 
 // Channels-last convolution for cout a multiple of 16, on an input zero-padded by one pixel
-// on every side and to a multiple of 8 columns: blocks of 8 output pixels x 16 output
-// channels held in registers (GCC vector extensions: one AVX-512 register, or two AVX /
-// four SSE registers, per block row), each weight vector feeding 8 FMAs.
-typedef float V16 __attribute__((vector_size(64)));
+// on every side and to a multiple of 8 columns: blocks of kPx output pixels x 16 output
+// channels held in registers, each weight vector feeding kPx FMAs. The 16 channels are
+// 16 / kLanes vectors of the ISA's own width (GCC lowers a 64-byte vector type badly where
+// the registers are narrower: through the stack), and kPx is what fits the ISA's 16 or 32
+// registers with the weights and a broadcast. Every output sums its taps in the same order
+// whatever kPx and kLanes are.
+#if defined(__AVX512F__)
+static constexpr int kLanes = 16, kPx = 8;
+#elif defined(__AVX__)
+static constexpr int kLanes = 8, kPx = 4;
+#else
+static constexpr int kLanes = 4, kPx = 2;
+#endif
+static constexpr int kParts = 16 / kLanes;
+typedef float VN __attribute__((vector_size(4 * kLanes)));
 
 static void conv_rows_padded(const ConvArgs& a, const float* padded, int row0, int row1) {
   const int w = a.width, cin = a.cin, cout = a.cout, k = a.ksize, r = k / 2;
   const int wp = (w + 7) / 8 * 8, pw = wp + 2;
   for (int y = row0; y < row1; ++y)
-    for (int x0 = 0; x0 < wp; x0 += 8)
+    for (int x0 = 0; x0 < w; x0 += kPx)
       for (int cb = 0; cb < cout; cb += 16) {
-        V16 bias;
-        __builtin_memcpy(&bias, a.bias + cb, sizeof bias);
-        V16 acc[8];
+        VN acc[kPx][kParts];
+#pragma GCC unroll 4
+        for (int j = 0; j < kParts; ++j) {
+          VN bias;
+          __builtin_memcpy(&bias, a.bias + cb + j * kLanes, sizeof bias);
 #pragma GCC unroll 8
-        for (int b = 0; b < 8; ++b) acc[b] = bias;
+          for (int b = 0; b < kPx; ++b) acc[b][j] = bias;
+        }
         for (int ky = 0; ky < k; ++ky)
           for (int kx = 0; kx < k; ++kx) {
             const float* in =
@@ -32,20 +46,29 @@ static void conv_rows_padded(const ConvArgs& a, const float* padded, int row0, i
             const float* wk =
                 a.weights + size_t(ky * k + kx) * size_t(cin) * size_t(cout) + size_t(cb);
             for (int ci = 0; ci < cin; ++ci) {
-              V16 wv;
-              __builtin_memcpy(&wv, wk + size_t(ci) * size_t(cout), sizeof wv);
+              VN wv[kParts];
+#pragma GCC unroll 4
+              for (int j = 0; j < kParts; ++j)
+                __builtin_memcpy(&wv[j], wk + size_t(ci) * size_t(cout) + size_t(j * kLanes),
+                                 sizeof(VN));
 #pragma GCC unroll 8
-              for (int b = 0; b < 8; ++b) acc[b] += in[size_t(b) * size_t(cin) + size_t(ci)] * wv;
+              for (int b = 0; b < kPx; ++b) {
+                const float v = in[size_t(b) * size_t(cin) + size_t(ci)];
+#pragma GCC unroll 4
+                for (int j = 0; j < kParts; ++j) acc[b][j] += v * wv[j];
+              }
             }
           }
-        const V16 zero = {};
+        const VN zero = {};
 #pragma GCC unroll 8
-        for (int b = 0; b < 8; ++b) {
+        for (int b = 0; b < kPx; ++b) {
           if (x0 + b >= w) break;
-          V16 v = a.relu ? (acc[b] > zero ? acc[b] : zero) : acc[b];
-          __builtin_memcpy(
-              a.out + (size_t(y) * size_t(w) + size_t(x0 + b)) * size_t(cout) + size_t(cb), &v,
-              sizeof v);
+          float* o = a.out + (size_t(y) * size_t(w) + size_t(x0 + b)) * size_t(cout) + size_t(cb);
+#pragma GCC unroll 4
+          for (int j = 0; j < kParts; ++j) {
+            const VN v = a.relu ? (acc[b][j] > zero ? acc[b][j] : zero) : acc[b][j];
+            __builtin_memcpy(o + j * kLanes, &v, sizeof v);
+          }
         }
       }
 }
