@@ -50,131 +50,85 @@ static inline float log1p_pos(float v) {
   return float(e) * 0.69314718f + series;
 }
 
-// One pixel's 8 outer taps (the centre weighs exactly 1: every difference is 0 and
-// n.n - n.n = 0), the accumulation and the mix. `off[t]` are the taps' index offsets from
-// p; `h[t]` their spline weights. Inlined into a vectorised interior loop and a scalar one
-// for the border pixels, whose offsets are clamped per pixel.
-struct TapSet {
+#include "denoise/simd.inl"
+
+// One a-trous level's row: its planes, the two quarter-res parameter rows it lerps (fy the
+// weight of the lower one) and the 8 outer taps (the centre weighs exactly 1: every
+// difference is 0 and n.n - n.n = 0) as index offsets from the pixel with their spline
+// weights. Border pixels get their own copy with offsets clamped per pixel.
+struct AtrousRow {
+  const float *x0, *x1, *x2, *g0, *g1, *g2, *n0, *n1, *n2, *z;
+  const float *sc_top, *sc_bot, *sn_top, *sn_bot, *sz_top, *sz_bot, *beta_top, *beta_bot;
+  float *o0, *o1, *o2, *go0, *go1, *go2;  // go*: the next level's guide, or null
+  float fy, gy;                           // gy = 1 - fy
   long off[8];
   float h[8];
 };
 
-struct ParamRows {
-  const float* top[4];
-  const float* bot[4];
-  float fy;
-};
-
-static inline float param_at(const ParamRows& r, int k, int i) {
-  return r.top[k][i] * (1 - r.fy) + r.bot[k][i] * r.fy;
-}
-
-static inline void atrous_pixel(const AtrousArgs& a, size_t p, int i, const ParamRows& pr,
-                                const TapSet& taps) {
-  const float x0 = a.x[0][p], x1 = a.x[1][p], x2 = a.x[2][p];
-  const float g0 = a.g[0][p], g1 = a.g[1][p], g2 = a.g[2][p];
-  const float n0 = a.n[0][p], n1 = a.n[1][p], n2 = a.n[2][p], z = a.z[p];
-  const float sc = param_at(pr, 0, i), sn = param_at(pr, 1, i);
-  const float sz = param_at(pr, 2, i) / (z > kMinDepth ? z : kMinDepth);
-  const float nn = n0 * n0 + n1 * n1 + n2 * n2;
-  float acc0 = x0, acc1 = x1, acc2 = x2, wsum = 1.0f;
+// Pixels p .. p + width(T) - 1 (column i of the row): the taps, the accumulation and the mix,
+// with T = float or vfloat (every operation lane by lane, so both give the same values).
+template <class T, bool kGuide>
+static inline void atrous_lanes(const AtrousRow& r, size_t p, int i) {
+  const T zero = T{} + 0.0f;
+  const T x0 = ld<T>(r.x0 + p), x1 = ld<T>(r.x1 + p), x2 = ld<T>(r.x2 + p);
+  const T g0 = ld<T>(r.g0 + p), g1 = ld<T>(r.g1 + p), g2 = ld<T>(r.g2 + p);
+  const T n0 = ld<T>(r.n0 + p), n1 = ld<T>(r.n1 + p), n2 = ld<T>(r.n2 + p), z = ld<T>(r.z + p);
+  const T sc = ld<T>(r.sc_top + i) * r.gy + ld<T>(r.sc_bot + i) * r.fy;
+  const T sn = ld<T>(r.sn_top + i) * r.gy + ld<T>(r.sn_bot + i) * r.fy;
+  const T sz = (ld<T>(r.sz_top + i) * r.gy + ld<T>(r.sz_bot + i) * r.fy) /
+               (z > kMinDepth ? z : zero + kMinDepth);
+  const T nn = n0 * n0 + n1 * n1 + n2 * n2;
+  T acc0 = x0, acc1 = x1, acc2 = x2, wsum = zero + 1.0f;
 #pragma GCC unroll 8
   for (int t = 0; t < 8; ++t) {
-    const size_t q = size_t(long(p) + taps.off[t]);
-    const float q0 = a.x[0][q], q1 = a.x[1][q], q2 = a.x[2][q];
-    const float d0 = g0 - a.g[0][q], d1 = g1 - a.g[1][q], d2 = g2 - a.g[2][q];
-    const float dot = n0 * a.n[0][q] + n1 * a.n[1][q] + n2 * a.n[2][q];
-    const float nd = nn - dot > 0.0f ? nn - dot : 0.0f;
-    const float dz = z - a.z[q];
-    const float e = sc * (d0 * d0 + d1 * d1 + d2 * d2) + sn * nd + sz * (dz < 0.0f ? -dz : dz);
-    const float wq = taps.h[t] * exp_neg(-e);
-    acc0 += wq * q0;
-    acc1 += wq * q1;
-    acc2 += wq * q2;
+    const size_t q = size_t(long(p) + r.off[t]);
+    const T d0 = g0 - ld<T>(r.g0 + q), d1 = g1 - ld<T>(r.g1 + q), d2 = g2 - ld<T>(r.g2 + q);
+    const T dot = n0 * ld<T>(r.n0 + q) + n1 * ld<T>(r.n1 + q) + n2 * ld<T>(r.n2 + q);
+    const T nd0 = nn - dot, nd = nd0 > zero ? nd0 : zero;
+    const T dz = vabs(z - ld<T>(r.z + q));
+    const T e = sc * (d0 * d0 + d1 * d1 + d2 * d2) + sn * nd + sz * dz;
+    const T wq = r.h[t] * vexp_neg(zero - e);
+    acc0 += wq * ld<T>(r.x0 + q);
+    acc1 += wq * ld<T>(r.x1 + q);
+    acc2 += wq * ld<T>(r.x2 + q);
     wsum += wq;
   }
-  const float inv = 1.0f / wsum, beta = param_at(pr, 3, i);
-  a.out[0][p] = x0 + beta * (acc0 * inv - x0);
-  a.out[1][p] = x1 + beta * (acc1 * inv - x1);
-  a.out[2][p] = x2 + beta * (acc2 * inv - x2);
-  if (a.gout[0])
-    for (int c = 0; c < 3; ++c) a.gout[c][p] = log1p_pos(a.out[c][p] > 0.0f ? a.out[c][p] : 0.0f);
-}
-
-// The interior pixels [i0, i1) of a row: every tap inside the image, fixed offsets. The
-// arrays are restrict-qualified parameters (GCC's dependence analysis honours restrict on
-// parameters, not on locals), so the loop vectorises across pixels. kGuide: also the next
-// level's guide log(1 + max(out, 0)) into GO (saves a pass over the image per level).
-template <bool kGuide>
-static void atrous_interior_impl(
-    size_t row, int i0, int i1, float fy, const long* off, const float* h,
-    const float* __restrict X0, const float* __restrict X1, const float* __restrict X2,
-    const float* __restrict G0, const float* __restrict G1, const float* __restrict G2,
-    const float* __restrict N0, const float* __restrict N1, const float* __restrict N2,
-    const float* __restrict Z, const float* __restrict SCt, const float* __restrict SCb,
-    const float* __restrict SNt, const float* __restrict SNb, const float* __restrict SZt,
-    const float* __restrict SZb, const float* __restrict Bt, const float* __restrict Bb,
-    float* __restrict O0, float* __restrict O1, float* __restrict O2, float* __restrict GO0,
-    float* __restrict GO1, float* __restrict GO2) {
-  long o[8];
-  float hh[8];
-  for (int t = 0; t < 8; ++t) o[t] = off[t], hh[t] = h[t];
-  const float gy = 1 - fy;
-  for (int i = i0; i < i1; ++i) {
-    const size_t p = row + size_t(i);
-    const float x0 = X0[p], x1 = X1[p], x2 = X2[p];
-    const float g0 = G0[p], g1 = G1[p], g2 = G2[p];
-    const float n0 = N0[p], n1 = N1[p], n2 = N2[p], z = Z[p];
-    const float sc = SCt[i] * gy + SCb[i] * fy, sn = SNt[i] * gy + SNb[i] * fy;
-    const float sz = (SZt[i] * gy + SZb[i] * fy) / (z > kMinDepth ? z : kMinDepth);
-    const float nn = n0 * n0 + n1 * n1 + n2 * n2;
-    float acc0 = x0, acc1 = x1, acc2 = x2, wsum = 1.0f;
-#pragma GCC unroll 8
-    for (int t = 0; t < 8; ++t) {
-      const size_t q = p + size_t(o[t]);
-      const float q0 = X0[q], q1 = X1[q], q2 = X2[q];
-      const float d0 = g0 - G0[q], d1 = g1 - G1[q], d2 = g2 - G2[q];
-      const float dot = n0 * N0[q] + n1 * N1[q] + n2 * N2[q];
-      const float nd = nn - dot > 0.0f ? nn - dot : 0.0f;
-      const float dz = z - Z[q];
-      const float e = sc * (d0 * d0 + d1 * d1 + d2 * d2) + sn * nd + sz * (dz < 0.0f ? -dz : dz);
-      const float wq = hh[t] * exp_neg(-e);
-      acc0 += wq * q0;
-      acc1 += wq * q1;
-      acc2 += wq * q2;
-      wsum += wq;
-    }
-    const float inv = 1.0f / wsum, beta = Bt[i] * gy + Bb[i] * fy;
-    const float o0 = x0 + beta * (acc0 * inv - x0), o1 = x1 + beta * (acc1 * inv - x1),
-                o2 = x2 + beta * (acc2 * inv - x2);
-    O0[p] = o0, O1[p] = o1, O2[p] = o2;
-    if constexpr (kGuide) {
-      GO0[p] = log1p_pos(o0 > 0.0f ? o0 : 0.0f);
-      GO1[p] = log1p_pos(o1 > 0.0f ? o1 : 0.0f);
-      GO2[p] = log1p_pos(o2 > 0.0f ? o2 : 0.0f);
-    }
+  const T inv = 1.0f / wsum, beta = ld<T>(r.beta_top + i) * r.gy + ld<T>(r.beta_bot + i) * r.fy;
+  const T o0 = x0 + beta * (acc0 * inv - x0), o1 = x1 + beta * (acc1 * inv - x1),
+          o2 = x2 + beta * (acc2 * inv - x2);
+  st(r.o0 + p, o0), st(r.o1 + p, o1), st(r.o2 + p, o2);
+  if constexpr (kGuide) {
+    st(r.go0 + p, vlog1p_pos(o0 > zero ? o0 : zero));
+    st(r.go1 + p, vlog1p_pos(o1 > zero ? o1 : zero));
+    st(r.go2 + p, vlog1p_pos(o2 > zero ? o2 : zero));
   }
 }
 
-static void atrous_interior(const AtrousArgs& a, size_t row, int i0, int i1, const ParamRows& r,
-                            const TapSet& taps) {
-  auto run = [&](auto impl) {
-    impl(row, i0, i1, r.fy, taps.off, taps.h, a.x[0], a.x[1], a.x[2], a.g[0], a.g[1], a.g[2],
-         a.n[0], a.n[1], a.n[2], a.z, r.top[0], r.bot[0], r.top[1], r.bot[1], r.top[2], r.bot[2],
-         r.top[3], r.bot[3], a.out[0], a.out[1], a.out[2], a.gout[0], a.gout[1], a.gout[2]);
-  };
-  if (a.gout[0])
-    run(atrous_interior_impl<true>);
+// Columns [i0, i1) of row `row`: kLanes pixels at a time, the rest one by one.
+template <bool kGuide>
+static void atrous_span(const AtrousRow& r, size_t row, int i0, int i1) {
+  int i = i0;
+  for (; i + kLanes <= i1; i += kLanes) atrous_lanes<vfloat, kGuide>(r, row + size_t(i), i);
+  for (; i < i1; ++i) atrous_lanes<float, kGuide>(r, row + size_t(i), i);
+}
+
+static void atrous_span(const AtrousRow& r, size_t row, int i0, int i1) {
+  if (r.go0)
+    atrous_span<true>(r, row, i0, i1);
   else
-    run(atrous_interior_impl<false>);
+    atrous_span<false>(r, row, i0, i1);
 }
 
 static void atrous_rows(const AtrousArgs& a, int row0, int row1) {
   const int w = a.width, h = a.height, d = a.dilation;
+  AtrousRow r;
+  r.x0 = a.x[0], r.x1 = a.x[1], r.x2 = a.x[2], r.g0 = a.g[0], r.g1 = a.g[1], r.g2 = a.g[2];
+  r.n0 = a.n[0], r.n1 = a.n[1], r.n2 = a.n[2], r.z = a.z;
+  r.o0 = a.out[0], r.o1 = a.out[1], r.o2 = a.out[2];
+  r.go0 = a.gout[0], r.go1 = a.gout[1], r.go2 = a.gout[2];
   for (int y = row0; y < row1; ++y) {
     const size_t row = size_t(y) * size_t(w);
     // Taps in PyTorch's order (dy, dx), centre left out; rows clamped to the image.
-    TapSet inner;
     long row_off[3];
     for (int ty = -1; ty <= 1; ++ty) {
       int qy = y + ty * d;
@@ -185,19 +139,21 @@ static void atrous_rows(const AtrousArgs& a, int row0, int row1) {
     for (int ty = -1; ty <= 1; ++ty)
       for (int tx = -1; tx <= 1; ++tx) {
         if (tx == 0 && ty == 0) continue;
-        inner.off[t] = row_off[ty + 1] + long(tx * d);
-        inner.h[t] = (ty == 0 ? 2.0f : 1.0f) * (tx == 0 ? 2.0f : 1.0f) * 0.25f;
+        r.off[t] = row_off[ty + 1] + long(tx * d);
+        r.h[t] = (ty == 0 ? 2.0f : 1.0f) * (tx == 0 ? 2.0f : 1.0f) * 0.25f;
         ++t;
       }
+    // The two quarter-res parameter rows this row lerps (upsampled horizontally: w wide).
     const UpTap ty = up_tap(y, a.param_rows, 0.25f);
-    ParamRows pr;
-    pr.fy = ty.f;
-    for (int k = 0; k < 4; ++k)
-      pr.top[k] = a.param[k] + size_t(ty.i0) * size_t(w),
-      pr.bot[k] = a.param[k] + size_t(ty.i1) * size_t(w);
+    r.fy = ty.f, r.gy = 1 - ty.f;
+    const size_t top = size_t(ty.i0) * size_t(w), bot = size_t(ty.i1) * size_t(w);
+    r.sc_top = a.param[0] + top, r.sc_bot = a.param[0] + bot;
+    r.sn_top = a.param[1] + top, r.sn_bot = a.param[1] + bot;
+    r.sz_top = a.param[2] + top, r.sz_bot = a.param[2] + bot;
+    r.beta_top = a.param[3] + top, r.beta_bot = a.param[3] + bot;
     const int i0 = d < w ? d : w, i1 = w - d > i0 ? w - d : i0;
     auto border = [&](int i) {  // columns clamped per pixel
-      TapSet c = inner;
+      AtrousRow c = r;
       int k = 0;
       for (int ty = -1; ty <= 1; ++ty)
         for (int tx = -1; tx <= 1; ++tx) {
@@ -206,10 +162,10 @@ static void atrous_rows(const AtrousArgs& a, int row0, int row1) {
           qx = qx < 0 ? 0 : (qx >= w ? w - 1 : qx);
           c.off[k++] = row_off[ty + 1] + long(qx - i);
         }
-      atrous_pixel(a, row + size_t(i), i, pr, c);
+      atrous_span(c, row, i, i + 1);
     };
     for (int i = 0; i < i0; ++i) border(i);
-    atrous_interior(a, row, i0, i1, pr, inner);
+    atrous_span(r, row, i0, i1);
     for (int i = i1; i < w; ++i) border(i);
   }
 }

@@ -1,5 +1,6 @@
-// SVGF's hot loops (svgf.h), included by kernels_<isa>.cpp after kernels.inl (exp_neg,
-// FlushDenormals: the weights' tails, e.g. max(0, n.n')^128, underflow into denormals).
+// SVGF's hot loops (svgf.h), included by kernels_<isa>.cpp after kernels.inl (exp_neg, the
+// vector helpers of simd.inl, FlushDenormals: the weights' tails, e.g. max(0, n.n')^128, underflow
+// into denormals).
 //
 // The a-trous pass runs pixel by pixel with all 25 taps unrolled and the sums in registers,
 // vectorised across the pixels of a row's interior. A tap outside the image weighs 0 (its
@@ -16,61 +17,6 @@ struct SvgfTaps {
   float h[25];           // B3 x B3, 0 for a tap outside the image
   float dx[25], dy[25];  // the tap's offset in pixels (the depth gradient's prediction)
 };
-
-// Lanes of GCC's vector extension for this file's ISA; the pass's body is written once for
-// float (the borders, the tail of a row) and for the vector type (the interior).
-#if defined(__AVX512F__)
-static constexpr int kLanes = 16;
-#elif defined(__AVX2__)
-static constexpr int kLanes = 8;
-#else
-static constexpr int kLanes = 4;
-#endif
-typedef float vfloat __attribute__((vector_size(4 * kLanes)));
-typedef int vint __attribute__((vector_size(4 * kLanes)));
-
-template <class T>
-static inline T ld(const float* p) {
-  T v;
-  std::memcpy(&v, p, sizeof v);
-  return v;
-}
-template <class T>
-static inline void st(float* p, T v) {
-  std::memcpy(p, &v, sizeof v);
-}
-static inline float vabs(float x) {
-  return std::fabs(x);
-}
-static inline vfloat vabs(vfloat x) {
-  return (vfloat)((vint)x & 0x7FFFFFFF);
-}
-static inline float vmax(float a, float b) {
-  return a < b ? b : a;
-}
-static inline vfloat vmax(vfloat a, vfloat b) {
-  return a < b ? b : a;
-}
-static inline float vexp_neg(float x) {
-  return exp_neg(x);
-}
-// exp_neg (kernels.inl) lane by lane: the same operations, so the same bits.
-static inline vfloat vexp_neg(vfloat x) {
-  const vint tiny = x < -80.0f;
-  x = tiny ? vfloat{} - 80.0f : x;
-  const vfloat t = x * 1.44269504f;
-  const vfloat shifted = t + 12582912.0f;
-  const vfloat f = t - (shifted - 12582912.0f);
-  vfloat p = vfloat{} + 1.5403530e-4f;
-  p = p * f + 1.3333558e-3f;
-  p = p * f + 9.6181291e-3f;
-  p = p * f + 5.5504109e-2f;
-  p = p * f + 2.4022651e-1f;
-  p = p * f + 6.9314718e-1f;
-  p = p * f + 1.0f;
-  const vint n = (vint)shifted - 0x4B400000;
-  return tiny ? vfloat{} : p * (vfloat)((n + 127) << 23);
-}
 
 // Pixels p .. p + width(T) - 1 of an SVGF pass over the taps.
 template <class T>

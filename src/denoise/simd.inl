@@ -1,0 +1,78 @@
+// GCC vector-extension helpers for the denoisers' per-ISA kernels, included by kernels.inl
+// (after the scalar exp_neg and log1p_pos) inside each kernels_<isa>.cpp's namespace.
+//
+// A hot loop's body is written once as a template over T = float (borders, the tail of a
+// row) and T = vfloat (the interior, kLanes pixels at a time), so it is vectorised on every
+// ISA whatever the auto-vectoriser decides (it gave up on the neural filter's loop under
+// AVX2 and SSE2: "control flow in loop", and ran it scalar). The vector forms of exp_neg and
+// log1p_pos do the scalar forms' operations lane by lane.
+
+#if defined(__AVX512F__)
+static constexpr int kLanes = 16;
+#elif defined(__AVX2__)
+static constexpr int kLanes = 8;
+#else
+static constexpr int kLanes = 4;
+#endif
+typedef float vfloat __attribute__((vector_size(4 * kLanes)));
+typedef int vint __attribute__((vector_size(4 * kLanes)));
+
+template <class T>
+static inline T ld(const float* p) {
+  T v;
+  std::memcpy(&v, p, sizeof v);
+  return v;
+}
+template <class T>
+static inline void st(float* p, T v) {
+  std::memcpy(p, &v, sizeof v);
+}
+static inline float vabs(float x) {
+  return std::fabs(x);
+}
+static inline vfloat vabs(vfloat x) {
+  return (vfloat)((vint)x & 0x7FFFFFFF);
+}
+static inline float vmax(float a, float b) {
+  return a < b ? b : a;
+}
+static inline vfloat vmax(vfloat a, vfloat b) {
+  return a < b ? b : a;
+}
+static inline float vexp_neg(float x) {
+  return exp_neg(x);
+}
+// exp_neg lane by lane: the same operations, so the same bits.
+static inline vfloat vexp_neg(vfloat x) {
+  const vint tiny = x < -80.0f;
+  x = tiny ? vfloat{} - 80.0f : x;
+  const vfloat t = x * 1.44269504f;
+  const vfloat shifted = t + 12582912.0f;
+  const vfloat f = t - (shifted - 12582912.0f);
+  vfloat p = vfloat{} + 1.5403530e-4f;
+  p = p * f + 1.3333558e-3f;
+  p = p * f + 9.6181291e-3f;
+  p = p * f + 5.5504109e-2f;
+  p = p * f + 2.4022651e-1f;
+  p = p * f + 6.9314718e-1f;
+  p = p * f + 1.0f;
+  const vint n = (vint)shifted - 0x4B400000;
+  return tiny ? vfloat{} : p * (vfloat)((n + 127) << 23);
+}
+static inline float vlog1p_pos(float v) {
+  return log1p_pos(v);
+}
+// log1p_pos lane by lane.
+static inline vfloat vlog1p_pos(vfloat v) {
+  const vfloat u = 1.0f + v;
+  const vint bits = (vint)u;
+  vint e = ((bits >> 23) & 255) - 127;
+  vfloat m = (vfloat)((bits & 0x7FFFFF) | 0x3F800000);
+  const vint big = m > 1.41421356f;
+  m = big ? m * 0.5f : m;
+  e = big ? e + 1 : e;
+  const vfloat s = (m - 1.0f) / (m + 1.0f), s2 = s * s;
+  const vfloat series =
+      s * (2.0f + s2 * (0.6666667f + s2 * (0.4f + s2 * (0.2857143f + s2 * 0.2222222f))));
+  return __builtin_convertvector(e, vfloat) * 0.69314718f + series;
+}
