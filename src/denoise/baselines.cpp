@@ -89,7 +89,9 @@ Planes atrous_filter(const Planes& g) {
   const DepthGradient dz(g);
   const float sigma_c = 0.6f, sigma_n = 0.2f, sigma_z = 1.0f;
   for (int it = 0; it < 5; ++it) {
-    for (size_t p = 0; p < x.data.size(); ++p) logx.data[p] = std::log1p(std::max(x.data[p], 0.0f));
+    for (int c = 0; c < 3; ++c)
+      for (size_t p = 0; p < size_t(x.width) * size_t(x.height); ++p)
+        logx.ch(c)[p] = std::log1p(std::max(x.ch(c)[p], 0.0f));
     const float sc = sigma_c * std::ldexp(1.0f, -it);
     atrous_pass(x, t, 1 << it, nullptr, nullptr, [&](size_t p, size_t q) {
       float d2 = 0;

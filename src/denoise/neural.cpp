@@ -4,6 +4,7 @@
 #include <fmt/format.h>
 
 #include <algorithm>
+#include <atomic>
 #include <cmath>
 #include <cstring>
 
@@ -17,6 +18,11 @@ namespace {
 constexpr char kMagic[9] = "KSTRLDNW";
 constexpr uint32_t kArchitecture = 4;  // 4: firefly cut, accumulated history (model.py)
 }  // namespace
+
+size_t next_planes_offset() {
+  static std::atomic<unsigned> count{0};
+  return (count.fetch_add(1, std::memory_order_relaxed) * 23u) % 64u;  // 23: odd, far from 37
+}
 
 NeuralWeights NeuralWeights::load(const std::string& path) {
   std::vector<ConvLayer> l = load_layers(path, kMagic, kArchitecture,

@@ -62,8 +62,12 @@ void demodulate(const Planes& g, Planes& x, Planes& demod) {
 
 void remodulate(const Planes& x, const Planes& demod, Planes& out) {
   ensure(out, x.width, x.height, 3);
-  const size_t n = size_t(x.width) * size_t(x.height) * 3;
-  for (size_t i = 0; i < n; ++i) out.data[i] = std::max(x.data[i], 0.0f) * demod.data[i];
+  const size_t n = size_t(x.width) * size_t(x.height);
+  for (int c = 0; c < 3; ++c) {
+    const float *xc = x.ch(c), *dc = demod.ch(c);
+    float* oc = out.ch(c);
+    for (size_t i = 0; i < n; ++i) oc[i] = std::max(xc[i], 0.0f) * dc[i];
+  }
 }
 
 void svgf_temporal(const Planes& g, const Planes& x, const Planes& history, Planes& acc, float* m1,
@@ -198,11 +202,12 @@ const Planes& Svgf::run(const Planes& g, SvgfTimes* times) {
     rows(H, [&](int r0, int r1) { k.pass(pa, r0, r1); });
     std::swap(acc_, tmp_);
     std::swap(var_, var2_);
-    if (it == 0) std::memcpy(next_.ch(0), acc_.ch(0), sizeof(float) * N * 3);
+    if (it == 0)
+      for (int c = 0; c < 3; ++c) std::memcpy(next_.ch(c), acc_.ch(c), sizeof(float) * N);
   }
   lap(&SvgfTimes::passes);
   std::memcpy(next_.ch(6), g.ch(9), sizeof(float) * N);
-  std::memcpy(next_.ch(7), g.ch(6), sizeof(float) * N * 3);
+  for (int c = 0; c < 3; ++c) std::memcpy(next_.ch(7 + c), g.ch(6 + c), sizeof(float) * N);
   std::swap(history_, next_);
   remodulate(acc_, demod_, out_);
   lap(&SvgfTimes::output);
