@@ -172,12 +172,6 @@ static void atrous_rows(const AtrousArgs& a, int row0, int row1) {
 
 // ---- The whole network per frame (model.py's forward), with this file's ISA. ----
 
-// exp(x) for x in [-36, 88] (0 below, clamped above).
-static inline float exp_any(float x) {
-  x = x > 88.0f ? 88.0f : x;
-  return exp_neg(x - 44.0f) * 1.2851600e19f;  // e^44, so both halves stay in range
-}
-
 // Denormals flushed to zero (FTZ + DAZ) for the duration of a task: products of tiny
 // filter weights and dark pixels land in the denormal range, where x86 arithmetic is ~100x
 // slower; the values involved are far below anything visible.
@@ -206,37 +200,51 @@ static void ensure(Planes& p, int w, int h, int c) {
 }
 
 // model.py's demodulation(): albedo + EPS, or 1 where every channel is below kBlackAlbedo.
-static inline float demodulation(float a0, float a1, float a2, float a) {
-  const float m = a0 > a1 ? a0 : a1;
-  const bool black = (m > a2 ? m : a2) < kBlackAlbedo;
-  return black ? 1.0f : (a > 0.0f ? a : 0.0f) + kAlbedoEps;
+template <class T>
+static inline T demodulation(T a0, T a1, T a2, T a) {
+  const T zero = T{} + 0.0f;
+  const T m = a0 > a1 ? a0 : a1, top = m > a2 ? m : a2;
+  return top < kBlackAlbedo ? zero + 1.0f : (a > zero ? a : zero) + kAlbedoEps;
 }
 
 #include "denoise/kernels_history.inl"
 
-// The row loops below take restrict-qualified parameters so that they vectorise (with
-// pointers into shared planes GCC must otherwise assume they alias).
+// Calls f(T{}, i) for i in [0, n): T = vfloat for the pixels i .. i + kLanes - 1 while they
+// fit, then T = float one by one. f loads and stores with ld<T> / st.
+template <class F>
+static inline void for_lanes(int n, F&& f) {
+  int i = 0;
+  for (; i + kLanes <= n; i += kLanes) f(vfloat{}, i);
+  for (; i < n; ++i) f(0.0f, i);
+}
+
 // d = demodulation, x = max(colour, 0) / d, g = log(1 + x).
-static void demodulate_row(int n, const float* __restrict col, const float* __restrict a0,
-                           const float* __restrict a1, const float* __restrict a2,
-                           const float* __restrict alb, float* __restrict d, float* __restrict x,
-                           float* __restrict g) {
-  for (int i = 0; i < n; ++i) {
-    d[i] = demodulation(a0[i], a1[i], a2[i], alb[i]);
-    const float v = col[i] > 0.0f ? col[i] : 0.0f;
-    x[i] = v / d[i];
-    g[i] = log1p_pos(x[i]);
-  }
+static void demodulate_row(int n, const float* col, const float* a0, const float* a1,
+                           const float* a2, const float* alb, float* d, float* x, float* g) {
+  for_lanes(n, [&](auto tag, int i) {
+    using T = decltype(tag);
+    const T zero = T{} + 0.0f;
+    const T dm = demodulation(ld<T>(a0 + i), ld<T>(a1 + i), ld<T>(a2 + i), ld<T>(alb + i));
+    const T c = ld<T>(col + i), v = c > zero ? c : zero, xv = v / dm;
+    st(d + i, dm), st(x + i, xv), st(g + i, vlog1p_pos(xv));
+  });
 }
 
 // xi = x + a (yw - x), g = log(1 + max(xi, 0)).
-static void blend_row(int n, const float* __restrict x, const float* __restrict yw,
-                      const float* __restrict a, float* __restrict xi, float* __restrict g) {
-  for (int i = 0; i < n; ++i) {
-    const float v = x[i] + a[i] * (yw[i] - x[i]);
-    xi[i] = v;
-    g[i] = log1p_pos(v > 0.0f ? v : 0.0f);
-  }
+static void blend_row(int n, const float* x, const float* yw, const float* a, float* xi, float* g) {
+  for_lanes(n, [&](auto tag, int i) {
+    using T = decltype(tag);
+    const T zero = T{} + 0.0f, xv = ld<T>(x + i);
+    const T v = xv + ld<T>(a + i) * (ld<T>(yw + i) - xv);
+    st(xi + i, v), st(g + i, vlog1p_pos(v > zero ? v : zero));
+  });
+}
+
+// exp(x) for x in [-36, 88] (0 below, clamped above).
+template <class T>
+static inline T exp_any(T x) {
+  x = x > 88.0f ? T{} + 88.0f : x;
+  return vexp_neg(x - 44.0f) * 1.2851600e19f;  // e^44, so both halves stay in range
 }
 
 static const Planes& network(const NeuralWeights& nw, const Planes& in, Planes& state,
@@ -249,7 +257,7 @@ static const Planes& network(const NeuralWeights& nw, const Planes& in, Planes& 
     t = now;
   };
   StageTimes dummy;
-  StageTimes& st = times ? *times : dummy;
+  StageTimes& stage = times ? *times : dummy;
   const int W = in.width, H = in.height;
   const size_t N = size_t(W) * size_t(H);
   const int Wq = W / 4, Hq = H / 4;
@@ -340,7 +348,7 @@ static const Planes& network(const NeuralWeights& nw, const Planes& in, Planes& 
     }
   });
   if (have_state) clamp_history(ws, W, H);
-  lap(&st.prepare);
+  lap(&stage.prepare);
   // Features, 4x4 average pooled to quarter resolution (channels last). Per quarter row:
   // 13 features are (warped) planes, 5 are computed per full-res row; each is summed over 4x4.
   ws.feat.resize(size_t(Wq) * size_t(Hq) * kFeatures);
@@ -360,24 +368,31 @@ static const Planes& network(const NeuralWeights& nw, const Planes& in, Planes& 
         float* zg = dz + W;
         float* xl2 = zg + W;
         float* ninv = xl2 + W;
-        for (int i = 0; i < W; ++i) {
+        // Pixel i (i .. i + lanes - 1), its right neighbour at column r.
+        auto feature_lanes = [&](auto tag, int i, int r) {
+          using T = decltype(tag);
           const size_t p = row + size_t(i);
+          const T zero = T{} + 0.0f, one = zero + 1.0f;
           for (int c = 0; c < 3; ++c) {
-            const float v = ws.yw.ch(c)[p];
-            ywl[size_t(c) * size_t(W) + size_t(i)] = log1p_pos(v > 0.0f ? v : 0.0f);
+            const T v = ld<T>(ws.yw.ch(c) + p);
+            st(ywl + size_t(c) * size_t(W) + size_t(i), vlog1p_pos(v > zero ? v : zero));
           }
-          const float inv = 1.0f / ws.zc[p];
-          const float v = ws.valid[p];
-          valid[i] = v;
-          const float d = std::abs(ws.zw[p] - z[p]) * inv;
-          dz[i] = (d < 1.0f ? d : 1.0f) * v;
-          const float zr = z[row + size_t(i + 1 < W ? i + 1 : W - 1)], zd = z[below + size_t(i)];
-          const float g = (std::abs(zr - z[p]) + std::abs(zd - z[p])) * inv;
-          zg[i] = g < 1.0f ? g : 1.0f;
-          const float xl = (ws.x.ch(0)[p] + ws.x.ch(1)[p] + ws.x.ch(2)[p]) / 3.0f;
-          xl2[i] = xl * xl;
-          ninv[i] = 1.0f / (1.0f + ws.nw[p]);
-        }
+          const T inv = 1.0f / ld<T>(ws.zc.data() + p), zp = ld<T>(z + p);
+          const T v = ld<T>(ws.valid.data() + p);
+          st(valid + i, v);
+          const T d = vabs(ld<T>(ws.zw.data() + p) - zp) * inv;
+          st(dz + i, (d < one ? d : one) * v);
+          const T zr = ld<T>(z + row + size_t(r)), zd = ld<T>(z + below + size_t(i));
+          const T g = (vabs(zr - zp) + vabs(zd - zp)) * inv;
+          st(zg + i, g < one ? g : one);
+          const T xl =
+              (ld<T>(ws.x.ch(0) + p) + ld<T>(ws.x.ch(1) + p) + ld<T>(ws.x.ch(2) + p)) / 3.0f;
+          st(xl2 + i, xl * xl);
+          st(ninv + i, 1.0f / (1.0f + ld<T>(ws.nw.data() + p)));
+        };
+        // The last column's right neighbour is itself: vectors stop short of it.
+        for_lanes(W - 1, [&](auto tag, int i) { feature_lanes(tag, i, i + 1); });
+        feature_lanes(0.0f, W - 1, W - 1);
         // Feature order: x 0-2, albedo 3-5, normal 6-8, roughness 9, yw 10-12, valid 13,
         // dz 14, zg 15, mean(x)^2 16, 1 / (1 + nw) 17.
         for (int k = 0; k < kFeatures; ++k) {
@@ -394,7 +409,7 @@ static const Planes& network(const NeuralWeights& nw, const Planes& in, Planes& 
               sum[size_t(k) * size_t(Wq) + size_t(qx)] * (1.0f / 16.0f);
     }
   });
-  lap(&st.features);
+  lap(&stage.features);
   // The CNN at 1/4 and 1/8 resolution.
   conv_layer(nw.enc1, ws.feat, Wq, Hq, ws.e1, true, ws.padded);
   const int We = Wq / 2, He = Hq / 2;
@@ -431,21 +446,23 @@ static const Planes& network(const NeuralWeights& nw, const Planes& in, Planes& 
     for (int k = 0; k < kOutputs; ++k) {
       const float* v = ws.o.data() + size_t(k);
       float* out = ws.act.data() + size_t(k) * Nq;
-      if (k == 0 || k % 4 == 0) {  // alpha and the betas: sigmoid (kappa, 17: softplus)
-        for (size_t p = range_begin; p < range_end; ++p)
-          out[p] = 1.0f / (1.0f + exp_any(-v[p * ostride]));
-      } else {  // the edge-stopping strengths and kappa: softplus (+ the floors of sn, sz)
-        const float floor = k < kOutputs - 1 && k % 4 == 2
-                                ? kMinNormalStop
-                                : (k < kOutputs - 1 && k % 4 == 3 ? kMinDepthStop : 0.0f);
-        for (size_t p = range_begin; p < range_end; ++p) {
-          const float x = v[p * ostride];
-          out[p] = (x > 20.0f ? x : log1p_pos(exp_any(x))) + floor;
-        }
-      }
+      const bool sigmoid = k == 0 || k % 4 == 0;  // alpha and the betas (kappa, 17: softplus)
+      // The edge-stopping strengths and kappa: softplus (+ the floors of sn, sz).
+      const float floor = k < kOutputs - 1 && k % 4 == 2
+                              ? kMinNormalStop
+                              : (k < kOutputs - 1 && k % 4 == 3 ? kMinDepthStop : 0.0f);
+      for_lanes(int(range_end - range_begin), [&](auto tag, int j) {
+        using T = decltype(tag);
+        const size_t p = range_begin + size_t(j);
+        float col[sizeof(T) / sizeof(float)];  // the map's channel: strided in ws.o
+        for (size_t l = 0; l < sizeof(T) / sizeof(float); ++l) col[l] = v[(p + l) * ostride];
+        const T x = ld<T>(col);
+        st(out + p, sigmoid ? 1.0f / (1.0f + exp_any(T{} - x))
+                            : (x > 20.0f ? x : vlog1p_pos(exp_any(x))) + floor);
+      });
     }
   });
-  lap(&st.cnn);
+  lap(&stage.cnn);
   // Bilinear x4 upsampling (PyTorch's align_corners=False), separable: every activation
   // map's quarter-res rows are upsampled horizontally once (Hq x W per map); output rows
   // lerp two of them, inside the temporal blend and the a-trous filter (no full-res maps).
@@ -498,7 +515,7 @@ static const Planes& network(const NeuralWeights& nw, const Planes& in, Planes& 
       }
     }
   });
-  lap(&st.temporal);
+  lap(&stage.temporal);
   // The a-trous levels; each writes the next one's guide (the first guide: firefly_clamp).
   ensure(ws.lg2, W, H, 3);
   for (int l = 0; l < kLevels; ++l) {
@@ -521,7 +538,7 @@ static const Planes& network(const NeuralWeights& nw, const Planes& in, Planes& 
       });
     std::swap(ws.lg, ws.lg2);
   }
-  lap(&st.filter);
+  lap(&stage.filter);
   ensure(ws.out, W, H, 3);
   parallel_rows(H, 8, [&](int r0, int r1) {
     for (int c = 0; c < 3; ++c) {
@@ -535,6 +552,6 @@ static const Planes& network(const NeuralWeights& nw, const Planes& in, Planes& 
                 sizeof(float) * size_t(r1 - r0) * size_t(W));
   });
   std::swap(state, ws.next_state);
-  lap(&st.output);
+  lap(&stage.output);
   return ws.out;
 }
