@@ -159,11 +159,13 @@ const Planes& Svgf::run(const Planes& g, SvgfTimes* times) {
   const size_t N = size_t(W) * size_t(H);
   ensure(next_, W, H, 10);
   ensure(tmp_, W, H, 3);
-  for (std::vector<float>* v : {&var_, &var2_, &inv_l_, &lum_, &gx_, &gy_}) v->resize(N);
+  ensure(aux_, W, H, 6);  // planes, not separate vectors: see Planes on cache sets
+  float *var = aux_.ch(0), *var2 = aux_.ch(1), *inv_l = aux_.ch(2), *lum = aux_.ch(3);
+  float *gx = aux_.ch(4), *gy = aux_.ch(5);
   demodulate(g, x_, demod_);
   const SvgfKernels& k = svgf_kernels();
   if (history_.width != W || history_.height != H) {  // the first frame
-    svgf_temporal(g, x_, history_, acc_, next_.ch(3), next_.ch(4), next_.ch(5), var_.data());
+    svgf_temporal(g, x_, history_, acc_, next_.ch(3), next_.ch(4), next_.ch(5), var);
   } else {
     ensure(acc_, W, H, 3);
     const float* hist[10];
@@ -171,37 +173,37 @@ const Planes& Svgf::run(const Planes& g, SvgfTimes* times) {
     SvgfTemporal te;
     for (int c = 0; c < 3; ++c) te.x[c] = x_.ch(c), te.n[c] = g.ch(6 + c), te.acc[c] = acc_.ch(c);
     te.z = g.ch(9), te.mx = g.ch(11), te.my = g.ch(12), te.hist = hist;
-    te.m1 = next_.ch(3), te.m2 = next_.ch(4), te.len = next_.ch(5), te.var = var_.data();
+    te.m1 = next_.ch(3), te.m2 = next_.ch(4), te.len = next_.ch(5), te.var = var;
     te.width = W, te.height = H;
     rows(H, [&](int r0, int r1) { k.temporal(te, r0, r1); });
   }
   lap(&SvgfTimes::temporal);
   SvgfVariance va;
-  va.m1 = next_.ch(3), va.m2 = next_.ch(4), va.len = next_.ch(5), va.var = var_.data();
+  va.m1 = next_.ch(3), va.m2 = next_.ch(4), va.len = next_.ch(5), va.var = var;
   va.z = g.ch(9);
   for (int c = 0; c < 3; ++c) va.n[c] = g.ch(6 + c);
-  va.out = var2_.data(), va.width = W, va.height = H;
+  va.out = var2, va.width = W, va.height = H;
   rows(H, [&](int r0, int r1) { k.variance(va, r0, r1); });
-  std::swap(var_, var2_);
-  depth_gradient(g, gx_.data(), gy_.data());
+  std::swap(var, var2);
+  depth_gradient(g, gx, gy);
   lap(&SvgfTimes::variance);
   for (int it = 0; it < 5; ++it) {
     SvgfBlur bl;
-    bl.var = var_.data(), bl.inv_l = inv_l_.data(), bl.width = W, bl.height = H;
+    bl.var = var, bl.inv_l = inv_l, bl.width = W, bl.height = H;
     bl.sigma_l = 4.0f;
     SvgfPass pa;
     for (int c = 0; c < 3; ++c) pa.x[c] = acc_.ch(c), pa.n[c] = g.ch(6 + c), pa.out[c] = tmp_.ch(c);
-    pa.lum = lum_.data(), pa.var = var_.data(), pa.inv_l = inv_l_.data(), pa.z = g.ch(9);
-    pa.gx = gx_.data(), pa.gy = gy_.data(), pa.var_out = var2_.data();
+    pa.lum = lum, pa.var = var, pa.inv_l = inv_l, pa.z = g.ch(9);
+    pa.gx = gx, pa.gy = gy, pa.var_out = var2;
     pa.width = W, pa.height = H, pa.dilation = 1 << it, pa.sigma_z = 1.0f;
     rows(H, [&](int r0, int r1) {
       k.blur(bl, r0, r1);
       for (size_t p = size_t(r0) * size_t(W); p < size_t(r1) * size_t(W); ++p)
-        lum_[p] = svgf_luminance(acc_.ch(0)[p], acc_.ch(1)[p], acc_.ch(2)[p]);
+        lum[p] = svgf_luminance(acc_.ch(0)[p], acc_.ch(1)[p], acc_.ch(2)[p]);
     });
     rows(H, [&](int r0, int r1) { k.pass(pa, r0, r1); });
     std::swap(acc_, tmp_);
-    std::swap(var_, var2_);
+    std::swap(var, var2);
     if (it == 0)
       for (int c = 0; c < 3; ++c) std::memcpy(next_.ch(c), acc_.ch(c), sizeof(float) * N);
   }

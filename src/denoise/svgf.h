@@ -92,7 +92,7 @@ class Svgf {
  private:
   Planes history_, next_;  // irradiance 0-2, moments 3-4, length 5, depth 6, normal 7-9
   Planes x_, acc_, tmp_, demod_, out_;
-  std::vector<float> var_, var2_, inv_l_, lum_, gx_, gy_;
+  Planes aux_;  // variance, its next pass's, 1 / luminance scale, luminance, depth gradient x, y
 };
 
 /// The same function written plainly (scalar loops, std::exp): the tests' oracle for Svgf.
