@@ -30,6 +30,9 @@ fi
 
 launcher=()
 command -v ccache >/dev/null && launcher=(-DCMAKE_CXX_COMPILER_LAUNCHER=ccache)
+# Paths under the checkout hashed relative to it (and the working directory not hashed for
+# -g builds): clones in other folders, as CI's, share the cache instead of compiling cold.
+export CCACHE_BASEDIR="$here" CCACHE_NOHASHDIR=1
 cmake -S "$here" -B "$build_dir" -G Ninja -DCMAKE_BUILD_TYPE=Release "${launcher[@]}"
 cmake --build "$build_dir" -j "$(nproc)"
 
