@@ -1,5 +1,7 @@
 // Included by kernels_<isa>.cpp inside namespace kestrel::denoise::KESTREL_ISA_NS.
-// Plain loops written for the auto-vectoriser (contiguous inner loops, no branches).
+// Per-pixel loops whose bodies hold a select (the exp, the log, clamps) are written once for
+// float and the ISA's vector (simd.inl: for_lanes, atrous_span): GCC's auto-vectoriser does
+// those only with AVX-512's masks. The rest are plain loops it vectorises on every ISA.
 
 // exp(x) for x <= 0 (0 below -80): 2^(x log2 e) = 2^n * 2^f, 2^f by its degree-6 Taylor
 // polynomial on [-0.5, 0.5] (relative error < 2e-7). Integer tricks only, so it vectorises.
