@@ -108,6 +108,34 @@ def bilinear_base(color, jitter, f):
     return M.bilinear_at(M.to_y(color), (X + 0.5) / f - jx + 0.5, (Y + 0.5) / f - jy + 0.5)
 
 
+def align(frames, n, f, scale=None, extract=None):
+    """The align step both members share. frames as NSRR.forward; n previous frames are used.
+    Each frame's x = [y, d(z)] (through `extract` if given) is zero-upsampled at its jitter,
+    and the previous ones are warped to the current frame by the accumulated motion.
+    -> the current frame's cleaned colour, Z_0 and [W_1 .. W_n] (zeros for a missing frame)."""
+    color, depth, motion = clean(*frames[0][:3])
+    h, w = color.shape[2:]
+    H, W = f * h, f * w
+    s = depth_scale(depth) if scale is None else scale
+    zs = []
+    for k in range(n + 1):
+        fr = frames[k] if k < len(frames) else None
+        if fr is None:
+            zs.append(None)
+            continue
+        c, z, _ = clean(*fr[:3])
+        x = torch.cat([M.to_y(c), torch.where(z > 0, z / (z + s), torch.ones_like(z))], 1)
+        zs.append(zero_upsample(extract(x) if extract is not None else x,
+                                fr[3][:, 0].float(), fr[3][:, 1].float(), f))
+    # Motion of frame t-k+1 moves P_{k-1} (in frame t-k+1) to P_k (in frame t-k).
+    motions = [clean(*frames[k - 1][:3])[2] if k - 1 < len(frames) and frames[k - 1] is not None
+               else torch.zeros_like(motion) for k in range(1, n + 1)]
+    pos = warp_positions(motions, f, H, W)
+    warped = [gather_nearest(zs[k], pos[k - 1]) if zs[k] is not None else torch.zeros_like(zs[0])
+              for k in range(1, n + 1)]
+    return color, zs[0], warped
+
+
 def upsample2(x):
     """Bilinear 2x, pixel centres aligned, edges clamped (oneDNN's resampling, linear)."""
     return F.interpolate(x, scale_factor=2, mode="bilinear", align_corners=False)
@@ -163,33 +191,11 @@ class NSRR(nn.Module):
         (B,1,h,w), motion (B,2,h,w), jitter (B,2)); a frame that does not exist is None.
         scale: the depth scale s (B,1,1,1), else depth_scale of the current frame.
         -> the linear output (B,3,f h,f w) and its y."""
-        cur = frames[0]
-        color, depth, motion = clean(*cur[:3])
-        B, _, h, w = color.shape
-        H, W = f * h, f * w
-        s = depth_scale(depth) if scale is None else scale
-        zs, motions = [], []
-        for k in range(self.frames + 1):
-            fr = frames[k] if k < len(frames) else None
-            if fr is None:
-                zs.append(None)
-                continue
-            c, z, m = clean(*fr[:3])
-            x = torch.cat([M.to_y(c), torch.where(z > 0, z / (z + s), torch.ones_like(z))], 1)
-            zs.append(zero_upsample(self.extract(x), fr[3][:, 0].float(), fr[3][:, 1].float(), f))
-        # Motion of frame t-k+1 moves P_{k-1} (in frame t-k+1) to P_k (in frame t-k).
-        for k in range(1, self.frames + 1):
-            fr = frames[k - 1] if k - 1 < len(frames) else None
-            motions.append(clean(*fr[:3])[2] if fr is not None else torch.zeros_like(motion))
-        pos = warp_positions(motions, f, H, W)
-        warped = []
-        for k in range(1, self.frames + 1):
-            z = zs[k]
-            warped.append(gather_nearest(z, pos[k - 1]) if z is not None else torch.zeros_like(zs[0]))
-        wts = self.reweight(zs[0], warped)
-        x = torch.cat([zs[0]] + [wts[:, k:k + 1] * warped[k] for k in range(self.frames)] +
-                      [torch.full_like(zs[0][:, :1], f / 4.0)], 1)
-        y = torch.clamp(bilinear_base(color, cur[3], f) + self.reconstruct(x), 0.0, Y_MAX)
+        color, z0, warped = align(frames, self.frames, f, scale, self.extract)
+        wts = self.reweight(z0, warped)
+        x = torch.cat([z0] + [wts[:, k:k + 1] * warped[k] for k in range(self.frames)] +
+                      [torch.full_like(z0[:, :1], f / 4.0)], 1)
+        y = torch.clamp(bilinear_base(color, frames[0][3], f) + self.reconstruct(x), 0.0, Y_MAX)
         return M.from_y(y), y
 
 
@@ -232,25 +238,9 @@ class NSRRRealTime(nn.Module):
 
     def forward(self, frames, f, scale=None):
         """As NSRR.forward (frames beyond the first N + 1 are ignored)."""
-        cur = frames[0]
-        color, depth, motion = clean(*cur[:3])
-        B, _, h, w = color.shape
-        H, W = f * h, f * w
-        s = depth_scale(depth) if scale is None else scale
-        zs = []
-        for k in range(self.frames + 1):
-            fr = frames[k] if k < len(frames) else None
-            if fr is None:
-                zs.append(None)
-                continue
-            c, z, _ = clean(*fr[:3])
-            x = torch.cat([M.to_y(c), torch.where(z > 0, z / (z + s), torch.ones_like(z))], 1)
-            zs.append(zero_upsample(x, fr[3][:, 0].float(), fr[3][:, 1].float(), f))
-        motions = [clean(*frames[k - 1][:3])[2] if k - 1 < len(frames) and frames[k - 1] is not None
-                   else torch.zeros_like(motion) for k in range(1, self.frames + 1)]
-        pos = warp_positions(motions, f, H, W)
-        feats = [zs[0]] + [gather_nearest(zs[k], pos[k - 1]) if zs[k] is not None else torch.zeros_like(zs[0])
-                           for k in range(1, self.frames + 1)]
+        color, z0, warped = align(frames, self.frames, f, scale)
+        H, W = z0.shape[2:]
+        feats = [z0] + warped
         pad = (0, -W % (2 * GRID), 0, -H % (2 * GRID))
         g = [F.pixel_unshuffle(F.pad(x, pad), GRID) for x in feats]
         fc = torch.full_like(g[0][:, :1], f / 4.0)
@@ -261,5 +251,5 @@ class NSRRRealTime(nn.Module):
         a = F.relu(self.c2(F.relu(self.c1(x))))
         b = F.relu(self.c3(F.max_pool2d(a, 2)))
         o = self.c5(F.relu(self.c4(torch.cat([upsample2(b), a], 1))))
-        y = torch.clamp(bilinear_base(color, cur[3], f) + F.pixel_shuffle(o, GRID)[:, :, :H, :W], 0.0, Y_MAX)
+        y = torch.clamp(bilinear_base(color, frames[0][3], f) + F.pixel_shuffle(o, GRID)[:, :, :H, :W], 0.0, Y_MAX)
         return M.from_y(y), y
