@@ -10,8 +10,10 @@ replication):
   yw, zw, nw = the previous frame's state (accumulated irradiance after the first filter
            level, depth, history length) warped
            by the motion vectors (bilinear, clamped); valid = the previous position lies
-           inside the image and its depth is within 10 % (disocclusion: the history is
-           rejected, 0 on frame 0); nw = 0 where not valid
+           inside the image, its depth is within 10 % (disocclusion: the history is
+           rejected, 0 on frame 0) and its warped black flag equals this pixel's (every tap
+           of the bilinear warp demodulated as p is: no irradiance in a black pixel's
+           radiance history, nor the reverse); nw = 0 where not valid
   yw = clamp(yw, A, B): the history clamped to the darkest and brightest current samples
        near p (A, B = 3x3 min / max over quarter-res cells of the 4x4 block minima / maxima
        of r, per channel: a 12x12 window), which rejects history that a lighting change made
@@ -39,10 +41,12 @@ SZ_MIN = 3) and a mix weight beta, and a firefly allowance kappa.
 The filter averages *linear* irradiance (no log-domain bias) with weights from log irradiance:
   r_{l+1} = r_l + beta_l * (sum_q h_q w_q r_l(q) / sum_q h_q w_q - r_l),  from r0
   w_q = exp(-sc |g(p) - g(q)|^2 - sn max(0, n_p.n_p - n_p.n_q) - sz |z_p - z_q| / max(z_p, 1e-3)),
-  g = log(1 + r_l)
+  g = log(1 + r_l), and w_q = 0 where q and p differ in demodulation (one black, one not): a
+  black pixel's r is radiance, its neighbours' irradiance, and the two do not mix (a dark
+  car window among white paint took the paint's irradiance, x 1, and came out grey)
   (n_p.n_p rather than 1: the centre tap weighs exactly 1 even where there is no normal, so
   the sum of weights never vanishes)
-The output colour is max(r_4, 0) * d; (r_1, z, n) is the recurrent state: the first level's
+The output colour is max(r_4, 0) * d; (r_1, z, n, black) is the recurrent state: the first level's
 output, as SVGF's first pass (architecture 3 fed back r_4, filtered at dilations up to 8,
 which blurs more every frame, so the network had kept its weight small; r0 itself converged
 ~5x slower on a static noisy sequence). Every step is a convex combination or a clamp from above (alpha,
@@ -99,10 +103,15 @@ def shift(t, dy, dx):
     return tp[..., p + dy:p + dy + h, p + dx:p + dx + w]
 
 
+def is_black(albedo):
+    """1 where every channel of the albedo is below BLACK (not demodulated), else 0."""
+    return (albedo.max(dim=1, keepdim=True).values < BLACK).to(albedo.dtype)
+
+
 def demodulation(albedo):
     """albedo + EPS per channel, 1 where every channel is below BLACK."""
     a = albedo.clamp(min=0)
-    black = (albedo.max(dim=1, keepdim=True).values < BLACK).to(a.dtype)
+    black = is_black(albedo)
     return (a + EPS) * (1 - black) + black
 
 
@@ -183,13 +192,15 @@ class Denoiser(nn.Module):
         x = torch.log1p(x_lin)
         z = depth
         zc = z.clamp(min=ZMIN)
+        bk = is_black(albedo)
         if state is None or not recurrent:
             yw_lin, zw, valid, nw = x_lin, z, torch.zeros_like(z), torch.zeros_like(z)
         else:
             yw_lin, valid = warp(state[0], motion)
             zw, _ = warp(state[1], motion)
             nw, _ = warp(state[2], motion)
-            valid = valid * ((zw - z).abs() <= DISOCCLUDED * zc).to(z.dtype)
+            kw, _ = warp(state[3], motion)
+            valid = valid * ((zw - z).abs() <= DISOCCLUDED * zc).to(z.dtype) * ((kw - bk).abs() < 1e-3).to(z.dtype)
             nw = nw * valid
             hi = F.max_pool2d(F.max_pool2d(x_lin, 4), 3, stride=1, padding=1)
             lo = -F.max_pool2d(F.max_pool2d(-x_lin, 4), 3, stride=1, padding=1)
@@ -215,21 +226,21 @@ class Denoiser(nn.Module):
             beta = o[:, 4 + 4 * l:5 + 4 * l]
             h, w = xi.shape[-2:]
             lg = torch.log1p(xi.clamp(min=0))  # the edge-stopping guide: log irradiance
-            g = F.pad(torch.cat([lg, normal, z, xi], dim=1), (d, d, d, d), mode="replicate")
+            g = F.pad(torch.cat([lg, normal, z, xi, bk], dim=1), (d, d, d, d), mode="replicate")
             acc, wsum = 0, 0
             for dy, dx, hq in TAPS:
                 q = g[..., d + dy * d:d + dy * d + h, d + dx * d:d + dx * d + w]
                 e = sc * ((lg - q[:, 0:3]) ** 2).sum(1, keepdim=True) \
                     + sn * (nn_p - (normal * q[:, 3:6]).sum(1, keepdim=True)).clamp(min=0) \
                     + sz * (z - q[:, 6:7]).abs()
-                wq = hq * torch.exp(-e)
+                wq = hq * torch.exp(-e) * (q[:, 10:11] == bk).to(e.dtype)
                 acc = acc + wq * q[:, 7:10]
                 wsum = wsum + wq
             xi = xi + beta * (acc / wsum - xi)
             if l == 0:
                 h_new = xi
         out = xi.clamp(min=0) * dm
-        return out, (h_new, z, n_new)
+        return out, (h_new, z, n_new, bk)
 
 
 def parameter_count(model):

@@ -110,15 +110,20 @@ def write_fixture(model, clip, out_dir):
     """Two frames of a 44 x 30 crop (not a multiple of 8: exercises the padding) from the
     middle of a clip (it must show content), the second 4x brighter (both history clamps act),
     their inputs as PFMs and the model's outputs."""
-    os.makedirs(out_dir, exist_ok=True)
     T, H, W, _ = clip.shape
     y0, x0 = H // 2 - 15, W // 2 - 22
     ins = clip[:2, y0:y0 + 30, x0:x0 + 44].copy()  # T,H,W,13
     ins[1, :, :, 0:3] *= 4  # a light comes on: the history's lower clamp acts where all is lit
+    write_fixture_frames(model, ins, out_dir)
+
+
+def write_fixture_frames(model, ins, out_dir):
+    """ins (T,H,W,13): the frames' inputs as PFMs and the model's outputs (expected.pfm)."""
+    os.makedirs(out_dir, exist_ok=True)
     seq = torch.from_numpy(ins).permute(0, 3, 1, 2)[None].contiguous()
     with torch.no_grad():
         state = None
-        for t in range(2):
+        for t in range(ins.shape[0]):
             x = split_inputs(seq[:, t])
             h, w = x["color"].shape[-2:]
             padded_state = None if state is None else tuple(M.pad8(s) for s in state)
@@ -148,6 +153,9 @@ def main():
     ap.add_argument("--out", default=os.path.join(ROOT, "weights"))
     ap.add_argument("--fixture", default=os.path.join(ROOT, "tests", "data", "denoise"))
     ap.add_argument("--fixture-only", action="store_true", help="write the parity fixture from --out's weights and stop")
+    ap.add_argument("--fixture-refresh", action="store_true",
+                    help="recompute the committed fixture's expected outputs (its inputs kept) from --out's weights "
+                         "and stop: after a change to model.py that keeps the weights")
     ap.add_argument("--w-spatial", type=float, default=W_SPATIAL)
     ap.add_argument("--w-grad", type=float, default=W_GRAD)
     ap.add_argument("--w-temporal", type=float, default=W_TEMPORAL)
@@ -164,6 +172,14 @@ def main():
     torch.manual_seed(args.seed)
     random.seed(args.seed)
     np.random.seed(args.seed)
+    if args.fixture_refresh:
+        model = M.Denoiser()
+        load_weights(model, os.path.join(args.out, "denoiser.kdw"))
+        frames = sorted(d for d in os.listdir(args.fixture) if d.startswith("frame_"))
+        ins = np.stack([load_frame(os.path.join(args.fixture, d)) for d in frames])
+        write_fixture_frames(model, ins, args.fixture)
+        print("refreshed", args.fixture)
+        return
     if args.fixture_only:  # the parity fixture from committed weights, without training
         model = M.Denoiser()
         load_weights(model, os.path.join(args.out, "denoiser.kdw"))

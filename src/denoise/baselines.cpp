@@ -165,18 +165,20 @@ Planes SvgfReference::run(const Planes& g) {
       const float wz = dz.weight(g, p, q, sigma_z);
       const bool no_normal = g.ch(6)[p] == 0 && g.ch(7)[p] == 0 && g.ch(8)[p] == 0;
       const float wn = no_normal ? 1.0f : pow2k(std::max(0.0f, normal_dot(g, p, q)), 7);
+      if (svgf_black(g, p) != svgf_black(g, q)) return 0.0f;  // radiance and irradiance
       return wn * std::exp(-wl - wz);
     });
     std::swap(acc, t);
     std::swap(var, var_next);
     if (it == 0) first = acc;
   }
-  history = Planes(W, H, 10);
+  history = Planes(W, H, 11);
   for (size_t p = 0; p < N; ++p) {
     for (int c = 0; c < 3; ++c) history.ch(c)[p] = first.ch(c)[p];
     history.ch(3)[p] = m1[p], history.ch(4)[p] = m2[p], history.ch(5)[p] = len[p];
     history.ch(6)[p] = g.ch(9)[p];
     for (int c = 0; c < 3; ++c) history.ch(7 + c)[p] = g.ch(6 + c)[p];
+    history.ch(10)[p] = svgf_black(g, p) ? 1.0f : 0.0f;
   }
   Planes out;
   remodulate(acc, demod, out);

@@ -57,9 +57,12 @@ static inline float log1p_pos(float v) {
 // One a-trous level's row: its planes, the two quarter-res parameter rows it lerps (fy the
 // weight of the lower one) and the 8 outer taps (the centre weighs exactly 1: every
 // difference is 0 and n.n - n.n = 0) as index offsets from the pixel with their spline
-// weights. Border pixels get their own copy with offsets clamped per pixel.
+// weights. Border pixels get their own copy with offsets clamped per pixel. A tap whose
+// demodulation differs from the pixel's (`k`: 1 black, 0 not) weighs 0: radiance and
+// irradiance do not mix. Rows whose taps read no black pixel skip that test (kClass false):
+// every flag is 0 there, so it is the same function.
 struct AtrousRow {
-  const float *x0, *x1, *x2, *g0, *g1, *g2, *n0, *n1, *n2, *z;
+  const float *x0, *x1, *x2, *g0, *g1, *g2, *n0, *n1, *n2, *z, *k;
   const float *sc_top, *sc_bot, *sn_top, *sn_bot, *sz_top, *sz_bot, *beta_top, *beta_bot;
   float *o0, *o1, *o2, *go0, *go1, *go2;  // go*: the next level's guide, or null
   float fy, gy;                           // gy = 1 - fy
@@ -69,12 +72,13 @@ struct AtrousRow {
 
 // Pixels p .. p + width(T) - 1 (column i of the row): the taps, the accumulation and the mix,
 // with T = float or vfloat (every operation lane by lane, so both give the same values).
-template <class T, bool kGuide>
+template <class T, bool kGuide, bool kClass>
 static inline void atrous_lanes(const AtrousRow& r, size_t p, int i) {
   const T zero = T{} + 0.0f;
   const T x0 = ld<T>(r.x0 + p), x1 = ld<T>(r.x1 + p), x2 = ld<T>(r.x2 + p);
   const T g0 = ld<T>(r.g0 + p), g1 = ld<T>(r.g1 + p), g2 = ld<T>(r.g2 + p);
   const T n0 = ld<T>(r.n0 + p), n1 = ld<T>(r.n1 + p), n2 = ld<T>(r.n2 + p), z = ld<T>(r.z + p);
+  const T kp = kClass ? ld<T>(r.k + p) : zero;
   const T sc = ld<T>(r.sc_top + i) * r.gy + ld<T>(r.sc_bot + i) * r.fy;
   const T sn = ld<T>(r.sn_top + i) * r.gy + ld<T>(r.sn_bot + i) * r.fy;
   const T sz = (ld<T>(r.sz_top + i) * r.gy + ld<T>(r.sz_bot + i) * r.fy) /
@@ -89,7 +93,8 @@ static inline void atrous_lanes(const AtrousRow& r, size_t p, int i) {
     const T nd0 = nn - dot, nd = nd0 > zero ? nd0 : zero;
     const T dz = vabs(z - ld<T>(r.z + q));
     const T e = sc * (d0 * d0 + d1 * d1 + d2 * d2) + sn * nd + sz * dz;
-    const T wq = r.h[t] * vexp_neg(zero - e);
+    T wq = r.h[t] * vexp_neg(zero - e);
+    if constexpr (kClass) wq = kp == ld<T>(r.k + q) ? wq : zero;
     acc0 += wq * ld<T>(r.x0 + q);
     acc1 += wq * ld<T>(r.x1 + q);
     acc2 += wq * ld<T>(r.x2 + q);
@@ -107,35 +112,38 @@ static inline void atrous_lanes(const AtrousRow& r, size_t p, int i) {
 }
 
 // Columns [i0, i1) of row `row`: kLanes pixels at a time, the rest one by one.
-template <bool kGuide>
+template <bool kGuide, bool kClass>
 static void atrous_span(const AtrousRow& r, size_t row, int i0, int i1) {
   int i = i0;
-  for (; i + kLanes <= i1; i += kLanes) atrous_lanes<vfloat, kGuide>(r, row + size_t(i), i);
-  for (; i < i1; ++i) atrous_lanes<float, kGuide>(r, row + size_t(i), i);
+  for (; i + kLanes <= i1; i += kLanes)
+    atrous_lanes<vfloat, kGuide, kClass>(r, row + size_t(i), i);
+  for (; i < i1; ++i) atrous_lanes<float, kGuide, kClass>(r, row + size_t(i), i);
 }
 
-static void atrous_span(const AtrousRow& r, size_t row, int i0, int i1) {
+static void atrous_span(const AtrousRow& r, size_t row, int i0, int i1, bool cls) {
   if (r.go0)
-    atrous_span<true>(r, row, i0, i1);
+    cls ? atrous_span<true, true>(r, row, i0, i1) : atrous_span<true, false>(r, row, i0, i1);
   else
-    atrous_span<false>(r, row, i0, i1);
+    cls ? atrous_span<false, true>(r, row, i0, i1) : atrous_span<false, false>(r, row, i0, i1);
 }
 
 static void atrous_rows(const AtrousArgs& a, int row0, int row1) {
   const int w = a.width, h = a.height, d = a.dilation;
   AtrousRow r;
   r.x0 = a.x[0], r.x1 = a.x[1], r.x2 = a.x[2], r.g0 = a.g[0], r.g1 = a.g[1], r.g2 = a.g[2];
-  r.n0 = a.n[0], r.n1 = a.n[1], r.n2 = a.n[2], r.z = a.z;
+  r.n0 = a.n[0], r.n1 = a.n[1], r.n2 = a.n[2], r.z = a.z, r.k = a.black;
   r.o0 = a.out[0], r.o1 = a.out[1], r.o2 = a.out[2];
   r.go0 = a.gout[0], r.go1 = a.gout[1], r.go2 = a.gout[2];
   for (int y = row0; y < row1; ++y) {
     const size_t row = size_t(y) * size_t(w);
     // Taps in PyTorch's order (dy, dx), centre left out; rows clamped to the image.
     long row_off[3];
+    bool cls = false;  // a black pixel in a row the taps read
     for (int ty = -1; ty <= 1; ++ty) {
       int qy = y + ty * d;
       qy = qy < 0 ? 0 : (qy >= h ? h - 1 : qy);
       row_off[ty + 1] = (long(qy) - long(y)) * long(w);
+      cls |= a.black_rows[qy] != 0;
     }
     int t = 0;
     for (int ty = -1; ty <= 1; ++ty)
@@ -164,10 +172,10 @@ static void atrous_rows(const AtrousArgs& a, int row0, int row1) {
           qx = qx < 0 ? 0 : (qx >= w ? w - 1 : qx);
           c.off[k++] = row_off[ty + 1] + long(qx - i);
         }
-      atrous_span(c, row, i, i + 1);
+      atrous_span(c, row, i, i + 1, cls);
     };
     for (int i = 0; i < i0; ++i) border(i);
-    atrous_span(r, row, i0, i1);
+    atrous_span(r, row, i0, i1, cls);
     for (int i = i1; i < w; ++i) border(i);
   }
 }
@@ -220,6 +228,17 @@ static inline void for_lanes(int n, F&& f) {
   for (; i < n; ++i) f(0.0f, i);
 }
 
+// 1 where every channel of the albedo is below kBlackAlbedo (not demodulated), else 0;
+// returns whether the row has any.
+static bool black_row(int n, const float* a0, const float* a1, const float* a2, float* k) {
+  float any = 0.0f;
+  for (int i = 0; i < n; ++i) {
+    k[i] = (a0[i] < kBlackAlbedo) & (a1[i] < kBlackAlbedo) & (a2[i] < kBlackAlbedo) ? 1.0f : 0.0f;
+    any = any > k[i] ? any : k[i];
+  }
+  return any > 0.0f;
+}
+
 // d = demodulation, x = max(colour, 0) / d, g = log(1 + x).
 static void demodulate_row(int n, const float* col, const float* a0, const float* a1,
                            const float* a2, const float* alb, float* d, float* x, float* g) {
@@ -266,8 +285,10 @@ static const Planes& network(const NeuralWeights& nw, const Planes& in, Planes& 
   ensure(ws.x, W, H, 3);
   ensure(ws.xlin, W, H, 3);
   ensure(ws.demod, W, H, 3);
+  ensure(ws.black, W, H, 1);
   ensure(ws.yw, W, H, 3);
-  ws.zw.resize(N), ws.nw.resize(N), ws.valid.resize(N), ws.zc.resize(N);
+  ws.zw.resize(N), ws.nw.resize(N), ws.kw.resize(N), ws.valid.resize(N), ws.zc.resize(N);
+  ws.black_rows.resize(size_t(H));
   const float* z = in.ch(9);
   const bool have_state =
       recurrent && state.width == W && state.height == H && state.channels == kStateChannels;
@@ -293,6 +314,8 @@ static const Planes& network(const NeuralWeights& nw, const Planes& in, Planes& 
         float* dm = ws.demod.ch(c) + row;
         demodulate_row(W, col, a0, a1, a2, alb, dm, xl, xo);
       }
+      ws.black_rows[size_t(y)] =
+          black_row(W, in.ch(3) + row, in.ch(4) + row, in.ch(5) + row, ws.black.ch(0) + row);
       for (int i = 0; i < W; ++i)
         ws.zc[row + size_t(i)] = z[row + size_t(i)] > kMinDepth ? z[row + size_t(i)] : kMinDepth;
       if (!have_state) {
@@ -338,13 +361,19 @@ static const Planes& network(const NeuralWeights& nw, const Planes& in, Planes& 
       for (int c = 0; c < 3; ++c) gather4(state.ch(c), ws.yw.ch(c) + row);
       gather4(state.ch(3), ws.zw.data() + row);
       gather4(state.ch(4), ws.nw.data() + row);
-      // Disocclusion: the history's depth more than 10 % off rejects it (and its length).
+      gather4(state.ch(5), ws.kw.data() + row);
+      // Disocclusion: the history's depth more than 10 % off rejects it (and its length), as
+      // does a tap demodulated otherwise than this pixel (its warped black flag differs).
       const float* zw = ws.zw.data() + row;
       const float* zc = ws.zc.data() + row;
       const float* zr = z + row;
+      const float* kw = ws.kw.data() + row;
+      const float* bk = ws.black.ch(0) + row;
       float* nw = ws.nw.data() + row;
       for (int i = 0; i < W; ++i) {
-        valid[i] = std::fabs(zw[i] - zr[i]) <= kDisoccluded * zc[i] ? valid[i] : 0.0f;
+        const bool same = std::fabs(zw[i] - zr[i]) <= kDisoccluded * zc[i] &&
+                          std::fabs(kw[i] - bk[i]) < 1e-3f;
+        valid[i] = same ? valid[i] : 0.0f;
         nw[i] *= valid[i];
       }
     }
@@ -526,7 +555,7 @@ static const Planes& network(const NeuralWeights& nw, const Planes& in, Planes& 
       a.x[c] = ws.xi.ch(c), a.g[c] = ws.lg.ch(c), a.n[c] = in.ch(6 + c), a.out[c] = ws.xo.ch(c);
       a.gout[c] = l + 1 < kLevels ? ws.lg2.ch(c) : nullptr;
     }
-    a.z = z;
+    a.z = z, a.black = ws.black.ch(0), a.black_rows = ws.black_rows.data();
     for (int k = 0; k < 4; ++k) a.param[k] = ws.hrows.data() + size_t(1 + 4 * l + k) * hplane;
     a.param_rows = Hq;
     a.width = W, a.height = H, a.dilation = 1 << l;
@@ -552,6 +581,8 @@ static const Planes& network(const NeuralWeights& nw, const Planes& in, Planes& 
     }
     std::memcpy(ws.next_state.ch(3) + size_t(r0) * size_t(W), z + size_t(r0) * size_t(W),
                 sizeof(float) * size_t(r1 - r0) * size_t(W));
+    std::memcpy(ws.next_state.ch(5) + size_t(r0) * size_t(W),
+                ws.black.ch(0) + size_t(r0) * size_t(W), sizeof(float) * size_t(r1 - r0) * size_t(W));
   });
   std::swap(state, ws.next_state);
   lap(&stage.output);

@@ -61,8 +61,8 @@ struct NeuralWeights {
 constexpr int kFeatures = 18;
 constexpr int kLevels = 4;
 constexpr int kOutputs = 2 + 4 * kLevels;  ///< alpha, kLevels x (sc, sn, sz, beta), kappa
-constexpr int kStateChannels =
-    5;  ///< irradiance after the first filter level 0-2, depth 3, length 4
+/// Irradiance after the first filter level 0-2, depth 3, length 4, black flag 5.
+constexpr int kStateChannels = 6;
 constexpr float kMaxHistory = 32.0f;    ///< the longest history (frames) the state counts
 constexpr float kMinNormalStop = 2.0f;  ///< sn >= 2, sz >= 3: geometry edges always hold
 constexpr float kMinDepthStop = 3.0f;
@@ -74,9 +74,10 @@ constexpr float kMinDepth = 1e-3f;
 
 /// Buffers reused from frame to frame (no allocation or page faults once warm).
 struct Workspace {
-  Planes x, xlin, demod, yw, xi, xo, lg, lg2, out, next_state;
+  Planes x, xlin, demod, black, yw, xi, xo, lg, lg2, out, next_state;
   std::vector<float> bound, bound3, mu, mu3;
-  std::vector<float> zw, nw, valid, zc, feat, e1, pooled, e2, e3, cat, d1, o, act, padded, hrows;
+  std::vector<uint8_t> black_rows;  ///< per row: any pixel with black flag 1
+  std::vector<float> zw, nw, kw, valid, zc, feat, e1, pooled, e2, e3, cat, d1, o, act, padded, hrows;
 };
 
 /// Milliseconds per stage of the last frame (KESTREL_DENOISE_PROFILE=1 prints them).
@@ -86,7 +87,7 @@ struct StageTimes {
 
 /// Inputs of one frame as planes (padded): color 0-2, albedo 3-5, normal 6-8, depth 9,
 /// roughness 10, motion 11-12. state: accumulated irradiance after the first filter level 0-2,
-/// depth 3, history length 4 (empty on the first frame).
+/// depth 3, history length 4, black flag 5 (1: not demodulated; empty on the first frame).
 /// Returns the output colour planes (3, in ws.out) and replaces state.
 const Planes& run_network(const NeuralWeights& w, const Planes& in, Planes& state, bool recurrent,
                           Workspace& ws, StageTimes* times = nullptr);

@@ -39,7 +39,7 @@ const SvgfKernels& svgf_kernels() {
 // By albedo, except where the albedo is (nearly) black (emitters, black surfaces): there the
 // colour is filtered as it is, since dividing by ~0 would turn it into huge irradiance that
 // the filters then spread onto lit neighbours.
-void demodulate(const Planes& g, Planes& x, Planes& demod) {
+void demodulate(const Planes& g, Planes& x, Planes& demod, float* black_out) {
   const int W = g.width, H = g.height;
   ensure(x, W, H, 3);
   ensure(demod, W, H, 3);
@@ -51,6 +51,7 @@ void demodulate(const Planes& g, Planes& x, Planes& demod) {
     for (size_t p = size_t(r0) * size_t(W); p < size_t(r1) * size_t(W); ++p) {
       const float a0 = B0[p], a1 = B1[p], a2 = B2[p];
       const bool black = std::max(a0, std::max(a1, a2)) < kBlackAlbedo;
+      if (black_out) black_out[p] = black ? 1.0f : 0.0f;
       const float d0 = black ? 1.0f : std::max(a0, 0.0f) + kAlbedoEps;
       const float d1 = black ? 1.0f : std::max(a1, 0.0f) + kAlbedoEps;
       const float d2 = black ? 1.0f : std::max(a2, 0.0f) + kAlbedoEps;
@@ -78,9 +79,9 @@ void svgf_temporal(const Planes& g, const Planes& x, const Planes& history, Plan
   const float *X0 = x.ch(0), *X1 = x.ch(1), *X2 = x.ch(2), *Z = g.ch(9);
   const float *N0 = g.ch(6), *N1 = g.ch(7), *N2 = g.ch(8), *MX = g.ch(11), *MY = g.ch(12);
   float *A0 = acc.ch(0), *A1 = acc.ch(1), *A2 = acc.ch(2);
-  const float* hist[10] = {};
+  const float* hist[11] = {};
   if (have)
-    for (int c = 0; c < 10; ++c) hist[c] = history.ch(c);
+    for (int c = 0; c < 11; ++c) hist[c] = history.ch(c);
   rows(H, [&](int r0, int r1) {
     for (int y = r0; y < r1; ++y)
       for (int i = 0; i < W; ++i) {
@@ -96,6 +97,7 @@ void svgf_temporal(const Planes& g, const Planes& x, const Planes& history, Plan
           const float fx = px - float(x0i), fy = py - float(y0i);
           const float z = Z[p], n0 = N0[p], n1 = N1[p], n2 = N2[p];
           const bool no_normal = n0 == 0 && n1 == 0 && n2 == 0;
+          const float black = svgf_black(g, p) ? 1.0f : 0.0f;
           const float zmax = 0.1f * std::max(z, kMinDepth);
           float wsum = 0;
           for (int k = 0; k < 4; ++k) {
@@ -103,7 +105,9 @@ void svgf_temporal(const Planes& g, const Planes& x, const Planes& history, Plan
             if (sx < 0 || sy < 0 || sx >= W || sy >= H) continue;
             const size_t q = size_t(sy) * size_t(W) + size_t(sx);
             const float nd = n0 * hist[7][q] + n1 * hist[8][q] + n2 * hist[9][q];
-            if (std::abs(hist[6][q] - z) > zmax || !(no_normal || nd > 0.9f)) continue;
+            if (std::abs(hist[6][q] - z) > zmax || !(no_normal || nd > 0.9f) ||
+                hist[10][q] != black)
+              continue;
             const float w = ((k & 1) ? fx : 1 - fx) * ((k >> 1) ? fy : 1 - fy);
             for (int c = 0; c < 5; ++c) h[c] += w * hist[c][q];
             hl += w * hist[5][q];
@@ -157,22 +161,29 @@ const Planes& Svgf::run(const Planes& g, SvgfTimes* times) {
   };
   const int W = g.width, H = g.height;
   const size_t N = size_t(W) * size_t(H);
-  ensure(next_, W, H, 10);
+  ensure(next_, W, H, 11);
   ensure(tmp_, W, H, 3);
-  ensure(aux_, W, H, 6);  // planes, not separate vectors: see Planes on cache sets
+  ensure(aux_, W, H, 7);  // planes, not separate vectors: see Planes on cache sets
   float *var = aux_.ch(0), *var2 = aux_.ch(1), *inv_l = aux_.ch(2), *lum = aux_.ch(3);
-  float *gx = aux_.ch(4), *gy = aux_.ch(5);
-  demodulate(g, x_, demod_);
+  float *gx = aux_.ch(4), *gy = aux_.ch(5), *black = aux_.ch(6);
+  demodulate(g, x_, demod_, black);
+  black_rows_.resize(size_t(H));
+  rows(H, [&](int r0, int r1) {
+    for (int y = r0; y < r1; ++y)
+      black_rows_[size_t(y)] = std::any_of(black + size_t(y) * size_t(W),
+                                           black + size_t(y + 1) * size_t(W),
+                                           [](float k) { return k != 0.0f; });
+  });
   const SvgfKernels& k = svgf_kernels();
   if (history_.width != W || history_.height != H) {  // the first frame
     svgf_temporal(g, x_, history_, acc_, next_.ch(3), next_.ch(4), next_.ch(5), var);
   } else {
     ensure(acc_, W, H, 3);
-    const float* hist[10];
-    for (int c = 0; c < 10; ++c) hist[c] = history_.ch(c);
+    const float* hist[11];
+    for (int c = 0; c < 11; ++c) hist[c] = history_.ch(c);
     SvgfTemporal te;
     for (int c = 0; c < 3; ++c) te.x[c] = x_.ch(c), te.n[c] = g.ch(6 + c), te.acc[c] = acc_.ch(c);
-    te.z = g.ch(9), te.mx = g.ch(11), te.my = g.ch(12), te.hist = hist;
+    te.z = g.ch(9), te.mx = g.ch(11), te.my = g.ch(12), te.black = black, te.hist = hist;
     te.m1 = next_.ch(3), te.m2 = next_.ch(4), te.len = next_.ch(5), te.var = var;
     te.width = W, te.height = H;
     rows(H, [&](int r0, int r1) { k.temporal(te, r0, r1); });
@@ -194,7 +205,8 @@ const Planes& Svgf::run(const Planes& g, SvgfTimes* times) {
     SvgfPass pa;
     for (int c = 0; c < 3; ++c) pa.x[c] = acc_.ch(c), pa.n[c] = g.ch(6 + c), pa.out[c] = tmp_.ch(c);
     pa.lum = lum, pa.var = var, pa.inv_l = inv_l, pa.z = g.ch(9);
-    pa.gx = gx, pa.gy = gy, pa.var_out = var2;
+    pa.gx = gx, pa.gy = gy, pa.black = black, pa.black_rows = black_rows_.data();
+    pa.var_out = var2;
     pa.width = W, pa.height = H, pa.dilation = 1 << it, pa.sigma_z = 1.0f;
     rows(H, [&](int r0, int r1) {
       k.blur(bl, r0, r1);
@@ -210,6 +222,7 @@ const Planes& Svgf::run(const Planes& g, SvgfTimes* times) {
   lap(&SvgfTimes::passes);
   std::memcpy(next_.ch(6), g.ch(9), sizeof(float) * N);
   for (int c = 0; c < 3; ++c) std::memcpy(next_.ch(7 + c), g.ch(6 + c), sizeof(float) * N);
+  std::memcpy(next_.ch(10), black, sizeof(float) * N);
   std::swap(history_, next_);
   remodulate(acc_, demod_, out_);
   lap(&SvgfTimes::output);

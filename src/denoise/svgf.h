@@ -13,7 +13,8 @@ namespace kestrel::denoise {
 /// +-2 * dilation (taps outside the image are skipped, not clamped),
 ///   out = sum w x(q) / sum w,  var_out = sum w^2 var(q) / (sum w)^2,
 ///   w = h_q * wn * exp(-|l - l(q)| * inv_l - |z - z(q)| / (sigma_z |gx dx + gy dy| + 1e-3 z)),
-/// wn = 1 where the pixel has no normal, else max(0, n . n(q))^128.
+/// wn = 1 where the pixel has no normal, else max(0, n . n(q))^128; w = 0 where q is
+/// demodulated otherwise than the pixel (`black` differs: radiance and irradiance do not mix).
 struct SvgfPass {
   const float* x[3] = {};
   const float* lum = nullptr;    ///< luminance of x
@@ -23,6 +24,8 @@ struct SvgfPass {
   const float* n[3] = {};
   const float* gx = nullptr;  ///< screen-space depth gradient (central differences)
   const float* gy = nullptr;
+  const float* black = nullptr;  ///< 1 where not demodulated (svgf_black), else 0
+  const uint8_t* black_rows = nullptr;  ///< per row: whether it holds a black pixel
   float* out[3] = {};
   float* var_out = nullptr;
   int width = 0, height = 0, dilation = 1;
@@ -50,10 +53,10 @@ struct SvgfBlur {
 };
 
 /// SVGF's temporal step for rows [y0, y1) with a history (svgf_temporal() is its scalar
-/// definition): hist = irradiance 0-2, moments 3-4, length 5, depth 6, normal 7-9.
+/// definition): hist = irradiance 0-2, moments 3-4, length 5, depth 6, normal 7-9, black 10.
 struct SvgfTemporal {
   const float* x[3] = {};  ///< demodulated colour
-  const float *z = nullptr, *mx = nullptr, *my = nullptr;
+  const float *z = nullptr, *mx = nullptr, *my = nullptr, *black = nullptr;
   const float* n[3] = {};
   const float* const* hist = nullptr;
   float* acc[3] = {};
@@ -75,7 +78,7 @@ const SvgfKernels& svgf_kernels_avx2();
 const SvgfKernels& svgf_kernels_avx512();
 
 /// SVGF-like, real-time: temporal accumulation of demodulated irradiance and luminance
-/// moments (motion-vector reprojection, depth / normal test), variance from the moments (7x7
+/// moments (motion-vector reprojection, depth / normal / demodulation test), variance from the moments (7x7
 /// estimate for histories < 4 frames), 5 passes of SvgfPass (dilation 1..16, sigma_l 4,
 /// sigma_n 128, sigma_z 1); the first pass's output is the next history. Buffers are kept
 /// from frame to frame.
@@ -90,9 +93,11 @@ class Svgf {
   void reset() { history_ = Planes(); }
 
  private:
-  Planes history_, next_;  // irradiance 0-2, moments 3-4, length 5, depth 6, normal 7-9
+  Planes history_, next_;  // irradiance 0-2, moments 3-4, length 5, depth 6, normal 7-9, black 10
   Planes x_, acc_, tmp_, demod_, out_;
-  Planes aux_;  // variance, its next pass's, 1 / luminance scale, luminance, depth gradient x, y
+  Planes aux_;  // variance, its next pass's, 1 / luminance scale, luminance, depth gradient x, y,
+                // black
+  std::vector<uint8_t> black_rows_;
 };
 
 /// The same function written plainly (scalar loops, std::exp): the tests' oracle for Svgf.
@@ -111,11 +116,17 @@ inline float svgf_luminance(float r, float g, float b) {
 }
 
 /// The baselines' demodulation factor per channel: albedo + 0.01, or 1 where the albedo is
-/// (nearly) black. demod gets 3 planes of it, x the demodulated colour.
-void demodulate(const Planes& g, Planes& x, Planes& demod);
+/// (nearly) black. demod gets 3 planes of it, x the demodulated colour; black (if given, W x H
+/// floats) 1 where the albedo is black, else 0.
+void demodulate(const Planes& g, Planes& x, Planes& demod, float* black = nullptr);
+/// Whether pixel p of g is not demodulated (every albedo channel below kBlackAlbedo).
+inline bool svgf_black(const Planes& g, size_t p) {
+  return g.ch(3)[p] < kBlackAlbedo && g.ch(4)[p] < kBlackAlbedo && g.ch(5)[p] < kBlackAlbedo;
+}
 /// out = max(x, 0) * demod.
 void remodulate(const Planes& x, const Planes& demod, Planes& out);
-/// SVGF's temporal step, shared by both forms: reprojects `history` (empty: none) and
+/// SVGF's temporal step, shared by both forms: reprojects `history` (11 planes, as
+/// Svgf::next_; empty: none; a tap must match the pixel's depth, normal and black flag) and
 /// accumulates x into acc (3 planes), moments m1 m2, history length and variance.
 void svgf_temporal(const Planes& g, const Planes& x, const Planes& history, Planes& acc, float* m1,
                    float* m2, float* len, float* var);

@@ -18,13 +18,15 @@ struct SvgfTaps {
   float dx[25], dy[25];  // the tap's offset in pixels (the depth gradient's prediction)
 };
 
-// Pixels p .. p + width(T) - 1 of an SVGF pass over the taps.
-template <class T>
+// Pixels p .. p + width(T) - 1 of an SVGF pass over the taps; kClass: the black-flag test
+// (rows whose taps read no black pixel skip it: every flag is 0 there).
+template <class T, bool kClass>
 static inline void svgf_pixels(const SvgfPass& a, size_t p, const SvgfTaps& taps) {
   const T zero = T{} + 0.0f, one = T{} + 1.0f;
   const T l = ld<T>(a.lum + p), il = ld<T>(a.inv_l + p), z = ld<T>(a.z + p);
   const T gx = ld<T>(a.gx + p), gy = ld<T>(a.gy + p);
   const T n0 = ld<T>(a.n[0] + p), n1 = ld<T>(a.n[1] + p), n2 = ld<T>(a.n[2] + p);
+  const T kp = kClass ? ld<T>(a.black + p) : zero;
   const T zc = 1e-3f * vmax(z, zero + kMinDepth);
   const T floor = (n0 == zero) & (n1 == zero) & (n2 == zero) ? one : zero;
   T a0 = zero, a1 = zero, a2 = zero, ws = zero, va = zero;
@@ -36,7 +38,8 @@ static inline void svgf_pixels(const SvgfPass& a, size_t p, const SvgfTaps& taps
     T c = vmax(n0 * ld<T>(a.n[0] + q) + n1 * ld<T>(a.n[1] + q) + n2 * ld<T>(a.n[2] + q), zero);
     c *= c, c *= c, c *= c, c *= c, c *= c, c *= c, c *= c;  // ^128
     c = vmax(c, floor);                                      // 1 where there is no normal
-    const T w = taps.h[t] * (c * vexp_neg(zero - (wl + wz)));
+    T w = taps.h[t] * (c * vexp_neg(zero - (wl + wz)));
+    if constexpr (kClass) w = kp == ld<T>(a.black + q) ? w : zero;  // radiance, irradiance
     a0 += w * ld<T>(a.x[0] + q);
     a1 += w * ld<T>(a.x[1] + q);
     a2 += w * ld<T>(a.x[2] + q);
@@ -51,10 +54,16 @@ static inline void svgf_pixels(const SvgfPass& a, size_t p, const SvgfTaps& taps
   st(a.var_out + p, any ? va * (inv * inv) : ld<T>(a.var + p));
 }
 
+template <bool kClass>
 static void svgf_span(const SvgfPass& a, size_t row, int i0, int i1, const SvgfTaps& taps) {
   int i = i0;
-  for (; i + kLanes <= i1; i += kLanes) svgf_pixels<vfloat>(a, row + size_t(i), taps);
-  for (; i < i1; ++i) svgf_pixels<float>(a, row + size_t(i), taps);
+  for (; i + kLanes <= i1; i += kLanes) svgf_pixels<vfloat, kClass>(a, row + size_t(i), taps);
+  for (; i < i1; ++i) svgf_pixels<float, kClass>(a, row + size_t(i), taps);
+}
+
+static void svgf_span(const SvgfPass& a, size_t row, int i0, int i1, const SvgfTaps& taps,
+                      bool cls) {
+  cls ? svgf_span<true>(a, row, i0, i1, taps) : svgf_span<false>(a, row, i0, i1, taps);
 }
 
 static void svgf_pass_rows(const SvgfPass& a, int y0, int y1) {
@@ -63,9 +72,11 @@ static void svgf_pass_rows(const SvgfPass& a, int y0, int y1) {
   for (int y = y0; y < y1; ++y) {
     const size_t row = size_t(y) * size_t(W);
     SvgfTaps taps;
+    bool cls = false;  // a black pixel in a row the taps read
     for (int j = -2, t = 0; j <= 2; ++j) {
       const int qy = y + j * d;
       const bool in = qy >= 0 && qy < H;
+      cls |= in && a.black_rows[qy] != 0;
       for (int i = -2; i <= 2; ++i, ++t) {
         taps.off[t] = in ? long(j * d) * long(W) + long(i * d) : long(i * d);
         taps.h[t] = in ? kSvgfB3[j + 2] * kSvgfB3[i + 2] : 0.0f;
@@ -79,10 +90,10 @@ static void svgf_pass_rows(const SvgfPass& a, int y0, int y1) {
         const int qx = x + int(c.dx[t]);
         if (qx < 0 || qx >= W) c.off[t] -= long(c.dx[t]), c.h[t] = 0.0f;
       }
-      svgf_span(a, row, x, x + 1, c);
+      svgf_span(a, row, x, x + 1, c, cls);
     };
     for (int x = 0; x < i0; ++x) border(x);
-    svgf_span(a, row, i0, i1, taps);
+    svgf_span(a, row, i0, i1, taps, cls);
     for (int x = i1; x < W; ++x) border(x);
   }
 }
@@ -179,19 +190,21 @@ static void svgf_blur_rows(const SvgfBlur& a, int y0, int y1) {
 }
 
 // SVGF's temporal step for the pixels [0, W) of row y, branch-free: a bilinear tap that fails
-// the consistency test (outside the image, depth off by > 10 %, normals > ~25 degrees apart)
-// weighs 0 and reads a clamped pixel, which adds exactly nothing: the scalar definition's sums.
+// the consistency test (outside the image, depth off by > 10 %, normals > ~25 degrees apart,
+// another black flag) weighs 0 and reads a clamped pixel, which adds exactly nothing: the scalar definition's sums.
 static void svgf_temporal_row(int y, int W, int H, const float* __restrict X0,
                               const float* __restrict X1, const float* __restrict X2,
                               const float* __restrict Z, const float* __restrict N0,
                               const float* __restrict N1, const float* __restrict N2,
                               const float* __restrict MX, const float* __restrict MY,
+                              const float* __restrict K,
                               const float* const* __restrict hist, float* __restrict A0,
                               float* __restrict A1, float* __restrict A2, float* __restrict M1,
                               float* __restrict M2, float* __restrict LEN, float* __restrict VAR) {
   const float* __restrict H0 = hist[0], * __restrict H1 = hist[1], * __restrict H2 = hist[2];
   const float* __restrict H3 = hist[3], * __restrict H4 = hist[4], * __restrict H5 = hist[5];
   const float* __restrict HZ = hist[6], * __restrict HN0 = hist[7], * __restrict HN1 = hist[8], * __restrict HN2 = hist[9];
+  const float* __restrict HK = hist[10];
   const size_t row = size_t(y) * size_t(W);
   for (int i = 0; i < W; ++i) {
     const size_t p = row + size_t(i);
@@ -203,13 +216,13 @@ static void svgf_temporal_row(int y, int W, int H, const float* __restrict X0,
     const float fx = px - flx, fy = py - fly;
     const float z = Z[p], n0 = N0[p], n1 = N1[p], n2 = N2[p];
     const bool no_normal = (n0 == 0.0f) & (n1 == 0.0f) & (n2 == 0.0f);
-    const float zmax = 0.1f * std::max(z, kMinDepth);
+    const float zmax = 0.1f * std::max(z, kMinDepth), k = K[p];
     float h0 = 0, h1 = 0, h2 = 0, h3 = 0, h4 = 0, hl = 0, wsum = 0;
     auto tap = [&](int sx, int sy, float w) {
       const bool in = (sx >= 0) & (sy >= 0) & (sx < W) & (sy < H);
       const size_t q = in ? size_t(sy) * size_t(W) + size_t(sx) : p;
       const float nd = n0 * HN0[q] + n1 * HN1[q] + n2 * HN2[q];
-      const bool ok = in & !(std::fabs(HZ[q] - z) > zmax) & (no_normal | (nd > 0.9f));
+      const bool ok = in & !(std::fabs(HZ[q] - z) > zmax) & (no_normal | (nd > 0.9f)) & (HK[q] == k);
       w = ok ? w : 0.0f;
       h0 += w * H0[q], h1 += w * H1[q], h2 += w * H2[q], h3 += w * H3[q], h4 += w * H4[q];
       hl += w * H5[q];
@@ -239,5 +252,5 @@ static void svgf_temporal_row(int y, int W, int H, const float* __restrict X0,
 static void svgf_temporal_rows(const SvgfTemporal& a, int y0, int y1) {
   for (int y = y0; y < y1; ++y)
     svgf_temporal_row(y, a.width, a.height, a.x[0], a.x[1], a.x[2], a.z, a.n[0], a.n[1], a.n[2],
-                      a.mx, a.my, a.hist, a.acc[0], a.acc[1], a.acc[2], a.m1, a.m2, a.len, a.var);
+                      a.mx, a.my, a.black, a.hist, a.acc[0], a.acc[1], a.acc[2], a.m1, a.m2, a.len, a.var);
 }
