@@ -115,8 +115,7 @@ static inline void atrous_lanes(const AtrousRow& r, size_t p, int i) {
 template <bool kGuide, bool kClass>
 static void atrous_span(const AtrousRow& r, size_t row, int i0, int i1) {
   int i = i0;
-  for (; i + kLanes <= i1; i += kLanes)
-    atrous_lanes<vfloat, kGuide, kClass>(r, row + size_t(i), i);
+  for (; i + kLanes <= i1; i += kLanes) atrous_lanes<vfloat, kGuide, kClass>(r, row + size_t(i), i);
   for (; i < i1; ++i) atrous_lanes<float, kGuide, kClass>(r, row + size_t(i), i);
 }
 
@@ -371,8 +370,8 @@ static const Planes& network(const NeuralWeights& nw, const Planes& in, Planes& 
       const float* bk = ws.black.ch(0) + row;
       float* nw = ws.nw.data() + row;
       for (int i = 0; i < W; ++i) {
-        const bool same = std::fabs(zw[i] - zr[i]) <= kDisoccluded * zc[i] &&
-                          std::fabs(kw[i] - bk[i]) < 1e-3f;
+        const bool same =
+            std::fabs(zw[i] - zr[i]) <= kDisoccluded * zc[i] && std::fabs(kw[i] - bk[i]) < 1e-3f;
         valid[i] = same ? valid[i] : 0.0f;
         nw[i] *= valid[i];
       }
@@ -582,7 +581,8 @@ static const Planes& network(const NeuralWeights& nw, const Planes& in, Planes& 
     std::memcpy(ws.next_state.ch(3) + size_t(r0) * size_t(W), z + size_t(r0) * size_t(W),
                 sizeof(float) * size_t(r1 - r0) * size_t(W));
     std::memcpy(ws.next_state.ch(5) + size_t(r0) * size_t(W),
-                ws.black.ch(0) + size_t(r0) * size_t(W), sizeof(float) * size_t(r1 - r0) * size_t(W));
+                ws.black.ch(0) + size_t(r0) * size_t(W),
+                sizeof(float) * size_t(r1 - r0) * size_t(W));
   });
   std::swap(state, ws.next_state);
   lap(&stage.output);

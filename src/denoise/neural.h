@@ -77,7 +77,8 @@ struct Workspace {
   Planes x, xlin, demod, black, yw, xi, xo, lg, lg2, out, next_state;
   std::vector<float> bound, bound3, mu, mu3;
   std::vector<uint8_t> black_rows;  ///< per row: any pixel with black flag 1
-  std::vector<float> zw, nw, kw, valid, zc, feat, e1, pooled, e2, e3, cat, d1, o, act, padded, hrows;
+  std::vector<float> zw, nw, kw, valid, zc, feat, e1, pooled, e2, e3, cat, d1, o, act, padded,
+      hrows;
 };
 
 /// Milliseconds per stage of the last frame (KESTREL_DENOISE_PROFILE=1 prints them).

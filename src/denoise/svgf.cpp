@@ -170,9 +170,9 @@ const Planes& Svgf::run(const Planes& g, SvgfTimes* times) {
   black_rows_.resize(size_t(H));
   rows(H, [&](int r0, int r1) {
     for (int y = r0; y < r1; ++y)
-      black_rows_[size_t(y)] = std::any_of(black + size_t(y) * size_t(W),
-                                           black + size_t(y + 1) * size_t(W),
-                                           [](float k) { return k != 0.0f; });
+      black_rows_[size_t(y)] =
+          std::any_of(black + size_t(y) * size_t(W), black + size_t(y + 1) * size_t(W),
+                      [](float k) { return k != 0.0f; });
   });
   const SvgfKernels& k = svgf_kernels();
   if (history_.width != W || history_.height != H) {  // the first frame

@@ -24,7 +24,7 @@ struct SvgfPass {
   const float* n[3] = {};
   const float* gx = nullptr;  ///< screen-space depth gradient (central differences)
   const float* gy = nullptr;
-  const float* black = nullptr;  ///< 1 where not demodulated (svgf_black), else 0
+  const float* black = nullptr;         ///< 1 where not demodulated (svgf_black), else 0
   const uint8_t* black_rows = nullptr;  ///< per row: whether it holds a black pixel
   float* out[3] = {};
   float* var_out = nullptr;
@@ -78,10 +78,10 @@ const SvgfKernels& svgf_kernels_avx2();
 const SvgfKernels& svgf_kernels_avx512();
 
 /// SVGF-like, real-time: temporal accumulation of demodulated irradiance and luminance
-/// moments (motion-vector reprojection, depth / normal / demodulation test), variance from the moments (7x7
-/// estimate for histories < 4 frames), 5 passes of SvgfPass (dilation 1..16, sigma_l 4,
-/// sigma_n 128, sigma_z 1); the first pass's output is the next history. Buffers are kept
-/// from frame to frame.
+/// moments (motion-vector reprojection, depth / normal / demodulation test), variance from the
+/// moments (7x7 estimate for histories < 4 frames), 5 passes of SvgfPass (dilation 1..16, sigma_l
+/// 4, sigma_n 128, sigma_z 1); the first pass's output is the next history. Buffers are kept from
+/// frame to frame.
 struct SvgfTimes {
   double temporal = 0, variance = 0, passes = 0, output = 0;  ///< ms
 };

@@ -191,16 +191,17 @@ static void svgf_blur_rows(const SvgfBlur& a, int y0, int y1) {
 
 // SVGF's temporal step for the pixels [0, W) of row y, branch-free: a bilinear tap that fails
 // the consistency test (outside the image, depth off by > 10 %, normals > ~25 degrees apart,
-// another black flag) weighs 0 and reads a clamped pixel, which adds exactly nothing: the scalar definition's sums.
+// another black flag) weighs 0 and reads a clamped pixel, which adds exactly nothing: the scalar
+// definition's sums.
 static void svgf_temporal_row(int y, int W, int H, const float* __restrict X0,
                               const float* __restrict X1, const float* __restrict X2,
                               const float* __restrict Z, const float* __restrict N0,
                               const float* __restrict N1, const float* __restrict N2,
                               const float* __restrict MX, const float* __restrict MY,
-                              const float* __restrict K,
-                              const float* const* __restrict hist, float* __restrict A0,
-                              float* __restrict A1, float* __restrict A2, float* __restrict M1,
-                              float* __restrict M2, float* __restrict LEN, float* __restrict VAR) {
+                              const float* __restrict K, const float* const* __restrict hist,
+                              float* __restrict A0, float* __restrict A1, float* __restrict A2,
+                              float* __restrict M1, float* __restrict M2, float* __restrict LEN,
+                              float* __restrict VAR) {
   const float* __restrict H0 = hist[0], * __restrict H1 = hist[1], * __restrict H2 = hist[2];
   const float* __restrict H3 = hist[3], * __restrict H4 = hist[4], * __restrict H5 = hist[5];
   const float* __restrict HZ = hist[6], * __restrict HN0 = hist[7], * __restrict HN1 = hist[8], * __restrict HN2 = hist[9];
@@ -222,7 +223,8 @@ static void svgf_temporal_row(int y, int W, int H, const float* __restrict X0,
       const bool in = (sx >= 0) & (sy >= 0) & (sx < W) & (sy < H);
       const size_t q = in ? size_t(sy) * size_t(W) + size_t(sx) : p;
       const float nd = n0 * HN0[q] + n1 * HN1[q] + n2 * HN2[q];
-      const bool ok = in & !(std::fabs(HZ[q] - z) > zmax) & (no_normal | (nd > 0.9f)) & (HK[q] == k);
+      const bool ok =
+          in & !(std::fabs(HZ[q] - z) > zmax) & (no_normal | (nd > 0.9f)) & (HK[q] == k);
       w = ok ? w : 0.0f;
       h0 += w * H0[q], h1 += w * H1[q], h2 += w * H2[q], h3 += w * H3[q], h4 += w * H4[q];
       hl += w * H5[q];
@@ -252,5 +254,6 @@ static void svgf_temporal_row(int y, int W, int H, const float* __restrict X0,
 static void svgf_temporal_rows(const SvgfTemporal& a, int y0, int y1) {
   for (int y = y0; y < y1; ++y)
     svgf_temporal_row(y, a.width, a.height, a.x[0], a.x[1], a.x[2], a.z, a.n[0], a.n[1], a.n[2],
-                      a.mx, a.my, a.black, a.hist, a.acc[0], a.acc[1], a.acc[2], a.m1, a.m2, a.len, a.var);
+                      a.mx, a.my, a.black, a.hist, a.acc[0], a.acc[1], a.acc[2], a.m1, a.m2, a.len,
+                      a.var);
 }
