@@ -108,11 +108,16 @@ struct Environment {
   bool overcast = false;
   FloatImage image;  ///< 3 channels, linear; empty = constant colour
   float scale = 1.0f;
+  /// Light samples of the image drawn cosine-weighted about the surface normal (as for the
+  /// constant and overcast environments) instead of by the image's luminance: for smooth
+  /// skies, where it costs no table search and no sample falls below the surface.
+  /// physical_sky sets it; an image file leaves it false.
+  bool cosine_sampled = false;
   /// The sun, beside whatever else the environment is (nullopt: none).
   std::optional<Sun> sun;
   /// A clear sky for the sun's direction (Preetham, Shirley & Smits 1999, `turbidity` in
   /// [1.7, 10]: the Perez distribution of luminance and chromaticity), baked into a 512 x 256
-  /// equirectangular image and importance-sampled as one; the ground below the horizon 0.1 x
+  /// equirectangular image, its light samples cosine-weighted; the ground below the horizon 0.1 x
   /// the horizon's luminance. Scaled so a 45-degree sun's zenith is 1 (the sky dims as the
   /// sun sets). The sun itself is set as `sun`.
   static Environment physical_sky(const Sun& sun, float turbidity = 3.0f);

@@ -443,6 +443,7 @@ Environment Environment::physical_sky(const Sun& sun, float turbidity) {
   const double norm = 1.0 / PreethamSky(3.0, 3.14159265358979 / 4).zenith_Y;
   Environment env;
   env.sun = sun;
+  env.cosine_sampled = true;  // smooth: see Environment::cosine_sampled
   const int w = 512, h = 256;
   env.image = FloatImage(w, h, 3);
   for (int y = 0; y < h; ++y) {

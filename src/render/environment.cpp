@@ -1,5 +1,6 @@
 // The environment: constant, CIE overcast sky or an equirectangular image; its importance
-// sampling (cosine-weighted for constant ones, by luminance for images) and pdf.
+// sampling (cosine-weighted for constant ones and smooth skies, by luminance for other
+// images) and pdf.
 #include <algorithm>
 #include <cmath>
 
@@ -22,7 +23,10 @@ void Renderer::Impl::choose_environment(std::optional<Environment> environment) 
 
 void Renderer::Impl::setup_environment() {
   env_on = env.scale > 0 && (!env.image.pixels.empty() || luminance(env.color) > 0);
-  if (!env.image.pixels.empty()) {
+  env_cosine = env.image.pixels.empty() || env.cosine_sampled;
+  env_rows = Distribution1D();
+  env_cols.clear();
+  if (!env_cosine) {
     const int w = env.image.width, h = env.image.height;
     std::vector<float> row_weights(static_cast<size_t>(h), 0.0f);
     env_cols.clear();
@@ -68,10 +72,12 @@ void Renderer::Impl::choose_strategies() {
 }
 
 // Solid-angle pdf of sampling direction d from the environment (given it was chosen), at a
-// point with shading normal n: a constant environment is sampled cosine-weighted about n
-// (every sample above the surface), an image by its luminance.
+// point with shading normal n: a constant environment or a smooth sky is sampled
+// cosine-weighted about n (every sample above the surface), other images by their luminance.
+// (The physical sky by luminance: 10-15 % of a frame inside Sponza went to the CDF searches
+// and their cache misses, and ~60 % of its samples fell below the surface.)
 float Renderer::Impl::env_pdf(Vec3 d, Vec3 n) const {
-  if (env.image.pixels.empty()) return std::max(0.0f, dot(d, n)) / pi;
+  if (env_cosine) return std::max(0.0f, dot(d, n)) / pi;
   const float u = 0.5f + std::atan2(d.x, -d.z) / (2 * pi);
   const float theta = std::acos(std::clamp(d.y, -1.0f, 1.0f));
   const int w = env.image.width, h = env.image.height;
@@ -85,7 +91,7 @@ float Renderer::Impl::env_pdf(Vec3 d, Vec3 n) const {
 }
 
 Vec3 Renderer::Impl::env_sample(float u1, float u2, Vec3 n, float& pdf) const {
-  if (env.image.pixels.empty()) {
+  if (env_cosine) {
     const float r = std::sqrt(u1), phi = 2 * pi * u2;
     const Vec3 local{r * std::cos(phi), r * std::sin(phi), std::sqrt(std::max(0.0f, 1.0f - u1))};
     const Vec3 d = Basis(n).to_world(local);

@@ -199,6 +199,7 @@ struct Renderer::Impl {
   LightTree light_tree;       // over the same, when there is no directional light
   Environment env;
   bool env_on = false;
+  bool env_cosine = true;  // env_sample cosine-weighted (constant, overcast, smooth sky)
   Distribution1D env_rows;
   std::vector<Distribution1D> env_cols;
   float p_env = 0;  // probability NEE samples the environment

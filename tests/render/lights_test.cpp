@@ -105,6 +105,33 @@ TEST(Lights, PhysicalSkyIsNormalisedAndBrightestTowardsTheSun) {
             0.5f * sky.image.at(256, 0)[1]);
 }
 
+TEST(Lights, PhysicalSkyIrradianceIsTheSameSampledEitherWay) {
+  // The plane (facing +Z) under the physical sky without its sun: the reflected radiance is
+  // rho / pi x the integral of L cos over the hemisphere, summed here texel by texel of the
+  // sky image (the oracle). The sky's own cosine-weighted light samples and luminance-
+  // sampled ones (the same image, cosine_sampled off) must both converge to it.
+  Sun sun = Sun::parse("90,35");
+  Environment sky = Environment::physical_sky(sun);
+  sky.sun.reset();
+  ASSERT_TRUE(sky.cosine_sampled);
+  const int w = sky.image.width, h = sky.image.height;
+  double e = 0;
+  for (int y = 0; y < h; ++y) {
+    const double theta = kPi * (y + 0.5) / h;
+    for (int x = 0; x < w; ++x) {
+      const double phi = (double(x) + 0.5) / w * 2 * kPi - kPi;
+      const double dz = -std::sin(theta) * std::cos(phi);  // d = (sin sin, cos, -sin cos)
+      if (dz > 0) e += sky.image.at(x, y)[1] * dz * std::sin(theta) * (2 * kPi / w) * (kPi / h);
+    }
+  }
+  const double expected = kAlbedo / kPi * e;
+  const float cosine = radiance_at(plane(), sky, 8192);
+  sky.cosine_sampled = false;
+  const float by_luminance = radiance_at(plane(), sky, 8192);
+  EXPECT_NEAR(cosine, expected, 0.02 * expected);
+  EXPECT_NEAR(by_luminance, expected, 0.02 * expected);
+}
+
 TEST(Lights, LightingFlags) {
   EXPECT_FALSE(make_lighting("", "", false).has_value());
   EXPECT_FALSE(make_lighting("none", "", false)->sun.has_value());
