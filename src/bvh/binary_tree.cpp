@@ -59,7 +59,7 @@ void gather_leaves(const BinaryTree& tree, uint32_t ref, std::vector<uint32_t>& 
 }
 }  // namespace
 
-Bvh2 emit_bvh2(const BinaryTree& tree, const BuildConfig& config) {
+Bvh2 emit_bvh2(const BinaryTree& tree, const BuildConfig& config, uint32_t block_leaf) {
   Bvh2 out;
   const size_t n = tree.leaves.size();
   if (n == 0) return out;
@@ -75,7 +75,8 @@ Bvh2 emit_bvh2(const BinaryTree& tree, const BuildConfig& config) {
     auto [ref, o] = stack.back();
     stack.pop_back();
     const Bounds3 b = child_bounds(tree, ref);
-    if (BinaryTree::is_leaf(ref) || prefers_leaf(tree, ref)) {
+    if (BinaryTree::is_leaf(ref) || prefers_leaf(tree, ref) ||
+        child_count(tree, ref) <= block_leaf) {
       const uint32_t first = uint32_t(out.prim_ids.size());
       gather_leaves(tree, ref, out.prim_ids);
       out.nodes[o] = Bvh2Node{b.lo, first, b.hi, uint32_t(out.prim_ids.size() - first)};

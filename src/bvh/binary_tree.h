@@ -103,8 +103,9 @@ void bottom_up(BinaryTree& tree, const BuildConfig& config,
                void (*visit)(BinaryTree&, uint32_t, const BuildConfig&, void*), void* user);
 
 /// Converts to Bvh2, collapsing subtrees of at most max_leaf_size primitives into one leaf
-/// where that is cheaper by the SAH.
-Bvh2 emit_bvh2(const BinaryTree& tree, const BuildConfig& config);
+/// where that is cheaper by the SAH, and every subtree of at most `block_leaf` primitives
+/// (0: none; 4 for a tree that becomes 4-triangle blocks, see build_bvh_for_blocks).
+Bvh2 emit_bvh2(const BinaryTree& tree, const BuildConfig& config, uint32_t block_leaf = 0);
 
 }  // namespace kestrel
 

@@ -118,7 +118,8 @@ struct BinnedBuilder {
   const BuildConfig& config;
   NodeSlots& slots;
   int bin_count;
-  size_t exact_max;  // exact sweep for ranges up to this size
+  size_t exact_max;   // exact sweep for ranges up to this size
+  size_t block_leaf;  // ranges up to this size are leaves (0: none; see build_binned_sah)
 
   Vec4f ref_lo(size_t i) const { return Vec4f::load(&refs[i].lo); }
   Vec4f ref_hi(size_t i) const { return Vec4f::load(&refs[i].hi); }
@@ -192,7 +193,7 @@ struct BinnedBuilder {
 
   void build(uint32_t slot, uint32_t pair, const RangeInfo& info) {
     const size_t n = info.end - info.begin;
-    if (n == 1) return make_leaf(slot, info);
+    if (n == 1 || n <= block_leaf) return make_leaf(slot, info);
     const float node_area = simd::half_area(info.geom_lo, info.geom_hi);
     const float inv_area = inverse_area(node_area);
     RangeInfo left, right;
@@ -437,12 +438,17 @@ struct BinnedBuilder {
 
 }  // namespace
 
-Bvh2 build_binned_sah(std::span<const PrimRef> input, const BuildConfig& config) {
+Bvh2 build_binned_sah(std::span<const PrimRef> input, const BuildConfig& config,
+                      bool block_leaves) {
   Buffer<PrimRef> refs(input.begin(), input.end());
   const size_t n = refs.size();
   NodeSlots slots(n);
-  BinnedBuilder builder{refs.data(), config, slots, int(config.bin_count),
-                        n <= small_input ? exact_sweep_cap : exact_sweep_max};
+  BinnedBuilder builder{refs.data(),
+                        config,
+                        slots,
+                        int(config.bin_count),
+                        n <= small_input ? exact_sweep_cap : exact_sweep_max,
+                        block_leaves ? size_t(4) : size_t(0)};
   RangeInfo root = RangeInfo::empty_at(0);
   {
     const size_t chunks = chunk_count(n, binning_chunk);

@@ -98,4 +98,17 @@ Bvh2 build_bvh(std::span<const PrimRef> refs, const BuildConfig& config) {
   return {};
 }
 
+Bvh2 build_bvh_for_blocks(std::span<const PrimRef> refs, const BuildConfig& config) {
+  check_build_config(config);
+  if (refs.empty() || refs.size() >= 0x7FFFFFFFu) return build_bvh(refs, config);
+  switch (resolve_builder(config, refs.size())) {
+    case Builder::binned:
+      return build_binned_sah(refs, config, true);
+    case Builder::lbvh:
+      return build_lbvh(refs, config, true);
+    default:
+      return build_bvh(refs, config);
+  }
+}
+
 }  // namespace kestrel

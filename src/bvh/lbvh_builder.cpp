@@ -229,8 +229,8 @@ BinaryTree build_lbvh_tree_karras(std::span<const PrimRef> refs, const BuildConf
   return build_any(refs, config, /* top_down = */ true);
 }
 
-Bvh2 build_lbvh(std::span<const PrimRef> refs, const BuildConfig& config) {
-  return emit_bvh2(build_lbvh_tree(refs, config), config);
+Bvh2 build_lbvh(std::span<const PrimRef> refs, const BuildConfig& config, bool block_leaves) {
+  return emit_bvh2(build_lbvh_tree(refs, config), config, block_leaves ? 4u : 0u);
 }
 
 }  // namespace kestrel

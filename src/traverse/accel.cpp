@@ -7,6 +7,7 @@
 #include <cmath>
 #include <cstring>
 
+#include "bvh/builders.h"
 #include "core/parallel.h"
 #include "core/timer.h"
 #include "core/vec.h"
@@ -70,7 +71,9 @@ Accel build_accel(const Scene& scene, const BuildConfig& config) {
   accel.layout = resolve_layout(config.layout);
   SceneValidation validation;
   Buffer<PrimRef> refs = validate_and_make_prim_refs(scene, validation);
-  Bvh2 bvh = build_bvh(refs, config);
+  // Wide layouts: the build that knows its leaves become 4-triangle blocks.
+  const bool blocks = accel.layout == Layout::bvh4 || accel.layout == Layout::bvh8;
+  Bvh2 bvh = blocks ? build_bvh_for_blocks(refs, config) : build_bvh(refs, config);
   // LBVH depth is bounded by its key bits (at most 3 x 21 + 32 levels) and the median split
   // by log2(n); the SAH-driven trees are checked.
   const Builder builder = resolve_builder(config, refs.size());

@@ -6,6 +6,7 @@
 
 #include <fmt/format.h>
 
+#include "core/check.h"
 #include "core/parallel.h"
 #include "core/simd/vec4f.h"
 #include "kestrel/error.h"
@@ -48,13 +49,20 @@ void set_slot(Node& node, int j, const Bounds3& b, uint32_t ref) {
 struct LeafPlan {
   std::vector<uint32_t> count;  // primitives under each Bvh2 node
   std::vector<uint8_t> flat;    // 1: emit the whole subtree as one leaf
+  size_t blocks = 0;            // triangle blocks of all leaves (flat subtrees, parent not flat)
 };
 
-LeafPlan plan_leaves(const Bvh2& bvh, uint32_t max_leaf) {
+// Nodes in an order that puts every child after its parent: the node array itself when its
+// builder allocated children after their parent (all of kestrel's do; one linear check),
+// else breadth first.
+std::vector<uint32_t> parents_first(const Bvh2& bvh) {
   const size_t n = bvh.nodes.size();
-  LeafPlan plan{std::vector<uint32_t>(n, 0), std::vector<uint8_t>(n, 0)};
-  std::vector<float> cost(n, 0);
-  std::vector<uint32_t> order{0};  // parents before children
+  bool sorted = true;
+  for (size_t i = 0; i < n && sorted; ++i)
+    sorted = bvh.nodes[i].is_leaf() || bvh.nodes[i].index > i;
+  if (sorted) return {};  // empty: use the array order
+  std::vector<uint32_t> order{0};
+  order.reserve(n);
   for (size_t i = 0; i < order.size(); ++i) {
     const Bvh2Node& node = bvh.nodes[order[i]];
     if (!node.is_leaf()) {
@@ -62,27 +70,44 @@ LeafPlan plan_leaves(const Bvh2& bvh, uint32_t max_leaf) {
       order.push_back(node.index + 1);
     }
   }
-  for (size_t i = order.size(); i-- > 0;) {
-    const uint32_t id = order[i];
+  return order;
+}
+
+LeafPlan plan_leaves(const Bvh2& bvh, uint32_t max_leaf) {
+  const size_t n = bvh.nodes.size();
+  LeafPlan plan{std::vector<uint32_t>(n, 0), std::vector<uint8_t>(n, 0)};
+  std::vector<float> cost(n, 0);
+  std::vector<uint32_t> blocks(n, 0);  // blocks the subtree's leaves take (flat: one leaf's)
+  const std::vector<uint32_t> order = parents_first(bvh);
+  const size_t m = order.empty() ? n : order.size();
+  // Children before parents: the order backwards. (Reading the array backwards, not a
+  // breadth-first list, took this pass from ~12 % of an LBVH's ready-to-trace build to ~3 %.)
+  for (size_t i = m; i-- > 0;) {
+    const uint32_t id = order.empty() ? uint32_t(i) : order[i];
     const Bvh2Node& node = bvh.nodes[id];
     const float area = half_area(node);
     if (node.is_leaf()) {
       plan.count[id] = node.count;
       plan.flat[id] = 1;
       cost[id] = area * float((node.count + 3) / 4);
+      blocks[id] = (node.count + 3) / 4;
       continue;
     }
-    const uint32_t c = plan.count[node.index] + plan.count[node.index + 1];
+    const uint32_t l = node.index, r = node.index + 1;
+    const uint32_t c = plan.count[l] + plan.count[r];
     plan.count[id] = c;
-    const float split = area + cost[node.index] + cost[node.index + 1];
+    const float split = area + cost[l] + cost[r];
     const float leaf = area * float((c + 3) / 4);
     if (c <= max_leaf && (c <= 4 || leaf <= split)) {
       plan.flat[id] = 1;
       cost[id] = leaf;
+      blocks[id] = (c + 3) / 4;
     } else {
       cost[id] = split;
+      blocks[id] = blocks[l] + blocks[r];
     }
   }
+  plan.blocks = n > 0 ? blocks[0] : 0;
   return plan;
 }
 
@@ -154,21 +179,7 @@ Wide collapse(const Bvh2& bvh, std::span<const Triangle> tris, uint32_t max_leaf
   if (bvh.prim_ids.size() >= size_t(block_last_bit))
     throw Error(ErrorCode::invalid_argument, "wide BVH: more than 2^31 primitives");
   const LeafPlan plan = plan_leaves(bvh, std::max<uint32_t>(max_leaf, 4));
-  // Blocks needed: every flat subtree whose parent is not flat.
-  size_t block_count = 0;
-  {
-    std::vector<uint32_t> stack{0};
-    while (!stack.empty()) {
-      const uint32_t id = stack.back();
-      stack.pop_back();
-      if (plan.flat[id]) {
-        block_count += (plan.count[id] + 3) / 4;
-      } else {
-        stack.push_back(bvh.nodes[id].index);
-        stack.push_back(bvh.nodes[id].index + 1);
-      }
-    }
-  }
+  const size_t block_count = plan.blocks;
   if (block_count >= size_t(wide_leaf_bit))
     throw Error(ErrorCode::invalid_argument, "wide BVH: too many triangle blocks");
   out.blocks.resize(block_count);
@@ -204,6 +215,7 @@ Wide collapse(const Bvh2& bvh, std::span<const Triangle> tris, uint32_t max_leaf
   };
 
   build_wide_nodes<W>(bvh, plan.flat, out.nodes, emit_leaf);
+  KESTREL_CHECK(next_block == block_count, "collapse: the leaf plan counted other blocks");
   return out;
 }
 
