@@ -8,9 +8,11 @@
 #include <cmath>
 #include <cstring>
 
+#include "bvh/builders.h"
 #include "common/ray_gen.h"
 #include "common/views.h"
 #include "core/vec.h"
+#include "geometry/prim_ref.h"
 #include "kestrel/error.h"
 #include "kestrel/kestrel.h"
 #include "support/oracles.h"
@@ -244,6 +246,33 @@ TEST(WideLayout, EveryPrimitiveInExactlyOneLeafAndBoxesEnclose) {
 
 // Moves every vertex, refits, and compares against a fresh build over the moved scene
 // (same hits) and brute force.
+TEST(WideBuild, StoppingAtFourGivesTheSameWideTree) {
+  // build_accel's wide layouts build with build_bvh_for_blocks (binned: ranges <= 4 become
+  // leaves; lbvh: emission stops at subtrees <= 4). The collapse makes every subtree of <= 4
+  // primitives one block anyway, so the wide tree must be the one collapsed from the full
+  // binary tree: same nodes, same blocks, same SAH cost.
+  for (uint64_t seed : {3u, 8u})
+    for (Builder builder : {Builder::binned, Builder::lbvh}) {
+      const Scene scene = test::random_soup(seed == 3 ? 5000 : 20000, 0.05f, seed);
+      BuildConfig c;
+      c.builder = builder;
+      SceneValidation validation;
+      const Buffer<PrimRef> refs = validate_and_make_prim_refs(scene, validation);
+      const Bvh2 full = build_bvh(refs, c), blocks = build_bvh_for_blocks(refs, c);
+      EXPECT_LT(blocks.nodes.size(), full.nodes.size()) << builder_name(builder);
+      const Bvh8 a =
+          collapse_to_bvh8(full, gather_triangles(scene, full.prim_ids), c.max_leaf_size);
+      const Bvh8 b =
+          collapse_to_bvh8(blocks, gather_triangles(scene, blocks.prim_ids), c.max_leaf_size);
+      ASSERT_EQ(a.nodes.size(), b.nodes.size()) << builder_name(builder);
+      ASSERT_EQ(a.blocks.size(), b.blocks.size()) << builder_name(builder);
+      EXPECT_EQ(wide_sah_cost(a), wide_sah_cost(b)) << builder_name(builder);
+      for (size_t i = 0; i < a.nodes.size(); ++i)
+        ASSERT_EQ(0, std::memcmp(&a.nodes[i], &b.nodes[i], sizeof(Bvh8Node)))
+            << builder_name(builder) << " node " << i;
+    }
+}
+
 TEST(Refit, MatchesFreshBuildOnEveryLayout) {
   Scene scene = test::random_soup(2000, 0.12f, 5);
   const std::vector<Ray> rays = test::random_rays(2000, 6);
