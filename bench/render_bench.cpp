@@ -6,7 +6,8 @@
 // and the retrace back to back, then the median: the machine's speed drifts) says how much of
 // the render is tracing.
 //
-//   kestrel_render_bench [--scene F --view V] [--frames 7] [--quick] [--json F]
+//   kestrel_render_bench [--scene F --view V] [--sun AZ,EL[,I]] [--max-depth N] [--frames 7]
+//                        [--quick] [--json F]
 #include <fmt/format.h>
 
 #include <CLI/CLI.hpp>
@@ -33,10 +34,16 @@ int main(int argc, char** argv) {
   CLI::App app{"kestrel_render_bench: path tracer ms/frame and in-render vs raw ray throughput"};
   std::string scene_path = std::string(KESTREL_SCENE_ROOT) + "/dabrovic_sponza/sponza.obj",
               view = "inside", json;
-  int frames = 7;
+  std::string sun;
+  int frames = 7, max_depth = 8;
   bool quick = false;
   app.add_option("--scene", scene_path, "Scene");
   app.add_option("--view", view, "Named view");
+  app.add_option("--sun", sun,
+                 "AZIMUTH,ELEVATION[,INTENSITY]: a sun and its physical sky (the real-time loop's "
+                 "lighting inside Sponza is 30,70,12); default: the scene's (overcast sky)");
+  app.add_option("--max-depth", max_depth, "Path depth (the real-time loop uses 4)")
+      ->check(CLI::Range(1, 64));
   app.add_option("--frames", frames, "Frames per setting (median)");
   app.add_flag("--quick", quick, "Tiny run (CI: keeps the benchmark from rotting)");
   app.add_option("--json", json, "Write the rows as JSON");
@@ -47,13 +54,14 @@ int main(int argc, char** argv) {
     const auto camera = find_view(asset, view);
     if (!camera)
       throw Error(ErrorCode::invalid_argument, fmt::format("{}: no view '{}'", scene_path, view));
-    Renderer renderer(asset.scene());
+    Renderer renderer(asset.scene(), make_lighting("", sun, false));
     std::vector<std::pair<int, int>> sizes = {{640, 360}, {1280, 720}};
     if (quick) sizes = {{64, 36}};
     std::vector<int> thread_counts = {1, hardware_thread_count()};
     if (thread_counts[1] == 1) thread_counts.pop_back();
     std::vector<Row> rows;
-    fmt::print("scene {} view '{}', 1 spp, max depth 8, median of {} frames\n\n", scene_path, view,
+    fmt::print("scene {} view '{}', {}, 1 spp, max depth {}, median of {} frames\n\n", scene_path,
+               view, sun.empty() ? std::string("default lighting") : "sun " + sun, max_depth,
                frames);
     fmt::print(
         "| resolution | threads | ms/frame | rays/frame | in-render Mrays/s | raw Mrays/s (same "
@@ -62,7 +70,7 @@ int main(int argc, char** argv) {
     for (auto [w, h] : sizes)
       for (int threads : thread_counts) {
         RenderSettings rs;
-        rs.width = w, rs.height = h, rs.spp = 1, rs.threads = threads;
+        rs.width = w, rs.height = h, rs.spp = 1, rs.threads = threads, rs.max_depth = max_depth;
         std::vector<double> ms, share, raw_ms, in_mrays, raw_mrays, rays, ratios;
         std::vector<double> kind_mrays[3];
         renderer.render(*camera, rs);  // warm-up
