@@ -77,7 +77,10 @@ void check_build_config(const BuildConfig& c) {
     bad(fmt::format("expected_rays = {} must be finite and >= 0", c.expected_rays));
 }
 
-Bvh2 build_bvh(std::span<const PrimRef> refs, const BuildConfig& config) {
+namespace {
+
+// block_leaves: see build_bvh_for_blocks (the binned and LBVH builders stop at four).
+Bvh2 dispatch(std::span<const PrimRef> refs, const BuildConfig& config, bool block_leaves) {
   check_build_config(config);
   if (refs.empty()) return {};
   if (refs.size() >= 0x7FFFFFFFu)
@@ -89,26 +92,23 @@ Bvh2 build_bvh(std::span<const PrimRef> refs, const BuildConfig& config) {
     case Builder::sweep:
       return build_sweep_sah(refs, config);
     case Builder::binned:
-      return build_binned_sah(refs, config);
+      return build_binned_sah(refs, config, block_leaves);
     case Builder::lbvh:
-      return build_lbvh(refs, config);
+      return build_lbvh(refs, config, block_leaves);
     case Builder::treelet:
       return build_treelet(refs, config);
   }
   return {};
 }
 
+}  // namespace
+
+Bvh2 build_bvh(std::span<const PrimRef> refs, const BuildConfig& config) {
+  return dispatch(refs, config, false);
+}
+
 Bvh2 build_bvh_for_blocks(std::span<const PrimRef> refs, const BuildConfig& config) {
-  check_build_config(config);
-  if (refs.empty() || refs.size() >= 0x7FFFFFFFu) return build_bvh(refs, config);
-  switch (resolve_builder(config, refs.size())) {
-    case Builder::binned:
-      return build_binned_sah(refs, config, true);
-    case Builder::lbvh:
-      return build_lbvh(refs, config, true);
-    default:
-      return build_bvh(refs, config);
-  }
+  return dispatch(refs, config, true);
 }
 
 }  // namespace kestrel

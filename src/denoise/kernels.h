@@ -19,8 +19,8 @@ struct AtrousArgs {
   const float* g[3] = {};  ///< its log(1 + x): the colour edge-stopping guide
   const float* n[3] = {};
   const float* z = nullptr;
-  const float* black =
-      nullptr;  ///< 1 where the pixel is not demodulated: taps mix only like with like
+  /// 1 where the pixel is not demodulated (black albedo): taps mix only like with like.
+  const float* black = nullptr;
   const uint8_t* black_rows = nullptr;  ///< per row: whether it holds a black pixel
   const float* param[4] = {};  ///< sc, sn, sz, beta: horizontally upsampled quarter-res rows
   int param_rows = 0;

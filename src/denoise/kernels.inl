@@ -232,7 +232,7 @@ static inline void for_lanes(int n, F&& f) {
 static bool black_row(int n, const float* a0, const float* a1, const float* a2, float* k) {
   float any = 0.0f;
   for (int i = 0; i < n; ++i) {
-    k[i] = (a0[i] < kBlackAlbedo) & (a1[i] < kBlackAlbedo) & (a2[i] < kBlackAlbedo) ? 1.0f : 0.0f;
+    k[i] = black_albedo(a0[i], a1[i], a2[i]) ? 1.0f : 0.0f;
     any = any > k[i] ? any : k[i];
   }
   return any > 0.0f;
@@ -284,7 +284,9 @@ static const Planes& network(const NeuralWeights& nw, const Planes& in, Planes& 
   ensure(ws.x, W, H, 3);
   ensure(ws.xlin, W, H, 3);
   ensure(ws.demod, W, H, 3);
-  ensure(ws.black, W, H, 1);
+  // The black flags go straight into the next state (channel 5), where they are kept.
+  ensure(ws.next_state, W, H, kStateChannels);
+  float* const black = ws.next_state.ch(5);
   ensure(ws.yw, W, H, 3);
   ws.zw.resize(N), ws.nw.resize(N), ws.kw.resize(N), ws.valid.resize(N), ws.zc.resize(N);
   ws.black_rows.resize(size_t(H));
@@ -314,7 +316,7 @@ static const Planes& network(const NeuralWeights& nw, const Planes& in, Planes& 
         demodulate_row(W, col, a0, a1, a2, alb, dm, xl, xo);
       }
       ws.black_rows[size_t(y)] =
-          black_row(W, in.ch(3) + row, in.ch(4) + row, in.ch(5) + row, ws.black.ch(0) + row);
+          black_row(W, in.ch(3) + row, in.ch(4) + row, in.ch(5) + row, black + row);
       for (int i = 0; i < W; ++i)
         ws.zc[row + size_t(i)] = z[row + size_t(i)] > kMinDepth ? z[row + size_t(i)] : kMinDepth;
       if (!have_state) {
@@ -367,7 +369,7 @@ static const Planes& network(const NeuralWeights& nw, const Planes& in, Planes& 
       const float* zc = ws.zc.data() + row;
       const float* zr = z + row;
       const float* kw = ws.kw.data() + row;
-      const float* bk = ws.black.ch(0) + row;
+      const float* bk = black + row;
       float* nw = ws.nw.data() + row;
       for (int i = 0; i < W; ++i) {
         const bool same =
@@ -515,7 +517,6 @@ static const Planes& network(const NeuralWeights& nw, const Planes& in, Planes& 
   });
   ensure(ws.xi, W, H, 3);
   ensure(ws.xo, W, H, 3);
-  ensure(ws.next_state, W, H, kStateChannels);
   ensure(ws.lg, W, H, 3);
   // This frame's fireflies cut (ws.xo), then the temporal blend: r0 = xc + a (yw - xc),
   // a = alpha nw / (1 + nw), into the filter's input (ws.xi) with log(1 + r0) its first
@@ -554,7 +555,7 @@ static const Planes& network(const NeuralWeights& nw, const Planes& in, Planes& 
       a.x[c] = ws.xi.ch(c), a.g[c] = ws.lg.ch(c), a.n[c] = in.ch(6 + c), a.out[c] = ws.xo.ch(c);
       a.gout[c] = l + 1 < kLevels ? ws.lg2.ch(c) : nullptr;
     }
-    a.z = z, a.black = ws.black.ch(0), a.black_rows = ws.black_rows.data();
+    a.z = z, a.black = black, a.black_rows = ws.black_rows.data();
     for (int k = 0; k < 4; ++k) a.param[k] = ws.hrows.data() + size_t(1 + 4 * l + k) * hplane;
     a.param_rows = Hq;
     a.width = W, a.height = H, a.dilation = 1 << l;
@@ -579,9 +580,6 @@ static const Planes& network(const NeuralWeights& nw, const Planes& in, Planes& 
       for (size_t p = b; p < e; ++p) o[p] = (xi[p] > 0.0f ? xi[p] : 0.0f) * dm[p];
     }
     std::memcpy(ws.next_state.ch(3) + size_t(r0) * size_t(W), z + size_t(r0) * size_t(W),
-                sizeof(float) * size_t(r1 - r0) * size_t(W));
-    std::memcpy(ws.next_state.ch(5) + size_t(r0) * size_t(W),
-                ws.black.ch(0) + size_t(r0) * size_t(W),
                 sizeof(float) * size_t(r1 - r0) * size_t(W));
   });
   std::swap(state, ws.next_state);

@@ -69,12 +69,16 @@ constexpr float kMinDepthStop = 3.0f;
 constexpr float kHistoryAllowance = 4.0f;  ///< never cut as a firefly: up to 4x the history
 constexpr float kAlbedoEps = 0.01f;
 constexpr float kBlackAlbedo = 0.02f;  ///< below this in every channel: no demodulation
-constexpr float kDisoccluded = 0.1f;   ///< relative depth change that rejects the history
+/// Whether an albedo is (nearly) black: left undemodulated by every denoiser.
+inline bool black_albedo(float a0, float a1, float a2) {
+  return a0 < kBlackAlbedo && a1 < kBlackAlbedo && a2 < kBlackAlbedo;
+}
+constexpr float kDisoccluded = 0.1f;  ///< relative depth change that rejects the history
 constexpr float kMinDepth = 1e-3f;
 
 /// Buffers reused from frame to frame (no allocation or page faults once warm).
 struct Workspace {
-  Planes x, xlin, demod, black, yw, xi, xo, lg, lg2, out, next_state;
+  Planes x, xlin, demod, yw, xi, xo, lg, lg2, out, next_state;
   std::vector<float> bound, bound3, mu, mu3;
   std::vector<uint8_t> black_rows;  ///< per row: any pixel with black flag 1
   std::vector<float> zw, nw, kw, valid, zc, feat, e1, pooled, e2, e3, cat, d1, o, act, padded,

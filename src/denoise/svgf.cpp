@@ -39,7 +39,7 @@ const SvgfKernels& svgf_kernels() {
 // By albedo, except where the albedo is (nearly) black (emitters, black surfaces): there the
 // colour is filtered as it is, since dividing by ~0 would turn it into huge irradiance that
 // the filters then spread onto lit neighbours.
-void demodulate(const Planes& g, Planes& x, Planes& demod, float* black_out) {
+void demodulate(const Planes& g, Planes& x, Planes& demod, float* black_out, uint8_t* black_rows) {
   const int W = g.width, H = g.height;
   ensure(x, W, H, 3);
   ensure(demod, W, H, 3);
@@ -48,15 +48,20 @@ void demodulate(const Planes& g, Planes& x, Planes& demod, float* black_out) {
   float *X0 = x.ch(0), *X1 = x.ch(1), *X2 = x.ch(2);
   float *D0 = demod.ch(0), *D1 = demod.ch(1), *D2 = demod.ch(2);
   rows(H, [&](int r0, int r1) {
-    for (size_t p = size_t(r0) * size_t(W); p < size_t(r1) * size_t(W); ++p) {
-      const float a0 = B0[p], a1 = B1[p], a2 = B2[p];
-      const bool black = std::max(a0, std::max(a1, a2)) < kBlackAlbedo;
-      if (black_out) black_out[p] = black ? 1.0f : 0.0f;
-      const float d0 = black ? 1.0f : std::max(a0, 0.0f) + kAlbedoEps;
-      const float d1 = black ? 1.0f : std::max(a1, 0.0f) + kAlbedoEps;
-      const float d2 = black ? 1.0f : std::max(a2, 0.0f) + kAlbedoEps;
-      D0[p] = d0, D1[p] = d1, D2[p] = d2;
-      X0[p] = C0[p] / d0, X1[p] = C1[p] / d1, X2[p] = C2[p] / d2;
+    for (int y = r0; y < r1; ++y) {
+      bool any = false;
+      for (size_t p = size_t(y) * size_t(W); p < size_t(y + 1) * size_t(W); ++p) {
+        const float a0 = B0[p], a1 = B1[p], a2 = B2[p];
+        const bool black = black_albedo(a0, a1, a2);
+        any |= black;
+        if (black_out) black_out[p] = black ? 1.0f : 0.0f;
+        const float d0 = black ? 1.0f : std::max(a0, 0.0f) + kAlbedoEps;
+        const float d1 = black ? 1.0f : std::max(a1, 0.0f) + kAlbedoEps;
+        const float d2 = black ? 1.0f : std::max(a2, 0.0f) + kAlbedoEps;
+        D0[p] = d0, D1[p] = d1, D2[p] = d2;
+        X0[p] = C0[p] / d0, X1[p] = C1[p] / d1, X2[p] = C2[p] / d2;
+      }
+      if (black_rows) black_rows[y] = any;
     }
   });
 }
@@ -166,14 +171,8 @@ const Planes& Svgf::run(const Planes& g, SvgfTimes* times) {
   ensure(aux_, W, H, 7);  // planes, not separate vectors: see Planes on cache sets
   float *var = aux_.ch(0), *var2 = aux_.ch(1), *inv_l = aux_.ch(2), *lum = aux_.ch(3);
   float *gx = aux_.ch(4), *gy = aux_.ch(5), *black = aux_.ch(6);
-  demodulate(g, x_, demod_, black);
   black_rows_.resize(size_t(H));
-  rows(H, [&](int r0, int r1) {
-    for (int y = r0; y < r1; ++y)
-      black_rows_[size_t(y)] =
-          std::any_of(black + size_t(y) * size_t(W), black + size_t(y + 1) * size_t(W),
-                      [](float k) { return k != 0.0f; });
-  });
+  demodulate(g, x_, demod_, black, black_rows_.data());
   const SvgfKernels& k = svgf_kernels();
   if (history_.width != W || history_.height != H) {  // the first frame
     svgf_temporal(g, x_, history_, acc_, next_.ch(3), next_.ch(4), next_.ch(5), var);

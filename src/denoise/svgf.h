@@ -117,11 +117,13 @@ inline float svgf_luminance(float r, float g, float b) {
 
 /// The baselines' demodulation factor per channel: albedo + 0.01, or 1 where the albedo is
 /// (nearly) black. demod gets 3 planes of it, x the demodulated colour; black (if given, W x H
-/// floats) 1 where the albedo is black, else 0.
-void demodulate(const Planes& g, Planes& x, Planes& demod, float* black = nullptr);
-/// Whether pixel p of g is not demodulated (every albedo channel below kBlackAlbedo).
+/// floats) 1 where the albedo is black, else 0, and black_rows (if given, H) whether each row
+/// holds such a pixel.
+void demodulate(const Planes& g, Planes& x, Planes& demod, float* black = nullptr,
+                uint8_t* black_rows = nullptr);
+/// Whether pixel p of g is not demodulated (black_albedo).
 inline bool svgf_black(const Planes& g, size_t p) {
-  return g.ch(3)[p] < kBlackAlbedo && g.ch(4)[p] < kBlackAlbedo && g.ch(5)[p] < kBlackAlbedo;
+  return black_albedo(g.ch(3)[p], g.ch(4)[p], g.ch(5)[p]);
 }
 /// out = max(x, 0) * demod.
 void remodulate(const Planes& x, const Planes& demod, Planes& out);

@@ -29,7 +29,6 @@ void Renderer::Impl::setup_environment() {
   if (!env_cosine) {
     const int w = env.image.width, h = env.image.height;
     std::vector<float> row_weights(static_cast<size_t>(h), 0.0f);
-    env_cols.clear();
     for (int y = 0; y < h; ++y) {
       const float sin_theta = std::sin(pi * (float(y) + 0.5f) / float(h));
       std::vector<float> cols(static_cast<size_t>(w), 0.0f);
