@@ -8,10 +8,12 @@ with a full-resolution history, the previous output:
 
   y = c / (1 + L(c))                    every colour in this reversible tone-mapped space
   m* = motion of the nearest surface (least depth) in the 3x3 neighbourhood
-  H  = Catmull-Rom(history, X + 0.5 + f m*)          the reprojected history
+  H  = Catmull-Rom(history, X + 0.5 + f m*)          the reprojected history, clamped to
+                                                     the range of its 2x2 central taps
   Hc = clamp(H, mu - gamma sigma, mu + gamma sigma)  mu, sigma: 3x3 neighbourhood of y
   C  = sum_k w_k y_k / sum_k w_k,  w_k = exp(-2 d_k^2)  the 3x3 samples nearest the pixel
-  alpha = a * exp(-kappa (f d0)^2), 1 where the history is missing or off screen
+  alpha = a * exp(-kappa (f d0)^2), 1 where the history is missing, off screen or
+          disoccluded (keep_history: no previous depth near the reprojected position matches)
   out = Hc + alpha (C - Hc)
 
 d_k: distance from the output pixel's centre to sample k, in low-resolution pixels; d0: to
@@ -34,6 +36,7 @@ CURRENT_SHARPNESS = 2.0
 # training clips, and the network starts from them.
 TAAU = dict(a=0.6, gamma=0.75, kappa=0.0625)
 MIN_DEPTH = 1e-3
+DISOCCLUSION = 0.1  # relative depth difference beyond which a history sample is another surface
 
 
 def luma(x):
@@ -76,19 +79,28 @@ def catmull_rom_weights(t):
     return (-0.5 * t3 + t2 - 0.5 * t, 1.5 * t3 - 2.5 * t2 + 1.0, -1.5 * t3 + 2.0 * t2 + 0.5 * t, 0.5 * t3 - 0.5 * t2)
 
 
-def catmull_rom_at(img, x, y):
+def catmull_rom_at(img, x, y, footprint=False):
+    """Catmull-Rom at continuous coordinates (pixel centres at k + 0.5, edges clamped); with
+    footprint, clamped per channel to the range of the 2x2 central taps (no overshoot)."""
     H, W = img.shape[2:]
     xf, yf = x - 0.5, y - 0.5
     x1, y1 = torch.floor(xf), torch.floor(yf)
     wx, wy = catmull_rom_weights(xf - x1), catmull_rom_weights(yf - y1)
     x1, y1 = x1.long(), y1.long()
-    out = 0
+    out, central = 0, []
     for j in range(4):
         row = 0
         iy = (y1 + j - 1).clamp(0, H - 1)
         for i in range(4):
-            row = row + wx[i] * gather2d(img, (x1 + i - 1).clamp(0, W - 1), iy)
+            t = gather2d(img, (x1 + i - 1).clamp(0, W - 1), iy)
+            row = row + wx[i] * t
+            if i in (1, 2) and j in (1, 2):
+                central.append(t)
         out = out + wy[j] * row
+    if footprint:
+        lo = torch.minimum(torch.minimum(central[0], central[1]), torch.minimum(central[2], central[3]))
+        hi = torch.maximum(torch.maximum(central[0], central[1]), torch.maximum(central[2], central[3]))
+        out = torch.minimum(torch.maximum(out, lo), hi)
     return out
 
 
@@ -108,6 +120,32 @@ def dilate_motion(depth, motion):
     return torch.gather(mn, 1, k.unsqueeze(2).expand(-1, 1, 2, -1, -1)).squeeze(1)
 
 
+def keep_history(depth, prev_depth, mdil, jx, jy, prev_jitter):
+    """(B,1,h,w): 1 where one of the four previous samples around where this pixel's sample
+    was (its position plus m, the least-depth motion the history is fetched with, in the
+    previous frame's sample grid, jitter included; edges clamped) has a depth within
+    DISOCCLUSION of the current depth plus its slope (the change to the neighbour on the
+    smoother side, in x plus in y: at most a pixel separates the two frames' samples), or
+    both are sky; 0 where the history shows another surface (a disocclusion)."""
+    B, _, h, w = depth.shape
+    dev = depth.device
+    ii = torch.arange(w, device=dev, dtype=torch.float32).view(1, 1, 1, w)
+    jj = torch.arange(h, device=dev, dtype=torch.float32).view(1, 1, h, 1)
+    qx = torch.floor(ii + jx.view(B, 1, 1, 1) + mdil[:, 0:1] - prev_jitter[:, 0].view(B, 1, 1, 1)).long()
+    qy = torch.floor(jj + jy.view(B, 1, 1, 1) + mdil[:, 1:2] - prev_jitter[:, 1].view(B, 1, 1, 1)).long()
+    dn = neighbours(depth)  # the depth slope: the change to the smoother side's neighbour
+    slope = (torch.minimum(torch.abs(dn[3] - depth), torch.abs(dn[5] - depth))
+             + torch.minimum(torch.abs(dn[1] - depth), torch.abs(dn[7] - depth)))
+    tol = DISOCCLUSION * torch.clamp(depth, min=MIN_DEPTH) + slope
+    same = torch.zeros_like(depth, dtype=torch.bool)
+    for b in (0, 1):
+        for a in (0, 1):
+            dq = gather2d(prev_depth, (qx + a).clamp(0, w - 1), (qy + b).clamp(0, h - 1))
+            both = (depth > 0) & (dq > 0)
+            same |= torch.where(both, torch.abs(dq - depth) <= tol, (depth > 0) == (dq > 0))
+    return same.float()
+
+
 def features(y, depth, mdil, state, f, jx, jy):
     """Low-resolution features (B,8,h,w) and the neighbourhood statistics (mu, sigma)."""
     B, _, h, w = y.shape
@@ -122,7 +160,7 @@ def features(y, depth, mdil, state, f, jx, jy):
     if state is None:
         valid, Lh, dchange = zero, L, zero
     else:
-        hist, prev_depth = state
+        hist, prev_depth = state[0], state[1]
         H, W = hist.shape[2:]
         hx = f * (ii + jx.view(B, 1, 1, 1) + mdil[:, 0:1])
         hy = f * (jj + jy.view(B, 1, 1, 1) + mdil[:, 1:2])
@@ -204,7 +242,7 @@ def upsample_params(p, H, W):
 
 def step(color, depth, motion, jitter, f, state, model=None, constants=None):
     """One frame. color (B,3,h,w) linear, depth (B,1,h,w), motion (B,2,h,w), jitter (B,2),
-    f in {2, 4}; state: None or (history y (B,3,fh,fw), previous depth). Returns the linear
+    f in {2, 4}; state: None or (history y (B,3,fh,fw), previous depth, previous jitter). Returns the linear
     output (B,3,fh,fw), its y and the new state."""
     B, _, h, w = color.shape
     H, W = f * h, f * w
@@ -247,12 +285,13 @@ def step(color, depth, motion, jitter, f, state, model=None, constants=None):
         hist = state[0]
         hx = X + 0.5 + f * m[:, 0:1]
         hy = Y + 0.5 + f * m[:, 1:2]
-        valid = ((hx >= 0) & (hx < W) & (hy >= 0) & (hy < H)).float()
-        hc = catmull_rom_at(hist, hx, hy)
+        keep = gather2d(keep_history(depth, state[1], mdil, jx, jy, state[2]), i0l, j0l)
+        valid = ((hx >= 0) & (hx < W) & (hy >= 0) & (hy < H)).float() * keep
+        hc = catmull_rom_at(hist, hx, hy, footprint=True)
         hc = torch.minimum(torch.maximum(hc, mu_p - gamma * sig_p), mu_p + gamma * sig_p)
         alpha = valid * (a * conf) + (1 - valid)
         out_y = hc + alpha * (cur - hc)
-    return from_y(out_y), out_y, (out_y, depth)
+    return from_y(out_y), out_y, (out_y, depth, jitter.float())
 
 
 def bilinear_upscale(color, jitter, f, cubic=False):

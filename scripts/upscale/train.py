@@ -8,6 +8,7 @@ network for both factors (the factor is an input), and writes
 
     train.py [--data out/upscale_dataset] [--steps 1200] [--seed 1] [--threads 2]
              [--tune-taau [--taau-grid A;G;K]] [--loss aces|y] [--fixture-only]
+             [--fixture-refresh]
 
 --tune-taau first picks the TAAU-like baseline's constants (a, gamma, kappa) on the training
 clips (grid search, L1 in the tone-mapped space) and writes them into the provenance; the
@@ -144,6 +145,20 @@ def write_fixture(model, clip, out_dir, frames=3, H=48, W=64):
     json.dump(meta, open(os.path.join(out_dir, "fixture.json"), "w"), indent=1)
 
 
+def refresh_fixture(model, out_dir):
+    """Recomputes the fixture's outputs from its own inputs (after a change of model.py's
+    function; the inputs, a crop of a clip no longer on disk, stay as they are)."""
+    meta = json.load(open(os.path.join(out_dir, "fixture.json")))
+    with torch.no_grad():
+        for f in (2, 4):
+            state = None
+            for t in range(meta["frames"]):
+                x = [torch.from_numpy(read_pfm(os.path.join(out_dir, f"x{f}_{name}_{t}.pfm"))[:, :, :c].copy())
+                     .permute(2, 0, 1)[None].float() for name, c in (("color", 3), ("depth", 1), ("motion", 2))]
+                lin, _, state = M.step(x[0], x[1], x[2], jitters(meta["frames"])[None, t], f, state, model=model)
+                write_pfm(os.path.join(out_dir, f"x{f}_out_{t}.pfm"), lin[0].numpy().transpose(1, 2, 0))
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--data", default=os.path.join(ROOT, "out", "upscale_dataset"))
@@ -160,14 +175,22 @@ def main():
     ap.add_argument("--loss", default="aces", choices=["aces", "y"],
                     help="L1 on the evaluation's tone map (ACES fit + sRGB) or in the network's y space")
     ap.add_argument("--fixture-only", action="store_true")
+    ap.add_argument("--fixture-refresh", action="store_true",
+                    help="recompute the fixture's outputs from its inputs with --weights, then stop")
     ap.add_argument("--weights", default=os.path.join(ROOT, "weights", "upscaler.kdw"))
     args = ap.parse_args()
     torch.set_num_threads(args.threads)
     torch.set_flush_denormal(True)
     torch.manual_seed(args.seed)
     random.seed(args.seed)
-    manifest = json.load(open(os.path.join(args.data, "manifest.json")))
     fixture_dir = os.path.join(ROOT, "tests", "data", "upscale")
+    if args.fixture_refresh:
+        model = M.Upsampler()
+        load_weights(model, args.weights)
+        refresh_fixture(model, fixture_dir)
+        print(f"refreshed {fixture_dir}")
+        return
+    manifest = json.load(open(os.path.join(args.data, "manifest.json")))
     if args.fixture_only:
         model = M.Upsampler()
         load_weights(model, args.weights)

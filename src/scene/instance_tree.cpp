@@ -13,9 +13,8 @@ namespace {
 
 template <int W, class Node>
 struct TreeBuilder {
-  std::span<const PrimRef> refs;
+  const PrimRef* refs;  // in Morton order
   const uint32_t* keys;
-  const uint32_t* order;
   Buffer<Node>& nodes;
 
   // First index in [b, e) whose key differs from keys[b] in the highest bit where keys[b]
@@ -24,9 +23,17 @@ struct TreeBuilder {
     const uint32_t x = keys[b] ^ keys[e - 1];
     if (x == 0) return b + (e - b) / 2;
     const uint32_t bit = 31u - uint32_t(__builtin_clz(x));
-    const uint32_t* it =
-        std::partition_point(keys + b, keys + e, [&](uint32_t k) { return !((k >> bit) & 1u); });
-    return uint32_t(it - keys);
+    // The keys of [b, e) share every bit above `bit` and are sorted: those with it clear come
+    // first. A branch-free binary search (the branchy one mispredicted about every other
+    // step: most of this builder's time); keys[b] has the bit clear, keys[e - 1] set.
+    const uint32_t* base = keys + b;
+    uint32_t len = e - b;
+    while (len > 1) {
+      const uint32_t half = len / 2;
+      base = ((base[half] >> bit) & 1u) ? base : base + half;
+      len -= half;
+    }
+    return uint32_t(base - keys) + 1;
   }
 
   // Fills node `index` over sorted positions [b, e) (e - b >= 2) and returns its bounds.
@@ -52,7 +59,7 @@ struct TreeBuilder {
       uint32_t ref = wide_empty;
       if (j < parts) {
         if (hi[j] - lo[j] == 1) {
-          const PrimRef& r = refs[order[lo[j]]];
+          const PrimRef& r = refs[lo[j]];
           box = {r.lo, r.hi};
           ref = wide_leaf_bit | r.prim_id;
         } else {
@@ -79,47 +86,57 @@ struct TreeBuilder {
 };
 
 template <int W, class Node>
-void build(std::span<const PrimRef> refs, Buffer<Node>& nodes, InstanceTreeScratch& scratch) {
+void build(std::span<const PrimRef> refs, Buffer<Node>& nodes, InstanceTreeScratch& scratch,
+           const Bounds3* centres) {
   nodes.clear();
   const size_t n = refs.size();
   if (n == 0) return;
   Bounds3 cb;
-  for (const PrimRef& r : refs) {
-    const Vec3 c{r.lo.x + r.hi.x, r.lo.y + r.hi.y, r.lo.z + r.hi.z};
-    cb.lo = {std::min(cb.lo.x, c.x), std::min(cb.lo.y, c.y), std::min(cb.lo.z, c.z)};
-    cb.hi = {std::max(cb.hi.x, c.x), std::max(cb.hi.y, c.y), std::max(cb.hi.z, c.z)};
+  if (centres) {
+    cb = *centres;
+  } else {
+    for (const PrimRef& r : refs) {
+      const Vec3 c{r.lo.x + r.hi.x, r.lo.y + r.hi.y, r.lo.z + r.hi.z};
+      cb.lo = {std::min(cb.lo.x, c.x), std::min(cb.lo.y, c.y), std::min(cb.lo.z, c.z)};
+      cb.hi = {std::max(cb.hi.x, c.x), std::max(cb.hi.y, c.y), std::max(cb.hi.z, c.z)};
+    }
   }
   const float cells = 1024.0f, top = 1023.0f;
   const Vec3 ext{cb.hi.x - cb.lo.x, cb.hi.y - cb.lo.y, cb.hi.z - cb.lo.z};
   const Vec3 scale{ext.x > 0 ? cells / ext.x : 0.0f, ext.y > 0 ? cells / ext.y : 0.0f,
                    ext.z > 0 ? cells / ext.z : 0.0f};
+  RawArray<uint64_t>& records = scratch.records;
   RawArray<uint32_t>& keys = scratch.keys;
-  RawArray<uint32_t>& order = scratch.order;
-  if (keys.size() != n) keys.resize(n);  // the sort takes the whole array
-  if (order.size() != n) order.resize(n);
+  if (records.size() != n) records.resize(n), scratch.tmp.resize(n), keys.resize(n);
+  // v > 0 ? v : 0, not clamp: an instance whose world box overflowed to inf has a NaN
+  // centre, which this maps to 0 (converting NaN to an integer is undefined). (Not
+  // std::fmax: without -ffast-math GCC calls libm for it.)
+  auto cell = [top](float v) {
+    v = v > 0.0f ? v : 0.0f;
+    return uint32_t(v < top ? v : top);
+  };
   for (size_t i = 0; i < n; ++i) {
     const PrimRef& r = refs[i];
-    // fmax/fmin, not clamp: an instance whose world box overflowed to inf has a NaN centre,
-    // which fmax maps to 0 (converting NaN to an integer is undefined).
-    const float qx = std::fmin(std::fmax((r.lo.x + r.hi.x - cb.lo.x) * scale.x, 0.0f), top);
-    const float qy = std::fmin(std::fmax((r.lo.y + r.hi.y - cb.lo.y) * scale.y, 0.0f), top);
-    const float qz = std::fmin(std::fmax((r.lo.z + r.hi.z - cb.lo.z) * scale.z, 0.0f), top);
-    keys[i] = morton30(uint32_t(qx), uint32_t(qy), uint32_t(qz));
-    order[i] = uint32_t(i);
+    const uint32_t code = morton30(cell((r.lo.x + r.hi.x - cb.lo.x) * scale.x),
+                                   cell((r.lo.y + r.hi.y - cb.lo.y) * scale.y),
+                                   cell((r.lo.z + r.hi.z - cb.lo.z) * scale.z));
+    records[i] = uint64_t(code) << 32 | i;
   }
-  radix_sort(keys, order, 30);
+  // Stable on the codes (bits 32-61), so equal codes keep the refs' order. Serial, into
+  // buffers kept between builds: no fresh pages, no pack / unpack passes.
+  const uint64_t* order = radix_sort_packed(records.data(), scratch.tmp.data(), n, 32, 30);
   // The refs in Morton order, gathered once in a prefetched loop (the tree build then reads
   // them sequentially instead of at random).
   Buffer<PrimRef>& sorted = scratch.sorted;
   sorted.resize(n);
   for (size_t i = 0; i < n; ++i) {
-    if (i + 16 < n) __builtin_prefetch(&refs[order[i + 16]]);
-    sorted[i] = refs[order[i]];
-    order[i] = uint32_t(i);
+    if (i + 16 < n) __builtin_prefetch(&refs[uint32_t(order[i + 16])]);
+    sorted[i] = refs[uint32_t(order[i])];
+    keys[i] = uint32_t(order[i] >> 32);
   }
   nodes.reserve(n / (W - 1) + 2);
   nodes.emplace_back();
-  TreeBuilder<W, Node> tb{sorted, &keys[0], &order[0], nodes};
+  TreeBuilder<W, Node> tb{sorted.data(), &keys[0], nodes};
   if (n == 1) {
     // One instance: the root holds one leaf slot.
     Node node;
@@ -140,12 +157,12 @@ void build(std::span<const PrimRef> refs, Buffer<Node>& nodes, InstanceTreeScrat
 }  // namespace
 
 void build_instance_tree(std::span<const PrimRef> refs, Buffer<Bvh4Node>& nodes,
-                         InstanceTreeScratch& scratch) {
-  build<4, Bvh4Node>(refs, nodes, scratch);
+                         InstanceTreeScratch& scratch, const Bounds3* centres) {
+  build<4, Bvh4Node>(refs, nodes, scratch, centres);
 }
 void build_instance_tree(std::span<const PrimRef> refs, Buffer<Bvh8Node>& nodes,
-                         InstanceTreeScratch& scratch) {
-  build<8, Bvh8Node>(refs, nodes, scratch);
+                         InstanceTreeScratch& scratch, const Bounds3* centres) {
+  build<8, Bvh8Node>(refs, nodes, scratch, centres);
 }
 
 }  // namespace kestrel

@@ -2,6 +2,7 @@
 // the instances rebuilt at every commit(), and traversal through both in the SIMD kernels.
 #include <fmt/format.h>
 
+#include <cfloat>
 #include <cmath>
 #include <cstdio>
 #include <fstream>
@@ -77,6 +78,21 @@ double determinant(const Affine3& a) {
 }  // namespace
 
 std::string transform_problem(const Affine3& a) {
+  {
+    // The common case first, without square roots: every entry finite and det^2 >
+    // 1e-24 * (the product of the squared column norms), the test below squared (the
+    // squares of floats stay far inside double's range).
+    bool finite = true;
+    for (int i = 0; i < 12; ++i) finite &= std::fabs(a.m[i]) <= FLT_MAX;  // false for NaN
+    if (finite) {
+      double scale2 = 1;
+      for (int c = 0; c < 3; ++c)
+        scale2 *= double(a.m[c]) * a.m[c] + double(a.m[4 + c]) * a.m[4 + c] +
+                  double(a.m[8 + c]) * a.m[8 + c];
+      const double det = determinant(a);
+      if (scale2 > 0 && det * det > 1e-24 * scale2) return {};
+    }
+  }
   for (int i = 0; i < 12; ++i)
     if (!std::isfinite(a.m[i])) return fmt::format("transform entry m[{}] is {}", i, a.m[i]);
   // Singular relative to the size of its columns: |det| tiny against the product of norms.
@@ -337,6 +353,7 @@ CommitStats InstancedScene::commit() {
   refs.clear();
   refs.reserve(s.instances.size());
   s.data.reserve(s.instances.size());
+  Bounds3 centres;  // of lo + hi, for the instance tree's Morton codes
   for (size_t i = 0; i < s.instances.size(); ++i) {
     const Impl::InstanceSlot& inst = s.instances[i];
     if (!inst.live) continue;
@@ -364,6 +381,8 @@ CommitStats InstancedScene::commit() {
     r.lo = {lo[0], lo[1], lo[2]};
     r.hi = {hi[0], hi[1], hi[2]};
     s.world = {min(s.world.lo, r.lo), max(s.world.hi, r.hi)};
+    const Vec3 c2{lo[0] + hi[0], lo[1] + hi[1], lo[2] + hi[2]};
+    centres = {min(centres.lo, c2), max(centres.hi, c2)};
     r.prim_id = uint32_t(s.data.size());
     refs.push_back(r);
     kernels::InstanceData d;
@@ -382,9 +401,9 @@ CommitStats InstancedScene::commit() {
   if (resolve_builder(s.config.tlas, refs.size()) == Builder::lbvh) {
     // The default: Morton order straight into wide nodes (instance_tree.h).
     if (s.layout == Layout::bvh4)
-      build_instance_tree(refs, s.tlas4, s.tree_scratch);
+      build_instance_tree(refs, s.tlas4, s.tree_scratch, &centres);
     else
-      build_instance_tree(refs, s.tlas8, s.tree_scratch);
+      build_instance_tree(refs, s.tlas8, s.tree_scratch, &centres);
   } else {
     // Any other builder: its binary tree, collapsed.
     const Bvh2 tlas = build_bvh(refs, s.config.tlas);

@@ -2,6 +2,7 @@
 // once per instruction set (reconstruct_*.cpp include reconstruct.inl with their own flags)
 // and picked per call by default_isa(), the choice --isa / KESTREL_ISA / set_default_isa make.
 #pragma once
+#include <cstdint>
 #include <vector>
 
 #include "kestrel/isa.h"
@@ -28,6 +29,7 @@ struct GridAxis {
 // The per-output-pixel reconstruction (model.step), rows [r0, r1), by reconstruct_for(isa).
 struct Recon {
   const float *y, *mdil, *mu, *sigma, *grid, *hist;
+  const uint8_t* keep;  // per low-resolution pixel: its history sample shows the same surface
   float *next, *out;
   const Axis *ax, *ay;
   const GridAxis *gx, *gy;

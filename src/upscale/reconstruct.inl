@@ -37,7 +37,8 @@ static void reconstruct_rows(const Recon& a, int r0, int r1) {
         const size_t pl = size_t(j0) * size_t(a.w) + size_t(i0);
         const float hx = float(X) + 0.5f + float(a.f) * a.mdil[2 * pl],
                     hy = float(Y) + 0.5f + float(a.f) * a.mdil[2 * pl + 1];
-        const bool valid = hx >= 0 && hx < float(a.W) && hy >= 0 && hy < float(a.H);
+        const bool valid =
+            hx >= 0 && hx < float(a.W) && hy >= 0 && hy < float(a.H) && a.keep[pl] != 0;
         // Parameters: bilinear from the grid (the rows already blended into gv).
         const float tx = a.gx->t[size_t(X)];
         alignas(16) float prm[4];
@@ -49,7 +50,7 @@ static void reconstruct_rows(const Recon& a, int r0, int r1) {
         const float dx0 = a.ax->d0[size_t(X)];
         const float conf = std::exp(-prm[2] * float(a.f * a.f) * (dx0 * dx0 + dy0 * dy0));
         const float alpha = valid ? prm[0] * conf : 1.0f;
-        const __m128 hc = sample_catmull_rom3(a.hist, a.W, a.H, hx, hy);
+        const __m128 hc = sample_catmull_rom3<true>(a.hist, a.W, a.H, hx, hy);
         const __m128 m = _mm_loadu_ps(&a.mu[3 * pl]),
                      sg = _mm_mul_ps(_mm_set1_ps(prm[1]), _mm_loadu_ps(&a.sigma[3 * pl]));
         const __m128 v = _mm_min_ps(_mm_max_ps(hc, _mm_sub_ps(m, sg)), _mm_add_ps(m, sg));

@@ -49,7 +49,10 @@ static inline void sample_bilinear(const float* img, int w, int h, float x, floa
 }
 
 // Catmull-Rom of an RGB image (interleaved, one float of padding after the last pixel: each
-// tap is one 4-float load, the fourth lane is junk).
+// tap is one 4-float load, the fourth lane is junk). kFootprint: the result clamped per
+// channel to the range of the four central taps (the bilinear footprint), so the filter's
+// negative lobes cannot overshoot what the image holds there (the history's form).
+template <bool kFootprint = false>
 static inline __m128 sample_catmull_rom3(const float* img, int w, int h, float x, float y) {
   const float xf = x - 0.5f, yf = y - 0.5f;
   const int x1 = floor_int(xf), y1 = floor_int(yf);
@@ -68,13 +71,20 @@ static inline __m128 sample_catmull_rom3(const float* img, int w, int h, float x
     for (int i = 0; i < 4; ++i) iy[i] = clampi(y1 + i - 1, 0, h - 1);
   }
   __m128 acc = _mm_setzero_ps();
+  __m128 lo = _mm_set1_ps(3e38f), hi = _mm_set1_ps(-3e38f);
   for (int j = 0; j < 4; ++j) {
     const float* row = img + size_t(iy[j]) * size_t(w) * 3;
-    __m128 r = _mm_mul_ps(_mm_set1_ps(wx[0]), _mm_loadu_ps(row + size_t(ix[0]) * 3));
-    for (int i = 1; i < 4; ++i)
-      r = _mm_add_ps(r, _mm_mul_ps(_mm_set1_ps(wx[i]), _mm_loadu_ps(row + size_t(ix[i]) * 3)));
+    __m128 t[4];
+    for (int i = 0; i < 4; ++i) t[i] = _mm_loadu_ps(row + size_t(ix[i]) * 3);
+    __m128 r = _mm_mul_ps(_mm_set1_ps(wx[0]), t[0]);
+    for (int i = 1; i < 4; ++i) r = _mm_add_ps(r, _mm_mul_ps(_mm_set1_ps(wx[i]), t[i]));
     acc = _mm_add_ps(acc, _mm_mul_ps(_mm_set1_ps(wy[j]), r));
+    if (kFootprint && (j == 1 || j == 2)) {
+      lo = _mm_min_ps(lo, _mm_min_ps(t[1], t[2]));
+      hi = _mm_max_ps(hi, _mm_max_ps(t[1], t[2]));
+    }
   }
+  if (kFootprint) acc = _mm_min_ps(_mm_max_ps(acc, lo), hi);
   return acc;
 }
 

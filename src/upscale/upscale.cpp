@@ -32,6 +32,9 @@ constexpr float kLuma[3] = {0.2126f, 0.7152f, 0.0722f};
 constexpr int kFeatures = 11, kLowFeatures = 8, kOutputs = 3;
 constexpr float kCurrentSharpness = 2.0f;
 constexpr float kMinDepth = 1e-3f, kMaxMotion = 65536.0f;
+// History is dropped where no previous depth around the reprojected position is within this
+// fraction of the current depth (the denoisers' test): a disocclusion.
+constexpr float kDisocclusion = 0.1f;
 constexpr char kMagic[9] = "KSTRLUPW";
 constexpr uint32_t kArchitecture = 1;
 // The TAAU-like baseline's constants, picked on the training clips by a grid search
@@ -181,6 +184,8 @@ struct Upscaler::Impl {
   // Per-frame buffers (reused).
   std::vector<float> y, depth, mdil, mu, sigma, feat, grid, act0, act1, scratch, hist, next_hist,
       prev_depth;
+  std::vector<uint8_t> keep;       // per low-resolution pixel: not disoccluded (disocclusion())
+  float prev_jx = 0, prev_jy = 0;  // the previous frame's jitter
   Axis ax, ay;
   GridAxis gx, gy;
   std::unique_ptr<upscale::NsrrNetwork> nsrr;
@@ -188,6 +193,7 @@ struct Upscaler::Impl {
   void prepare(const UpscaleInput& in);
   void spatial(const UpscaleInput& in, FloatImage& out, bool cubic);
   void temporal(const UpscaleInput& in, FloatImage& out);
+  void disocclusion(float jx, float jy);
 };
 
 Upscaler::Upscaler(const UpscalerOptions& options) : impl_(std::make_unique<Impl>()) {
@@ -365,6 +371,43 @@ void Upscaler::Impl::prepare(const UpscaleInput& in) {
   });
 }
 
+// keep[p] = 1 where the history of low-resolution pixel p shows the surface p shows: one of
+// the four previous samples around where p's sample was (its position plus m, the least-depth
+// motion the history is fetched with, in the previous frame's sample grid, jitter included;
+// edges clamped) has a depth within kDisocclusion of p's plus p's depth slope (the change to
+// the next sample on the smoother side, in x plus in y: at most a pixel separates the two
+// frames' samples), or both are sky. (model.keep_history)
+void Upscaler::Impl::disocclusion(float jx, float jy) {
+  keep.resize(size_t(w) * size_t(h));
+  parallel_rows(h, 8, [&](int r0, int r1) {
+    for (int j = r0; j < r1; ++j)
+      for (int i = 0; i < w; ++i) {
+        const size_t p = size_t(j) * size_t(w) + size_t(i);
+        const float d = depth[p];
+        // The depth's change to the next sample on the smoother side, in x and in y: a
+        // surface seen at a grazing angle changes that much between neighbouring samples.
+        auto at = [&](int x, int y) {
+          return std::fabs(
+              depth[size_t(clampi(y, 0, h - 1)) * size_t(w) + size_t(clampi(x, 0, w - 1))] - d);
+        };
+        const float slope =
+            std::min(at(i - 1, j), at(i + 1, j)) + std::min(at(i, j - 1), at(i, j + 1));
+        const float tol = kDisocclusion * std::max(d, kMinDepth) + slope;
+        const int qx = floor_int(float(i) + jx + mdil[2 * p] - prev_jx);
+        const int qy = floor_int(float(j) + jy + mdil[2 * p + 1] - prev_jy);
+        bool same = false;
+        for (int b = 0; b <= 1; ++b) {
+          const float* row = &prev_depth[size_t(clampi(qy + b, 0, h - 1)) * size_t(w)];
+          for (int a = 0; a <= 1; ++a) {
+            const float dq = row[clampi(qx + a, 0, w - 1)];
+            same |= (d > 0 && dq > 0) ? std::fabs(dq - d) <= tol : (d > 0) == (dq > 0);
+          }
+        }
+        keep[p] = same;
+      }
+  });
+}
+
 void Upscaler::Impl::temporal(const UpscaleInput& in, FloatImage& out) {
   const int f = options.factor;
   const int W = out.width, H = out.height;
@@ -462,6 +505,7 @@ void Upscaler::Impl::temporal(const UpscaleInput& in, FloatImage& out) {
     timer = Timer();
   }
   // Reconstruction (model.step): per output pixel.
+  if (has_history) disocclusion(in.jitter_x, in.jitter_y);
   ax.build(W, w, f, in.jitter_x, kCurrentSharpness),
       ay.build(H, h, f, in.jitter_y, kCurrentSharpness);
   gx.build(W, gw), gy.build(H, gh);
@@ -471,12 +515,14 @@ void Upscaler::Impl::temporal(const UpscaleInput& in, FloatImage& out) {
   r.y = y.data(), r.mdil = mdil.data(), r.mu = mu.data(), r.sigma = sigma.data(),
   r.grid = grid.data();
   r.hist = hist.data(), r.next = next_hist.data(), r.out = out.pixels.data();
+  r.keep = keep.data();
   r.ax = &ax, r.ay = &ay, r.gx = &gx, r.gy = &gy;
   r.w = w, r.h = h, r.W = W, r.H = H, r.gw = gw, r.f = f, r.history = has_history;
   const upscale::ReconstructFn reconstruct_rows = upscale::reconstruct_for(default_isa());
   parallel_rows(H, 4, [&](int r0, int r1) { reconstruct_rows(r, r0, r1); });
   hist.swap(next_hist);
   prev_depth.swap(depth);  // prepare() rewrites every pixel of depth next frame
+  prev_jx = in.jitter_x, prev_jy = in.jitter_y;
   has_history = true;
   times.reconstruct = timer.ms();
 }

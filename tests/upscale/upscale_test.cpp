@@ -2,15 +2,19 @@
 // checks, and behaviour against analytic oracles: a constant sequence is a fixed point; a
 // static or translating pattern point-sampled at the jitter converges towards its
 // pixel-averaged reference, better than the current frame alone, and only with the right
-// motion vectors; bad input is an error.
+// motion vectors; disoccluded pixels drop their history, the output never leaves the range
+// of the samples seen, a lighting change is followed; bad input is an error.
 #include "kestrel/upscale.h"
 
+#include <fmt/format.h>
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
 #include <nlohmann/json.hpp>
+#include <random>
 
 #include "kestrel/error.h"
 #include "kestrel/io.h"
@@ -35,8 +39,8 @@ TEST(Upscale, NeuralMatchesPyTorchOnTheFixture) {
   ASSERT_TRUE(meta_file) << kFixture;
   const nlohmann::json meta = nlohmann::json::parse(meta_file);
   const int frames = meta["frames"];
-  // Every ISA's convolution kernels this CPU runs (the reconstruction itself is chosen by the
-  // compiler's target_clones; see docs/architecture.md).
+  // Every ISA this CPU runs: the convolution kernels and the reconstruction both follow
+  // default_isa().
   for (Isa isa : {Isa::sse2, Isa::avx2, Isa::avx512}) {
     if (!isa_supported(isa)) continue;
     SCOPED_TRACE(isa_name(isa));
@@ -218,6 +222,147 @@ TEST(Upscale, ConstantSequenceIsAFixedPoint) {
             for (int k = 0; k < 3; ++k)
               ASSERT_NEAR(out.at(x, y)[k], 0.3f + 0.2f * float(k), 2e-4)
                   << upscale_method_name(m) << " x" << f;
+      }
+    }
+}
+
+// A grey square (depth 1) moving right by 5 low-resolution pixels a frame over a static
+// background of fine stripes (depth 4); the square's grey lies inside the stripes'
+// neighbourhood clamp, so only the depth test can tell its history from the background's.
+struct Occluder {
+  static constexpr int w = 56, h = 32, speed = 5, top = 8, bottom = 24;
+  static int left(int t) { return 6 + speed * t; }  // the square spans [left, left + 12)
+  static bool inside(int t, float x, float y) {
+    return x >= float(left(t)) && x < float(left(t) + 12) && y >= top && y < bottom;
+  }
+  float brightness = 1.0f;
+  void frame(int t, float jx, float jy, FloatImage& c, FloatImage& d, FloatImage& m) const {
+    c = FloatImage(w, h, 3), d = FloatImage(w, h, 1), m = FloatImage(w, h, 2);
+    for (int j = 0; j < h; ++j)
+      for (int i = 0; i < w; ++i) {
+        const float x = float(i) + jx, y = float(j) + jy;
+        const bool sq = inside(t, x, y);
+        const float v = sq ? 0.5f : (int(std::floor(x / 1.5f)) % 2 ? 0.85f : 0.15f);
+        for (int k = 0; k < 3; ++k) c.at(i, j)[k] = brightness * v;
+        d.at(i, j)[0] = sq ? 1.0f : 4.0f;
+        m.at(i, j)[0] = sq ? -float(speed) : 0.0f;
+      }
+  }
+};
+
+// The same frame through an upsampler without history: the current frame's reconstruction.
+FloatImage without_history(UpscaleMethod m, int f, const UpscaleInput& in) {
+  Upscaler fresh(options(m, f));
+  return fresh.upscale(in);
+}
+
+TEST(Upscale, DisoccludedPixelsDropTheirHistory) {
+  for (UpscaleMethod m : {UpscaleMethod::taau, UpscaleMethod::neural})
+    for (int f : {2, 4}) {
+      SCOPED_TRACE(fmt::format("{} x{}", upscale_method_name(m), f));
+      Upscaler up(options(m, f));
+      const Occluder scene;
+      for (int t = 0; t < 6; ++t) {
+        float jx, jy;
+        frame_jitter(uint32_t(t), jx, jy);
+        FloatImage c, d, mo;
+        scene.frame(t, jx, jy, c, d, mo);
+        const UpscaleInput in{&c, &d, &mo, jx, jy};
+        const FloatImage out = up.upscale(in);
+        if (t < 3) continue;
+        const FloatImage cur = without_history(m, f, in);
+        // Output pixels whose nearest sample lies where the square was last frame and is not
+        // now, a sample clear of where it was (the previous samples around it were all on
+        // the square) and two clear of where it is (beyond the motion's 3x3 dilation): the
+        // current frame alone. Far from the square's path: the history is kept.
+        double disoccluded = 0, kept = 0;
+        int n_dis = 0, n_kept = 0;
+        for (int Y = 0; Y < out.height; ++Y)
+          for (int X = 0; X < out.width; ++X) {
+            const int i0 = int(std::floor((X + 0.5) / f - jx + 0.5));
+            const int j0 = int(std::floor((Y + 0.5) / f - jy + 0.5));
+            const float sx = float(i0) + jx, sy = float(j0) + jy;
+            double diff = 0;
+            for (int k = 0; k < 3; ++k)
+              diff = std::max(diff, double(std::abs(out.at(X, Y)[k] - cur.at(X, Y)[k])));
+            if (sx >= float(Occluder::left(t - 1) + 1) && sx < float(Occluder::left(t) - 2) &&
+                sy >= Occluder::top + 1 && sy < Occluder::bottom - 2)
+              disoccluded = std::max(disoccluded, diff), ++n_dis;
+            if (sy < Occluder::top - 3 || sy >= Occluder::bottom + 3) kept += diff, ++n_kept;
+          }
+        ASSERT_GT(n_dis, 0);
+        EXPECT_LT(disoccluded, 1e-4) << "frame " << t;
+        EXPECT_GT(kept / n_kept, 1e-4) << "frame " << t;  // the history is used elsewhere
+      }
+    }
+}
+
+// Random black-or-white samples (mostly white: the neighbourhood clamp's upper bound, mu + gamma
+// sigma, then lies above the brightest sample) under random sub-pixel motion: every output
+// channel stays within the range of the samples seen so far (in the reconstruction's
+// y = c / (1 + L(c)) space, where every step is a clamp or a convex combination), because
+// Catmull-Rom's overshoot of the history is clamped to the history's own footprint.
+TEST(Upscale, OutputStaysWithinTheSamplesSeen) {
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<float> u01(0.0f, 1.0f);
+  auto to_y = [](const float* c, int k) {
+    return c[k] / (1.0f + 0.2126f * c[0] + 0.7152f * c[1] + 0.0722f * c[2]);
+  };
+  for (UpscaleMethod m : {UpscaleMethod::taau, UpscaleMethod::neural})
+    for (int f : {2, 4}) {
+      SCOPED_TRACE(fmt::format("{} x{}", upscale_method_name(m), f));
+      Upscaler up(options(m, f));
+      float lo[3] = {1e9f, 1e9f, 1e9f}, hi[3] = {-1e9f, -1e9f, -1e9f};
+      double worst = 0;
+      for (int t = 0; t < 12; ++t) {
+        FloatImage c(24, 16, 3), d(24, 16, 1), mo(24, 16, 2);
+        const float mx = 2 * u01(rng) - 1, my = 2 * u01(rng) - 1;
+        for (int p = 0; p < 24 * 16; ++p) {
+          const float v = u01(rng) < 0.85f ? 4.0f : 0.0f;
+          for (int k = 0; k < 3; ++k) c.pixels[3 * size_t(p) + size_t(k)] = v;
+          d.pixels[size_t(p)] = 2.0f;
+          mo.pixels[2 * size_t(p)] = mx, mo.pixels[2 * size_t(p) + 1] = my;
+          for (int k = 0; k < 3; ++k) {
+            const float y = to_y(&c.pixels[3 * size_t(p)], k);
+            lo[k] = std::min(lo[k], y), hi[k] = std::max(hi[k], y);
+          }
+        }
+        float jx, jy;
+        frame_jitter(uint32_t(t), jx, jy);
+        const FloatImage out = up.upscale({&c, &d, &mo, jx, jy});
+        for (size_t p = 0; p < out.pixels.size() / 3; ++p)
+          for (int k = 0; k < 3; ++k) {
+            const float y = to_y(&out.pixels[3 * p], k);
+            worst = std::max({worst, double(y - hi[k]), double(lo[k] - y)});
+          }
+      }
+      EXPECT_LT(worst, 1e-4);
+    }
+}
+
+// A static scene whose light drops to a fifth: the next output follows the new frame (the
+// neighbourhood clamp rejects the brighter history) instead of carrying the old brightness.
+TEST(Upscale, LightingChangeRejectsTheHistory) {
+  for (UpscaleMethod m : {UpscaleMethod::taau, UpscaleMethod::neural})
+    for (int f : {2, 4}) {
+      SCOPED_TRACE(fmt::format("{} x{}", upscale_method_name(m), f));
+      Upscaler up(options(m, f));
+      Occluder scene;
+      for (int t = 0; t < 9; ++t) {
+        scene.brightness = t < 8 ? 1.0f : 0.2f;
+        float jx, jy;
+        frame_jitter(uint32_t(t), jx, jy);
+        FloatImage c, d, mo;
+        scene.frame(0, jx, jy, c, d, mo);  // the square does not move
+        std::fill(mo.pixels.begin(), mo.pixels.end(), 0.0f);
+        const UpscaleInput in{&c, &d, &mo, jx, jy};
+        const FloatImage out = up.upscale(in);
+        if (t < 8) continue;
+        const FloatImage cur = without_history(m, f, in);
+        double a = 0, b = 0;
+        for (size_t i = 0; i < out.pixels.size(); ++i) a += out.pixels[i], b += cur.pixels[i];
+        EXPECT_LT(a, 1.3 * b);  // the history alone would be 5x, kept unclamped ~2.6x
+        EXPECT_GT(a, 0.9 * b);
       }
     }
 }
