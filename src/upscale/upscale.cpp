@@ -380,31 +380,35 @@ void Upscaler::Impl::prepare(const UpscaleInput& in) {
 void Upscaler::Impl::disocclusion(float jx, float jy) {
   keep.resize(size_t(w) * size_t(h));
   parallel_rows(h, 8, [&](int r0, int r1) {
-    for (int j = r0; j < r1; ++j)
+    for (int j = r0; j < r1; ++j) {
+      const float* up = &depth[size_t(clampi(j - 1, 0, h - 1)) * size_t(w)];
+      const float* mid = &depth[size_t(j) * size_t(w)];
+      const float* down = &depth[size_t(clampi(j + 1, 0, h - 1)) * size_t(w)];
       for (int i = 0; i < w; ++i) {
         const size_t p = size_t(j) * size_t(w) + size_t(i);
-        const float d = depth[p];
+        const float d = mid[i];
         // The depth's change to the next sample on the smoother side, in x and in y: a
         // surface seen at a grazing angle changes that much between neighbouring samples.
-        auto at = [&](int x, int y) {
-          return std::fabs(
-              depth[size_t(clampi(y, 0, h - 1)) * size_t(w) + size_t(clampi(x, 0, w - 1))] - d);
-        };
-        const float slope =
-            std::min(at(i - 1, j), at(i + 1, j)) + std::min(at(i, j - 1), at(i, j + 1));
+        const float left = std::fabs(mid[clampi(i - 1, 0, w - 1)] - d),
+                    right = std::fabs(mid[clampi(i + 1, 0, w - 1)] - d);
+        const float above = std::fabs(up[i] - d), below = std::fabs(down[i] - d);
+        const float slope = std::min(left, right) + std::min(above, below);
         const float tol = kDisocclusion * std::max(d, kMinDepth) + slope;
         const int qx = floor_int(float(i) + jx + mdil[2 * p] - prev_jx);
         const int qy = floor_int(float(j) + jy + mdil[2 * p + 1] - prev_jy);
+        const bool sky = !(d > 0);
         bool same = false;
         for (int b = 0; b <= 1; ++b) {
           const float* row = &prev_depth[size_t(clampi(qy + b, 0, h - 1)) * size_t(w)];
           for (int a = 0; a <= 1; ++a) {
             const float dq = row[clampi(qx + a, 0, w - 1)];
-            same |= (d > 0 && dq > 0) ? std::fabs(dq - d) <= tol : (d > 0) == (dq > 0);
+            // Both surfaces within tol, or both sky (depths are >= 0).
+            same |= (sky == !(dq > 0)) & (sky | (std::fabs(dq - d) <= tol));
           }
         }
         keep[p] = same;
       }
+    }
   });
 }
 
