@@ -33,7 +33,7 @@ constexpr int kFeatures = 11, kLowFeatures = 8, kOutputs = 3;
 constexpr float kCurrentSharpness = 2.0f;
 constexpr float kMinDepth = 1e-3f, kMaxMotion = 65536.0f;
 // History is dropped where no previous depth around the reprojected position is within this
-// fraction of the current depth (the denoisers' test): a disocclusion.
+// fraction of the current depth (the denoisers' test) plus the depth's slope: a disocclusion.
 constexpr float kDisocclusion = 0.1f;
 constexpr char kMagic[9] = "KSTRLUPW";
 constexpr uint32_t kArchitecture = 1;
