@@ -26,7 +26,8 @@ Lamborghini:
 Each family's own light flags (sun, sky, lights file) are kept; --max-depth and --clamp apply
 to inputs and targets alike.
 
-Re-running skips finished clips (a clip is finished when its manifest entry exists).
+Re-running skips finished clips (a clip is finished when its manifest entry exists); with
+--denoised, a finished clip rendered without it gets its denoised inputs added.
 """
 import argparse
 import json
@@ -81,6 +82,20 @@ def run(cmd):
     subprocess.run(cmd, check=True, stdout=subprocess.DEVNULL)
 
 
+def add_denoised(args, entry, d, w, h):
+    """A finished clip rendered without --denoised: its denoised 1-spp inputs only, from the
+    manifest entry's own scene, path and flags (the clean inputs and targets stay)."""
+    base = kestrel_mpi.prefix(args) + [args.kestrel, "render-sequence", entry["scene"], "--path", entry["path"], "--frames",
+            str(entry["frames"]), "--quiet", "--max-depth", str(entry["max_depth"]), "--clamp", str(entry["clamp"])] + entry["flags"]
+    if entry.get("env") not in (None, "none", "default"):
+        base += ["--env", entry["env"]]
+    for f in (2, 4):
+        sub = os.path.join(d, f"x{f}_dn")
+        run(base + ["--res", f"{w // f}x{h // f}", "--spp", "1", "--fixed-jitter", "--seed", "13",
+                    "--denoise", args.denoised, "-o", sub, "--pfm", os.path.join(sub, "pfm")])
+    entry["denoised"] = args.denoised
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--out", default=os.path.join(ROOT, "out", "upscale_dataset"))
@@ -112,7 +127,11 @@ def main():
     for clip in order:
         if args.split != "all" and clip["split"] != args.split:
             continue
-        if clip["name"] in manifest["clips"]:
+        done = manifest["clips"].get(clip["name"])
+        if done and args.denoised and not done.get("denoised"):
+            add_denoised(args, done, os.path.join(args.out, clip["name"]), w, h)
+            json.dump(manifest, open(manifest_path, "w"), indent=1)
+        if done:
             continue
         d = os.path.join(args.out, clip["name"])
         t0 = time.time()

@@ -8,7 +8,7 @@ network for both factors (the factor is an input), and writes
 
     train.py [--data out/upscale_dataset] [--steps 1200] [--seed 1] [--threads 2]
              [--tune-taau [--taau-grid A;G;K]] [--loss aces|y] [--fixture-only]
-             [--fixture-refresh]
+             [--fixture-refresh] [--denoised-fraction P]
 
 --tune-taau first picks the TAAU-like baseline's constants (a, gamma, kappa) on the training
 clips (grid search, L1 in the tone-mapped space) and writes them into the provenance; the
@@ -174,6 +174,8 @@ def main():
                     help="a values; gamma values; kappa values")
     ap.add_argument("--loss", default="aces", choices=["aces", "y"],
                     help="L1 on the evaluation's tone map (ACES fit + sRGB) or in the network's y space")
+    ap.add_argument("--denoised-fraction", type=float, default=0.0,
+                    help="share of the samples taken from the clips' denoised 1-spp inputs (make_dataset.py --denoised)")
     ap.add_argument("--fixture-only", action="store_true")
     ap.add_argument("--fixture-refresh", action="store_true",
                     help="recompute the fixture's outputs from its inputs with --weights, then stop")
@@ -201,6 +203,15 @@ def main():
     names = [n for n, c in manifest["clips"].items() if c["split"] == "train"]
     clips = [load_clip(args.data, n, manifest["clips"][n]["frames"]) for n in names]
     print(f"{len(clips)} training clips: {', '.join(names)}", flush=True)
+    # The same clips' denoised 1-spp inputs (make_dataset.py --denoised), same targets: what
+    # the real-time loop feeds the upsampler.
+    denoised = []
+    if args.denoised_fraction > 0:
+        denoised = [(load_clip(args.data, n, manifest["clips"][n]["frames"], "_dn")[0], c[1])
+                    for n, c in zip(names, clips) if manifest["clips"][n].get("denoised")]
+        if not denoised:
+            sys.exit(f"--denoised-fraction: no clip of {args.data} has denoised inputs (make_dataset.py --denoised)")
+        print(f"{len(denoised)} clips with denoised inputs, used for {args.denoised_fraction:.0%} of the samples", flush=True)
     constants = dict(M.TAAU)
     if args.tune_taau:
         grid = [tuple(float(v) for v in part.split(",")) for part in args.taau_grid.split(";")]
@@ -218,7 +229,7 @@ def main():
         f = 2 if step % 2 == 0 else 4
         seqs, refs, jits = [], [], []
         for _ in range(args.batch):
-            ins, ref = random.choice(clips)
+            ins, ref = random.choice(denoised if denoised and random.random() < args.denoised_fraction else clips)
             T, _, Hf, Wf = ref.shape
             n = min(args.frames, T)
             t0 = random.randint(0, T - n)
@@ -257,6 +268,7 @@ def main():
         dataset=os.path.relpath(args.data, ROOT),
         clips=names,
         command="python3 scripts/upscale/train.py " + " ".join(sys.argv[1:]),
+        denoised_fraction=args.denoised_fraction,
         loss=args.loss, steps=args.steps, crop=args.crop, batch=args.batch, frames=args.frames, lr=args.lr, seed=args.seed,
         taau_constants=constants,
         final_l1=float(np.mean([h[2] for h in tail])), final_temporal=float(np.mean([h[3] for h in tail])),
