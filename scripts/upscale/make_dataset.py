@@ -82,17 +82,30 @@ def run(cmd):
     subprocess.run(cmd, check=True, stdout=subprocess.DEVNULL)
 
 
+def base_command(args, scene, path, frames, max_depth, clamp, flags, env):
+    """`kestrel render-sequence` of a clip, without resolution, samples and outputs."""
+    base = kestrel_mpi.prefix(args) + [args.kestrel, "render-sequence", scene, "--path", path, "--frames", str(frames),
+                                       "--quiet", "--max-depth", str(max_depth), "--clamp", str(clamp)] + flags
+    if env and env not in ("none", "default"):
+        base += ["--env", env]
+    return base
+
+
+def render_denoised(args, base, d, f, w, h):
+    """The inputs at 1/f of (w, h), 1 spp through kestrel's denoiser: what the real-time loop
+    feeds the upsampler."""
+    sub = os.path.join(d, f"x{f}_dn")
+    run(base + ["--res", f"{w // f}x{h // f}", "--spp", "1", "--fixed-jitter", "--seed", "13",
+                "--denoise", args.denoised, "-o", sub, "--pfm", os.path.join(sub, "pfm")])
+
+
 def add_denoised(args, entry, d, w, h):
     """A finished clip rendered without --denoised: its denoised 1-spp inputs only, from the
     manifest entry's own scene, path and flags (the clean inputs and targets stay)."""
-    base = kestrel_mpi.prefix(args) + [args.kestrel, "render-sequence", entry["scene"], "--path", entry["path"], "--frames",
-            str(entry["frames"]), "--quiet", "--max-depth", str(entry["max_depth"]), "--clamp", str(entry["clamp"])] + entry["flags"]
-    if entry.get("env") not in (None, "none", "default"):
-        base += ["--env", entry["env"]]
+    base = base_command(args, entry["scene"], entry["path"], entry["frames"], entry["max_depth"], entry["clamp"],
+                        entry["flags"], entry.get("env"))
     for f in (2, 4):
-        sub = os.path.join(d, f"x{f}_dn")
-        run(base + ["--res", f"{w // f}x{h // f}", "--spp", "1", "--fixed-jitter", "--seed", "13",
-                    "--denoise", args.denoised, "-o", sub, "--pfm", os.path.join(sub, "pfm")])
+        render_denoised(args, base, d, f, w, h)
     entry["denoised"] = args.denoised
 
 
@@ -146,18 +159,13 @@ def main():
             env = open(os.path.join(rd, "env.txt")).read().strip()
         test = clip["split"] == "test"
         frames = args.test_frames if test else args.frames
-        base = kestrel_mpi.prefix(args) + [args.kestrel, "render-sequence", scene, "--path", path, "--frames", str(frames), "--quiet",
-                "--max-depth", str(args.max_depth), "--clamp", str(args.clamp)] + flags
-        if env and env != "none":
-            base += ["--env", env]
+        base = base_command(args, scene, path, frames, args.max_depth, args.clamp, flags, env)
         for f in (2, 4):
             sub = os.path.join(d, f"x{f}")
             run(base + ["--res", f"{w // f}x{h // f}", "--spp", str(args.in_spp), "--fixed-jitter", "--seed", "11",
                         "-o", sub, "--pfm", os.path.join(sub, "pfm")])
-            if args.denoised:  # what the real-time loop feeds the upsampler: 1 spp, denoised
-                sub = os.path.join(d, f"x{f}_dn")
-                run(base + ["--res", f"{w // f}x{h // f}", "--spp", "1", "--fixed-jitter", "--seed", "13",
-                            "--denoise", args.denoised, "-o", sub, "--pfm", os.path.join(sub, "pfm")])
+            if args.denoised:
+                render_denoised(args, base, d, f, w, h)
         ref_spp = args.test_ref_spp if test else args.ref_spp
         run(base + ["--res", args.res, "--spp", str(ref_spp), "--seed", "7", "-o", os.path.join(d, "full"), "--pfm",
                     os.path.join(d, "full", "pfm"), "--png", "1"])

@@ -86,21 +86,11 @@ struct TreeBuilder {
 };
 
 template <int W, class Node>
-void build(std::span<const PrimRef> refs, Buffer<Node>& nodes, InstanceTreeScratch& scratch,
-           const Bounds3* centres) {
+void build(std::span<const PrimRef> refs, const Bounds3& cb, Buffer<Node>& nodes,
+           InstanceTreeScratch& scratch) {
   nodes.clear();
   const size_t n = refs.size();
   if (n == 0) return;
-  Bounds3 cb;
-  if (centres) {
-    cb = *centres;
-  } else {
-    for (const PrimRef& r : refs) {
-      const Vec3 c{r.lo.x + r.hi.x, r.lo.y + r.hi.y, r.lo.z + r.hi.z};
-      cb.lo = {std::min(cb.lo.x, c.x), std::min(cb.lo.y, c.y), std::min(cb.lo.z, c.z)};
-      cb.hi = {std::max(cb.hi.x, c.x), std::max(cb.hi.y, c.y), std::max(cb.hi.z, c.z)};
-    }
-  }
   const float cells = 1024.0f, top = 1023.0f;
   const Vec3 ext{cb.hi.x - cb.lo.x, cb.hi.y - cb.lo.y, cb.hi.z - cb.lo.z};
   const Vec3 scale{ext.x > 0 ? cells / ext.x : 0.0f, ext.y > 0 ? cells / ext.y : 0.0f,
@@ -156,13 +146,13 @@ void build(std::span<const PrimRef> refs, Buffer<Node>& nodes, InstanceTreeScrat
 
 }  // namespace
 
-void build_instance_tree(std::span<const PrimRef> refs, Buffer<Bvh4Node>& nodes,
-                         InstanceTreeScratch& scratch, const Bounds3* centres) {
-  build<4, Bvh4Node>(refs, nodes, scratch, centres);
+void build_instance_tree(std::span<const PrimRef> refs, const Bounds3& centres,
+                         Buffer<Bvh4Node>& nodes, InstanceTreeScratch& scratch) {
+  build<4, Bvh4Node>(refs, centres, nodes, scratch);
 }
-void build_instance_tree(std::span<const PrimRef> refs, Buffer<Bvh8Node>& nodes,
-                         InstanceTreeScratch& scratch, const Bounds3* centres) {
-  build<8, Bvh8Node>(refs, nodes, scratch, centres);
+void build_instance_tree(std::span<const PrimRef> refs, const Bounds3& centres,
+                         Buffer<Bvh8Node>& nodes, InstanceTreeScratch& scratch) {
+  build<8, Bvh8Node>(refs, centres, nodes, scratch);
 }
 
 }  // namespace kestrel

@@ -23,10 +23,10 @@ struct InstanceTreeScratch {
 };
 
 /// `centres`: the bounds of r.lo + r.hi over the refs (twice the box centres), which the
-/// caller computes while it makes the refs (one pass less); null: computed here.
-void build_instance_tree(std::span<const PrimRef> refs, Buffer<Bvh4Node>& nodes,
-                         InstanceTreeScratch& scratch, const Bounds3* centres = nullptr);
-void build_instance_tree(std::span<const PrimRef> refs, Buffer<Bvh8Node>& nodes,
-                         InstanceTreeScratch& scratch, const Bounds3* centres = nullptr);
+/// caller computes while it makes the refs (one pass less).
+void build_instance_tree(std::span<const PrimRef> refs, const Bounds3& centres,
+                         Buffer<Bvh4Node>& nodes, InstanceTreeScratch& scratch);
+void build_instance_tree(std::span<const PrimRef> refs, const Bounds3& centres,
+                         Buffer<Bvh8Node>& nodes, InstanceTreeScratch& scratch);
 
 }  // namespace kestrel
