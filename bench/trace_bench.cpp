@@ -8,6 +8,7 @@
 // With --amortization, also the build-vs-trace curve (see docs/benchmarks.md).
 //
 //   kestrel_trace_bench [--scenes a.obj,...] [--res 1280x720] [--repeat 5] [--all-kernels]
+//                       [--builder B] [--peer-quality low|medium|high]
 //                       [--json F] [--markdown F] [--amortization F.csv] [--quick]
 #include <fmt/format.h>
 
@@ -81,7 +82,7 @@ struct Variant {
 
 int main(int argc, char** argv) {
   CLI::App app{"kestrel trace benchmark: kestrel vs Embree on the same rays, one thread"};
-  std::string builder_arg;
+  std::string builder_arg, peer_quality = "medium";
   float ci = 1.0f;
   uint32_t max_leaf = 8;
   std::string scenes_arg, json_path = "trace_bench.json", md_path, amort_path, res = "1280x720";
@@ -96,6 +97,10 @@ int main(int argc, char** argv) {
       ->check(CLI::Range(1, 100));
   app.add_option("--builder", builder_arg,
                  "kestrel builder for the trace runs (default: the library's default)");
+  app.add_option(
+         "--peer-quality", peer_quality,
+         "Embree's build quality: low, medium (default) or high (against --builder spatial)")
+      ->check(CLI::IsMember({"low", "medium", "high"}));
   app.add_option("--ci", ci, "intersection cost Ci of the SAH (Ct = 1)");
   app.add_option("--max-leaf", max_leaf, "max primitives per leaf");
   app.add_flag("--all-kernels", all_kernels, "also every layout x ISA, not only the default");
@@ -183,7 +188,11 @@ int main(int argc, char** argv) {
       const std::vector<Ray> diffuse =
           tools::secondary_rays(accel, scene, primary, tools::RayKind::diffuse, light, 7);
 #ifdef KESTREL_HAVE_EMBREE
-      peer::EmbreeScene embree(scene, peer::EmbreeQuality::medium, 1);
+      peer::EmbreeScene embree(scene,
+                               peer_quality == "low"    ? peer::EmbreeQuality::low
+                               : peer_quality == "high" ? peer::EmbreeQuality::high
+                                                        : peer::EmbreeQuality::medium,
+                               1);
       memory.push_back(
           {name, accel.prim_count,
            double(accel.memory_bytes()) / double(std::max<size_t>(1, accel.prim_count)),
@@ -252,6 +261,7 @@ int main(int argc, char** argv) {
             res.peer = kind.packets   ? "rtcIntersect16"
                        : kind.any_hit ? "rtcOccluded1"
                                       : "rtcIntersect1";
+            if (peer_quality != "medium") res.peer += " " + peer_quality;
             res.peer_mrays = double(rays.size()) / (median(b_ms) * 1e3);
             size_t same = 0;
             for (size_t i = 0; i < rays.size(); ++i)

@@ -16,13 +16,16 @@
 namespace kestrel::cli {
 
 void BuildOptions::add_to(CLI::App& cmd) {
-  cmd.add_option("--builder", builder,
-                 "median | sweep | binned | lbvh | treelet (overrides --quality). treelet = Karras "
-                 "& Aila 2013 "
-                 "treelet restructuring, covered by NVIDIA patents (US 10331632); never a default");
+  cmd.add_option(
+      "--builder", builder,
+      "median | sweep | binned | lbvh | spatial | treelet (overrides --quality). spatial "
+      "= binned SAH with spatial splits (Stich et al. 2009). treelet = Karras & Aila "
+      "2013 treelet restructuring, covered by NVIDIA patents (US 10331632); never a "
+      "default");
   cmd.add_option(
       "--quality", quality,
-      "fast (lbvh) | balanced (binned) | high (sweep) | auto (best for --expected-rays per build)");
+      "fast (lbvh) | balanced (binned) | high (spatial) | auto (best for --expected-rays per "
+      "build)");
   cmd.add_option("--expected-rays", expected_rays, "rays traced per build, for --quality auto");
   cmd.add_option("--threads", threads, "worker threads (0 = all)")->check(CLI::Range(0, 1024));
   cmd.add_option("--traversal-cost", traversal_cost, "SAH Ct, cost of an inner node visit");
@@ -39,7 +42,8 @@ BuildConfig BuildOptions::config() const {
     if (!c.builder)
       throw Error(
           ErrorCode::invalid_argument,
-          fmt::format("unknown builder '{}' (median, sweep, binned, lbvh, treelet)", builder));
+          fmt::format("unknown builder '{}' (median, sweep, binned, lbvh, spatial, treelet)",
+                      builder));
   }
   auto q = quality_from_name(quality);
   if (!q)
@@ -111,12 +115,16 @@ void run_bvh(const BvhArgs& a) {
   std::vector<double> ref_ms, build_ms;
   Buffer<PrimRef> refs;
   Bvh2 bvh;
+  const bool spatial =
+      resolve_builder(config, validation.report.valid_triangle_count) == Builder::spatial;
+  const Buffer<Triangle> triangles =
+      spatial ? gather_triangles(scene, validation) : Buffer<Triangle>();
   for (int r = 0; r < std::max(1, a.repeat); ++r) {
     Timer t0;
     refs = make_prim_refs(scene, validation);
     ref_ms.push_back(t0.ms());
     Timer t1;
-    bvh = build_bvh(refs, config);
+    bvh = build_bvh(refs, triangles, config);  // spatial splits clip the triangles
     build_ms.push_back(t1.ms());
   }
   // Ready to trace: what trace and the renderer build (validation, prim refs, the tree, the
@@ -130,7 +138,7 @@ void run_bvh(const BvhArgs& a) {
     accel_layout = layout_name(accel.layout);
   }
   const BvhMetrics m = compute_metrics(bvh, config);
-  const std::string problem = validate_bvh(bvh, refs, config.max_leaf_size);
+  const std::string problem = validate_bvh(bvh, refs, config.max_leaf_size, spatial);
   const double med = median(build_ms);
   const char* name = builder_name(resolve_builder(config, refs.size()));
   if (a.json) {

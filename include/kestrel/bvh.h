@@ -23,6 +23,12 @@ struct alignas(16) PrimRef {
 };
 static_assert(sizeof(PrimRef) == 32);
 
+/// A triangle's vertices: what the spatial-split builder clips, and what an Accel stores for
+/// intersection (copied in BVH leaf order).
+struct Triangle {
+  Vec3 v0, v1, v2;
+};
+
 /// The builders, each in its own file under src/bvh/.
 enum class Builder {
   median,   ///< equal-count split on the largest centroid axis
@@ -30,9 +36,11 @@ enum class Builder {
   binned,   ///< binned SAH (Wald 2007), parallel binning and recursion
   lbvh,     ///< Morton-code linear BVH (Karras 2012), parallel radix sort
   treelet,  ///< LBVH + treelet restructuring (Karras & Aila 2013). Patented: US 10331632.
+  spatial,  ///< binned SAH with spatial splits (Stich et al. 2009): a triangle cut by a split
+            ///< plane is referenced from both sides with the bounds of its part on each
 };
 
-/// For users who don't care which builder: fast = lbvh, balanced = binned, high = sweep;
+/// For users who don't care which builder: fast = lbvh, balanced = binned, high = spatial;
 /// automatic = the builder with the highest effective throughput for the number of rays the
 /// caller will trace per build (BuildConfig::expected_rays), from a fitted cost model (see
 /// predicted_seconds). No quality maps to `treelet` (patented, opt-in only).
@@ -83,7 +91,7 @@ struct Bvh2 {
   bool empty() const { return nodes.empty(); }
 };
 
-/// Parses "median", "sweep", "binned", "lbvh", "treelet"; nullopt otherwise.
+/// Parses "median", "sweep", "binned", "lbvh", "treelet", "spatial"; nullopt otherwise.
 std::optional<Builder> builder_from_name(const std::string& name);
 /// The name of a builder, as builder_from_name accepts it.
 const char* builder_name(Builder builder);
@@ -98,7 +106,14 @@ void check_build_config(const BuildConfig& config);
 
 /// Builds a Bvh2 over the references with the configured builder. An empty span gives an
 /// empty Bvh2. References must have finite bounds (make_prim_refs guarantees it).
+/// The `spatial` builder given references alone cuts their boxes, not the triangles in them
+/// (valid, but loose): pass the triangles for the tight parts it is for.
 Bvh2 build_bvh(std::span<const PrimRef> refs, const BuildConfig& config);
+/// build_bvh with the triangles the references bound (triangles[prim_id]), which the
+/// `spatial` builder clips at its split planes; the other builders ignore them. With spatial
+/// splits a primitive may sit in several leaves: prim_ids may be longer than refs.
+Bvh2 build_bvh(std::span<const PrimRef> refs, std::span<const Triangle> triangles,
+               const BuildConfig& config);
 
 /// Quality figures of a Bvh2.
 struct BvhMetrics {
@@ -123,7 +138,10 @@ BvhMetrics compute_metrics(const Bvh2& bvh, const BuildConfig& config);
 /// Checks every invariant against the references it was built from: each primitive exactly
 /// once, child boxes inside the parent's, leaf boxes enclose their primitives, no cycles or
 /// shared nodes, leaf sizes within [1, max_leaf_size]. Returns an empty string when valid,
-/// else a description of the first violation.
-std::string validate_bvh(const Bvh2& bvh, std::span<const PrimRef> refs, uint32_t max_leaf_size);
+/// else a description of the first violation. split_references (trees of the `spatial`
+/// builder): each primitive at least once and at most once per leaf, and a leaf box need
+/// only overlap the primitive's box (it bounds a part of it).
+std::string validate_bvh(const Bvh2& bvh, std::span<const PrimRef> refs, uint32_t max_leaf_size,
+                         bool split_references = false);
 
 }  // namespace kestrel

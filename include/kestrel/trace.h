@@ -32,11 +32,6 @@ struct Hit {
   bool hit() const { return prim_id != invalid_id; }
 };
 
-/// A triangle as stored for intersection (vertices copied in BVH leaf order).
-struct Triangle {
-  Vec3 v0, v1, v2;
-};
-
 namespace detail {
 struct AccelNodes;  // the nodes and triangles of one layout (internal: src/traverse/accel_nodes.h)
 }

@@ -127,7 +127,8 @@ BuildConfig build_config(const std::optional<std::string>& builder,
     c.builder = builder_from_name(*builder);
     if (!c.builder)
       throw py::value_error(fmt::format(
-          "builder: unknown builder '{}' (median, sweep, binned, lbvh, treelet)", *builder));
+          "builder: unknown builder '{}' (median, sweep, binned, lbvh, spatial, treelet)",
+          *builder));
   }
   if (quality) {
     auto q = quality_from_name(*quality);
@@ -454,11 +455,14 @@ void bind_geometry(py::module_& m) {
           Out r;
           r.validation = validate_scene(*scene);
           const Buffer<PrimRef> refs = make_prim_refs(*scene, r.validation);
+          const bool spatial = resolve_builder(config, refs.size()) == Builder::spatial;
+          const Buffer<Triangle> triangles =
+              spatial ? gather_triangles(*scene, r.validation) : Buffer<Triangle>();
           Timer t;
-          const Bvh2 bvh = build_bvh(refs, config);
+          const Bvh2 bvh = build_bvh(refs, triangles, config);
           r.build_ms = t.ms();
           r.metrics = compute_metrics(bvh, config);
-          r.problem = validate_bvh(bvh, refs, config.max_leaf_size);
+          r.problem = validate_bvh(bvh, refs, config.max_leaf_size, spatial);
           r.refs = refs.size();
           return r;
         });

@@ -75,7 +75,7 @@ def test_bad_files_raise_oserror_or_valueerror(tmp_path):
 
 
 def test_bvh_metrics_equal_the_cli(cli):
-    for builder in ("binned", "sweep", "lbvh"):
+    for builder in ("binned", "sweep", "lbvh", "spatial"):
         expected = json.loads(cli("bvh", "builtin:cornell_box", "--builder", builder, "--json", "--repeat", 1))
         got = kestrel.bvh_metrics(kestrel.load_scene("builtin:cornell_box"), builder=builder)
         for key in ("builder", "triangles", "valid_triangles", "nodes", "inner_nodes", "leaves", "max_depth", "valid"):

@@ -48,7 +48,7 @@ def test_hits_bit_identical_to_cli(cli, soup, tmp_path):
     rays = random_rays(seed=5, count=20000)
     kestrel.write_rays(tmp_path / "r.rays", rays)
     scene = kestrel.load_scene(obj)
-    for builder in ("binned", "lbvh", "sweep"):
+    for builder in ("binned", "lbvh", "sweep", "spatial"):
         cli(
             "trace", obj, "--rays", tmp_path / "r.rays", "--hits", tmp_path / "h.hits", "--builder", builder,
             "--repeat", 1)

@@ -13,6 +13,7 @@ std::optional<Builder> builder_from_name(const std::string& name) {
   if (name == "binned") return Builder::binned;
   if (name == "lbvh") return Builder::lbvh;
   if (name == "treelet") return Builder::treelet;
+  if (name == "spatial") return Builder::spatial;
   return std::nullopt;
 }
 
@@ -28,6 +29,8 @@ const char* builder_name(Builder builder) {
       return "lbvh";
     case Builder::treelet:
       return "treelet";
+    case Builder::spatial:
+      return "spatial";
   }
   return "?";
 }
@@ -48,7 +51,7 @@ Builder resolve_builder(const BuildConfig& config, size_t prim_count) {
     case BuildQuality::balanced:
       return Builder::binned;
     case BuildQuality::high:
-      return Builder::sweep;
+      return Builder::spatial;
     case BuildQuality::automatic:
       return choose_builder(prim_count, config.expected_rays);
   }
@@ -80,7 +83,8 @@ void check_build_config(const BuildConfig& c) {
 namespace {
 
 // block_leaves: see build_bvh_for_blocks (the binned and LBVH builders stop at four).
-Bvh2 dispatch(std::span<const PrimRef> refs, const BuildConfig& config, bool block_leaves) {
+Bvh2 dispatch(std::span<const PrimRef> refs, std::span<const Triangle> triangles,
+              const BuildConfig& config, bool block_leaves) {
   check_build_config(config);
   if (refs.empty()) return {};
   if (refs.size() >= 0x7FFFFFFFu)
@@ -97,6 +101,13 @@ Bvh2 dispatch(std::span<const PrimRef> refs, const BuildConfig& config, bool blo
       return build_lbvh(refs, config, block_leaves);
     case Builder::treelet:
       return build_treelet(refs, config);
+    case Builder::spatial:
+      for (const PrimRef& r : refs)
+        if (!triangles.empty() && r.prim_id >= triangles.size())
+          throw Error(ErrorCode::invalid_argument,
+                      fmt::format("build_bvh: prim id {} has no triangle (of {})", r.prim_id,
+                                  triangles.size()));
+      return build_spatial_sah(refs, triangles, config, block_leaves);
   }
   return {};
 }
@@ -104,11 +115,17 @@ Bvh2 dispatch(std::span<const PrimRef> refs, const BuildConfig& config, bool blo
 }  // namespace
 
 Bvh2 build_bvh(std::span<const PrimRef> refs, const BuildConfig& config) {
-  return dispatch(refs, config, false);
+  return dispatch(refs, {}, config, false);
 }
 
-Bvh2 build_bvh_for_blocks(std::span<const PrimRef> refs, const BuildConfig& config) {
-  return dispatch(refs, config, true);
+Bvh2 build_bvh(std::span<const PrimRef> refs, std::span<const Triangle> triangles,
+               const BuildConfig& config) {
+  return dispatch(refs, triangles, config, false);
+}
+
+Bvh2 build_bvh_for_blocks(std::span<const PrimRef> refs, std::span<const Triangle> triangles,
+                          const BuildConfig& config) {
+  return dispatch(refs, triangles, config, true);
 }
 
 }  // namespace kestrel

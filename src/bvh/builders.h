@@ -17,11 +17,17 @@ Bvh2 build_binned_sah(std::span<const PrimRef> refs, const BuildConfig& config,
 /// block_leaves: as build_binned_sah's (subtrees of at most 4 primitives emitted as leaves).
 Bvh2 build_lbvh(std::span<const PrimRef> refs, const BuildConfig& config,
                 bool block_leaves = false);
+/// Binned SAH with spatial splits (Stich et al. 2009). triangles[prim_id] are clipped at the
+/// split planes; empty: the reference boxes are cut instead. block_leaves: as
+/// build_binned_sah's.
+Bvh2 build_spatial_sah(std::span<const PrimRef> refs, std::span<const Triangle> triangles,
+                       const BuildConfig& config, bool block_leaves = false);
 /// LBVH followed by treelet restructuring (Karras & Aila 2013; US patent 10331632).
 Bvh2 build_treelet(std::span<const PrimRef> refs, const BuildConfig& config);
 
 /// build_bvh for a tree that becomes a wide BVH of 4-triangle blocks (build_accel with a
 /// bvh4 or bvh8 layout): the same wide tree, built with less work below 4 primitives.
-Bvh2 build_bvh_for_blocks(std::span<const PrimRef> refs, const BuildConfig& config);
+Bvh2 build_bvh_for_blocks(std::span<const PrimRef> refs, std::span<const Triangle> triangles,
+                          const BuildConfig& config);
 
 }  // namespace kestrel

@@ -8,10 +8,11 @@
 
 namespace kestrel {
 
-std::string validate_bvh(const Bvh2& bvh, std::span<const PrimRef> refs, uint32_t max_leaf_size) {
+std::string validate_bvh(const Bvh2& bvh, std::span<const PrimRef> refs, uint32_t max_leaf_size,
+                         bool split_references) {
   if (bvh.empty())
     return refs.empty() ? "" : fmt::format("empty BVH over {} references", refs.size());
-  if (bvh.prim_ids.size() != refs.size())
+  if (split_references ? bvh.prim_ids.size() < refs.size() : bvh.prim_ids.size() != refs.size())
     return fmt::format("{} prim ids for {} references", bvh.prim_ids.size(), refs.size());
   std::unordered_map<uint32_t, size_t> ref_of;
   ref_of.reserve(refs.size());
@@ -40,9 +41,18 @@ std::string validate_bvh(const Bvh2& bvh, std::span<const PrimRef> refs, uint32_
         auto it = ref_of.find(bvh.prim_ids[k]);
         if (it == ref_of.end())
           return fmt::format("leaf {} holds unknown prim id {}", i, bvh.prim_ids[k]);
+        const PrimRef& r = refs[it->second];
+        if (split_references) {
+          for (uint32_t j = node.index; j < k; ++j)
+            if (bvh.prim_ids[j] == r.prim_id)
+              return fmt::format("leaf {} holds prim id {} twice", i, r.prim_id);
+          prim_seen[it->second] = 1;
+          if (is_empty(Bounds3{max(box.lo, r.lo), min(box.hi, r.hi)}))
+            return fmt::format("leaf {} box does not touch prim {}", i, r.prim_id);
+          continue;
+        }
         if (prim_seen[it->second]++)
           return fmt::format("prim id {} appears twice", bvh.prim_ids[k]);
-        const PrimRef& r = refs[it->second];
         if (!contains(box, Bounds3{r.lo, r.hi}))
           return fmt::format("leaf {} box does not enclose prim {}", i, r.prim_id);
       }

@@ -73,10 +73,13 @@ Accel build_accel(const Scene& scene, const BuildConfig& config) {
   Buffer<PrimRef> refs = validate_and_make_prim_refs(scene, validation);
   // Wide layouts: the build that knows its leaves become 4-triangle blocks.
   const bool blocks = accel.layout == Layout::bvh4 || accel.layout == Layout::bvh8;
-  Bvh2 bvh = blocks ? build_bvh_for_blocks(refs, config) : build_bvh(refs, config);
+  const Builder builder = resolve_builder(config, refs.size());
+  // Spatial splits clip the triangles themselves (by global id).
+  Buffer<Triangle> by_id;
+  if (builder == Builder::spatial) by_id = gather_triangles(scene, validation);
+  Bvh2 bvh = blocks ? build_bvh_for_blocks(refs, by_id, config) : build_bvh(refs, by_id, config);
   // LBVH depth is bounded by its key bits (at most 3 x 21 + 32 levels) and the median split
   // by log2(n); the SAH-driven trees are checked.
-  const Builder builder = resolve_builder(config, refs.size());
   accel.builder = builder;
   const bool bounded_depth = builder == Builder::lbvh || builder == Builder::median;
   if (!bounded_depth && max_depth(bvh) > max_traversal_depth) {
@@ -88,9 +91,15 @@ Accel build_accel(const Scene& scene, const BuildConfig& config) {
     accel.builder = Builder::median;
     accel.depth_fallback = true;
   }
-  accel.prim_count = bvh.prim_ids.size();
+  accel.prim_count = refs.size();  // spatial splits may reference a triangle from several leaves
   if (!bvh.empty()) accel.bounds = {bvh.nodes[0].lo, bvh.nodes[0].hi};
-  Buffer<Triangle> triangles = gather_triangles(scene, bvh.prim_ids);
+  Buffer<Triangle> triangles;
+  if (by_id.empty()) {
+    triangles = gather_triangles(scene, bvh.prim_ids);
+  } else {
+    triangles = Buffer<Triangle>(bvh.prim_ids.size());
+    for (size_t i = 0; i < bvh.prim_ids.size(); ++i) triangles[i] = by_id[bvh.prim_ids[i]];
+  }
   switch (accel.layout) {
     case Layout::bvh4:
       accel.nodes->bvh4 = collapse_to_bvh4(bvh, triangles, config.max_leaf_size);

@@ -157,7 +157,8 @@ Soup flatten(const Scene& scene) {
 }
 
 std::vector<Builder> all_builders() {
-  return {Builder::median, Builder::sweep, Builder::binned, Builder::lbvh, Builder::treelet};
+  return {Builder::median, Builder::sweep,   Builder::binned,
+          Builder::lbvh,   Builder::treelet, Builder::spatial};
 }
 
 std::string write_temp_file(const std::string& name, const std::string& contents) {

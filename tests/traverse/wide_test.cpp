@@ -258,7 +258,7 @@ TEST(WideBuild, StoppingAtFourGivesTheSameWideTree) {
       c.builder = builder;
       SceneValidation validation;
       const Buffer<PrimRef> refs = validate_and_make_prim_refs(scene, validation);
-      const Bvh2 full = build_bvh(refs, c), blocks = build_bvh_for_blocks(refs, c);
+      const Bvh2 full = build_bvh(refs, c), blocks = build_bvh_for_blocks(refs, {}, c);
       EXPECT_LT(blocks.nodes.size(), full.nodes.size()) << builder_name(builder);
       const Bvh8 a =
           collapse_to_bvh8(full, gather_triangles(scene, full.prim_ids), c.max_leaf_size);
