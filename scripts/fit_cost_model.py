@@ -17,7 +17,7 @@ for r in rows:
     points[(r["scene"], r["method"])] = (int(r["prims"]), float(r["build_ms"]), float(r["mrays_per_s"]))
 # Scenes under 1000 triangles measure fixed overheads, not per-primitive costs.
 scenes = sorted({s for s, _ in points if points[(s, "binned")][0] >= 1000})
-builders = ["median", "lbvh", "binned", "sweep"]
+builders = ["median", "lbvh", "binned", "sweep", "spatial"]
 build_ns, ray_factor = {}, {}
 for b in builders:
     build_ns[b] = statistics.median(points[(s, b)][1] * 1e6 / points[(s, b)][0] for s in scenes if (s, b) in points)

@@ -24,7 +24,7 @@ scenes = list(curves)
 cols = min(3, len(scenes))
 rows = (len(scenes) + cols - 1) // cols
 fig, axes = plt.subplots(rows, cols, figsize=(5.2 * cols, 4.0 * rows), squeeze=False)
-style = {"median": ":", "lbvh": "-", "binned": "-", "sweep": "-", "treelet": "-.", "auto": "--"}
+style = {"median": ":", "lbvh": "-", "binned": "-", "sweep": "-", "spatial": "-", "treelet": "-.", "auto": "--"}
 print("| scene | triangles | best of all (crossovers) | best kestrel builder (crossovers) |")
 print("|---|---:|---|---|")
 for i, scene in enumerate(scenes):

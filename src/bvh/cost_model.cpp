@@ -16,13 +16,13 @@ struct BuilderCost {
   double build_ns_per_prim;  // build_accel, wide layout included
   double ray_factor;         // trace cost per ray relative to binned
 };
-// fitted from amortization.csv: scenes bunny_grid, lamborghini, sponza, teapot
-constexpr double ray_ns_base = 135.51, ray_ns_per_log2n = 4.23;
+// fitted from amortization.csv (2026-12-03, AMD EPYC): scenes bunny_grid, lamborghini,
+// sponza, teapot
+constexpr double ray_ns_base = 46.29, ray_ns_per_log2n = 3.90;
 constexpr BuilderCost costs[] = {
-    {Builder::median, 756.6, 1.317},
-    {Builder::lbvh, 384.7, 1.041},
-    {Builder::binned, 940.8, 1.000},
-    {Builder::sweep, 1910.5, 0.999},
+    {Builder::median, 421.1, 1.248},   {Builder::lbvh, 190.1, 1.060},
+    {Builder::binned, 565.3, 1.000},   {Builder::sweep, 1067.7, 0.985},
+    {Builder::spatial, 3218.2, 0.934},
 };
 }  // namespace
 

@@ -12,6 +12,6 @@ namespace kestrel {
 /// `rays` rays: n * build_ns[b] + rays * (a + c * log2 n) * ray_factor[b], constants fitted
 /// to the amortization benchmark (scripts/fit_cost_model.py, docs/benchmarks.md).
 double predicted_seconds(Builder builder, size_t prim_count, double rays);
-/// The builder (median, lbvh, binned or sweep) with the least predicted_seconds.
+/// The builder (median, lbvh, binned, sweep or spatial) with the least predicted_seconds.
 Builder choose_builder(size_t prim_count, double rays);
 }  // namespace kestrel

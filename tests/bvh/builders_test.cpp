@@ -319,11 +319,12 @@ TEST(AutoQuality, PicksFastBuildsForFewRaysAndGoodTreesForMany) {
     const Builder few = choose_builder(n, 1.0);
     const Builder many = choose_builder(n, 1e12);
     EXPECT_EQ(few, Builder::lbvh) << n;
-    EXPECT_TRUE(many == Builder::binned || many == Builder::sweep) << n;
+    EXPECT_TRUE(many == Builder::binned || many == Builder::sweep || many == Builder::spatial) << n;
     for (double r = 1; r < 1e13; r *= 10) {
       const Builder b = choose_builder(n, r);
       EXPECT_NE(b, Builder::treelet);
-      for (Builder other : {Builder::median, Builder::lbvh, Builder::binned, Builder::sweep})
+      for (Builder other :
+           {Builder::median, Builder::lbvh, Builder::binned, Builder::sweep, Builder::spatial})
         EXPECT_LE(predicted_seconds(b, n, r), predicted_seconds(other, n, r));
       EXPECT_LT(predicted_seconds(b, n, r), predicted_seconds(b, n, r * 10));
     }
