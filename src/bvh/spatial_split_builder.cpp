@@ -114,7 +114,10 @@ struct Splitter {
       if (pa <= pos) extend(lb, a);
       if (pa >= pos) extend(rb, a);
       if ((pa < pos && pb > pos) || (pa > pos && pb < pos)) {
-        Vec3 p = a + (b - a) * ((pos - pa) / (pb - pa));
+        // In double: differences of floats neither overflow nor lose bits there.
+        const double s = (double(pos) - pa) / (double(pb) - pa);
+        Vec3 p;
+        for (int k = 0; k < 3; ++k) at(p, k) = float(at(a, k) + (double(at(b, k)) - at(a, k)) * s);
         at(p, axis) = pos;
         extend(lb, p);
         extend(rb, p);

@@ -3,6 +3,7 @@
 // over binned on such scenes, its reference budget, and bad input.
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <string>
 #include <vector>
 
@@ -107,6 +108,117 @@ TEST(SpatialSplits, NoSplitsWhereObjectSplitsDoNotOverlap) {
   const Buffer<PrimRef> refs = validate_and_make_prim_refs(grid, validation);
   const Bvh2 bvh = build_bvh(refs, gather_triangles(grid, validation), spatial_config());
   EXPECT_EQ(bvh.prim_ids.size(), refs.size());
+}
+
+TEST(SpatialSplits, LargeCoordinatesStayExact) {
+  // Slivers scaled to 1e11 among triangles 2e12 across (the intersection test's cubic terms
+  // stay finite), where the crossing points' rounding is 1e11 times the unit scene's: the
+  // clipped parts must still cover every triangle.
+  const float scale = 1e11f;
+  Scene scene = slivers(200, 1500, 9);
+  for (Vec3& p : scene.meshes[0].positions) p = p * scale;
+  TriangleMesh& mesh = scene.meshes[0];
+  for (int i = 0; i < 8; ++i) {
+    const uint32_t base = uint32_t(mesh.positions.size());
+    const float z = float(i) * 0.1f * scale, big = 10.0f * scale;
+    mesh.positions.insert(mesh.positions.end(),
+                          {{-big, -big, z}, {big, -big, z + 0.5f * scale}, {0, big, z}});
+    mesh.indices.insert(mesh.indices.end(), {base, base + 1, base + 2});
+  }
+  const test::Soup soup = test::flatten(scene);
+  std::vector<Ray> rays = test::random_rays(4000, 23);
+  for (Ray& r : rays) {  // the same rays in the scaled scene: t scales with the origin
+    r.org = r.org * scale;
+    r.tmin *= scale;
+    r.tmax *= scale;
+  }
+  for (Layout layout : {Layout::bvh2, Layout::bvh8}) {
+    BuildConfig config = spatial_config();
+    config.layout = layout;
+    const Accel accel = build_accel(scene, config);
+    std::vector<Hit> closest(rays.size());
+    trace(accel, rays, closest, false, {});
+    size_t hits = 0;
+    for (size_t i = 0; i < rays.size(); ++i) {
+      const Hit want = intersect_brute_force(soup.triangles, soup.valid, rays[i], false);
+      ASSERT_EQ(closest[i].hit(), want.hit()) << layout_name(layout) << " ray " << i;
+      if (want.hit()) {
+        ++hits;
+        ASSERT_EQ(closest[i].t, want.t) << layout_name(layout) << " ray " << i;
+      }
+    }
+    EXPECT_GT(hits, rays.size() / 4);
+  }
+}
+
+// Every point of every triangle (a barycentric grid, computed in double) lies in some leaf
+// box holding the triangle, to a few ulps of rounding: the parts cover the triangles.
+void expect_parts_cover_triangles(const Bvh2& bvh, std::span<const Triangle> triangles) {
+  std::vector<std::vector<Bounds3>> boxes(triangles.size());
+  for (const Bvh2Node& node : bvh.nodes)
+    if (node.is_leaf())
+      for (uint32_t k = node.index; k < node.index + node.count; ++k)
+        boxes[bvh.prim_ids[k]].push_back({node.lo, node.hi});
+  constexpr int steps = 12;
+  for (size_t t = 0; t < triangles.size(); ++t) {
+    const Triangle& tri = triangles[t];
+    for (int i = 0; i <= steps; ++i)
+      for (int j = 0; i + j <= steps; ++j) {
+        const double u = double(i) / steps, v = double(j) / steps, w = 1.0 - u - v;
+        double p[3];
+        for (int a = 0; a < 3; ++a)
+          p[a] = w * (&tri.v0.x)[a] + u * (&tri.v1.x)[a] + v * (&tri.v2.x)[a];
+        bool covered = false;
+        for (const Bounds3& b : boxes[t]) {
+          bool inside = true;
+          for (int a = 0; a < 3; ++a) {
+            const double lo = (&b.lo.x)[a], hi = (&b.hi.x)[a];
+            const double slack = 1e-6 * std::max(std::fabs(lo), std::fabs(hi));
+            inside = inside && p[a] >= lo - slack && p[a] <= hi + slack;
+          }
+          covered = covered || inside;
+        }
+        ASSERT_TRUE(covered) << "triangle " << t << " point (" << u << ", " << v << ")";
+      }
+  }
+}
+
+TEST(SpatialSplits, PartsCoverTheirTriangles) {
+  for (float scale : {1.0f, 1e-15f, 1e18f}) {  // areas stay normal floats over 1e-18 .. 1e19
+    Scene scene = slivers(300, 2000, 5);
+    for (Vec3& p : scene.meshes[0].positions) p = p * scale;
+    SceneValidation validation;
+    const Buffer<PrimRef> refs = validate_and_make_prim_refs(scene, validation);
+    const Buffer<Triangle> triangles = gather_triangles(scene, validation);
+    const Bvh2 bvh = build_bvh(refs, triangles, spatial_config());
+    ASSERT_GT(bvh.prim_ids.size(), refs.size()) << scale;  // splits were taken
+    expect_parts_cover_triangles(bvh, triangles);
+  }
+}
+
+TEST(SpatialSplits, TrianglesAcrossTheFloatRangeGiveAFiniteCoveringTree) {
+  // Edges whose coordinate differences overflow float (and areas that do: the SAH degrades to
+  // counts there): the boxes stay finite and cover the triangles.
+  Scene scene = test::random_soup(500, 0.1f, 4);
+  TriangleMesh& mesh = scene.meshes[0];
+  const float big = 3e38f;
+  for (int i = 0; i < 40; ++i) {
+    const uint32_t base = uint32_t(mesh.positions.size());
+    const float z = float(i) * 1e36f;
+    mesh.positions.insert(mesh.positions.end(),
+                          {{-big, -big, z}, {big, -big, z + 1e37f}, {0, big, -z}});
+    mesh.indices.insert(mesh.indices.end(), {base, base + 1, base + 2});
+  }
+  SceneValidation validation;
+  const Buffer<PrimRef> refs = validate_and_make_prim_refs(scene, validation);
+  const Buffer<Triangle> triangles = gather_triangles(scene, validation);
+  const Bvh2 bvh = build_bvh(refs, triangles, spatial_config());
+  ASSERT_EQ(validate_bvh(bvh, refs, 8, true), "");
+  for (const Bvh2Node& node : bvh.nodes) {
+    ASSERT_TRUE(std::isfinite(node.lo.x) && std::isfinite(node.lo.y) && std::isfinite(node.lo.z));
+    ASSERT_TRUE(std::isfinite(node.hi.x) && std::isfinite(node.hi.y) && std::isfinite(node.hi.z));
+  }
+  expect_parts_cover_triangles(bvh, triangles);
 }
 
 TEST(SpatialSplits, QualityHighIsTheSpatialBuilder) {
