@@ -258,6 +258,9 @@ struct BinnedBuilder {
         return make_leaf(slot, info);
       if (best_axis < 0) split_middle(info, left, right);
     }
+    // A split that separates nothing (every cost NaN: areas overflow float in scenes wider
+    // than ~1e19, and the sweeps then keep an empty side) would recurse forever: halves.
+    if (left.end == left.begin || right.end == right.begin) split_middle(info, left, right);
     slots[slot] = Bvh2Node{{}, pair, {}, 0};
     alignas(16) float lo[4], hi[4];
     info.geom_lo.store(lo);

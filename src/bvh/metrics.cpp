@@ -6,6 +6,16 @@
 
 namespace kestrel {
 
+namespace {
+// In double: float areas overflow for boxes wider than ~1.8e19 (valid, finite scenes).
+double half_area_double(const Bvh2Node& n) {
+  if (n.lo.x > n.hi.x || n.lo.y > n.hi.y || n.lo.z > n.hi.z) return 0.0;
+  const double dx = double(n.hi.x) - n.lo.x, dy = double(n.hi.y) - n.lo.y,
+               dz = double(n.hi.z) - n.lo.z;
+  return dx * dy + dy * dz + dz * dx;
+}
+}  // namespace
+
 uint32_t max_depth(const Bvh2& bvh) {
   if (bvh.empty()) return 0;
   uint32_t deepest = 0;
@@ -37,7 +47,7 @@ BvhMetrics compute_metrics(const Bvh2& bvh, const BuildConfig& config) {
     auto [i, depth] = stack.back();
     stack.pop_back();
     const Bvh2Node& node = bvh.nodes[i];
-    const double area = half_area(Bounds3{node.lo, node.hi});
+    const double area = half_area_double(node);
     m.max_depth = std::max(m.max_depth, depth);
     if (node.is_leaf()) {
       ++m.leaf_count;
@@ -53,7 +63,7 @@ BvhMetrics compute_metrics(const Bvh2& bvh, const BuildConfig& config) {
       stack.push_back({node.index + 1, depth + 1});
     }
   }
-  const double root_area = half_area(Bounds3{bvh.nodes[0].lo, bvh.nodes[0].hi});
+  const double root_area = half_area_double(bvh.nodes[0]);
   const double norm = root_area > 0 ? 1.0 / root_area : 0.0;
   m.sah_cost =
       (config.traversal_cost * inner_area + config.intersection_cost * leaf_area_prims) * norm;

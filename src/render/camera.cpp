@@ -6,6 +6,7 @@
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <limits>
 
 #include "core/file_io.h"
 #include "core/vec.h"
@@ -122,7 +123,29 @@ Camera framing_camera(const Bounds3& b) {
   cam.target = is_empty(b) ? Vec3{0, 0, 0} : center(b);
   const float r = is_empty(b) ? 1.0f : std::max(0.5f * length(extent(b)), 1e-6f);
   const float dist = r / std::sin(cam.vfov_degrees * 0.5f * 3.14159265358979f / 180.0f);
-  cam.eye = cam.target + normalize(Vec3{0.3f, 0.35f, -1.0f}) * dist;
+  const Vec3 dir = normalize(Vec3{0.3f, 0.35f, -1.0f});
+  cam.eye = cam.target + dir * dist;
+  if (is_finite(cam.eye) && is_finite(cam.target)) return cam;
+  // Finite bounds near the float limit: the centre and radius overflow in float; in double,
+  // the eye either fits in float or no camera outside the bounds can be written down.
+  double centre[3], sq = 0;
+  for (int a = 0; a < 3; ++a) {
+    const double lo = (&b.lo.x)[a], hi = (&b.hi.x)[a];
+    centre[a] = 0.5 * (lo + hi);
+    sq += 0.25 * (hi - lo) * (hi - lo);
+  }
+  const double far =
+      std::sqrt(sq) / std::sin(double(cam.vfov_degrees) * 0.5 * 3.14159265358979 / 180.0);
+  const double eye[3] = {centre[0] + dir.x * far, centre[1] + dir.y * far, centre[2] + dir.z * far};
+  for (double e : eye)
+    if (!(std::fabs(e) <= double(std::numeric_limits<float>::max())))
+      throw Error(ErrorCode::invalid_argument,
+                  fmt::format("camera: the scene's bounds ({}, {}, {}) .. ({}, {}, {}) are too "
+                              "large to frame from outside in float; give a view (--view or a "
+                              "views file)",
+                              b.lo.x, b.lo.y, b.lo.z, b.hi.x, b.hi.y, b.hi.z));
+  cam.target = {float(centre[0]), float(centre[1]), float(centre[2])};
+  cam.eye = {float(eye[0]), float(eye[1]), float(eye[2])};
   return cam;
 }
 

@@ -2,6 +2,7 @@
 // parallel bit-identity, SAH ordering, and the LBVH's two emissions.
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <cstring>
 
 #include "bvh/binary_tree.h"
@@ -112,6 +113,39 @@ TEST_P(EveryBuilder, IdenticalCentroidsStillGiveAValidTree) {
   const BuildConfig config = config_for(GetParam());
   const Bvh2 bvh = build_bvh(refs, config);
   EXPECT_EQ(validate_bvh(bvh, refs, config.max_leaf_size, splits(GetParam())), "");
+}
+
+TEST_P(EveryBuilder, CoordinatesNearTheFloatLimitGiveAValidTree) {
+  // Finite but huge: boxes wider than ~1.8e19 overflow float areas (every SAH cost NaN) and
+  // doubled centroids near 3.4e38 overflow; the binned builder used to recurse forever here.
+  Scene scene = test::random_soup(600, 0.1f, 13);
+  TriangleMesh& mesh = scene.meshes[0];
+  const float big = 3e38f;
+  for (int i = 0; i < 300; ++i) {
+    const uint32_t base = uint32_t(mesh.positions.size());
+    const float z = float(i) * 1e36f;
+    if (i % 2) {
+      mesh.positions.insert(mesh.positions.end(),
+                            {{-big, -big, z}, {big, -big, z + 1e37f}, {0, big, -z}});
+    } else {
+      mesh.positions.insert(mesh.positions.end(),
+                            {{big, big, big - z}, {3.3e38f, big, big}, {big, 3.3e38f, big}});
+    }
+    mesh.indices.insert(mesh.indices.end(), {base, base + 1, base + 2});
+  }
+  SceneValidation validation;
+  const Buffer<PrimRef> refs = validate_and_make_prim_refs(scene, validation);
+  ASSERT_EQ(refs.size(), 900u);
+  const BuildConfig config = config_for(GetParam());
+  const Bvh2 bvh = build_bvh(refs, gather_triangles(scene, validation), config);
+  EXPECT_EQ(validate_bvh(bvh, refs, config.max_leaf_size, splits(GetParam())), "");
+  EXPECT_TRUE(std::isfinite(compute_metrics(bvh, config).sah_cost));
+  const Accel accel = build_accel(scene, config);
+  const Ray down{{0.5f, 0.5f, 5.0f}, {0.0f, 0.0f, -1.0f}};  // into the unit soup
+  EXPECT_EQ(
+      intersect(accel, down).hit(),
+      intersect_brute_force(test::flatten(scene).triangles, test::flatten(scene).valid, down, false)
+          .hit());
 }
 
 TEST_P(EveryBuilder, RespectsLeafSizeAndCosts) {

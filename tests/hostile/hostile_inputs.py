@@ -212,6 +212,17 @@ def main():
     path = write("nan.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nv nan 1 0\nf 1 2 3\nf 2 3 4\n")
     expect_ok("NaN vertices render with a warning", ["render", path, "--res", "8x8", "--png", "nan.png", "--quiet"],
               ["warning", "1 of 2 triangles skipped", "NaN"])
+    # Finite coordinates near the float limit (areas and doubled centroids overflow): the
+    # default builder used to recurse until the stack ran out.
+    far = "".join(f"v 0 0 {i}\nv 1 0 {i}\nv 0 1 {i}\nv -3e38 -3e38 {i}e36\nv 3e38 -3e38 {i + 1}e36\n"
+                  f"v 3e38 3.3e38 3e38\n" for i in range(300))
+    far += "".join(f"f {6 * i + 1} {6 * i + 2} {6 * i + 3}\nf {6 * i + 4} {6 * i + 5} {6 * i + 6}\n" for i in range(300))
+    path = write("far.obj", far)
+    expect_error("coordinates near 3.4e38 render", ["render", path, "--res", "16x16", "--png", "far.png", "--quiet"],
+                 ["too large to frame", "--view"])
+    for quality in ("balanced", "fast", "high"):
+        expect_ok(f"coordinates near 3.4e38, quality {quality}",
+                  ["bvh", path, "--quality", quality, "--repeat", 1, "--json"], ['"valid": true'])
     write("garbage.mtl", "newmtl m\nKd abc 0.5 0.5\n")
     path = write("garbage.obj", "mtllib garbage.mtl\nusemtl m\nv 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n")
     expect_error("MTL 'Kd abc'", ["bvh", path], ["garbage.mtl:2", "Kd"])
