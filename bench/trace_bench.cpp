@@ -290,9 +290,8 @@ int main(int argc, char** argv) {
           double build_ms, mrays;
         };
         // Rounds are interleaved across all methods (machine speed drifts between runs).
-        const std::vector<Builder> builders = {Builder::median, Builder::lbvh,
-                                               Builder::binned, Builder::sweep,
-                                               Builder::spatial, Builder::treelet};
+        const std::vector<Builder> builders = {Builder::median, Builder::lbvh,    Builder::binned,
+                                               Builder::sweep,  Builder::spatial, Builder::treelet};
         std::vector<std::string> names;
         for (Builder bld : builders) names.push_back(builder_name(bld));
 #ifdef KESTREL_HAVE_EMBREE
