@@ -153,6 +153,7 @@ void run_bvh(const BvhArgs& a) {
         "\"mprims_per_s\": {:.3f}, "
         "\"sah_cost\": {:.5f}, \"sah_cost_unit\": {:.5f}, \"traversal_cost\": {}, "
         "\"intersection_cost\": {}, "
+        "\"leaf_references\": {}, "
         "\"nodes\": {}, \"inner_nodes\": {}, \"leaves\": {}, \"max_depth\": {}, "
         "\"mean_leaf_depth\": {:.3f}, "
         "\"leaf_size_histogram\": [{}], \"bytes_per_prim\": {:.3f}, \"valid\": {}, \"problem\": "
@@ -160,9 +161,9 @@ void run_bvh(const BvhArgs& a) {
         a.scene, name, a.build.threads, validation.report.triangle_count,
         validation.report.valid_triangle_count, load_ms, median(ref_ms), med, build_ms.size(),
         median(accel_ms), accel_layout, double(refs.size()) / (med * 1e3), m.sah_cost,
-        m.sah_cost_unit, config.traversal_cost, config.intersection_cost, m.node_count,
-        m.inner_count, m.leaf_count, m.max_depth, m.mean_leaf_depth, hist, m.bytes_per_prim,
-        problem.empty() ? "true" : "false", problem);
+        m.sah_cost_unit, config.traversal_cost, config.intersection_cost, bvh.prim_ids.size(),
+        m.node_count, m.inner_count, m.leaf_count, m.max_depth, m.mean_leaf_depth, hist,
+        m.bytes_per_prim, problem.empty() ? "true" : "false", problem);
   } else {
     fmt::print("scene          {}\n", a.scene);
     fmt::print("validation     {}\n", validation.report.summary());
@@ -180,6 +181,9 @@ void run_bvh(const BvhArgs& a) {
                config.traversal_cost, config.intersection_cost, m.sah_cost_unit);
     fmt::print("nodes          {} ({} inner, {} leaves)\n", m.node_count, m.inner_count,
                m.leaf_count);
+    if (bvh.prim_ids.size() != refs.size())  // spatial splits
+      fmt::print("references     {} in leaves for {} triangles (+{:.1f} %)\n", bvh.prim_ids.size(),
+                 refs.size(), 100.0 * (double(bvh.prim_ids.size()) / double(refs.size()) - 1.0));
     fmt::print("depth          max {}, mean leaf {:.2f}\n", m.max_depth, m.mean_leaf_depth);
     fmt::print("leaf sizes     ");
     for (size_t k = 1; k < m.leaf_size_histogram.size(); ++k)
