@@ -18,6 +18,7 @@
 #include <vector>
 
 #include "bvh/builders.h"
+#include "bvh/reference_clipper.h"
 #include "bvh/sah.h"
 #include "core/parallel.h"
 #include "core/simd/vec4f.h"
@@ -50,13 +51,6 @@ constexpr size_t binning_chunk = size_t(1) << 13;
 // No spatial splits below this depth (a guard: the budget already bounds the work).
 constexpr uint32_t max_split_depth = 48;
 
-float& at(Vec3& v, int axis) {
-  return (&v.x)[axis];
-}
-float at(const Vec3& v, int axis) {
-  return (&v.x)[axis];
-}
-
 struct Box {
   Vec4f lo = Vec4f(std::numeric_limits<float>::infinity());
   Vec4f hi = Vec4f(-std::numeric_limits<float>::infinity());
@@ -85,71 +79,6 @@ float overlap_area(const Box& a, const Box& b) {
     if (!(lo[k] <= hi[k])) return 0.0f;
   return simd::half_area(lo, hi);
 }
-
-/// Cuts references at axis-aligned planes: the part of the reference's primitive on either
-/// side, each within the reference's box.
-struct Splitter {
-  std::span<const Triangle> triangles;  // by prim id; empty: the boxes are cut as boxes
-
-  /// Splits r at `pos` on `axis`. Returns false when one side holds nothing of the
-  /// primitive; `left` or `right` then is r itself, as `only_left` says.
-  bool operator()(const PrimRef& r, int axis, float pos, PrimRef& left, PrimRef& right,
-                  bool& only_left) const {
-    left = right = r;
-    if (triangles.empty()) {
-      if (!(at(r.lo, axis) < pos && pos < at(r.hi, axis))) {
-        only_left = !(at(r.lo, axis) >= pos);
-        return false;
-      }
-      at(left.hi, axis) = pos;
-      at(right.lo, axis) = pos;
-      return true;
-    }
-    const Triangle& t = triangles[r.prim_id];
-    const Vec3 v[3] = {t.v0, t.v1, t.v2};
-    Bounds3 lb, rb;
-    for (int i = 0; i < 3; ++i) {
-      const Vec3 a = v[i], b = v[i == 2 ? 0 : i + 1];
-      const float pa = at(a, axis), pb = at(b, axis);
-      if (pa <= pos) extend(lb, a);
-      if (pa >= pos) extend(rb, a);
-      if ((pa < pos && pb > pos) || (pa > pos && pb < pos)) {
-        // In double: differences of floats neither overflow nor lose bits there.
-        const double s = (double(pos) - pa) / (double(pb) - pa);
-        Vec3 p;
-        for (int k = 0; k < 3; ++k) at(p, k) = float(at(a, k) + (double(at(b, k)) - at(a, k)) * s);
-        at(p, axis) = pos;
-        extend(lb, p);
-        extend(rb, p);
-      }
-    }
-    // The crossing points are rounded: widen the parts by a few ulps on the other axes, so
-    // their union still covers the triangle, then keep them inside the reference's box.
-    auto clip = [&](Bounds3 b, PrimRef& out, bool is_left) {
-      if (is_empty(b)) return false;
-      for (int k = 0; k < 3; ++k) {
-        if (k == axis) continue;
-        const float m = 8.0f * std::numeric_limits<float>::epsilon() *
-                        std::max(std::fabs(at(b.lo, k)), std::fabs(at(b.hi, k)));
-        at(b.lo, k) -= m;
-        at(b.hi, k) += m;
-      }
-      if (is_left) {
-        at(b.hi, axis) = pos;
-      } else {
-        at(b.lo, axis) = pos;
-      }
-      out.lo = max(b.lo, r.lo);
-      out.hi = min(b.hi, r.hi);
-      return !is_empty(Bounds3{out.lo, out.hi});
-    };
-    const bool has_left = clip(lb, left, true), has_right = clip(rb, right, false);
-    if (has_left && has_right) return true;
-    only_left = has_left || !has_right;
-    left = right = r;
-    return false;
-  }
-};
 
 /// One axis's bins: boxes, references entering (starting in) and leaving (ending in) each;
 /// object splits count each reference once, in `entries`.
@@ -225,8 +154,8 @@ float centroid(const PrimRef& r, int axis) {
 
 class SpatialBuilder {
  public:
-  SpatialBuilder(const BuildConfig& config, Splitter splitter, size_t block_leaf, float root_area,
-                 size_t spatial_min)
+  SpatialBuilder(const BuildConfig& config, ReferenceClipper splitter, size_t block_leaf,
+                 float root_area, size_t spatial_min)
       : config_(config),
         split_(splitter),
         block_leaf_(block_leaf),
@@ -480,35 +409,12 @@ class SpatialBuilder {
   }
 
   // Adds the bounds of r's part in each slab it crosses (first..last, of `width` from `lo`)
-  // to that slab's bin, in one pass over the triangle: its vertices go to their slabs, each
-  // edge's crossing points to the slabs on both sides. An estimate for the sweep only (the
-  // partition clips exactly), so vertices are slabbed by bin_of alone. Returns the first and
-  // last slab that received a part.
+  // to that slab's bin (ReferenceClipper::slab_bounds, kept within the slab and r's box).
+  // Returns the first and last slab that received a part.
   std::pair<int, int> slab_parts(const PrimRef& r, int a, float lo, float width, float inv_width,
                                  int first, int last, Box* bins) const {
     Bounds3 part[spatial_bins];
-    if (split_.triangles.empty()) {
-      for (int b = first; b <= last; ++b) part[b] = {r.lo, r.hi};
-    } else {
-      const Triangle& t = split_.triangles[r.prim_id];
-      const Vec3 v[3] = {t.v0, t.v1, t.v2};
-      int slab[3];
-      for (int i = 0; i < 3; ++i) {
-        slab[i] = std::clamp(bin_of(at(v[i], a), lo, inv_width), first, last);
-        extend(part[slab[i]], v[i]);
-      }
-      for (int i = 0; i < 3; ++i) {
-        const int j = i == 2 ? 0 : i + 1;
-        if (slab[i] == slab[j]) continue;
-        const float pa = at(v[i], a), pb = at(v[j], a);
-        for (int k = std::min(slab[i], slab[j]) + 1; k <= std::max(slab[i], slab[j]); ++k) {
-          const float plane = lo + float(k) * width;
-          const Vec3 p = v[i] + (v[j] - v[i]) * ((plane - pa) / (pb - pa));
-          extend(part[k - 1], p);
-          extend(part[k], p);
-        }
-      }
-    }
+    split_.slab_bounds(r, a, lo, width, inv_width, first, last, part);
     int start = -1, end = first;
     for (int b = first; b <= last; ++b) {
       PrimRef clipped = r;
@@ -588,7 +494,7 @@ class SpatialBuilder {
       }
       PrimRef pl, pr;
       bool only_left = false;
-      if (split_(r, a, pos, pl, pr, only_left)) {
+      if (split_.split(r, a, pos, pl, pr, only_left)) {
         left.add(pl);
         right.add(pr);
         ++created;
@@ -600,7 +506,7 @@ class SpatialBuilder {
   }
 
   const BuildConfig& config_;
-  Splitter split_;
+  ReferenceClipper split_;
   size_t block_leaf_;
   float min_overlap_;
   size_t spatial_min_;
@@ -614,8 +520,8 @@ Bvh2 build_spatial_sah(std::span<const PrimRef> refs, std::span<const Triangle> 
   root.refs.reserve(refs.size());
   for (const PrimRef& r : refs) root.add(r);
   root.budget = size_t(float(refs.size()) * split_budget);
-  SpatialBuilder builder(config, Splitter{triangles}, block_leaves ? 4 : 0, root.geom.area(),
-                         spatial_min);
+  SpatialBuilder builder(config, ReferenceClipper{triangles}, block_leaves ? 4 : 0,
+                         root.geom.area(), spatial_min);
   Tree tree;
   tree.nodes.resize(1);
   builder.build(tree, 0, root);

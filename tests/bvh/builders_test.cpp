@@ -118,21 +118,7 @@ TEST_P(EveryBuilder, IdenticalCentroidsStillGiveAValidTree) {
 TEST_P(EveryBuilder, CoordinatesNearTheFloatLimitGiveAValidTree) {
   // Finite but huge: boxes wider than ~1.8e19 overflow float areas (every SAH cost NaN) and
   // doubled centroids near 3.4e38 overflow; the binned builder used to recurse forever here.
-  Scene scene = test::random_soup(600, 0.1f, 13);
-  TriangleMesh& mesh = scene.meshes[0];
-  const float big = 3e38f;
-  for (int i = 0; i < 300; ++i) {
-    const uint32_t base = uint32_t(mesh.positions.size());
-    const float z = float(i) * 1e36f;
-    if (i % 2) {
-      mesh.positions.insert(mesh.positions.end(),
-                            {{-big, -big, z}, {big, -big, z + 1e37f}, {0, big, -z}});
-    } else {
-      mesh.positions.insert(mesh.positions.end(),
-                            {{big, big, big - z}, {3.3e38f, big, big}, {big, 3.3e38f, big}});
-    }
-    mesh.indices.insert(mesh.indices.end(), {base, base + 1, base + 2});
-  }
+  const Scene scene = test::soup_with_far_triangles(600, 300, 13);
   SceneValidation validation;
   const Buffer<PrimRef> refs = validate_and_make_prim_refs(scene, validation);
   ASSERT_EQ(refs.size(), 900u);

@@ -200,16 +200,7 @@ TEST(SpatialSplits, PartsCoverTheirTriangles) {
 TEST(SpatialSplits, TrianglesAcrossTheFloatRangeGiveAFiniteCoveringTree) {
   // Edges whose coordinate differences overflow float (and areas that do: the SAH degrades to
   // counts there): the boxes stay finite and cover the triangles.
-  Scene scene = test::random_soup(500, 0.1f, 4);
-  TriangleMesh& mesh = scene.meshes[0];
-  const float big = 3e38f;
-  for (int i = 0; i < 40; ++i) {
-    const uint32_t base = uint32_t(mesh.positions.size());
-    const float z = float(i) * 1e36f;
-    mesh.positions.insert(mesh.positions.end(),
-                          {{-big, -big, z}, {big, -big, z + 1e37f}, {0, big, -z}});
-    mesh.indices.insert(mesh.indices.end(), {base, base + 1, base + 2});
-  }
+  const Scene scene = test::soup_with_far_triangles(500, 40, 4);
   SceneValidation validation;
   const Buffer<PrimRef> refs = validate_and_make_prim_refs(scene, validation);
   const Buffer<Triangle> triangles = gather_triangles(scene, validation);

@@ -52,6 +52,25 @@ Scene random_soup(size_t n, float size, uint64_t seed) {
   return scene;
 }
 
+Scene soup_with_far_triangles(size_t n, size_t far, uint64_t seed) {
+  Scene scene = random_soup(n, 0.1f, seed);
+  TriangleMesh& mesh = scene.meshes[0];
+  const float big = 3e38f;
+  for (size_t i = 0; i < far; ++i) {
+    const uint32_t base = uint32_t(mesh.positions.size());
+    const float z = float(i) * 1e36f;
+    if (i % 2) {
+      mesh.positions.insert(mesh.positions.end(),
+                            {{-big, -big, z}, {big, -big, z + 1e37f}, {0, big, -z}});
+    } else {
+      mesh.positions.insert(mesh.positions.end(),
+                            {{big, big, big - z}, {3.3e38f, big, big}, {big, 3.3e38f, big}});
+    }
+    mesh.indices.insert(mesh.indices.end(), {base, base + 1, base + 2});
+  }
+  return scene;
+}
+
 Scene closed_sphere(int subdivisions, Vec3 c, float radius) {
   const float t = (1.0f + std::sqrt(5.0f)) / 2.0f;
   std::vector<Vec3> v = {{-1, t, 0},  {1, t, 0},  {-1, -t, 0}, {1, -t, 0}, {0, -1, t},  {0, 1, t},

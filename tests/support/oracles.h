@@ -23,6 +23,11 @@ struct Rng {
 /// slivers and all).
 Scene random_soup(size_t n, float size, uint64_t seed);
 
+/// A random soup of `n` small triangles in the unit cube plus `far` finite triangles near the
+/// float limit: every other one spans ±3e38 (its box's area and its edges' differences
+/// overflow float), the rest sit near +3.3e38 (their doubled centroids overflow).
+Scene soup_with_far_triangles(size_t n, size_t far, uint64_t seed);
+
 /// A closed, watertight triangulated sphere (subdivided icosahedron), vertices shared.
 Scene closed_sphere(int subdivisions, Vec3 center, float radius);
 
