@@ -244,7 +244,6 @@ class SpatialBuilder {
       return node;
     };
     out.nodes[slot] = moved(sub.nodes[0]);
-    out.nodes.reserve(out.nodes.size() + sub.nodes.size() - 1);
     for (size_t i = 1; i < sub.nodes.size(); ++i) out.nodes.push_back(moved(sub.nodes[i]));
     out.ids.insert(out.ids.end(), sub.ids.begin(), sub.ids.end());
   }
