@@ -127,8 +127,7 @@ int main(int argc, char** argv) {
           Timer t0;
           Buffer<PrimRef> refs = make_prim_refs(scene, validation);
           // Spatial splits clip the triangles (gathered by id: part of its time).
-          const Buffer<Triangle> triangles =
-              b == Builder::spatial ? gather_triangles(scene, validation) : Buffer<Triangle>();
+          const Buffer<Triangle> triangles = triangles_for_builder(scene, validation, b);
           Bvh2 bvh = build_bvh(refs, triangles, config);
           row.bvh_ms.push_back(t0.ms());
           Timer t1;

@@ -115,10 +115,9 @@ void run_bvh(const BvhArgs& a) {
   std::vector<double> ref_ms, build_ms;
   Buffer<PrimRef> refs;
   Bvh2 bvh;
-  const bool spatial =
-      resolve_builder(config, validation.report.valid_triangle_count) == Builder::spatial;
-  const Buffer<Triangle> triangles =
-      spatial ? gather_triangles(scene, validation) : Buffer<Triangle>();
+  const Builder builder = resolve_builder(config, validation.report.valid_triangle_count);
+  const bool spatial = builder == Builder::spatial;
+  const Buffer<Triangle> triangles = triangles_for_builder(scene, validation, builder);
   for (int r = 0; r < std::max(1, a.repeat); ++r) {
     Timer t0;
     refs = make_prim_refs(scene, validation);
@@ -140,7 +139,7 @@ void run_bvh(const BvhArgs& a) {
   const BvhMetrics m = compute_metrics(bvh, config);
   const std::string problem = validate_bvh(bvh, refs, config.max_leaf_size, spatial);
   const double med = median(build_ms);
-  const char* name = builder_name(resolve_builder(config, refs.size()));
+  const char* name = builder_name(builder);
   if (a.json) {
     std::string hist;
     for (size_t k = 1; k < m.leaf_size_histogram.size(); ++k)

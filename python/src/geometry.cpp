@@ -455,9 +455,9 @@ void bind_geometry(py::module_& m) {
           Out r;
           r.validation = validate_scene(*scene);
           const Buffer<PrimRef> refs = make_prim_refs(*scene, r.validation);
-          const bool spatial = resolve_builder(config, refs.size()) == Builder::spatial;
-          const Buffer<Triangle> triangles =
-              spatial ? gather_triangles(*scene, r.validation) : Buffer<Triangle>();
+          const Builder builder = resolve_builder(config, refs.size());
+          const bool spatial = builder == Builder::spatial;
+          const Buffer<Triangle> triangles = triangles_for_builder(*scene, r.validation, builder);
           Timer t;
           const Bvh2 bvh = build_bvh(refs, triangles, config);
           r.build_ms = t.ms();

@@ -102,11 +102,12 @@ Bvh2 dispatch(std::span<const PrimRef> refs, std::span<const Triangle> triangles
     case Builder::treelet:
       return build_treelet(refs, config);
     case Builder::spatial:
-      for (const PrimRef& r : refs)
-        if (!triangles.empty() && r.prim_id >= triangles.size())
-          throw Error(ErrorCode::invalid_argument,
-                      fmt::format("build_bvh: prim id {} has no triangle (of {})", r.prim_id,
-                                  triangles.size()));
+      if (!triangles.empty())
+        for (const PrimRef& r : refs)
+          if (r.prim_id >= triangles.size())
+            throw Error(ErrorCode::invalid_argument,
+                        fmt::format("build_bvh: prim id {} has no triangle (of {})", r.prim_id,
+                                    triangles.size()));
       return build_spatial_sah(refs, triangles, config, block_leaves);
   }
   return {};

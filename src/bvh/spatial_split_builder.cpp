@@ -145,47 +145,63 @@ struct Split {
   float cost = std::numeric_limits<float>::infinity();
   Box left, right;  // the children's boxes as the cost saw them
   size_t left_count = 0, right_count = 0;
-  size_t middle_left = 0;  // refined: how many of the boundary bins' references go left
+  // refined: the boundary bins' references in sorted order, and how many of them go left
+  std::vector<uint32_t> middle;
+  size_t middle_left = 0;
 };
 
 float centroid(const PrimRef& r, int axis) {
   return at(r.lo, axis) + at(r.hi, axis);
 }
 
+/// A node's centroid bins on one axis (object splits), its mapping computed once.
+struct CentroidBins {
+  int axis;
+  float lo, scale;
+  CentroidBins(const Work& w, int a)
+      : axis(a),
+        lo(w.cent.lo_at(a)),
+        scale(float(object_bins) * 0.99999f / (w.cent.hi_at(a) - w.cent.lo_at(a))) {}
+  int operator()(const PrimRef& r) const {
+    return std::clamp(int((centroid(r, axis) - lo) * scale), 0, object_bins - 1);
+  }
+};
+
 class SpatialBuilder {
  public:
   SpatialBuilder(const BuildConfig& config, ReferenceClipper splitter, size_t block_leaf,
-                 float root_area, size_t spatial_min)
+                 float root_area)
       : config_(config),
         split_(splitter),
         block_leaf_(block_leaf),
-        min_overlap_(overlap_alpha * root_area),
-        spatial_min_(spatial_min) {}
+        min_overlap_(overlap_alpha * root_area) {}
 
   void build(Tree& out, uint32_t slot, Work& w) {
     const size_t n = w.refs.size();
     if (n == 1 || n <= block_leaf_) return make_leaf(out, slot, w);
-    if (n < spatial_min_) return build_binned(out, slot, w);
+    if (n < spatial_min) return build_binned(out, slot, w);
     const float inv_area = inverse_area(w.geom.area());
-    Split best = object_split(w, inv_area);
-    if (w.budget > 0 && w.depth < max_split_depth && best.kind != Split::none &&
-        overlap_area(best.left, best.right) > min_overlap_) {
+    const Split object = object_split(w, inv_area);
+    Split best = object;
+    if (w.budget > 0 && w.depth < max_split_depth && object.kind != Split::none &&
+        overlap_area(object.left, object.right) > min_overlap_) {
       spatial_split(w, inv_area, best);
     }
     if (n <= config_.max_leaf_size && leaf_cost(config_, n) <= best.cost)
       return make_leaf(out, slot, w);
     Work left, right;
-    left.depth = right.depth = w.depth + 1;
     size_t created = 0;
-    if (best.kind == Split::spatial) created = partition_spatial(w, best, left, right);
-    if (best.kind != Split::spatial || left.refs.empty() || right.refs.empty()) {
-      if (best.kind == Split::spatial) best = object_split(w, inv_area);  // cannot happen often
-      created = 0;
-      left = Work{};
-      right = Work{};
-      left.depth = right.depth = w.depth + 1;
-      partition_object(w, best, left, right);
+    if (best.kind == Split::spatial) {
+      created = partition_spatial(w, best, left, right);
+      if (left.refs.empty() || right.refs.empty()) {  // every part on one side: rare
+        left = Work{};
+        right = Work{};
+        created = 0;
+        best = object;
+      }
     }
+    if (best.kind != Split::spatial) partition_object(w, best, left, right);
+    left.depth = right.depth = w.depth + 1;
     // The budget left after this split, shared in proportion to the children's sizes.
     const size_t rest = w.budget - std::min(w.budget, created);
     const size_t nl = left.refs.size(), nr = right.refs.size();
@@ -270,9 +286,10 @@ class SpatialBuilder {
     if (!(ext[0] > 0.0f) && !(ext[1] > 0.0f) && !(ext[2] > 0.0f)) return best;
     for (int a = 0; a < 3; ++a) {
       if (!(ext[a] > 0.0f)) continue;
+      const CentroidBins bin_of_ref(w, a);
       const auto bins = bin_chunks<AxisBins<object_bins>>(n, [&](auto& out, size_t b, size_t e) {
         for (size_t i = b; i < e; ++i) {
-          const int k = object_bin(w, w.refs[i], a);
+          const int k = bin_of_ref(w.refs[i]);
           out.box[k].add(w.refs[i]);
           ++out.entries[k];
         }
@@ -284,18 +301,13 @@ class SpatialBuilder {
     return best;
   }
 
-  int object_bin(const Work& w, const PrimRef& r, int a) const {
-    const float lo = w.cent.lo_at(a),
-                scale = float(object_bins) * 0.99999f / (w.cent.hi_at(a) - w.cent.lo_at(a));
-    return std::clamp(int((centroid(r, a) - lo) * scale), 0, object_bins - 1);
-  }
-
   // The references of the two bins at boundary `k` (bins k - 1 and k), by centroid and then
   // position (a total order, so evaluation and partition see the same sequence).
-  void boundary_order(const Work& w, int a, int k, std::vector<uint32_t>& middle) const {
+  static void boundary_order(const Work& w, int a, int k, std::vector<uint32_t>& middle) {
+    const CentroidBins bin_of_ref(w, a);
     middle.clear();
     for (size_t i = 0; i < w.refs.size(); ++i) {
-      const int b = object_bin(w, w.refs[i], a);
+      const int b = bin_of_ref(w.refs[i]);
       if (b == k - 1 || b == k) middle.push_back(uint32_t(i));
     }
     std::sort(middle.begin(), middle.end(), [&](uint32_t x, uint32_t y) {
@@ -309,10 +321,11 @@ class SpatialBuilder {
     const int a = s.axis, k = s.index;
     std::vector<uint32_t> middle;
     boundary_order(w, a, k, middle);
+    const CentroidBins bin_of_ref(w, a);
     Box lower, upper;
     size_t n_lower = 0, n_upper = 0;
     for (const PrimRef& r : w.refs) {
-      const int b = object_bin(w, r, a);
+      const int b = bin_of_ref(r);
       if (b < k - 1) {
         lower.add(r);
         ++n_lower;
@@ -329,6 +342,7 @@ class SpatialBuilder {
       suffix[i].add(w.refs[middle[i]]);
     }
     Box prefix = lower;
+    bool refined = false;
     for (size_t i = 0; i <= m; ++i) {
       if (i > 0) prefix.add(w.refs[middle[i - 1]]);
       const size_t nl = n_lower + i, nr = n_upper + m - i;
@@ -337,8 +351,10 @@ class SpatialBuilder {
       if (cost < s.cost) {
         s = Split{Split::object_refined, a, k, cost, prefix, suffix[i], nl, nr};
         s.middle_left = i;
+        refined = true;
       }
     }
+    if (refined) s.middle = std::move(middle);  // the partition's order
   }
 
   // Right-to-left suffix boxes, then left-to-right costs; `exits` counts the references
@@ -372,7 +388,7 @@ class SpatialBuilder {
   // The node's box cut into spatial_bins slabs per axis; a reference is clipped into each
   // slab it crosses, counted as entering its first and leaving its last.
   void spatial_split(Work& w, float inv_area, Split& best) const {
-    const Split object = best;
+    Split candidate = best;
     for (int a = 0; a < 3; ++a) {
       const float lo = w.geom.lo_at(a), ext = w.geom.hi_at(a) - lo;
       if (!(ext > 0.0f)) continue;
@@ -395,12 +411,13 @@ class SpatialBuilder {
               ++out.exits[end];
             }
           });
-      sweep(bins.box, bins.entries, spatial_bins, a, inv_area, Split::spatial, best, bins.exits);
+      sweep(bins.box, bins.entries, spatial_bins, a, inv_area, Split::spatial, candidate,
+            bins.exits);
     }
     // A split that could create more references than the budget allows is not taken.
-    if (best.kind == Split::spatial &&
-        best.left_count + best.right_count - w.refs.size() > w.budget)
-      best = object;
+    if (candidate.kind == Split::spatial &&
+        candidate.left_count + candidate.right_count - w.refs.size() <= w.budget)
+      best = candidate;
   }
 
   static int bin_of(float x, float lo, float inv_width) {
@@ -440,19 +457,18 @@ class SpatialBuilder {
       return;
     }
     const int a = s.axis;
+    const CentroidBins bin_of_ref(w, a);
     if (s.kind == Split::object_refined) {
-      std::vector<uint32_t> middle;
-      boundary_order(w, a, s.index, middle);
       for (const PrimRef& r : w.refs) {
-        const int b = object_bin(w, r, a);
+        const int b = bin_of_ref(r);
         if (b < s.index - 1) left.add(r);
         if (b > s.index) right.add(r);
       }
-      for (size_t i = 0; i < middle.size(); ++i)
-        (i < s.middle_left ? left : right).add(w.refs[middle[i]]);
+      for (size_t i = 0; i < s.middle.size(); ++i)
+        (i < s.middle_left ? left : right).add(w.refs[s.middle[i]]);
       return;
     }
-    for (const PrimRef& r : w.refs) (object_bin(w, r, a) < s.index ? left : right).add(r);
+    for (const PrimRef& r : w.refs) (bin_of_ref(r) < s.index ? left : right).add(r);
   }
 
   // Returns the number of references created. A reference crossing the plane is split, or
@@ -508,7 +524,6 @@ class SpatialBuilder {
   ReferenceClipper split_;
   size_t block_leaf_;
   float min_overlap_;
-  size_t spatial_min_;
 };
 
 }  // namespace
@@ -520,7 +535,7 @@ Bvh2 build_spatial_sah(std::span<const PrimRef> refs, std::span<const Triangle> 
   for (const PrimRef& r : refs) root.add(r);
   root.budget = size_t(float(refs.size()) * split_budget);
   SpatialBuilder builder(config, ReferenceClipper{triangles}, block_leaves ? 4 : 0,
-                         root.geom.area(), spatial_min);
+                         root.geom.area());
   Tree tree;
   tree.nodes.resize(1);
   builder.build(tree, 0, root);

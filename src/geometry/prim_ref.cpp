@@ -137,4 +137,9 @@ Buffer<Triangle> gather_triangles(const Scene& scene, std::span<const uint32_t> 
   return tris;
 }
 
+Buffer<Triangle> triangles_for_builder(const Scene& scene, const SceneValidation& validation,
+                                       Builder builder) {
+  return builder == Builder::spatial ? gather_triangles(scene, validation) : Buffer<Triangle>();
+}
+
 }  // namespace kestrel

@@ -19,6 +19,11 @@ Buffer<PrimRef> validate_and_make_prim_refs(const Scene& scene, SceneValidation&
 /// All triangles of the scene by global id (invalid ones are zero triangles: never hit).
 Buffer<Triangle> gather_triangles(const Scene& scene, const SceneValidation& validation);
 
+/// What a builder needs besides the references: for `spatial`, every triangle by global id
+/// (it clips them at its split planes); nothing for the other builders.
+Buffer<Triangle> triangles_for_builder(const Scene& scene, const SceneValidation& validation,
+                                       Builder builder);
+
 /// The triangles of the given global prim ids, in that order (e.g. a BVH's leaf order).
 Buffer<Triangle> gather_triangles(const Scene& scene, std::span<const uint32_t> prim_ids);
 

@@ -74,9 +74,7 @@ Accel build_accel(const Scene& scene, const BuildConfig& config) {
   // Wide layouts: the build that knows its leaves become 4-triangle blocks.
   const bool blocks = accel.layout == Layout::bvh4 || accel.layout == Layout::bvh8;
   const Builder builder = resolve_builder(config, refs.size());
-  // Spatial splits clip the triangles themselves (by global id).
-  Buffer<Triangle> by_id;
-  if (builder == Builder::spatial) by_id = gather_triangles(scene, validation);
+  const Buffer<Triangle> by_id = triangles_for_builder(scene, validation, builder);
   Bvh2 bvh = blocks ? build_bvh_for_blocks(refs, by_id, config) : build_bvh(refs, by_id, config);
   // LBVH depth is bounded by its key bits (at most 3 x 21 + 32 levels) and the median split
   // by log2(n); the SAH-driven trees are checked.
