@@ -30,7 +30,7 @@ struct RenderArgs {
   uint64_t seed = 0;
   double time_limit = 0, time = 0;
   float exposure = 0, clamp = 0, fps = 30;
-  bool no_jitter = false, fixed_jitter = false, quiet = false;
+  bool no_jitter = false, fixed_jitter = false, quiet = false, radiance_cache = false;
 };
 
 void add_common(CLI::App& cmd, RenderArgs& a) {
@@ -65,6 +65,9 @@ void add_common(CLI::App& cmd, RenderArgs& a) {
                  "Direct light at the first hit: nee (default) | restir (ReSTIR DI, biased) | "
                  "restir-unbiased")
       ->capture_default_str();
+  cmd.add_flag("--radiance-cache", a.radiance_cache,
+               "Paths stop at their first bounce's surface and take a world-space cache's "
+               "radiance, learnt by earlier passes and frames (biased; fewer rays)");
   cmd.add_option("--pfm", a.pfm, "Also write one PFM per AOV into this directory");
   cmd.add_option("--png", a.png, "Also write the tone-mapped colour as PNG");
   cmd.add_option("--exposure", a.exposure, "Exposure of the PNG, stops")->capture_default_str();
@@ -90,6 +93,7 @@ RenderSettings settings_of(const RenderArgs& a) {
   s.jitter = !a.no_jitter;
   s.fixed_jitter = a.fixed_jitter;
   s.clamp = a.clamp;
+  s.radiance_cache = a.radiance_cache;
   s.progress = !a.quiet && isatty(2);
   if (a.light_sampling == "tree")
     s.light_sampling = LightSampling::tree;
@@ -319,7 +323,7 @@ void run_sequence(const RenderArgs& a) {
   const RenderSettings s = settings_of(a);
   PipelineSettings ps;
   ps.width = s.width, ps.height = s.height, ps.spp = s.spp, ps.max_depth = s.max_depth,
-  ps.clamp = s.clamp;
+  ps.clamp = s.clamp, ps.radiance_cache = s.radiance_cache;
   ps.seed = s.seed, ps.threads = s.threads, ps.jitter = s.jitter, ps.fixed_jitter = s.fixed_jitter;
   ps.exposure = a.exposure;
   ps.factor = 1;

@@ -38,13 +38,13 @@ void run(RunArgs& a) {
   if (a.out.empty()) throw Error(ErrorCode::invalid_argument, "run: -o DIR is required");
   const PipelineSettings settings = a.p.settings();
   Pipeline pipeline(a.p.scene, settings, a.p.env);
-  const std::string lighting =
-      fmt::format("{} ({}{})",
-                  pipeline.direct_lighting() == DirectLighting::nee      ? "NEE"
-                  : pipeline.direct_lighting() == DirectLighting::restir ? "ReSTIR, biased"
-                                                                         : "ReSTIR, unbiased",
-                  pipeline.light_sampling() == LightSampling::tree ? "light tree" : "power",
-                  settings.auto_lighting ? ", auto" : "");
+  const std::string lighting = fmt::format(
+      "{} ({}{}{})",
+      pipeline.direct_lighting() == DirectLighting::nee      ? "NEE"
+      : pipeline.direct_lighting() == DirectLighting::restir ? "ReSTIR, biased"
+                                                             : "ReSTIR, unbiased",
+      pipeline.light_sampling() == LightSampling::tree ? "light tree" : "power",
+      settings.auto_lighting ? ", auto" : "", settings.radiance_cache ? ", radiance cache" : "");
   const CameraPath path =
       camera_path_for(pipeline.asset(), a.path.empty() ? "orbit:30" : a.path, a.view);
   std::filesystem::create_directories(a.out);

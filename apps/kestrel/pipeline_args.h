@@ -16,7 +16,8 @@ namespace kestrel::cli {
 
 struct PipelineArgs {
   std::string scene = "builtin:cornell_box", res = "1280x720", internal, env, denoise = "neural",
-              upscale = "neural", sun, light_sampling = "power", direct = "auto";
+              upscale = "neural", sun, light_sampling = "power", direct = "auto",
+              radiance_cache = "on";
   bool sky = false, auto_exposure = false;
   int factor = 2, spp = 1, max_depth = 4, threads = 0;
   float clamp = 16, exposure = 0;
@@ -56,6 +57,10 @@ struct PipelineArgs {
     cmd.add_option("--direct", direct,
                    "Direct light at the first hit: auto (restir with the light tree for >= 64 "
                    "lights, else nee) | nee | restir (ReSTIR DI, biased) | restir-unbiased")
+        ->capture_default_str();
+    cmd.add_option("--radiance-cache", radiance_cache,
+                   "on | off: paths stop at their first bounce's surface and take a world-space "
+                   "cache's radiance there (biased; fewer rays per frame)")
         ->capture_default_str();
     cmd.add_flag("--auto-exposure", auto_exposure,
                  "Exposure follows the image's log-average luminance (key 0.18, smoothed)");
@@ -119,6 +124,10 @@ struct PipelineArgs {
           ErrorCode::invalid_argument,
           fmt::format("--direct '{}': expected auto, nee, restir or restir-unbiased", direct));
     s.direct = *d;
+    if (radiance_cache != "on" && radiance_cache != "off")
+      throw Error(ErrorCode::invalid_argument,
+                  fmt::format("--radiance-cache '{}': expected on or off", radiance_cache));
+    s.radiance_cache = radiance_cache == "on";
     return s;
   }
 };

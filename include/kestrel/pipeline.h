@@ -37,6 +37,9 @@ struct PipelineSettings {
   /// Choose by the scene instead: with >= 64 lights, ReSTIR DI (biased) over the light tree,
   /// else the two fields above (`kestrel run` / `view`'s default, `--direct auto`).
   bool auto_lighting = false;
+  /// The world-space radiance cache (RenderSettings::radiance_cache; biased): most paths stop
+  /// at their first bounce's surface. `kestrel run` / `view` turn it on (--radiance-cache).
+  bool radiance_cache = false;
   std::string sun;       ///< "" or Sun::parse's AZIMUTH,ELEVATION[,INTENSITY] (make_lighting)
   bool sky = false;      ///< the physical sky (make_lighting)
   double target_ms = 0;  ///< > 0: change the factor (1, 2, 4) to hold this frame time

@@ -181,8 +181,14 @@ struct RenderSettings {
   DirectLighting direct = DirectLighting::nee;
   int restir_candidates = 8;  ///< light samples resampled per pixel (ReSTIR's M), 1..64
   int restir_neighbors = 3;   ///< spatial reuse: neighbours within 16 px of the same tile, 0..16
-  int threads = 0;            ///< 0 = all the library may use
-  bool progress = false;      ///< a progress bar on stderr
+  /// A world-space radiance cache (biased; docs/renderer.md "Radiance cache"): paths stop at
+  /// the surface their first bounce from a rough surface reaches and take its cell's mean
+  /// outgoing radiance, learnt from the paths (1 in 16, and every one whose cell is not yet
+  /// known) that go on. Kept between renders of one Renderer like ReSTIR's history (frame f
+  /// reuses frame f - 1's cache; any other frame index starts afresh).
+  bool radiance_cache = false;
+  int threads = 0;        ///< 0 = all the library may use
+  bool progress = false;  ///< a progress bar on stderr
 };
 
 /// Edge of the square tiles a render is split into, pixels; tiles are numbered row-major.

@@ -317,9 +317,10 @@ void bind_render(py::module_& m) {
           [](PyRenderer& r, const Camera& camera, int spp, py::handle res, uint64_t seed,
              int max_depth, int rr_depth, float clamp, uint32_t frame, bool jitter,
              bool fixed_jitter, double time_limit, int threads, std::optional<Camera> prev_camera,
-             const std::string& light_sampling, const std::string& direct) {
+             const std::string& light_sampling, const std::string& direct, bool radiance_cache) {
             RenderSettings s;
             set_lighting(light_sampling, direct, s.light_sampling, s.direct);
+            s.radiance_cache = radiance_cache;
             std::tie(s.width, s.height) = resolution(res);
             s.spp = spp;
             s.seed = seed;
@@ -343,12 +344,14 @@ void bind_render(py::module_& m) {
           py::arg("clamp") = 0.0f, py::arg("frame") = 0, py::arg("jitter") = true,
           py::arg("fixed_jitter") = false, py::arg("time_limit") = 0.0, py::arg("threads") = 0,
           py::arg("prev_camera") = py::none(), py::arg("light_sampling") = "power",
-          py::arg("direct") = "nee",
+          py::arg("direct") = "nee", py::arg("radiance_cache") = false,
           "Renders one frame: a dict of AOVs color, albedo, normal, depth, roughness, motion, spp, "
           "variance, each a "
           "float32 (H, W, C) array (the same bits as `kestrel render` writes for the same "
           "settings). light_sampling: 'power' | 'tree'; direct: 'nee' | 'restir' (ReSTIR DI, "
-          "biased) | 'restir-unbiased' (reservoirs are reused from the previous frame index).")
+          "biased) | 'restir-unbiased' (reservoirs are reused from the previous frame index); "
+          "radiance_cache: paths stop at their first bounce's surface and take a world-space "
+          "cache's radiance (biased; the cache is kept from the previous frame index).")
       .def_property_readonly("last_stats",
                              [](const PyRenderer& r) { return stats_dict(r.last_stats); })
       .def_property_readonly(
@@ -460,7 +463,7 @@ void bind_render(py::module_& m) {
                        int max_depth, float clamp, float exposure, double target_ms, uint64_t seed,
                        const std::string& environment, const std::string& sun, bool sky,
                        bool auto_exposure, const std::string& light_sampling,
-                       const std::string& direct) {
+                       const std::string& direct, bool radiance_cache) {
              PipelineSettings s =
                  pipeline_settings(resolution(res), factor, denoiser, upscaler, spp, max_depth,
                                    clamp, exposure, target_ms, seed);
@@ -468,6 +471,7 @@ void bind_render(py::module_& m) {
              set_lighting(light_sampling, s.auto_lighting ? "nee" : direct, s.light_sampling,
                           s.direct);
              s.sun = sun, s.sky = sky, s.auto_exposure = auto_exposure;
+             s.radiance_cache = radiance_cache;
              py::gil_scoped_release release;
              return std::make_unique<Pipeline>(scene.string(), s, environment);
            }),
@@ -477,6 +481,9 @@ void bind_render(py::module_& m) {
            py::arg("target_ms") = 0.0, py::arg("seed") = 0, py::arg("environment") = "",
            py::arg("sun") = "", py::arg("sky") = false, py::arg("auto_exposure") = false,
            py::arg("light_sampling") = "power", py::arg("direct") = "auto",
+           py::arg("radiance_cache") = true,
+           "radiance_cache: paths stop at their first bounce's surface and take a world-space "
+           "cache's radiance there (biased; as `kestrel run`); "
            "direct: 'auto' (ReSTIR over the light tree for >= 64 lights, else light_sampling "
            "and NEE) | 'nee' | 'restir' | 'restir-unbiased'; "
            "sun: 'AZIMUTH,ELEVATION[,INTENSITY]' (degrees; with the physical sky unless "

@@ -239,6 +239,29 @@ def test_sun_and_sky(cornell):
     assert f["exposure"] != 0.0 and f["rgb8"].shape == (24, 32, 3)
 
 
+def test_radiance_cache_matches_the_cli(cli, tmp_path, cornell):
+    """The radiance cache from Python: the CLI's bits (its later passes read what the earlier
+    ones learnt), fewer rays than full paths; the loop takes it too."""
+    cam = kestrel.view(cornell)
+    r = kestrel.Renderer(cornell)
+    mine = r.render(cam, res=RES, spp=4, seed=3, max_depth=5, radiance_cache=True)["color"]
+    def rays():
+        st = r.last_stats
+        return st["camera_rays"] + st["bounce_rays"] + st["shadow_rays"]
+    cached_rays = rays()
+    r.render(cam, res=RES, spp=4, seed=3, max_depth=5)
+    assert cached_rays < rays()
+    cli("render", "builtin:cornell_box", "--res", f"{RES[0]}x{RES[1]}", "--spp", 4, "--seed", 3,
+        "--max-depth", 5, "--radiance-cache", "--quiet", "-o", tmp_path / "f.exr",
+        "--pfm", tmp_path / "pfm")
+    pfm = kestrel.read_pfm(str(tmp_path / "pfm" / "color.pfm"))
+    assert np.array_equal(bits(mine), bits(pfm[..., :3]))
+    for cache in (True, False):
+        loop = kestrel.Pipeline("builtin:cornell_box", res=(32, 24), factor=1, denoiser=None,
+                                radiance_cache=cache)
+        assert np.isfinite(loop.frame(cam)["rgb8"]).all()
+
+
 def test_restir_matches_the_cli(cli, tmp_path):
     """ReSTIR DI from Python: the CLI's bits for the same settings; bad names are errors."""
     hall = kestrel.load_scene("builtin:lamp_hall")

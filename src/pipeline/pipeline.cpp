@@ -111,6 +111,7 @@ struct Pipeline::Impl {
     rs.fixed_jitter = settings.fixed_jitter;
     rs.jitter = settings.jitter, rs.threads = settings.threads;
     rs.light_sampling = light_sampling(), rs.direct = direct();
+    rs.radiance_cache = settings.radiance_cache;
     return rs;
   }
 };

@@ -33,6 +33,12 @@ struct PathState {
   Vec3 prev_normal{0, 0, 1};  // shading normal where that direction was sampled
   bool aov_pending = true;
   bool restir = false;  // the first hit's direct light came from ReSTIR: BSDF rays skip it
+  // Radiance cache: a training path never stops at the cache; rough: the surface the last
+  // bounce left may use it; cache_key: the first bounce's cell, with the path's radiance and
+  // throughput there (its outgoing radiance is what the path adds after it, / throughput).
+  bool train = true, rough = false;
+  uint64_t cache_key = 0;
+  Vec3 cache_radiance, cache_throughput;
 };
 
 struct PixelSample {
@@ -70,6 +76,26 @@ void add_sample(Accumulator& acc, size_t p, Vec3 L, const PixelSample& o, float 
 }
 
 constexpr size_t index_distance = 48, vertex_distance = 24, texel_distance = 12;
+
+// Radiance cache: the first surface must be this rough (GGX alpha) for its bounce to stop at
+// the cache (sharper reflections would show the cells), the second this rough for its
+// radiance to be taken as the same towards every direction; 1 path in 16 trains the cache.
+constexpr float cache_alpha_first = 0.1f, cache_alpha_second = 0.02f;
+constexpr uint64_t cache_train_mask = 15;
+
+// The outgoing radiance a path measured at its cached vertex, clamped as samples are.
+bool cache_sample(const PathState& ps, float clamp, Vec3& out) {
+  const Vec3 t = ps.cache_throughput, d = ps.radiance - ps.cache_radiance;
+  if (!(t.x > 0 && t.y > 0 && t.z > 0)) return false;
+  out = {d.x / t.x, d.y / t.y, d.z / t.z};
+  if (!is_finite(out)) return false;
+  out = max(out, Vec3{0, 0, 0});
+  if (clamp > 0) {
+    const float m = std::max({out.x, out.y, out.z});
+    if (m > clamp) out = out * (clamp / m);
+  }
+  return true;
+}
 
 }  // namespace
 
@@ -266,8 +292,9 @@ bool Renderer::Impl::sample_light(const Surface& sf, const Basis& frame, Vec3 wo
 
 void Renderer::Impl::render_tile(const CameraModel& cam, const CameraModel& prev_cam,
                                  const RenderSettings& s, int tx, int ty, int pass, float jx,
-                                 float jy, const RestirPass* rp, Accumulator& acc, double& trace_ms,
-                                 uint64_t ray_counts[3]) const {
+                                 float jy, const RestirPass* rp,
+                                 std::vector<CacheRecord>* cache_records, Accumulator& acc,
+                                 double& trace_ms, uint64_t ray_counts[3]) const {
   const bool use_tree = s.light_sampling == LightSampling::tree && !light_tree.empty();
   const int x0 = tx * tile_size, y0 = ty * tile_size;
   const int x1 = std::min(x0 + tile_size, s.width), y1 = std::min(y0 + tile_size, s.height);
@@ -294,6 +321,10 @@ void Renderer::Impl::render_tile(const CameraModel& cam, const CameraModel& prev
     const float lu = rng.uniform(), lv = rng.uniform();
     rays[i] = cam.ray(float(x) + jx, float(y) + jy, lu, lv);
     paths[i].pixel = uint32_t(i);
+    paths[i].train =
+        !cache_records ||
+        (mix64(s.seed ^ mix64(pixel ^ mix64(uint64_t(s.frame) << 20 ^ uint64_t(pass)))) &
+         cache_train_mask) == 0;
     active[i] = uint32_t(i);
   }
   auto timed = [&](auto&& fn, int kind, size_t n) {
@@ -409,6 +440,18 @@ void Renderer::Impl::render_tile(const CameraModel& cam, const CameraModel& prev
         ps.radiance = ps.radiance + ps.throughput * le * w;
       }
       if (depth + 1 >= s.max_depth) continue;
+      // Radiance cache at the first bounce's surface: stop there with its cell's radiance
+      // (when the bounce is longer than a cell: contact light needs the path), or note the
+      // vertex so this path teaches the cell what it measures from here on.
+      if (cache_records && depth == 1 && ps.rough && bp.alpha >= cache_alpha_second) {
+        const uint64_t key = radiance_cache.key(p, ng);
+        Vec3 lc;
+        if (!ps.train && h.t >= radiance_cache.cell_size(p) && radiance_cache.lookup(key, lc)) {
+          ps.radiance = ps.radiance + ps.throughput * lc;
+          continue;
+        }
+        ps.cache_key = key, ps.cache_radiance = ps.radiance, ps.cache_throughput = ps.throughput;
+      }
       const Basis frame(ns);
       const Vec3 wo_l = frame.to_local(wo);
       const Vec3 origin = offset_origin(p, ng);
@@ -436,6 +479,7 @@ void Renderer::Impl::render_tile(const CameraModel& cam, const CameraModel& prev
       ps.throughput = ps.throughput * bs.weight;
       ps.bsdf_pdf = bs.pdf;
       ps.prev_normal = ns;
+      ps.rough = bp.alpha >= cache_alpha_first;
       if (depth + 1 >= s.rr_depth) {
         const float q =
             std::min(0.95f, std::max({ps.throughput.x, ps.throughput.y, ps.throughput.z}));
@@ -490,6 +534,9 @@ void Renderer::Impl::render_tile(const CameraModel& cam, const CameraModel& prev
   for (size_t i = 0; i < count; ++i) {
     const int x = x0 + int(i % size_t(x1 - x0)), y = y0 + int(i / size_t(x1 - x0));
     add_sample(acc, size_t(y) * size_t(s.width) + size_t(x), paths[i].radiance, px[i], s.clamp);
+    Vec3 lc;
+    if (paths[i].cache_key && cache_sample(paths[i], s.clamp, lc))
+      cache_records->push_back({paths[i].cache_key, lc});
   }
 }
 

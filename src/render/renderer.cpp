@@ -203,6 +203,8 @@ void Renderer::Impl::render_passes(const Camera& camera, const RenderSettings& s
   std::atomic<size_t> tiles_done{0};
   const bool restir = s.direct != DirectLighting::nee;
   if (!restir) restir_valid = false;
+  if (!s.radiance_cache && cache_valid) radiance_cache.clear(), cache_valid = false;
+  std::vector<std::vector<CacheRecord>> cache_records;
   for (int pass = 0; pass < s.spp; ++pass) {
     // ReSTIR's buffers: the history is the last pass (of this frame, or of frame - 1).
     RestirPass rp;
@@ -224,6 +226,13 @@ void Renderer::Impl::render_passes(const Camera& camera, const RenderSettings& s
     if (s.jitter)
       frame_jitter(s.fixed_jitter ? s.frame : s.frame * uint32_t(s.spp) + uint32_t(pass), jx, jy);
     if (pass == 0) frame.jitter_x = jx, frame.jitter_y = jy;
+    // The radiance cache: kept from the last pass of this frame or of frame - 1.
+    if (s.radiance_cache) {
+      if (!(cache_valid && (pass > 0 || cache_frame + 1 == s.frame))) radiance_cache.clear();
+      radiance_cache.set_view(cam.eye, 2 * cam.tan_half / float(s.height));
+      for (auto& r : cache_records) r.clear();
+      cache_records.resize(tiles);
+    }
     parallel_for(0, tiles, 1, [&](size_t b, size_t e) {
       for (size_t i = b; i < e; ++i) {
         const size_t t = only ? size_t((*only)[i]) : i;
@@ -231,7 +240,8 @@ void Renderer::Impl::render_passes(const Camera& camera, const RenderSettings& s
         uint64_t counts[3] = {0, 0, 0};
         double tms = 0;
         render_tile(cam, prev, s, int(t % size_t(tiles_x)), int(t / size_t(tiles_x)), pass, jx, jy,
-                    restir ? &rp : nullptr, acc, tms, counts);
+                    restir ? &rp : nullptr, s.radiance_cache ? &cache_records[i] : nullptr, acc,
+                    tms, counts);
         tile_trace[i] += tms;
         tile_total[i] += now_ms() - t0;
         for (int k = 0; k < 3; ++k) tile_rays[i][size_t(k)] += counts[k];
@@ -246,6 +256,11 @@ void Renderer::Impl::render_passes(const Camera& camera, const RenderSettings& s
       }
     });
     passes = pass + 1;
+    if (s.radiance_cache) {  // the tiles' samples in tile order: the same for any threads
+      for (const auto& r : cache_records) radiance_cache.add(r);
+      radiance_cache.end_pass();
+      cache_valid = true, cache_frame = s.frame;
+    }
     if (restir) restir_last = 1 - restir_last, restir_valid = true, restir_frame = s.frame;
     if (s.time_limit_s > 0 && now_ms() - start >= s.time_limit_s * 1000) break;
   }

@@ -15,6 +15,7 @@
 #include "kestrel/render.h"
 #include "render/bsdf.h"
 #include "render/light_tree.h"
+#include "render/radiance_cache.h"
 #include "render/sampling.h"
 #include "render/testing.h"
 
@@ -216,6 +217,9 @@ struct Renderer::Impl {
   int restir_last = 0;
   bool restir_valid = false;  // restir[restir_last] holds a pass of frame restir_frame
   uint32_t restir_frame = 0;
+  RadianceCache radiance_cache;  // RenderSettings::radiance_cache
+  bool cache_valid = false;      // radiance_cache holds passes up to frame cache_frame
+  uint32_t cache_frame = 0;
   void render_passes(const Camera& camera, const RenderSettings& s,
                      const std::optional<Camera>& prev_camera, const std::vector<uint32_t>* only,
                      Accumulator& acc, Frame& frame);
@@ -356,7 +360,8 @@ struct Renderer::Impl {
   void prefetch_texels(const SurfaceHit& h) const;
   void render_tile(const CameraModel& cam, const CameraModel& prev_cam, const RenderSettings& s,
                    int tx, int ty, int pass, float jx, float jy, const RestirPass* rp,
-                   Accumulator& acc, double& trace_ms, uint64_t ray_counts[3]) const;
+                   std::vector<CacheRecord>* cache_records, Accumulator& acc, double& trace_ms,
+                   uint64_t ray_counts[3]) const;
 };
 
 }  // namespace kestrel

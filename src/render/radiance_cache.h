@@ -1,0 +1,73 @@
+// A world-space radiance cache for the real-time loop (RenderSettings::radiance_cache; biased,
+// off by default): the outgoing radiance of the surfaces that camera paths reach after their
+// first bounce, averaged over a hash grid of cells and over frames, so that most paths can
+// stop there instead of tracing every further bounce (the idea of Müller et al. 2021's
+// radiance caching and of spatial-hash caches such as NVIDIA's SHaRC; written here).
+//
+// Cells are cubes whose edge is a power of two about `cell_pixels` pixels wide at the cell's
+// distance from the camera, split by the dominant axis of the geometric normal (so the two
+// faces of a wall never share a cell). Each cell keeps a mean and a sample count; a pass's
+// samples are merged after the pass in tile order, so the cache (and every image that reads
+// it) does not depend on the thread count.
+#pragma once
+#include <cstdint>
+#include <span>
+#include <vector>
+
+#include "core/vec.h"
+
+namespace kestrel::render {
+
+/// One sample of a cell: the outgoing radiance a path measured at a surface in it.
+struct CacheRecord {
+  uint64_t key;
+  Vec3 radiance;
+};
+
+class RadianceCache {
+ public:
+  static constexpr float cell_pixels = 8;       ///< cell edge, in pixels at its distance
+  static constexpr float max_samples = 128;     ///< a cell's history, in samples
+  static constexpr float min_samples = 4;       ///< a cell answers once it has this many
+  static constexpr uint32_t half_life = 16;     ///< passes after which the history weighs half
+  static constexpr uint32_t max_age = 64;       ///< passes without a sample before eviction
+  static constexpr size_t capacity = 1u << 17;  ///< cells (open addressing; 4 MB)
+
+  /// The camera the cells are sized for: its eye and the angle one pixel subtends.
+  void set_view(Vec3 eye, float pixel_angle) { eye_ = eye, pixel_angle_ = pixel_angle; }
+  /// Edge of the cell holding p.
+  float cell_size(Vec3 p) const;
+  /// The cell of point p whose geometric normal is ng (a non-zero key).
+  uint64_t key(Vec3 p, Vec3 ng) const;
+  /// The cell's mean, when it has at least min_samples.
+  bool lookup(uint64_t key, Vec3& radiance) const;
+  /// Adds a pass's samples (call in a fixed order), then end_pass() blends them in.
+  void add(std::span<const CacheRecord> records);
+  void end_pass();
+  void clear();
+  size_t cells() const { return live_; }
+
+ private:
+  struct Cell {
+    uint64_t key = 0;  // 0: empty
+    Vec3 mean{0, 0, 0};
+    float samples = 0;
+    uint32_t last = 0;  // the pass of its last sample
+  };
+  struct Pending {
+    Vec3 sum{0, 0, 0};
+    uint32_t count = 0;
+  };
+  size_t find(uint64_t key) const;  // its slot, or capacity
+  size_t insert(uint64_t key);      // its slot (new or found), or capacity when full
+  void evict();                     // drops cells older than max_age, rehashing the rest
+  std::vector<Cell> cells_;
+  std::vector<Pending> pending_;
+  std::vector<uint32_t> touched_;  // slots with pending samples, in order of first touch
+  size_t live_ = 0;
+  uint32_t pass_ = 0;
+  Vec3 eye_{0, 0, 0};
+  float pixel_angle_ = 0;
+};
+
+}  // namespace kestrel::render
