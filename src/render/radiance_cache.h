@@ -31,7 +31,7 @@ class RadianceCache {
   static constexpr float min_samples = 4;       ///< a cell answers once it has this many
   static constexpr uint32_t half_life = 16;     ///< passes after which the history weighs half
   static constexpr uint32_t max_age = 64;       ///< passes without a sample before eviction
-  static constexpr size_t capacity = 1u << 17;  ///< cells (open addressing; 4 MB)
+  static constexpr size_t capacity = 1u << 17;  ///< cells (open addressing; 6 MB in all)
 
   /// The camera the cells are sized for: its eye and the angle one pixel subtends.
   void set_view(Vec3 eye, float pixel_angle) { eye_ = eye, pixel_angle_ = pixel_angle; }

@@ -166,6 +166,24 @@ TEST(Pipeline, ProgressiveReferenceAccumulatesAtRestAndConverges) {
   EXPECT_LT(mse(ref48, other), 0.5 * mse(one, other));
 }
 
+TEST(Pipeline, ProgressiveReferenceIgnoresTheRadianceCache) {
+  // The reference at rest is unbiased: the loop's (biased) radiance cache stays out of it.
+  PipelineSettings s = small(2);
+  s.radiance_cache = true;
+  Pipeline cached("builtin:cornell_box", s);
+  s.radiance_cache = false;
+  Pipeline plain("builtin:cornell_box", s);
+  const Camera c = front();
+  for (int i = 0; i < 3; ++i) cached.accumulate(c, 0.0), plain.accumulate(c, 0.0);
+  EXPECT_EQ(cached.accumulate(c, 0.0).upscaled.pixels, plain.accumulate(c, 0.0).upscaled.pixels);
+  // While the loop's frames do use it (fewer rays once the cache knows the cells).
+  s.factor = 1, s.radiance_cache = true;
+  Pipeline loop("builtin:cornell_box", s);
+  uint64_t rays[2] = {0, 0};
+  for (int i = 0; i < 4; ++i) rays[i > 0] = loop.frame(c, 0.0).stats.rays();
+  EXPECT_LT(rays[1], rays[0]);
+}
+
 TEST(Pipeline, BadSettingsAreErrors) {
   PipelineSettings s = small(3);
   EXPECT_THROW(Pipeline("builtin:cornell_box", s), Error);
