@@ -502,6 +502,33 @@ void expect_error(F&& f, const std::string& needle) {
   }
 }
 
+TEST(ToneMap, Srgb8IsTheDocumentedCurveForEveryValue) {
+  // tonemap_srgb8 (vectorised, a table for the OETF) against the scalar curve: within one
+  // code value for every pixel and exposure, odd sizes, 3 and 4 channels; NaN, negatives and
+  // -inf black, +inf white.
+  for (int channels : {3, 4})
+    for (float stops : {0.0f, -2.5f, 3.0f}) {
+      FloatImage img(37, 5, channels);  // 185 pixels: not a multiple of 4 or of the block
+      uint64_t state = 7;
+      for (float& v : img.pixels) {
+        state = state * 6364136223846793005ull + 1442695040888963407ull;
+        v = std::ldexp(float(state >> 40) / float(1 << 24), int(state >> 60) - 8);  // 2^-8..2^7
+      }
+      const float special[] = {NAN, -1.0f, -INFINITY, INFINITY, 0.0f, 1e30f, 1e-30f};
+      for (size_t i = 0; i < std::size(special); ++i) img.pixels[i * 5] = special[i];
+      const std::vector<uint8_t> out = tonemap_srgb8(img, stops);
+      ASSERT_EQ(out.size(), size_t(37 * 5 * 3));
+      for (size_t p = 0; p < size_t(37 * 5); ++p)
+        for (size_t c = 0; c < 3; ++c) {
+          const float x = img.pixels[p * size_t(channels) + c];
+          const double want = 255.0 * tonemap_aces_srgb(x * std::exp2(stops));
+          EXPECT_NEAR(out[3 * p + c], want, 1.0) << "value " << x << " stops " << stops;
+          if (!(x > 0)) EXPECT_EQ(out[3 * p + c], 0) << x;
+          if (x == INFINITY) EXPECT_EQ(out[3 * p + c], 255);
+        }
+    }
+}
+
 TEST(BadInput, ClearErrors) {
   expect_error([] { Environment::parse("constant:1,x,2"); }, "constant:R,G,B");
   expect_error([] { Environment::parse("constant:1,-1,2"); }, ">= 0");
