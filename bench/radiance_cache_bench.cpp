@@ -89,8 +89,8 @@ int main(int argc, char** argv) {
         frames, ref_spp, runs);
     fmt::print(
         "| camera | method | ms / frame | rays / pixel | spp | relMSE | relMSE x ms (÷ full "
-        "paths') | relMSE ÷ full paths' at >= equal time |\n|---|---|---:|---:|---:|---:|---:|---:|"
-        "\n");
+        "paths') | relMSE ÷ full paths' at >= equal time | PSNR dB (tone-mapped) |\n"
+        "|---|---|---:|---:|---:|---:|---:|---:|---:|\n");
     for (int moving = 0; moving < 2; ++moving) {
       const Camera last = moving ? turned(*view_cam, turn * float(frames)) : *view_cam;
       Renderer ref_r(asset.scene(), make_lighting(env, sun, sky));
@@ -98,7 +98,7 @@ int main(int argc, char** argv) {
       rs.spp = ref_spp;
       const Frame ref = ref_r.render(last, rs);
       std::vector<double> cached_ms, cached_rays, cached_rel, full_rel, eq_rel, eq_spp, full_ms,
-          full_rays;
+          full_rays, cached_psnr, full_psnr;
       std::vector<double> bias, full_mean, lum_ratio;
       for (int k = 0; k < runs; ++k) {
         Renderer r(asset.scene(), make_lighting(env, sun, sky));
@@ -115,6 +115,8 @@ int main(int argc, char** argv) {
         cached_ms.push_back(f.stats.ms);
         cached_rays.push_back(double(f.stats.rays()) / (double(w) * h));
         cached_rel.push_back(relmse(f[Aov::color], ref[Aov::color]));
+        const std::vector<float> ref_tm = bench::tonemapped(ref[Aov::color]);
+        cached_psnr.push_back(bench::psnr(bench::tonemapped(f[Aov::color]), ref_tm));
         if (!moving && mean_frames > 0) {  // the mean of further frames: the cache's bias
           FloatImage sum = f[Aov::color];
           for (int i = 1; i <= mean_frames; ++i) {
@@ -134,6 +136,7 @@ int main(int argc, char** argv) {
           bench::write_crop_png(png, {&one[Aov::color], &f[Aov::color], &ref[Aov::color]}, 0, 0, w,
                                 h);
         full_rel.push_back(relmse(one[Aov::color], ref[Aov::color]));
+        full_psnr.push_back(bench::psnr(bench::tonemapped(one[Aov::color]), ref_tm));
         full_ms.push_back(one.stats.ms);
         full_rays.push_back(double(one.stats.rays()) / (double(w) * h));
         fs.spp = 1 << 16, fs.time_limit_s = f.stats.ms / 1000.0;
@@ -149,15 +152,16 @@ int main(int argc, char** argv) {
       const double cr = median(cached_rel), er = median(eq_rel);
       const double full_eff = median(full_rel) * median(full_ms),
                    cached_eff = cr * median(cached_ms);
-      fmt::print("| {} | full paths, 1 spp | {:.1f} | {:.2f} | 1 | {:.4f} | {:.3g} (1) | |\n", cam,
-                 median(full_ms), median(full_rays), median(full_rel), full_eff);
+      fmt::print(
+          "| {} | full paths, 1 spp | {:.1f} | {:.2f} | 1 | {:.4f} | {:.3g} (1) | | {:.2f} |\n",
+          cam, median(full_ms), median(full_rays), median(full_rel), full_eff, median(full_psnr));
       fmt::print("| {} | full paths, time of the cached frame | | | {:.0f} | {:.4f} | | 1 |\n", cam,
                  median(eq_spp), er);
       fmt::print(
           "| {} | radiance cache, 1 spp | {:.1f} | {:.2f} | 1 | {:.4f} | {:.3g} ({:.3f}) | {:.3f} "
-          "|\n",
+          "| {:.2f} |\n",
           cam, median(cached_ms), median(cached_rays), cr, cached_eff, cached_eff / full_eff,
-          cr / er);
+          cr / er, median(cached_psnr));
       if (!bias.empty()) {
         fmt::print("| {} | full paths, {} spp | | | {} | {:.4f} | |\n", cam, mean_frames + 1,
                    mean_frames + 1, median(full_mean));

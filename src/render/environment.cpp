@@ -41,6 +41,27 @@ void Renderer::Impl::setup_environment() {
     }
     env_rows = Distribution1D(row_weights);
   }
+  // Irradiance on a surface facing up (luminance): what the sun's share is weighed against.
+  env_irradiance = 0;
+  if (env_on) {
+    if (!env.image.pixels.empty()) {
+      const int w = env.image.width, h = env.image.height;
+      double sum = 0;
+      for (int y = 0; y < h; ++y) {
+        const double theta = pi * (y + 0.5) / h, c = std::cos(theta);
+        if (c <= 0) break;
+        double row = 0;
+        for (int x = 0; x < w; ++x) {
+          const float* p = env.image.at(x, y);
+          row += luminance({p[0], p[1], p[2]});
+        }
+        sum += row * c * std::sin(theta) * (2 * pi / w) * (pi / h);
+      }
+      env_irradiance = float(sum) * env.scale;
+    } else {  // constant: pi L; overcast: (1 + 2 cos) / 3 integrates to 7 pi / 9
+      env_irradiance = luminance(env.color) * env.scale * (env.overcast ? 7 * pi / 9 : pi);
+    }
+  }
   sun_on = false;
   if (env.sun) {
     const Sun& sun = *env.sun;
@@ -57,7 +78,11 @@ void Renderer::Impl::setup_environment() {
 }
 
 // NEE's choice among the environment, the sun and the local lights: equal shares of what
-// exists (the environment alone: 1; with local lights: 1/2 each, as before the sun existed).
+// exists (the environment alone: 1; with local lights: 1/2 each, as before the sun existed),
+// except that the sun and the environment split their two shares in proportion to their
+// irradiance on a surface facing each (the sun: its irradiance; the environment: on an
+// upward surface), each keeping at least 1/8 of the pair's: a half-and-half split left half
+// the sunlit pixels of a 1-spp frame without the sun, which is most of the light there.
 void Renderer::Impl::choose_strategies() {
   const bool local = local_light_count() > 0;
   if (!sun_on) {
@@ -66,8 +91,14 @@ void Renderer::Impl::choose_strategies() {
     return;
   }
   const float n = float(int(env_on) + 1 + int(local));
-  p_env = env_on ? 1.0f / n : 0.0f;
-  p_sun = 1.0f / n;
+  if (!env_on) {
+    p_env = 0, p_sun = 1.0f / n;
+    return;
+  }
+  const float es = luminance(sun_radiance) * sun_solid_angle, pair = 2.0f / n;
+  const float f = es + env_irradiance > 0 ? es / (es + env_irradiance) : 0.5f;
+  p_sun = pair * std::clamp(f, 0.125f, 0.875f);
+  p_env = pair - p_sun;
 }
 
 // Solid-angle pdf of sampling direction d from the environment (given it was chosen), at a

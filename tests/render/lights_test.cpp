@@ -84,6 +84,21 @@ TEST(Lights, DirectionalLightAndSunGiveTheirIrradiance) {
   EXPECT_NEAR(radiance_at(plane(), env, 64), kAlbedo / kPi * 4 * mean_cos, 2e-3f);
 }
 
+TEST(Lights, SunAndEnvironmentSharedByIrradianceStayUnbiased) {
+  // NEE splits its choice between the sun and the environment by their irradiance (each
+  // at least 1/8): with the sun far brighter, far dimmer and about equal, the plane's
+  // radiance is still rho / pi x (the sun's irradiance x its mean cosine + pi L).
+  const float r = 2 * kPi / 180, mean_cos = 1 - (1 - std::cos(r)) / 2;
+  for (float sun : {40.0f, 0.05f, 1.0f}) {
+    Environment env = Environment::parse("constant:0.3,0.3,0.3");
+    env.sun =
+        Sun{.direction = {0, 0, 1}, .irradiance = {sun, sun, sun}, .angular_radius_degrees = 2};
+    const double expected = kAlbedo / kPi * (sun * mean_cos + kPi * 0.3);
+    const double got = radiance_at(plane(), env, 16384);
+    EXPECT_NEAR(got, expected, 0.01 * expected) << "sun " << sun;
+  }
+}
+
 TEST(Lights, PhysicalSkyIsNormalisedAndBrightestTowardsTheSun) {
   const Sun sun = Sun::parse("90,45");  // east (+X), 45 degrees up
   EXPECT_NEAR(sun.direction.x, std::sqrt(0.5f), 1e-6f);
