@@ -13,6 +13,7 @@
 
 #include "image_metrics.h"
 #include "kestrel/kestrel.h"
+#include "kestrel/pipeline.h"
 
 using namespace kestrel;
 using bench::median;
@@ -162,6 +163,27 @@ int main(int argc, char** argv) {
           "| {:.2f} |\n",
           cam, median(cached_ms), median(cached_rays), cr, cached_eff, cached_eff / full_eff,
           cr / er, median(cached_psnr));
+      // What the loop shows: the same frames through the neural denoiser (kestrel::Pipeline at
+      // factor 1, its own settings otherwise), cache on and off, against the same reference.
+      for (const bool cache : {true, false}) {
+        PipelineSettings ps;
+        ps.width = w, ps.height = h, ps.factor = 1, ps.max_depth = depth, ps.seed = 100;
+        ps.sun = sun, ps.sky = sky, ps.radiance_cache = cache;
+        Pipeline loop(scene, ps, env);
+        std::vector<double> psnr, ms;
+        for (int i = 0; i <= frames; ++i) {
+          const Camera c = moving ? turned(*view_cam, turn * float(i)) : *view_cam;
+          const PipelineFrame& out = loop.frame(c, 0.0);
+          if (i + 4 > frames) ms.push_back(out.times.render + out.times.denoise);
+          if (i == frames)
+            psnr.push_back(
+                bench::psnr(bench::tonemapped(out.denoised), bench::tonemapped(ref[Aov::color])));
+        }
+        fmt::print(
+            "| {} | loop (neural denoiser), cache {} | {:.1f} (render + denoise) | | 1 | | | | "
+            "{:.2f} |\n",
+            cam, cache ? "on" : "off", median(ms), psnr[0]);
+      }
       if (!bias.empty()) {
         fmt::print("| {} | full paths, {} spp | | | {} | {:.4f} | |\n", cam, mean_frames + 1,
                    mean_frames + 1, median(full_mean));
