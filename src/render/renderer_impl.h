@@ -208,9 +208,9 @@ struct Renderer::Impl {
   bool sun_on = false;
   Vec3 sun_dir, sun_radiance;
   float sun_cos_max = 1, sun_solid_angle = 0;
-  float p_sun = 0;         // probability NEE samples the sun
+  float p_sun = 0;           // probability NEE samples the sun
   float env_irradiance = 0;  // luminance of the environment's irradiance on an upward surface
-  bool env_ready = false;  // choose_environment ran (the probabilities can be set)
+  bool env_ready = false;    // choose_environment ran (the probabilities can be set)
   Bounds3 bounds;
   RayCapture* capture = nullptr;
   std::unique_ptr<Accumulator> tile_acc;  // render_tiles: sums kept between calls of one size
