@@ -11,7 +11,7 @@ build_dir=${KESTREL_BUILD_DIR:-$here/build/release}
 packages=(build-essential cmake ninja-build ccache pkg-config
   libtbb-dev libtinyobjloader-dev libtinygltf-dev nlohmann-json3-dev libstb-dev
   libpng-dev libcli11-dev libfmt-dev libgtest-dev libgmock-dev libbenchmark-dev
-  libembree-dev libopenexr-dev libdnnl-dev python3 python3-matplotlib
+  libembree-dev libopenexr-dev zlib1g-dev libdnnl-dev python3 python3-matplotlib
   libsdl2-dev libsdl2-ttf-dev fonts-dejavu-core xvfb xauth
   python3-dev pybind11-dev python3-pybind11 python3-numpy python3-pytest python3-venv python3-pip
   python3-setuptools python3-wheel libopenmpi-dev openmpi-bin clang-14 libclang-rt-14-dev clang-format-14)

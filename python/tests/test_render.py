@@ -217,6 +217,12 @@ def test_image_files_round_trip(tmp_path):
     kestrel.write_png(str(tmp_path / "a.png"), rgb)
     back = kestrel.read_image(str(tmp_path / "a.png"))
     assert back.shape == (5, 7, 3)
+    # Every byte survives the PNG (zlib-deflated) round trip: read_image's sRGB decode of it.
+    noise = rng.integers(0, 256, size=(53, 37, 3), dtype=np.uint8)
+    kestrel.write_png(str(tmp_path / "n.png"), noise)
+    c = noise.astype(np.float64) / 255
+    decoded = np.where(c <= 0.04045, c / 12.92, ((c + 0.055) / 1.055) ** 2.4)
+    assert np.allclose(kestrel.read_image(str(tmp_path / "n.png")), decoded, atol=1e-5, rtol=0)
     with pytest.raises(ValueError, match="a.pfm|truncated|PFM"):
         (tmp_path / "t.pfm").write_bytes(b"PF\n7 5\n-1\n" + b"\0" * 10)
         kestrel.read_pfm(str(tmp_path / "t.pfm"))
