@@ -51,14 +51,17 @@ struct Shadow {
   uint32_t path;
 };
 
+// Radiance scaled so that its largest component is at most `clamp` (0: off).
+Vec3 clamped(Vec3 L, float clamp) {
+  const float m = std::max({L.x, L.y, L.z});
+  return clamp > 0 && m > clamp ? L * (clamp / m) : L;
+}
+
 // One sample of a pixel into the sums: a NaN/Inf radiance is dropped (not smeared), then
 // clamped when asked; the luminance's running mean and M2 (Welford) give the variance AOV.
 void add_sample(Accumulator& acc, size_t p, Vec3 L, const PixelSample& o, float clamp) {
   if (!is_finite(L)) L = {0, 0, 0};
-  if (clamp > 0) {
-    const float m = std::max({L.x, L.y, L.z});
-    if (m > clamp) L = L * (clamp / m);
-  }
+  L = clamped(L, clamp);
   for (int c = 0; c < 3; ++c) {
     acc.color[3 * p + size_t(c)] += L[c];
     acc.albedo[3 * p + size_t(c)] += o.albedo[c];
@@ -89,11 +92,7 @@ bool cache_sample(const PathState& ps, float clamp, Vec3& out) {
   if (!(t.x > 0 && t.y > 0 && t.z > 0)) return false;
   out = {d.x / t.x, d.y / t.y, d.z / t.z};
   if (!is_finite(out)) return false;
-  out = max(out, Vec3{0, 0, 0});
-  if (clamp > 0) {
-    const float m = std::max({out.x, out.y, out.z});
-    if (m > clamp) out = out * (clamp / m);
-  }
+  out = clamped(max(out, Vec3{0, 0, 0}), clamp);
   return true;
 }
 
@@ -444,13 +443,14 @@ void Renderer::Impl::render_tile(const CameraModel& cam, const CameraModel& prev
       // (when the bounce is longer than a cell: contact light needs the path), or note the
       // vertex so this path teaches the cell what it measures from here on.
       if (cache_records && depth == 1 && ps.rough && bp.alpha >= cache_alpha_second) {
-        const uint64_t key = radiance_cache.key(p, ng);
+        const RadianceCache::Cell cell = radiance_cache.cell(p, ng);
         Vec3 lc;
-        if (!ps.train && h.t >= radiance_cache.cell_size(p) && radiance_cache.lookup(key, lc)) {
+        if (!ps.train && h.t >= cell.size && radiance_cache.lookup(cell.key, lc)) {
           ps.radiance = ps.radiance + ps.throughput * lc;
           continue;
         }
-        ps.cache_key = key, ps.cache_radiance = ps.radiance, ps.cache_throughput = ps.throughput;
+        ps.cache_key = cell.key, ps.cache_radiance = ps.radiance,
+        ps.cache_throughput = ps.throughput;
       }
       const Basis frame(ns);
       const Vec3 wo_l = frame.to_local(wo);

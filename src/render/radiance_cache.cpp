@@ -25,11 +25,7 @@ int64_t cell_coordinate(float p, double inv_cell) {
 
 }  // namespace
 
-float RadianceCache::cell_size(Vec3 p) const {
-  return std::ldexp(1.0f, cell_exponent(length(p - eye_) * pixel_angle_ * cell_pixels));
-}
-
-uint64_t RadianceCache::key(Vec3 p, Vec3 ng) const {
+RadianceCache::Cell RadianceCache::cell(Vec3 p, Vec3 ng) const {
   const int e = cell_exponent(length(p - eye_) * pixel_angle_ * cell_pixels);
   const double inv = std::ldexp(1.0, -e);
   const float ax = std::fabs(ng.x), ay = std::fabs(ng.y), az = std::fabs(ng.z);
@@ -39,7 +35,7 @@ uint64_t RadianceCache::key(Vec3 p, Vec3 ng) const {
   h = mix64(h ^ uint64_t(cell_coordinate(p.x, inv)));
   h = mix64(h ^ uint64_t(cell_coordinate(p.y, inv)) * 0x9E3779B97F4A7C15ull);
   h = mix64(h ^ uint64_t(cell_coordinate(p.z, inv)) * 0xC2B2AE3D27D4EB4Full);
-  return h | 1;  // never the empty key
+  return {h | 1, std::ldexp(1.0f, e)};  // never the empty key
 }
 
 size_t RadianceCache::find(uint64_t key) const {
@@ -86,7 +82,7 @@ void RadianceCache::add(std::span<const CacheRecord> records) {
 
 void RadianceCache::end_pass() {
   for (const uint32_t i : touched_) {
-    Cell& c = cells_[i];
+    Slot& c = cells_[i];
     Pending& p = pending_[i];
     // The history's weight halves every half_life passes (and is capped): lighting that
     // changes reaches the cells within a few half-lives however few samples they get.
@@ -100,16 +96,16 @@ void RadianceCache::end_pass() {
   }
   touched_.clear();
   ++pass_;
-  if (pass_ % 16 == 0 || 4 * live_ >= 2 * capacity - capacity / 8) evict();
+  if (pass_ % 16 == 0 || live_ >= evict_at) evict();
 }
 
 void RadianceCache::evict() {
   if (cells_.empty()) return;
-  std::vector<Cell> old;
+  std::vector<Slot> old;
   old.swap(cells_);
-  cells_.assign(capacity, Cell{});
+  cells_.assign(capacity, Slot{});
   live_ = 0;
-  for (const Cell& c : old) {
+  for (const Slot& c : old) {
     if (c.key == 0 || pass_ - c.last > max_age) continue;
     size_t i = c.key & (capacity - 1);
     while (cells_[i].key != 0) i = (i + 1) & (capacity - 1);

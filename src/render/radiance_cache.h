@@ -32,13 +32,20 @@ class RadianceCache {
   static constexpr uint32_t half_life = 16;     ///< passes after which the history weighs half
   static constexpr uint32_t max_age = 64;       ///< passes without a sample before eviction
   static constexpr size_t capacity = 1u << 17;  ///< cells (open addressing; 6 MB in all)
+  /// New cells are refused beyond half the capacity; an eviction runs every 16 passes, and
+  /// as soon as this many cells live.
+  static constexpr size_t evict_at = capacity / 2 - capacity / 32;
 
   /// The camera the cells are sized for: its eye and the angle one pixel subtends.
   void set_view(Vec3 eye, float pixel_angle) { eye_ = eye, pixel_angle_ = pixel_angle; }
-  /// Edge of the cell holding p.
-  float cell_size(Vec3 p) const;
-  /// The cell of point p whose geometric normal is ng (a non-zero key).
-  uint64_t key(Vec3 p, Vec3 ng) const;
+  /// The cell of point p whose geometric normal is ng: its key (never 0) and edge length.
+  struct Cell {
+    uint64_t key;
+    float size;
+  };
+  Cell cell(Vec3 p, Vec3 ng) const;
+  uint64_t key(Vec3 p, Vec3 ng) const { return cell(p, ng).key; }
+  float cell_size(Vec3 p) const { return cell(p, Vec3{0, 0, 1}).size; }
   /// The cell's mean, when it has at least min_samples.
   bool lookup(uint64_t key, Vec3& radiance) const;
   /// Adds a pass's samples (call in a fixed order), then end_pass() blends them in.
@@ -48,7 +55,7 @@ class RadianceCache {
   size_t cells() const { return live_; }
 
  private:
-  struct Cell {
+  struct Slot {
     uint64_t key = 0;  // 0: empty
     Vec3 mean{0, 0, 0};
     float samples = 0;
@@ -61,7 +68,7 @@ class RadianceCache {
   size_t find(uint64_t key) const;  // its slot, or capacity
   size_t insert(uint64_t key);      // its slot (new or found), or capacity when full
   void evict();                     // drops cells older than max_age, rehashing the rest
-  std::vector<Cell> cells_;
+  std::vector<Slot> cells_;
   std::vector<Pending> pending_;
   std::vector<uint32_t> touched_;  // slots with pending samples, in order of first touch
   size_t live_ = 0;
