@@ -15,27 +15,30 @@ void rows(int h, F&& f) {
   parallel_for(0, size_t(h), 4, [&](size_t begin, size_t end) { f(int(begin), int(end)); });
 }
 
-const float kB3[5] = {1.0f / 16, 1.0f / 4, 3.0f / 8, 1.0f / 4, 1.0f / 16};
+const float kB3[5] = {1.0f / 16, 1.0f / 4, 3.0f / 8, 1.0f / 4, 1.0f / 16};  // Dammertz's 5x5
+const float kB1[3] = {0.25f, 0.5f, 0.25f};  // SVGF-like's variance blur
+const float kBox[3] = {1.0f, 1.0f, 1.0f};   // SVGF-like's 3x3 taps (normalised by the sum)
 
-// One 5x5 edge-avoiding a-trous pass (B3 spline) over planar irradiance `x` (3 channels) and
-// optionally a variance plane; weights from the caller's per-pixel edge function.
+// One edge-avoiding a-trous pass over planar irradiance `x` (3 channels) and optionally a
+// variance plane: taps (2r + 1)^2 with weights kernel[j + r] * kernel[i + r] times the caller's
+// per-pixel edge function.
 template <class Weight>
-void atrous_pass(const Planes& in, Planes& out, int dilation, const float* var_in, float* var_out,
-                 Weight&& weight) {
+void atrous_pass(const Planes& in, Planes& out, const float* kernel, int r, int dilation,
+                 const float* var_in, float* var_out, Weight&& weight) {
   const int W = in.width, H = in.height;
   rows(H, [&](int r0, int r1) {
     for (int y = r0; y < r1; ++y)
       for (int x = 0; x < W; ++x) {
         const size_t p = size_t(y) * size_t(W) + size_t(x);
         float acc[3] = {0, 0, 0}, wsum = 0, vacc = 0;
-        for (int j = -2; j <= 2; ++j) {
+        for (int j = -r; j <= r; ++j) {
           const int qy = y + j * dilation;
           if (qy < 0 || qy >= H) continue;
-          for (int i = -2; i <= 2; ++i) {
+          for (int i = -r; i <= r; ++i) {
             const int qx = x + i * dilation;
             if (qx < 0 || qx >= W) continue;
             const size_t q = size_t(qy) * size_t(W) + size_t(qx);
-            const float w = kB3[j + 2] * kB3[i + 2] * weight(p, q);
+            const float w = kernel[j + r] * kernel[i + r] * weight(p, q);
             for (int c = 0; c < 3; ++c) acc[c] += w * in.ch(c)[q];
             wsum += w;
             if (var_in) vacc += w * w * var_in[q];
@@ -93,7 +96,7 @@ Planes atrous_filter(const Planes& g) {
       for (size_t p = 0; p < size_t(x.width) * size_t(x.height); ++p)
         logx.ch(c)[p] = std::log1p(std::max(x.ch(c)[p], 0.0f));
     const float sc = sigma_c * std::ldexp(1.0f, -it);
-    atrous_pass(x, t, 1 << it, nullptr, nullptr, [&](size_t p, size_t q) {
+    atrous_pass(x, t, kB3, 2, 1 << it, nullptr, nullptr, [&](size_t p, size_t q) {
       float d2 = 0;
       for (int c = 0; c < 3; ++c) {
         const float d = logx.ch(c)[p] - logx.ch(c)[q];
@@ -139,10 +142,10 @@ Planes SvgfReference::run(const Planes& g) {
   var = var2;
   Planes t(W, H, 3);
   std::vector<float> var_next(N), gvar(N);
-  const float sigma_l = 4.0f, sigma_z = 1.0f;  // sigma_n = 128 = 2^7 (pow2k below)
+  const float sigma_l = 4.0f, sigma_z = 1.0f, sigma_n = 128.0f;
   const DepthGradient dz(g);
   Planes first;
-  for (int it = 0; it < 5; ++it) {
+  for (int it = 0; it < kSvgfPasses; ++it) {
     // 3x3 Gaussian-blurred variance for the luminance edge stop.
     rows(H, [&](int r0, int r1) {
       for (int y = r0; y < r1; ++y)
@@ -152,21 +155,23 @@ Planes SvgfReference::run(const Planes& g) {
             for (int k = -1; k <= 1; ++k) {
               const int sy = y + j, sx = i + k;
               if (sx < 0 || sy < 0 || sx >= W || sy >= H) continue;
-              const float w = (j == 0 ? 0.5f : 0.25f) * (k == 0 ? 0.5f : 0.25f);
+              const float w = kB1[j + 1] * kB1[k + 1];
               s += w * var[size_t(sy) * size_t(W) + size_t(sx)], ws += w;
             }
           gvar[size_t(y) * size_t(W) + size_t(i)] = s / ws;
         }
     });
-    atrous_pass(acc, t, 1 << it, var.data(), var_next.data(), [&](size_t p, size_t q) {
+    atrous_pass(acc, t, kBox, 1, 1 << it, var.data(), var_next.data(), [&](size_t p, size_t q) {
       const float lp = svgf_luminance(acc.ch(0)[p], acc.ch(1)[p], acc.ch(2)[p]);
       const float lq = svgf_luminance(acc.ch(0)[q], acc.ch(1)[q], acc.ch(2)[q]);
       const float wl = std::abs(lp - lq) / (sigma_l * std::sqrt(gvar[p]) + 1e-4f);
       const float wz = dz.weight(g, p, q, sigma_z);
       const bool no_normal = g.ch(6)[p] == 0 && g.ch(7)[p] == 0 && g.ch(8)[p] == 0;
-      const float wn = no_normal ? 1.0f : pow2k(std::max(0.0f, normal_dot(g, p, q)), 7);
+      // exp(sigma_n (n.n' - 1)): SVGF's max(0, n.n')^sigma_n with log c ~ c - 1, so that
+      // one exp carries every edge stop.
+      const float ln = no_normal ? 0.0f : sigma_n * (std::max(0.0f, normal_dot(g, p, q)) - 1);
       if (svgf_black(g, p) != svgf_black(g, q)) return 0.0f;  // radiance and irradiance
-      return wn * std::exp(-wl - wz);
+      return std::exp(ln - wl - wz);
     });
     std::swap(acc, t);
     std::swap(var, var_next);

@@ -5,6 +5,7 @@
 #include <fmt/format.h>
 
 #include <algorithm>
+#include <bit>
 #include <cmath>
 #include <cstdlib>
 #include <cstring>
@@ -87,6 +88,20 @@ void replicate_edges(Planes& p, int width, int height) {
   });
 }
 
+// dst[x] = src[x * stride] with NaN and +-Inf set to 0, and negative values too if `colour`
+// (-0 kept): on the bits, branch-free. kStride: the stride if known (0: `stride`).
+template <int kStride>
+void copy_clean(const float* src, float* dst, int n, int stride, bool colour) {
+  const size_t st = kStride ? size_t(kStride) : size_t(stride);
+  const uint32_t negative = colour ? 0x80000000u : 0u;
+  for (int x = 0; x < n; ++x) {
+    const uint32_t b = std::bit_cast<uint32_t>(src[size_t(x) * st]);
+    const uint32_t keep = uint32_t((b & 0x7F800000u) != 0x7F800000u) &
+                          uint32_t(((b & negative) == 0u) | ((b & 0x7FFFFFFFu) == 0u));
+    dst[x] = std::bit_cast<float>(b & (0u - keep));
+  }
+}
+
 // The inputs as padded planes (multiple of `align`, edge replicated): colour 0-2, albedo
 // 3-5, normal 6-8, depth 9, roughness 10, motion 11-12; NaN/Inf to 0, negative colour to 0;
 // absent images: albedo 1, normal 0, depth 1, roughness 0, motion 0. `p` is reused.
@@ -143,10 +158,21 @@ void gather(const DenoiseInput& in, int align, Planes& p) {
           const float* src =
               s.img->pixels.data() + size_t(y) * size_t(cw) * size_t(stride) + size_t(k);
           const bool colour = s.first == 0;
-          for (int x = 0; x < cw; ++x) {
-            const float v = src[size_t(x) * size_t(stride)];
-            const float finite = v - v == 0.0f ? v : 0.0f;     // NaN and +-Inf to 0
-            dst[x] = colour && finite < 0.0f ? 0.0f : finite;  // negative colour to 0
+          switch (stride) {  // a constant stride lets the compiler vectorise the copy
+            case 1:
+              copy_clean<1>(src, dst, cw, 1, colour);
+              break;
+            case 2:
+              copy_clean<2>(src, dst, cw, 2, colour);
+              break;
+            case 3:
+              copy_clean<3>(src, dst, cw, 3, colour);
+              break;
+            case 4:
+              copy_clean<4>(src, dst, cw, 4, colour);
+              break;
+            default:
+              copy_clean<0>(src, dst, cw, stride, colour);
           }
         }
     }

@@ -1,5 +1,5 @@
 // The denoiser's kernels built for avx512 (flags in CMakeLists.txt).
-#include <xmmintrin.h>
+#include <immintrin.h>
 #include "core/parallel.h"
 
 #include <algorithm>
@@ -25,8 +25,8 @@ const KernelTable& kernels_avx512() {
 }
 
 const SvgfKernels& svgf_kernels_avx512() {
-  static const SvgfKernels table{avx512_ns::svgf_temporal_rows, avx512_ns::svgf_pass_rows,
-                                 avx512_ns::svgf_variance_rows, avx512_ns::svgf_blur_rows};
+  static const SvgfKernels table{avx512_ns::svgf_demodulate_rows, avx512_ns::svgf_temporal_rows,
+                                 avx512_ns::svgf_pass_rows, avx512_ns::svgf_variance_rows};
   return table;
 }
 

@@ -1,5 +1,5 @@
 // The denoiser's kernels built for sse2 (flags in CMakeLists.txt).
-#include <xmmintrin.h>
+#include <immintrin.h>
 #include "core/parallel.h"
 
 #include <algorithm>
@@ -25,8 +25,8 @@ const KernelTable& kernels_sse2() {
 }
 
 const SvgfKernels& svgf_kernels_sse2() {
-  static const SvgfKernels table{sse2_ns::svgf_temporal_rows, sse2_ns::svgf_pass_rows,
-                                 sse2_ns::svgf_variance_rows, sse2_ns::svgf_blur_rows};
+  static const SvgfKernels table{sse2_ns::svgf_demodulate_rows, sse2_ns::svgf_temporal_rows,
+                                 sse2_ns::svgf_pass_rows, sse2_ns::svgf_variance_rows};
   return table;
 }
 

@@ -39,6 +39,30 @@ static inline float vmax(float a, float b) {
 static inline vfloat vmax(vfloat a, vfloat b) {
   return a < b ? b : a;
 }
+static inline float vsqrt(float x) {
+  return std::sqrt(x);
+}
+static inline vfloat vsqrt(vfloat x) {
+#if defined(__AVX512F__)
+  return (vfloat)_mm512_mask_sqrt_ps((__m512)x, 0xFFFF, (__m512)x);  // no undefined source
+#elif defined(__AVX2__)
+  return (vfloat)_mm256_sqrt_ps((__m256)x);
+#else
+  return (vfloat)_mm_sqrt_ps((__m128)x);
+#endif
+}
+// Lane l of the result: base[idx[l]].
+static inline vfloat vgather(const float* base, vint idx) {
+#if defined(__AVX512F__)
+  return (vfloat)_mm512_mask_i32gather_ps(_mm512_setzero_ps(), 0xFFFF, (__m512i)idx, base, 4);
+#elif defined(__AVX2__)
+  return (vfloat)_mm256_i32gather_ps(base, (__m256i)idx, 4);
+#else
+  vfloat v;
+  for (int l = 0; l < kLanes; ++l) v[l] = base[idx[l]];
+  return v;
+#endif
+}
 static inline float vexp_neg(float x) {
   return exp_neg(x);
 }

@@ -143,16 +143,19 @@ void depth_gradient(const Planes& g, float* gx, float* gy) {
   const int W = g.width, H = g.height;
   const float* z = g.ch(9);
   rows(H, [&](int r0, int r1) {
-    for (int y = r0; y < r1; ++y)
-      for (int x = 0; x < W; ++x) {
-        const size_t p = size_t(y) * size_t(W) + size_t(x);
-        const int xl = std::max(x - 1, 0), xr = std::min(x + 1, W - 1), yu = std::max(y - 1, 0),
-                  yd = std::min(y + 1, H - 1);
-        gx[p] = (z[size_t(y) * size_t(W) + size_t(xr)] - z[size_t(y) * size_t(W) + size_t(xl)]) /
-                float(std::max(xr - xl, 1));
-        gy[p] = (z[size_t(yd) * size_t(W) + size_t(x)] - z[size_t(yu) * size_t(W) + size_t(x)]) /
-                float(std::max(yd - yu, 1));
-      }
+    for (int y = r0; y < r1; ++y) {
+      // Central differences inside, one-sided at the borders (0 across a 1-pixel image).
+      const float* zr = z + size_t(y) * size_t(W);
+      const float* zu = z + size_t(std::max(y - 1, 0)) * size_t(W);
+      const float* zd = z + size_t(std::min(y + 1, H - 1)) * size_t(W);
+      float* ox = gx + size_t(y) * size_t(W);
+      float* oy = gy + size_t(y) * size_t(W);
+      const float sy = (y > 0 && y + 1 < H) ? 0.5f : 1.0f;
+      for (int x = 0; x < W; ++x) oy[x] = (zd[x] - zu[x]) * sy;
+      for (int x = 1; x + 1 < W; ++x) ox[x] = (zr[x + 1] - zr[x - 1]) * 0.5f;
+      ox[0] = W > 1 ? zr[1] - zr[0] : 0.0f;
+      if (W > 1) ox[W - 1] = zr[W - 1] - zr[W - 2];
+    }
   });
 }
 
@@ -169,11 +172,17 @@ const Planes& Svgf::run(const Planes& g, SvgfTimes* times) {
   ensure(next_, W, H, 11);
   ensure(tmp_, W, H, 3);
   ensure(aux_, W, H, 7);  // planes, not separate vectors: see Planes on cache sets
-  float *var = aux_.ch(0), *var2 = aux_.ch(1), *inv_l = aux_.ch(2), *lum = aux_.ch(3);
+  float *var = aux_.ch(0), *lum = aux_.ch(1), *var2 = aux_.ch(2), *lum2 = aux_.ch(3);
   float *gx = aux_.ch(4), *gy = aux_.ch(5), *black = aux_.ch(6);
   black_rows_.resize(size_t(H));
-  demodulate(g, x_, demod_, black, black_rows_.data());
   const SvgfKernels& k = svgf_kernels();
+  ensure(x_, W, H, 3);
+  ensure(demod_, W, H, 3);
+  SvgfDemodulate de;
+  for (int c = 0; c < 3; ++c)
+    de.color[c] = g.ch(c), de.albedo[c] = g.ch(3 + c), de.x[c] = x_.ch(c), de.d[c] = demod_.ch(c);
+  de.black = black, de.black_rows = black_rows_.data(), de.width = W;
+  rows(H, [&](int r0, int r1) { k.demodulate(de, r0, r1); });
   if (history_.width != W || history_.height != H) {  // the first frame
     svgf_temporal(g, x_, history_, acc_, next_.ch(3), next_.ch(4), next_.ch(5), var);
   } else {
@@ -197,33 +206,33 @@ const Planes& Svgf::run(const Planes& g, SvgfTimes* times) {
   std::swap(var, var2);
   depth_gradient(g, gx, gy);
   lap(&SvgfTimes::variance);
-  for (int it = 0; it < 5; ++it) {
-    SvgfBlur bl;
-    bl.var = var, bl.inv_l = inv_l, bl.width = W, bl.height = H;
-    bl.sigma_l = 4.0f;
+  rows(H, [&](int r0, int r1) {
+    const float *a0 = acc_.ch(0), *a1 = acc_.ch(1), *a2 = acc_.ch(2);
+    for (size_t p = size_t(r0) * size_t(W); p < size_t(r1) * size_t(W); ++p)
+      lum[p] = svgf_luminance(a0[p], a1[p], a2[p]);
+  });
+  // Pass 0 writes the next history's irradiance, which pass 1 reads; then tmp_ and acc_ in
+  // turn.
+  const Planes* in = &acc_;
+  for (int it = 0; it < kSvgfPasses; ++it) {
+    Planes& out = it == 0 ? next_ : in == &tmp_ ? acc_ : tmp_;
     SvgfPass pa;
-    for (int c = 0; c < 3; ++c) pa.x[c] = acc_.ch(c), pa.n[c] = g.ch(6 + c), pa.out[c] = tmp_.ch(c);
-    pa.lum = lum, pa.var = var, pa.inv_l = inv_l, pa.z = g.ch(9);
+    for (int c = 0; c < 3; ++c) pa.x[c] = in->ch(c), pa.n[c] = g.ch(6 + c), pa.out[c] = out.ch(c);
+    pa.lum = lum, pa.var = var, pa.z = g.ch(9);
     pa.gx = gx, pa.gy = gy, pa.black = black, pa.black_rows = black_rows_.data();
-    pa.var_out = var2;
-    pa.width = W, pa.height = H, pa.dilation = 1 << it, pa.sigma_z = 1.0f;
-    rows(H, [&](int r0, int r1) {
-      k.blur(bl, r0, r1);
-      for (size_t p = size_t(r0) * size_t(W); p < size_t(r1) * size_t(W); ++p)
-        lum[p] = svgf_luminance(acc_.ch(0)[p], acc_.ch(1)[p], acc_.ch(2)[p]);
-    });
+    pa.lum_out = lum2, pa.var_out = var2;
+    pa.width = W, pa.height = H, pa.dilation = 1 << it;
     rows(H, [&](int r0, int r1) { k.pass(pa, r0, r1); });
-    std::swap(acc_, tmp_);
     std::swap(var, var2);
-    if (it == 0)
-      for (int c = 0; c < 3; ++c) std::memcpy(next_.ch(c), acc_.ch(c), sizeof(float) * N);
+    std::swap(lum, lum2);
+    in = &out;
   }
   lap(&SvgfTimes::passes);
   std::memcpy(next_.ch(6), g.ch(9), sizeof(float) * N);
   for (int c = 0; c < 3; ++c) std::memcpy(next_.ch(7 + c), g.ch(6 + c), sizeof(float) * N);
   std::memcpy(next_.ch(10), black, sizeof(float) * N);
   std::swap(history_, next_);
-  remodulate(acc_, demod_, out_);
+  remodulate(*in, demod_, out_);
   lap(&SvgfTimes::output);
   return out_;
 }

@@ -9,17 +9,20 @@
 
 namespace kestrel::denoise {
 
-/// One variance-guided a-trous pass of SVGF over rows [y0, y1): 5x5 B3 taps at
-/// +-2 * dilation (taps outside the image are skipped, not clamped),
-///   out = sum w x(q) / sum w,  var_out = sum w^2 var(q) / (sum w)^2,
-///   w = h_q * wn * exp(-|l - l(q)| * inv_l - |z - z(q)| / (sigma_z |gx dx + gy dy| + 1e-3 z)),
-/// wn = 1 where the pixel has no normal, else max(0, n . n(q))^128; w = 0 where q is
-/// demodulated otherwise than the pixel (`black` differs: radiance and irradiance do not mix).
+/// One variance-guided a-trous pass of SVGF-like over rows [y0, y1): 3x3 taps at +-dilation,
+/// equal weights (taps outside the image are skipped, not clamped),
+///   out = sum w x(q) / sum w,  var_out = sum w^2 var(q) / (sum w)^2,  lum_out = luminance(out),
+///   w = exp(sigma_n (c - 1) - |l - l(q)| inv_l - |z - z(q)| / (sigma_z |gx dx + gy dy| + e)),
+/// e = 1e-3 max(z, kMinDepth); inv_l = 1 / (sigma_l sqrt(g) + 1e-4), g the 3x3 (1/4, 1/2, 1/4)
+/// blur of var (taps outside the image skipped, weights renormalised); c = 1 where the pixel
+/// has no normal, else max(0, n . n(q)) (exp(sigma_n (c - 1)) is SVGF's c^sigma_n with
+/// log c ~ c - 1); w = 0 where q is demodulated otherwise than the pixel (`black` differs:
+/// radiance and irradiance do not mix). SVGF (Schied et al. 2017) takes 5x5 taps of the B3
+/// spline: 2.8x the work, and measured no better (docs/denoiser.md).
 struct SvgfPass {
   const float* x[3] = {};
-  const float* lum = nullptr;    ///< luminance of x
-  const float* var = nullptr;    ///< variance of the luminance
-  const float* inv_l = nullptr;  ///< 1 / (sigma_l sqrt(blurred variance) + 1e-4)
+  const float* lum = nullptr;  ///< luminance of x
+  const float* var = nullptr;  ///< variance of the luminance
   const float* z = nullptr;
   const float* n[3] = {};
   const float* gx = nullptr;  ///< screen-space depth gradient (central differences)
@@ -27,9 +30,10 @@ struct SvgfPass {
   const float* black = nullptr;         ///< 1 where not demodulated (svgf_black), else 0
   const uint8_t* black_rows = nullptr;  ///< per row: whether it holds a black pixel
   float* out[3] = {};
+  float* lum_out = nullptr;
   float* var_out = nullptr;
   int width = 0, height = 0, dilation = 1;
-  float sigma_z = 1.0f;
+  float sigma_l = 4.0f, sigma_z = 1.0f;
 };
 
 /// SVGF's spatial variance estimate for short histories, rows [y0, y1): where len < 4,
@@ -41,15 +45,6 @@ struct SvgfVariance {
   const float* n[3] = {};
   float* out = nullptr;
   int width = 0, height = 0;
-};
-
-/// inv_l = 1 / (sigma_l sqrt(g) + 1e-4), g the 3x3 Gaussian blur of var (taps outside the
-/// image skipped, weights renormalised), rows [y0, y1).
-struct SvgfBlur {
-  const float* var = nullptr;
-  float* inv_l = nullptr;
-  int width = 0, height = 0;
-  float sigma_l = 4.0f;
 };
 
 /// SVGF's temporal step for rows [y0, y1) with a history (svgf_temporal() is its scalar
@@ -64,11 +59,23 @@ struct SvgfTemporal {
   int width = 0, height = 0;
 };
 
+/// demodulate()'s work for rows [y0, y1) (the same values but for NaN albedo): d = albedo +
+/// 0.01, or 1 where the albedo is black; x = colour / d; black flags and black rows.
+struct SvgfDemodulate {
+  const float* color[3] = {};
+  const float* albedo[3] = {};
+  float* x[3] = {};
+  float* d[3] = {};
+  float* black = nullptr;
+  uint8_t* black_rows = nullptr;
+  int width = 0;
+};
+
 struct SvgfKernels {
+  void (*demodulate)(const SvgfDemodulate&, int y0, int y1);
   void (*temporal)(const SvgfTemporal&, int y0, int y1);
   void (*pass)(const SvgfPass&, int y0, int y1);
   void (*variance)(const SvgfVariance&, int y0, int y1);
-  void (*blur)(const SvgfBlur&, int y0, int y1);
 };
 
 /// The table for the ISA in force (default_isa()), and each ISA's (kernels_<isa>.cpp).
@@ -79,9 +86,13 @@ const SvgfKernels& svgf_kernels_avx512();
 
 /// SVGF-like, real-time: temporal accumulation of demodulated irradiance and luminance
 /// moments (motion-vector reprojection, depth / normal / demodulation test), variance from the
-/// moments (7x7 estimate for histories < 4 frames), 5 passes of SvgfPass (dilation 1..16, sigma_l
-/// 4, sigma_n 128, sigma_z 1); the first pass's output is the next history. Buffers are kept from
-/// frame to frame.
+/// moments (7x7 estimate for histories < 4 frames), kSvgfPasses passes of SvgfPass (3x3 taps,
+/// dilation 1..16, sigma_l 4, sigma_n 128, sigma_z 1); the first pass's output is the next
+/// history.
+/// Buffers are kept from frame to frame.
+/// The a-trous passes of SVGF-like (dilation 1, 2, 4, ...).
+constexpr int kSvgfPasses = 5;
+
 struct SvgfTimes {
   double temporal = 0, variance = 0, passes = 0, output = 0;  ///< ms
 };
@@ -95,8 +106,7 @@ class Svgf {
  private:
   Planes history_, next_;  // irradiance 0-2, moments 3-4, length 5, depth 6, normal 7-9, black 10
   Planes x_, acc_, tmp_, demod_, out_;
-  Planes aux_;  // variance, its next pass's, 1 / luminance scale, luminance, depth gradient x, y,
-                // black
+  Planes aux_;  // variance, luminance, their next pass's, depth gradient x, y, black
   std::vector<uint8_t> black_rows_;
 };
 
@@ -115,7 +125,8 @@ inline float svgf_luminance(float r, float g, float b) {
   return 0.2126f * r + 0.7152f * g + 0.0722f * b;
 }
 
-/// The baselines' demodulation factor per channel: albedo + 0.01, or 1 where the albedo is
+/// The baselines' demodulation factor per channel (SvgfReference, the a-trous filter; Svgf
+/// runs SvgfKernels::demodulate): albedo + 0.01, or 1 where the albedo is
 /// (nearly) black. demod gets 3 planes of it, x the demodulated colour; black (if given, W x H
 /// floats) 1 where the albedo is black, else 0, and black_rows (if given, H) whether each row
 /// holds such a pixel.
@@ -127,7 +138,8 @@ inline bool svgf_black(const Planes& g, size_t p) {
 }
 /// out = max(x, 0) * demod.
 void remodulate(const Planes& x, const Planes& demod, Planes& out);
-/// SVGF's temporal step, shared by both forms: reprojects `history` (11 planes, as
+/// SVGF's temporal step, shared by both forms (Svgf's first frame; later frames run
+/// SvgfKernels::temporal): reprojects `history` (11 planes, as
 /// Svgf::next_; empty: none; a tap must match the pixel's depth, normal and black flag) and
 /// accumulates x into acc (3 planes), moments m1 m2, history length and variance.
 void svgf_temporal(const Planes& g, const Planes& x, const Planes& history, Planes& acc, float* m1,

@@ -1,44 +1,88 @@
-// SVGF's hot loops (svgf.h), included by kernels_<isa>.cpp after kernels.inl (exp_neg, the
-// vector helpers of simd.inl, FlushDenormals: the weights' tails, e.g. max(0, n.n')^128, underflow
-// into denormals).
+// SVGF's hot loops (svgf.h), included by kernels_<isa>.cpp after kernels.inl (the vector
+// helpers of simd.inl, FlushDenormals: the weights' tails underflow into denormals).
 //
-// The a-trous pass runs pixel by pixel with all 25 taps unrolled and the sums in registers,
-// vectorised across the pixels of a row's interior. A tap outside the image weighs 0 (its
-// row or column clamped to a valid one), which adds exactly nothing: the same sums as
-// skipping it, in the scalar definition's tap order. The variance estimate and the blur
-// instead cut rows into segments of kSeg pixels with taps as the outer loop, accumulating
-// into small arrays (a tap visits only the pixels for which it lies inside the image).
+// The a-trous pass runs pixel by pixel with its 3x3 taps unrolled and the sums in registers,
+// vectorised across the pixels of a row's interior, every edge stop in one exp per tap; the
+// variance blur of the luminance edge stop is computed there too, from the same plane, so no pass
+// writes it out. A tap outside the image weighs 0 (its row or column clamped to a valid one), which
+// adds exactly nothing: the same sums as skipping it. The depth edge stop's denominator depends on
+// the tap only through |gx dx + gy dy|, which opposite taps share: four reciprocals per pixel
+// instead of eight divisions. The variance estimate instead cuts rows into segments of kSeg pixels
+// with taps as the outer loop, accumulating into small arrays (a tap visits only the pixels for
+// which it lies inside the image).
 
-static constexpr int kSeg = 256;
-static constexpr float kSvgfB3[5] = {1.0f / 16, 1.0f / 4, 3.0f / 8, 1.0f / 4, 1.0f / 16};
+static constexpr int kSeg = 32;
+static constexpr float kSvgfB1[3] = {0.25f, 0.5f, 0.25f};  // the variance blur
+static constexpr float kLog2e = 1.44269504f;
+// The normal edge stop exp(sigma_n (n.n' - 1)), sigma_n = 128, in base 2.
+static constexpr float kSigmaN2 = 128.0f * kLog2e;
+
+// 2^y (0 below 2^-115 ~ e^-80, and for y = -inf): 2^n 2^f with 2^f by a degree-5 minimax
+// polynomial on [-0.5, 0.5] (relative error 8e-8). The weights' exp: the constant log2 e
+// folds into the edge stops' scales, a tap outside the image into the exponent (-inf).
+static inline float svgf_exp2(float y) {
+  const bool tiny = !(y >= -115.0f);
+  y = tiny ? -115.0f : y;
+  const float shifted = y + 12582912.0f, f = y - (shifted - 12582912.0f);
+  const float p =
+      1.0000001f +
+      f * (0.69314694f +
+           f * (0.2402212f + f * (0.05550715f + f * (0.009675536f + f * 0.0013275768f))));
+  const int n = __builtin_bit_cast(int, shifted) - 0x4B400000;
+  return tiny ? 0.0f : p * __builtin_bit_cast(float, (n + 127) << 23);
+}
+static inline vfloat svgf_exp2(vfloat y) {
+  const vint tiny = !(y >= -115.0f);
+  y = tiny ? vfloat{} - 115.0f : y;
+  const vfloat shifted = y + 12582912.0f, f = y - (shifted - 12582912.0f);
+  const vfloat p =
+      1.0000001f +
+      f * (0.69314694f +
+           f * (0.2402212f + f * (0.05550715f + f * (0.009675536f + f * 0.0013275768f))));
+  const vint n = (vint)shifted - 0x4B400000;
+  return tiny ? vfloat{} : p * (vfloat)((n + 127) << 23);
+}
 
 struct SvgfTaps {
-  long off[25];          // index offsets from the pixel
-  float h[25];           // B3 x B3, 0 for a tap outside the image
-  float dx[25], dy[25];  // the tap's offset in pixels (the depth gradient's prediction)
+  long off[9];      // index offsets from the pixel (row-major 3x3, the centre at 4)
+  float lh[9];      // log2 of the tap's weight: 0 (the box), -inf for a tap outside the image
+  long boff[9];     // the variance blur's offsets (+-1 pixel)
+  float bw[9];      // its weights, 0 outside the image
+  float bnorm = 1;  // 1 / sum of bw
 };
+
+// Which of |gx|, |gy|, |gx + gy|, |gx - gy| (times the dilation) predicts tap t's depth change.
+static constexpr int kSvgfSlope[9] = {2, 1, 3, 0, 0, 0, 3, 1, 2};
 
 // Pixels p .. p + width(T) - 1 of an SVGF pass over the taps; kClass: the black-flag test
 // (rows whose taps read no black pixel skip it: every flag is 0 there).
 template <class T, bool kClass>
 static inline void svgf_pixels(const SvgfPass& a, size_t p, const SvgfTaps& taps) {
   const T zero = T{} + 0.0f, one = T{} + 1.0f;
-  const T l = ld<T>(a.lum + p), il = ld<T>(a.inv_l + p), z = ld<T>(a.z + p);
+  T g = zero;  // the 3x3 Gaussian blur of the variance
+  for (int b = 0; b < 9; ++b) g += taps.bw[b] * ld<T>(a.var + size_t(long(p) + taps.boff[b]));
+  const T il = kLog2e / (a.sigma_l * vsqrt(g * taps.bnorm) + 1e-4f);
+  const T l = ld<T>(a.lum + p), z = ld<T>(a.z + p);
   const T gx = ld<T>(a.gx + p), gy = ld<T>(a.gy + p);
+  const T zc = 1e-3f * vmax(z, zero + kMinDepth), sz = zero + a.sigma_z * float(a.dilation);
+  const T rden[4] = {kLog2e / (sz * vabs(gx) + zc), kLog2e / (sz * vabs(gy) + zc),
+                     kLog2e / (sz * vabs(gx + gy) + zc), kLog2e / (sz * vabs(gx - gy) + zc)};
   const T n0 = ld<T>(a.n[0] + p), n1 = ld<T>(a.n[1] + p), n2 = ld<T>(a.n[2] + p);
   const T kp = kClass ? ld<T>(a.black + p) : zero;
-  const T zc = 1e-3f * vmax(z, zero + kMinDepth);
   const T floor = (n0 == zero) & (n1 == zero) & (n2 == zero) ? one : zero;
-  T a0 = zero, a1 = zero, a2 = zero, ws = zero, va = zero;
-  for (int t = 0; t < 25; ++t) {
+  // The centre: no luminance or depth difference, its own class.
+  T ws = svgf_exp2(kSigmaN2 * vmax(n0 * n0 + n1 * n1 + n2 * n2, floor) - kSigmaN2);
+  T a0 = ws * ld<T>(a.x[0] + p), a1 = ws * ld<T>(a.x[1] + p), a2 = ws * ld<T>(a.x[2] + p);
+  T va = ws * ws * ld<T>(a.var + p);
+#pragma GCC unroll 9
+  for (int t = 0; t < 9; ++t) {
+    if (t == 4) continue;
     const size_t q = size_t(long(p) + taps.off[t]);
     const T wl = vabs(l - ld<T>(a.lum + q)) * il;
-    const T pred = vabs(gx * taps.dx[t] + gy * taps.dy[t]);
-    const T wz = vabs(z - ld<T>(a.z + q)) / (a.sigma_z * pred + zc);
-    T c = vmax(n0 * ld<T>(a.n[0] + q) + n1 * ld<T>(a.n[1] + q) + n2 * ld<T>(a.n[2] + q), zero);
-    c *= c, c *= c, c *= c, c *= c, c *= c, c *= c, c *= c;  // ^128
-    c = vmax(c, floor);                                      // 1 where there is no normal
-    T w = taps.h[t] * (c * vexp_neg(zero - (wl + wz)));
+    const T wz = vabs(z - ld<T>(a.z + q)) * rden[kSvgfSlope[t]];
+    const T c =
+        vmax(n0 * ld<T>(a.n[0] + q) + n1 * ld<T>(a.n[1] + q) + n2 * ld<T>(a.n[2] + q), floor);
+    T w = svgf_exp2((kSigmaN2 * c - kSigmaN2) + taps.lh[t] - wl - wz);
     if constexpr (kClass) w = kp == ld<T>(a.black + q) ? w : zero;  // radiance, irradiance
     a0 += w * ld<T>(a.x[0] + q);
     a1 += w * ld<T>(a.x[1] + q);
@@ -48,9 +92,10 @@ static inline void svgf_pixels(const SvgfPass& a, size_t p, const SvgfTaps& taps
   }
   const auto any = ws > zero;
   const T inv = one / (any ? ws : one);
-  st(a.out[0] + p, any ? a0 * inv : ld<T>(a.x[0] + p));
-  st(a.out[1] + p, any ? a1 * inv : ld<T>(a.x[1] + p));
-  st(a.out[2] + p, any ? a2 * inv : ld<T>(a.x[2] + p));
+  const T o0 = any ? a0 * inv : ld<T>(a.x[0] + p), o1 = any ? a1 * inv : ld<T>(a.x[1] + p),
+          o2 = any ? a2 * inv : ld<T>(a.x[2] + p);
+  st(a.out[0] + p, o0), st(a.out[1] + p, o1), st(a.out[2] + p, o2);
+  st(a.lum_out + p, 0.2126f * o0 + 0.7152f * o1 + 0.0722f * o2);
   st(a.var_out + p, any ? va * (inv * inv) : ld<T>(a.var + p));
 }
 
@@ -73,23 +118,31 @@ static void svgf_pass_rows(const SvgfPass& a, int y0, int y1) {
     const size_t row = size_t(y) * size_t(W);
     SvgfTaps taps;
     bool cls = false;  // a black pixel in a row the taps read
-    for (int j = -2, t = 0; j <= 2; ++j) {
-      const int qy = y + j * d;
-      const bool in = qy >= 0 && qy < H;
+    float bsum = 0;
+    for (int j = -1, t = 0; j <= 1; ++j) {
+      const int qy = y + j * d, by = y + j;
+      const bool in = qy >= 0 && qy < H, bin = by >= 0 && by < H;
       cls |= in && a.black_rows[qy] != 0;
-      for (int i = -2; i <= 2; ++i, ++t) {
+      for (int i = -1; i <= 1; ++i, ++t) {
         taps.off[t] = in ? long(j * d) * long(W) + long(i * d) : long(i * d);
-        taps.h[t] = in ? kSvgfB3[j + 2] * kSvgfB3[i + 2] : 0.0f;
-        taps.dx[t] = float(i * d), taps.dy[t] = float(j * d);
+        taps.lh[t] = in ? 0.0f : -INFINITY;
+        taps.boff[t] = bin ? long(j) * long(W) + long(i) : long(i);
+        taps.bw[t] = bin ? kSvgfB1[j + 1] * kSvgfB1[i + 1] : 0.0f;
+        bsum += taps.bw[t];
       }
     }
-    const int i0 = std::min(2 * d, W), i1 = std::max(W - 2 * d, i0);
+    taps.bnorm = 1.0f / bsum;
+    const int i0 = std::min(d, W), i1 = std::max(W - d, i0);
     auto border = [&](int x) {  // columns outside the image weigh 0, read the pixel's own
       SvgfTaps c = taps;
-      for (int t = 0; t < 25; ++t) {
-        const int qx = x + int(c.dx[t]);
-        if (qx < 0 || qx >= W) c.off[t] -= long(c.dx[t]), c.h[t] = 0.0f;
+      float s = 0;
+      for (int t = 0; t < 9; ++t) {
+        const int i = t % 3 - 1;
+        if (x + i * d < 0 || x + i * d >= W) c.off[t] -= long(i * d), c.lh[t] = -INFINITY;
+        if (x + i < 0 || x + i >= W) c.boff[t] -= long(i), c.bw[t] = 0.0f;
+        s += c.bw[t];
       }
+      c.bnorm = 1.0f / s;
       svgf_span(a, row, x, x + 1, c, cls);
     };
     for (int x = 0; x < i0; ++x) border(x);
@@ -161,99 +214,123 @@ static void svgf_variance_rows(const SvgfVariance& a, int y0, int y1) {
   }
 }
 
-static void svgf_blur_rows(const SvgfBlur& a, int y0, int y1) {
-  const FlushDenormals flush;
+// SVGF's temporal step for one pixel (T = float) or kLanes pixels in a row (T = vfloat) at p,
+// branch-free: fetch(plane, k) reads the history at the four bilinear taps and wb[k] are their
+// weights (0 for a tap outside the image, whose reads are then a valid pixel's). A tap that
+// fails the consistency test (depth off by > 10 %, normals > ~25 degrees apart, another black
+// flag) weighs 0 too, which adds exactly nothing: the scalar definition's sums.
+template <class T, class Fetch>
+static inline void svgf_temporal_px(const SvgfTemporal& a, size_t p, const T wb[4], Fetch&& fetch) {
+  const T zero = T{} + 0.0f, one = T{} + 1.0f;
+  const T x0 = ld<T>(a.x[0] + p), x1 = ld<T>(a.x[1] + p), x2 = ld<T>(a.x[2] + p);
+  const T l = 0.2126f * x0 + 0.7152f * x1 + 0.0722f * x2;
+  const T z = ld<T>(a.z + p), n0 = ld<T>(a.n[0] + p), n1 = ld<T>(a.n[1] + p),
+          n2 = ld<T>(a.n[2] + p), k = ld<T>(a.black + p);
+  const auto no_normal = (n0 == zero) & (n1 == zero) & (n2 == zero);
+  const T zmax = 0.1f * vmax(z, zero + kMinDepth);
+  const float* const* h = a.hist;
+  T h0 = zero, h1 = zero, h2 = zero, h3 = zero, h4 = zero, hl = zero, wsum = zero;
+  for (int t = 0; t < 4; ++t) {
+    const T nd = n0 * fetch(h[7], t) + n1 * fetch(h[8], t) + n2 * fetch(h[9], t);
+    T w = (no_normal | (nd > 0.9f)) & (fetch(h[10], t) == k) ? wb[t] : zero;
+    w = vabs(fetch(h[6], t) - z) > zmax ? zero : w;
+    h0 += w * fetch(h[0], t), h1 += w * fetch(h[1], t), h2 += w * fetch(h[2], t);
+    h3 += w * fetch(h[3], t), h4 += w * fetch(h[4], t), hl += w * fetch(h[5], t);
+    wsum += w;
+  }
+  const auto have = wsum > 1e-3f;
+  const T inv = have ? wsum : one;
+  h0 /= inv, h1 /= inv, h2 /= inv, h3 /= inv, h4 /= inv;
+  hl = have ? hl / inv : zero;
+  const T n = (hl < 254.0f ? hl : zero + 254.0f) + 1.0f;
+  const T al = vmax(one / n, zero + 0.2f);
+  const auto keep = hl > zero;
+  st(a.acc[0] + p, keep ? h0 + al * (x0 - h0) : x0);
+  st(a.acc[1] + p, keep ? h1 + al * (x1 - h1) : x1);
+  st(a.acc[2] + p, keep ? h2 + al * (x2 - h2) : x2);
+  const T m1 = keep ? h3 + al * (l - h3) : l;
+  const T m2 = keep ? h4 + al * (l * l - h4) : l * l;
+  st(a.m1 + p, m1), st(a.m2 + p, m2), st(a.len + p, n);
+  const T v = m2 - m1 * m1;
+  st(a.var + p, v > zero ? v : zero);
+}
+
+// Row y: kLanes pixels at a time (where their taps are kLanes consecutive pixels of the
+// history, the same whole-pixel motion across the lanes, with plain loads; elsewhere by
+// gathers), the row's tail pixel by pixel.
+static void svgf_temporal_rows(const SvgfTemporal& a, int y0, int y1) {
   const int W = a.width, H = a.height;
-  alignas(64) float S[kSeg], WS[kSeg];
+  vfloat lane;
+  for (int l = 0; l < kLanes; ++l) lane[l] = float(l);
   for (int y = y0; y < y1; ++y) {
     const size_t row = size_t(y) * size_t(W);
-    for (int s0 = 0; s0 < W; s0 += kSeg) {
-      const int s1 = s0 + kSeg < W ? s0 + kSeg : W;
-      for (int k = 0; k < kSeg; ++k) S[k] = WS[k] = 0.0f;
-      for (int j = -1; j <= 1; ++j) {
-        const int qy = y + j;
-        if (qy < 0 || qy >= H) continue;
-        for (int i = -1; i <= 1; ++i) {
-          const int b = s0 > -i ? s0 : -i, e = s1 < W - i ? s1 : W - i;
-          const float w = (j == 0 ? 0.5f : 0.25f) * (i == 0 ? 0.5f : 0.25f);
-          const float* __restrict v = a.var + long(row) + (long(qy) - long(y)) * long(W) + i;
-          float* __restrict s = S - s0;
-          float* __restrict ws = WS - s0;
-          for (int k = b; k < e; ++k) s[k] += w * v[k], ws[k] += w;
-        }
+    int i = 0;
+    for (; i + kLanes <= W; i += kLanes) {
+      const size_t p = row + size_t(i);
+      vfloat px = float(i) + lane + ld<vfloat>(a.mx + p);
+      vfloat py = float(y) + ld<vfloat>(a.my + p);
+      // Within int's range (NaN is not): elsewhere far outside the image.
+      const vint ok = (vabs(px) < 1e9f) & (vabs(py) < 1e9f);
+      px = ok ? px : vfloat{} - 1e9f, py = ok ? py : vfloat{} - 1e9f;
+      const vfloat tx = __builtin_convertvector(__builtin_convertvector(px, vint), vfloat);
+      const vfloat ty = __builtin_convertvector(__builtin_convertvector(py, vint), vfloat);
+      const vfloat flx = tx > px ? tx - 1.0f : tx, fly = ty > py ? ty - 1.0f : ty;
+      const vint xi = __builtin_convertvector(flx, vint), yi = __builtin_convertvector(fly, vint);
+      const vfloat fx = px - flx, fy = py - fly;
+      const int x0 = xi[0], yy = yi[0];
+      bool uniform = x0 >= 0 && x0 + kLanes < W && yy >= 0 && yy + 1 < H;
+      for (int l = 0; l < kLanes; ++l) uniform &= xi[l] == x0 + l && yi[l] == yy;
+      vfloat wb[4] = {(1.0f - fx) * (1.0f - fy), fx * (1.0f - fy), (1.0f - fx) * fy, fx * fy};
+      if (uniform) {
+        const size_t s = size_t(yy) * size_t(W) + size_t(x0);
+        const size_t q[4] = {s, s + 1, s + size_t(W), s + size_t(W) + 1};
+        svgf_temporal_px<vfloat>(a, p, wb,
+                                 [&](const float* h, int t) { return ld<vfloat>(h + q[t]); });
+        continue;
       }
-      float* __restrict out = a.inv_l + row;
-      for (int k = 0; k < s1 - s0; ++k)
-        out[s0 + k] = 1.0f / (a.sigma_l * std::sqrt(S[k] / WS[k]) + 1e-4f);
+      vint idx[4];
+      const vint own = int(i) + __builtin_convertvector(lane, vint);  // the pixel, in its row
+      for (int t = 0; t < 4; ++t) {
+        const vint sx = xi + (t & 1), sy = yi + (t >> 1);
+        const vint in = (sx >= 0) & (sy >= 0) & (sx < W) & (sy < H);
+        idx[t] = in ? sy * W + sx : own + int(y) * W;
+        wb[t] = in ? wb[t] : vfloat{};
+      }
+      svgf_temporal_px<vfloat>(a, p, wb, [&](const float* h, int t) { return vgather(h, idx[t]); });
+    }
+    for (; i < W; ++i) {  // the tail: one pixel at a time
+      const size_t p = row + size_t(i);
+      const float px = float(i) + a.mx[p], py = float(y) + a.my[p];
+      const float flx = std::floor(px), fly = std::floor(py);
+      const int xi = int(flx), yi = int(fly);
+      const float fx = px - flx, fy = py - fly;
+      size_t q[4];
+      float wb[4];
+      for (int t = 0; t < 4; ++t) {
+        const int sx = xi + (t & 1), sy = yi + (t >> 1);
+        const bool in = (sx >= 0) & (sy >= 0) & (sx < W) & (sy < H);
+        q[t] = in ? size_t(sy) * size_t(W) + size_t(sx) : p;
+        wb[t] = in ? ((t & 1) ? fx : 1 - fx) * ((t >> 1) ? fy : 1 - fy) : 0.0f;
+      }
+      svgf_temporal_px<float>(a, p, wb, [&](const float* h, int t) { return h[q[t]]; });
     }
   }
 }
 
-// SVGF's temporal step for the pixels [0, W) of row y, branch-free: a bilinear tap that fails
-// the consistency test (outside the image, depth off by > 10 %, normals > ~25 degrees apart,
-// another black flag) weighs 0 and reads a clamped pixel, which adds exactly nothing: the scalar
-// definition's sums.
-static void svgf_temporal_row(int y, int W, int H, const float* __restrict X0,
-                              const float* __restrict X1, const float* __restrict X2,
-                              const float* __restrict Z, const float* __restrict N0,
-                              const float* __restrict N1, const float* __restrict N2,
-                              const float* __restrict MX, const float* __restrict MY,
-                              const float* __restrict K, const float* const* __restrict hist,
-                              float* __restrict A0, float* __restrict A1, float* __restrict A2,
-                              float* __restrict M1, float* __restrict M2, float* __restrict LEN,
-                              float* __restrict VAR) {
-  const float* __restrict H0 = hist[0], * __restrict H1 = hist[1], * __restrict H2 = hist[2];
-  const float* __restrict H3 = hist[3], * __restrict H4 = hist[4], * __restrict H5 = hist[5];
-  const float* __restrict HZ = hist[6], * __restrict HN0 = hist[7], * __restrict HN1 = hist[8], * __restrict HN2 = hist[9];
-  const float* __restrict HK = hist[10];
-  const size_t row = size_t(y) * size_t(W);
-  for (int i = 0; i < W; ++i) {
-    const size_t p = row + size_t(i);
-    const float x0 = X0[p], x1 = X1[p], x2 = X2[p];
-    const float l = 0.2126f * x0 + 0.7152f * x1 + 0.0722f * x2;
-    const float px = float(i) + MX[p], py = float(y) + MY[p];
-    const float flx = std::floor(px), fly = std::floor(py);
-    const int xi = int(flx), yi = int(fly);
-    const float fx = px - flx, fy = py - fly;
-    const float z = Z[p], n0 = N0[p], n1 = N1[p], n2 = N2[p];
-    const bool no_normal = (n0 == 0.0f) & (n1 == 0.0f) & (n2 == 0.0f);
-    const float zmax = 0.1f * std::max(z, kMinDepth), k = K[p];
-    float h0 = 0, h1 = 0, h2 = 0, h3 = 0, h4 = 0, hl = 0, wsum = 0;
-    auto tap = [&](int sx, int sy, float w) {
-      const bool in = (sx >= 0) & (sy >= 0) & (sx < W) & (sy < H);
-      const size_t q = in ? size_t(sy) * size_t(W) + size_t(sx) : p;
-      const float nd = n0 * HN0[q] + n1 * HN1[q] + n2 * HN2[q];
-      const bool ok =
-          in & !(std::fabs(HZ[q] - z) > zmax) & (no_normal | (nd > 0.9f)) & (HK[q] == k);
-      w = ok ? w : 0.0f;
-      h0 += w * H0[q], h1 += w * H1[q], h2 += w * H2[q], h3 += w * H3[q], h4 += w * H4[q];
-      hl += w * H5[q];
-      wsum += w;
-    };
-    tap(xi, yi, (1 - fx) * (1 - fy));
-    tap(xi + 1, yi, fx * (1 - fy));
-    tap(xi, yi + 1, (1 - fx) * fy);
-    tap(xi + 1, yi + 1, fx * fy);
-    const bool have = wsum > 1e-3f;
-    const float inv = have ? wsum : 1.0f;
-    h0 /= inv, h1 /= inv, h2 /= inv, h3 /= inv, h4 /= inv;
-    hl = have ? hl / inv : 0.0f;
-    const float n = std::min(hl, 254.0f) + 1.0f;
-    const float a = std::max(1.0f / n, 0.2f);
-    const bool keep = hl > 0;
-    A0[p] = keep ? h0 + a * (x0 - h0) : x0;
-    A1[p] = keep ? h1 + a * (x1 - h1) : x1;
-    A2[p] = keep ? h2 + a * (x2 - h2) : x2;
-    const float m1 = keep ? h3 + a * (l - h3) : l;
-    const float m2 = keep ? h4 + a * (l * l - h4) : l * l;
-    M1[p] = m1, M2[p] = m2, LEN[p] = n;
-    VAR[p] = std::max(0.0f, m2 - m1 * m1);
+static void svgf_demodulate_rows(const SvgfDemodulate& a, int y0, int y1) {
+  const int W = a.width;
+  for (int y = y0; y < y1; ++y) {
+    const size_t row = size_t(y) * size_t(W);
+    const float *a0 = a.albedo[0] + row, *a1 = a.albedo[1] + row, *a2 = a.albedo[2] + row;
+    a.black_rows[y] = black_row(W, a0, a1, a2, a.black + row);
+    for (int c = 0; c < 3; ++c) {
+      const float *col = a.color[c] + row, *alb = a.albedo[c] + row;
+      float *d = a.d[c] + row, *x = a.x[c] + row;
+      for_lanes(W, [&](auto tag, int i) {
+        using T = decltype(tag);
+        const T dm = demodulation(ld<T>(a0 + i), ld<T>(a1 + i), ld<T>(a2 + i), ld<T>(alb + i));
+        st(d + i, dm), st(x + i, ld<T>(col + i) / dm);
+      });
+    }
   }
-}
-
-static void svgf_temporal_rows(const SvgfTemporal& a, int y0, int y1) {
-  for (int y = y0; y < y1; ++y)
-    svgf_temporal_row(y, a.width, a.height, a.x[0], a.x[1], a.x[2], a.z, a.n[0], a.n[1], a.n[2],
-                      a.mx, a.my, a.black, a.hist, a.acc[0], a.acc[1], a.acc[2], a.m1, a.m2, a.len,
-                      a.var);
 }

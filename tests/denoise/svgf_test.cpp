@@ -87,12 +87,15 @@ TEST(Svgf, EveryIsaMatchesTheScalarDefinition) {
       const Planes b = ref.run(g);
       ASSERT_EQ(a.width, W);
       ASSERT_EQ(a.height, H);
-      // The fast form differs by its exp (polynomial, 2e-7) and one reciprocal per pixel
-      // (measured: 8e-7 on SSE2); with AVX2 / AVX-512 also by fused multiply-adds, which the
-      // luminance edge stop (|l - l'| / sqrt(variance), steep where the variance is small)
-      // amplifies (measured: up to 9e-4). A wrong tap, weight, border or history test shows
-      // as errors of order 1.
-      EXPECT_LT(max_rel_diff(a, b, 3), isa == Isa::sse2 ? 1e-5 : 3e-3);
+      // The fast form differs by its exp (a polynomial in base 2, 8e-8), its reciprocals (one
+      // per pixel for the luminance stop, four for the depth stop's slopes) and its summation
+      // order (measured: 5.6e-7 to 3.4e-6 on SSE2); with AVX2 / AVX-512 also by fused
+      // multiply-adds, which the luminance edge stop (|l - l'| / sqrt(variance), steep where the
+      // variance is small) amplifies over the passes (measured: 4e-4 to 1.1e-2). A wrong tap,
+      // slope, border, gather or history test shows as 0.1 and more on some frame (on AVX2: a
+      // swapped depth slope 0.17-0.27; a border pixel's blur not renormalised 0.03-0.14; the
+      // reprojection's gathers one pixel off 0.09-0.27).
+      EXPECT_LT(max_rel_diff(a, b, 3), isa == Isa::sse2 ? 1e-5 : 2e-2);
     }
     set_default_isa(before);
   }
