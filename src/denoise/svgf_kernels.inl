@@ -300,7 +300,8 @@ static void svgf_temporal_rows(const SvgfTemporal& a, int y0, int y1) {
     }
     for (; i < W; ++i) {  // the tail: one pixel at a time
       const size_t p = row + size_t(i);
-      const float px = float(i) + a.mx[p], py = float(y) + a.my[p];
+      float px = float(i) + a.mx[p], py = float(y) + a.my[p];
+      if (!(std::fabs(px) < 1e9f && std::fabs(py) < 1e9f)) px = py = -1e9f;  // as above
       const float flx = std::floor(px), fly = std::floor(py);
       const int xi = int(flx), yi = int(fly);
       const float fx = px - flx, fy = py - fly;
