@@ -76,7 +76,7 @@ TEST(Cli, BvhReportsMetricsAsJson) {
 }
 
 TEST(Cli, RaysTraceHitsRoundTripMatchesTheLibrary) {
-  const auto dir = std::filesystem::temp_directory_path() / "kestrel_tests";
+  const auto dir = test::test_temp_dir();
   std::filesystem::create_directories(dir);
   const std::string rays = (dir / "cb.rays").string(), hits = (dir / "cb.hits").string();
   for (const char* kind : {"primary", "diffuse"}) {
@@ -138,8 +138,7 @@ TEST(Cli, RaysTraceHitsRoundTripMatchesTheLibrary) {
 }
 
 TEST(Cli, PreviewWritesAPng) {
-  const std::string png =
-      (std::filesystem::temp_directory_path() / "kestrel_tests" / "p.png").string();
+  const std::string png = (test::test_temp_dir() / "p.png").string();
   std::filesystem::create_directories(std::filesystem::path(png).parent_path());
   std::filesystem::remove(png);
   const CliRun r = run("preview -o " + png + " --res 64x64");
@@ -151,7 +150,7 @@ TEST(Cli, PreviewWritesAPng) {
 }
 
 TEST(Cli, RenderWritesEveryAovAndIsThreadIndependent) {
-  const auto dir = std::filesystem::temp_directory_path() / "kestrel_tests" / "cli_render";
+  const auto dir = test::test_temp_dir() / "cli_render";
   std::filesystem::remove_all(dir);
   std::filesystem::create_directories(dir);
   const std::string d = dir.string();
@@ -187,7 +186,7 @@ TEST(Cli, RenderWritesEveryAovAndIsThreadIndependent) {
 }
 
 TEST(Cli, RenderSequenceWritesOneFileSetPerFrame) {
-  const auto dir = std::filesystem::temp_directory_path() / "kestrel_tests" / "cli_sequence";
+  const auto dir = test::test_temp_dir() / "cli_sequence";
   std::filesystem::remove_all(dir);
   const std::string path = test::write_temp_file("cli_path.json", R"({"keyframes": [
     {"time": 0, "eye": [0.278, 0.273, -0.8], "target": [0.278, 0.273, 0], "vfov": 39.3},
@@ -215,7 +214,7 @@ TEST(Cli, RenderSequenceWritesOneFileSetPerFrame) {
 }
 
 TEST(Cli, RenderSequenceOrbitsAndDenoises) {
-  const auto dir = std::filesystem::temp_directory_path() / "kestrel_tests" / "cli_orbit";
+  const auto dir = test::test_temp_dir() / "cli_orbit";
   std::filesystem::remove_all(dir);
   const CliRun r =
       run("render-sequence builtin:cornell_box --path orbit:20 --frames 2 --spp 1 --res 32x24 "
@@ -239,7 +238,7 @@ TEST(Cli, RenderSequenceOrbitsAndDenoises) {
 
 TEST(Cli, DenoiseReadsPfmsAndExrSequences) {
   const std::string fix = std::string(KESTREL_SOURCE_DIR) + "/tests/data/denoise/frame_%d/";
-  const auto dir = std::filesystem::temp_directory_path() / "kestrel_tests" / "cli_denoise";
+  const auto dir = test::test_temp_dir() / "cli_denoise";
   std::filesystem::remove_all(dir);
   for (const char* method : {"neural", "svgf", "atrous"}) {
     const std::string out = (dir / (std::string(method) + "_%d.pfm")).string();
@@ -279,7 +278,7 @@ TEST(Cli, DenoiseReadsPfmsAndExrSequences) {
 }
 
 TEST(Cli, UpscaleAndRenderSequenceUpscale) {
-  const auto dir = std::filesystem::temp_directory_path() / "kestrel_tests" / "cli_upscale";
+  const auto dir = test::test_temp_dir() / "cli_upscale";
   std::filesystem::remove_all(dir);
   // Low-resolution frames (fixed jitter), then every method at both factors.
   const auto frames = dir / "low";
@@ -328,7 +327,7 @@ TEST(Cli, UpscaleAndRenderSequenceUpscale) {
 }
 
 TEST(Cli, RunWritesFramesAndAStageTable) {
-  const auto dir = std::filesystem::temp_directory_path() / "kestrel_tests" / "cli_run";
+  const auto dir = test::test_temp_dir() / "cli_run";
   std::filesystem::remove_all(dir);
   const CliRun r =
       run("run builtin:cornell_box --path orbit:20 --frames 3 --res 64x48 --internal 16x12 "

@@ -123,7 +123,8 @@ cmp keep.exr keep.orig
 launcher=$!
 victim=""
 for _ in $(seq 1 200); do  # find rank 1 by its environment
-  for pid in $(pgrep -f "kestrel render made.obj --res 320x240" || true); do
+  # this run's binary only (another clone's test may run the same command at the same time)
+  for pid in $(pgrep -f "$K render made.obj --res 320x240" || true); do
     if tr '\0' '\n' < "/proc/$pid/environ" 2>/dev/null | grep -qx "OMPI_COMM_WORLD_RANK=1"; then victim=$pid; fi
   done
   [ -n "$victim" ] && break

@@ -8,6 +8,8 @@
 #include <fstream>
 #include <map>
 
+#include <unistd.h>
+
 #include "core/vec.h"
 #include "geometry/prim_ref.h"
 
@@ -180,9 +182,22 @@ std::vector<Builder> all_builders() {
           Builder::lbvh,   Builder::treelet, Builder::spatial};
 }
 
+std::filesystem::path test_temp_dir() {
+  struct Dir {  // removed when the test program exits
+    std::filesystem::path path =
+        std::filesystem::temp_directory_path() / ("kestrel_tests_" + std::to_string(::getpid()));
+    ~Dir() {
+      std::error_code ec;
+      std::filesystem::remove_all(path, ec);
+    }
+  };
+  static const Dir dir;
+  std::filesystem::create_directories(dir.path);
+  return dir.path;
+}
+
 std::string write_temp_file(const std::string& name, const std::string& contents) {
-  const auto dir = std::filesystem::temp_directory_path() / "kestrel_tests";
-  std::filesystem::create_directories(dir);
+  const auto dir = test_temp_dir();
   const std::string path = (dir / name).string();
   std::ofstream(path, std::ios::binary) << contents;
   return path;

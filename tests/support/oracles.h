@@ -1,6 +1,7 @@
 // Test support: scene generators with known properties and paths to the shared scenes.
 #pragma once
 #include <cstdint>
+#include <filesystem>
 #include <optional>
 #include <string>
 #include <vector>
@@ -68,6 +69,11 @@ std::string base64(const std::string& bytes);
 /// target (every vertex +0.3 y) placed by node 2; one clip of 2 s: node 0 translates
 /// LINEARly from (0, 0, 0) to (0, 1, 0), node 2's morph weight goes from 0 to 1.
 std::string write_animated_gltf(const std::string& name);
+
+/// This process's directory for test files (kestrel_tests_<pid> under the system's temp
+/// dir, created; removed at exit): test runs side by side (two clones, two ctest invocations)
+/// never share files.
+std::filesystem::path test_temp_dir();
 
 /// Writes text to a fresh file under the test temp dir and returns its path.
 std::string write_temp_file(const std::string& name, const std::string& contents);
