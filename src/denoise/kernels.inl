@@ -67,7 +67,7 @@ struct AtrousRow {
   float *o0, *o1, *o2, *go0, *go1, *go2;  // go*: the next level's guide, or null
   float fy, gy;                           // gy = 1 - fy
   long off[8];
-  float h[8];
+  float lh[8];  // log2 of the tap's spline weight (the centre's 1 left out): -1 or -2
 };
 
 // Pixels p .. p + width(T) - 1 (column i of the row): the taps, the accumulation and the mix,
@@ -79,9 +79,10 @@ static inline void atrous_lanes(const AtrousRow& r, size_t p, int i) {
   const T g0 = ld<T>(r.g0 + p), g1 = ld<T>(r.g1 + p), g2 = ld<T>(r.g2 + p);
   const T n0 = ld<T>(r.n0 + p), n1 = ld<T>(r.n1 + p), n2 = ld<T>(r.n2 + p), z = ld<T>(r.z + p);
   const T kp = kClass ? ld<T>(r.k + p) : zero;
-  const T sc = ld<T>(r.sc_top + i) * r.gy + ld<T>(r.sc_bot + i) * r.fy;
-  const T sn = ld<T>(r.sn_top + i) * r.gy + ld<T>(r.sn_bot + i) * r.fy;
-  const T sz = (ld<T>(r.sz_top + i) * r.gy + ld<T>(r.sz_bot + i) * r.fy) /
+  // The strengths in base 2 (vexp2).
+  const T sc = (ld<T>(r.sc_top + i) * r.gy + ld<T>(r.sc_bot + i) * r.fy) * kLog2e;
+  const T sn = (ld<T>(r.sn_top + i) * r.gy + ld<T>(r.sn_bot + i) * r.fy) * kLog2e;
+  const T sz = (ld<T>(r.sz_top + i) * r.gy + ld<T>(r.sz_bot + i) * r.fy) * kLog2e /
                (z > kMinDepth ? z : zero + kMinDepth);
   const T nn = n0 * n0 + n1 * n1 + n2 * n2;
   T acc0 = x0, acc1 = x1, acc2 = x2, wsum = zero + 1.0f;
@@ -93,7 +94,7 @@ static inline void atrous_lanes(const AtrousRow& r, size_t p, int i) {
     const T nd0 = nn - dot, nd = nd0 > zero ? nd0 : zero;
     const T dz = vabs(z - ld<T>(r.z + q));
     const T e = sc * (d0 * d0 + d1 * d1 + d2 * d2) + sn * nd + sz * dz;
-    T wq = r.h[t] * vexp_neg(zero - e);
+    T wq = vexp2(r.lh[t] - e);
     if constexpr (kClass) wq = kp == ld<T>(r.k + q) ? wq : zero;
     acc0 += wq * ld<T>(r.x0 + q);
     acc1 += wq * ld<T>(r.x1 + q);
@@ -149,7 +150,7 @@ static void atrous_rows(const AtrousArgs& a, int row0, int row1) {
       for (int tx = -1; tx <= 1; ++tx) {
         if (tx == 0 && ty == 0) continue;
         r.off[t] = row_off[ty + 1] + long(tx * d);
-        r.h[t] = (ty == 0 ? 2.0f : 1.0f) * (tx == 0 ? 2.0f : 1.0f) * 0.25f;
+        r.lh[t] = ty == 0 || tx == 0 ? -1.0f : -2.0f;  // spline weights 1/2, 1/4
         ++t;
       }
     // The two quarter-res parameter rows this row lerps (upsampled horizontally: w wide).
@@ -297,12 +298,14 @@ static const Planes& network(const NeuralWeights& nw, const Planes& in, Planes& 
   parallel_rows(H, 8, [&](int r0, int r1) {
     struct {
       std::vector<int> idx, dx;
-      std::vector<long> dy;
+      std::vector<int> dy;
       std::vector<float> fx, fy;
+      std::vector<uint8_t> run;
     } scratch;
     if (have_state) {
       scratch.idx.resize(size_t(W)), scratch.dx.resize(size_t(W)), scratch.dy.resize(size_t(W));
       scratch.fx.resize(size_t(W)), scratch.fy.resize(size_t(W));
+      scratch.run.resize(size_t(W / kLanes) + 1);
     }
     for (int y = r0; y < r1; ++y) {
       const size_t row = size_t(y) * size_t(W);
@@ -334,30 +337,51 @@ static const Planes& network(const NeuralWeights& nw, const Planes& in, Planes& 
       float* fx = scratch.fx.data();
       float* fy = scratch.fy.data();
       int* dx = scratch.dx.data();
-      long* dy = scratch.dy.data();
+      int* dy = scratch.dy.data();
       const float* mx = in.ch(11) + row;
       const float* my = in.ch(12) + row;
       float* valid = ws.valid.data() + row;
-      for (int i = 0; i < W; ++i) {
-        const float px = float(i) + mx[i], py = float(y) + my[i];
-        valid[i] = (px >= -0.5f && px <= float(W) - 0.5f && py >= -0.5f && py <= float(H) - 0.5f)
-                       ? 1.0f
-                       : 0.0f;
-        const float cx = px < 0.0f ? 0.0f : (px > float(W - 1) ? float(W - 1) : px);
-        const float cy = py < 0.0f ? 0.0f : (py > float(H - 1) ? float(H - 1) : py);
-        const int x0 = int(cx), y0 = int(cy);
-        fx[i] = cx - float(x0), fy[i] = cy - float(y0);
-        dx[i] = x0 + 1 < W ? 1 : 0;
-        dy[i] = y0 + 1 < H ? long(W) : 0;
-        i00[i] = y0 * W + x0;
+      for_lanes(W, [&](auto tag, int i) {
+        using T = decltype(tag);
+        using I = decltype(vtrunc(tag));
+        const T zero = T{} + 0.0f, one = T{} + 1.0f;
+        const T px = vindex(tag, i) + ld<T>(mx + i), py = float(y) + ld<T>(my + i);
+        const auto in =
+            (px >= -0.5f) & (px <= float(W) - 0.5f) & (py >= -0.5f) & (py <= float(H) - 0.5f);
+        st(valid + i, in ? one : zero);
+        const T cx = px < 0.0f ? zero : (px > float(W - 1) ? zero + float(W - 1) : px);
+        const T cy = py < 0.0f ? zero : (py > float(H - 1) ? zero + float(H - 1) : py);
+        const I x0 = vtrunc(cx), y0 = vtrunc(cy);
+        st(fx + i, cx - vfloat_of(x0)), st(fy + i, cy - vfloat_of(y0));
+        sti(dx + i, x0 + 1 < W ? I{} + 1 : I{});
+        sti(dy + i, y0 + 1 < H ? I{} + W : I{});
+        sti(i00 + i, y0 * W + x0);
+      });
+      // Groups of kLanes pixels whose taps are kLanes consecutive pixels (the same whole-pixel
+      // motion, nearly everywhere) read them with vector loads; the others pixel by pixel.
+      uint8_t* run = scratch.run.data();
+      for (int g = 0; g + kLanes <= W; g += kLanes) {
+        bool same = true;
+        for (int l = 0; l < kLanes; ++l)
+          same &= (i00[g + l] == i00[g] + l) & (dx[g + l] == 1) & (dy[g + l] == dy[g]);
+        run[g / kLanes] = same;
       }
       auto gather4 = [&](const float* s, float* out) {
-        for (int i = 0; i < W; ++i) {
-          const long a = i00[i];
-          const float top = s[a] * (1 - fx[i]) + s[a + dx[i]] * fx[i];
-          const float bot = s[a + dy[i]] * (1 - fx[i]) + s[a + dy[i] + dx[i]] * fx[i];
-          out[i] = top * (1 - fy[i]) + bot * fy[i];
-        }
+        auto lanes = [&](auto tag, int i) {
+          using T = decltype(tag);
+          const float* a = s + i00[i];
+          const T x1 = ld<T>(fx + i), y1 = ld<T>(fy + i);
+          const T top = ld<T>(a) * (1.0f - x1) + ld<T>(a + dx[i]) * x1;
+          const T bot = ld<T>(a + dy[i]) * (1.0f - x1) + ld<T>(a + dy[i] + dx[i]) * x1;
+          st(out + i, top * (1.0f - y1) + bot * y1);
+        };
+        int i = 0;
+        for (; i + kLanes <= W; i += kLanes)
+          if (run[i / kLanes])
+            lanes(vfloat{}, i);
+          else
+            for (int l = 0; l < kLanes; ++l) lanes(0.0f, i + l);
+        for (; i < W; ++i) lanes(0.0f, i);
       };
       for (int c = 0; c < 3; ++c) gather4(state.ch(c), ws.yw.ch(c) + row);
       gather4(state.ch(3), ws.zw.data() + row);
@@ -371,12 +395,13 @@ static const Planes& network(const NeuralWeights& nw, const Planes& in, Planes& 
       const float* kw = ws.kw.data() + row;
       const float* bk = black + row;
       float* nw = ws.nw.data() + row;
-      for (int i = 0; i < W; ++i) {
-        const bool same =
-            std::fabs(zw[i] - zr[i]) <= kDisoccluded * zc[i] && std::fabs(kw[i] - bk[i]) < 1e-3f;
-        valid[i] = same ? valid[i] : 0.0f;
-        nw[i] *= valid[i];
-      }
+      for_lanes(W, [&](auto tag, int i) {
+        using T = decltype(tag);
+        const auto same = (vabs(ld<T>(zw + i) - ld<T>(zr + i)) <= kDisoccluded * ld<T>(zc + i)) &
+                          (vabs(ld<T>(kw + i) - ld<T>(bk + i)) < 1e-3f);
+        const T v = same ? ld<T>(valid + i) : T{} + 0.0f;
+        st(valid + i, v), st(nw + i, ld<T>(nw + i) * v);
+      });
     }
   });
   if (have_state) clamp_history(ws, W, H);

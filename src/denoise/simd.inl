@@ -14,6 +14,7 @@ static constexpr int kLanes = 8;
 #else
 static constexpr int kLanes = 4;
 #endif
+static constexpr float kLog2e = 1.44269504f;
 typedef float vfloat __attribute__((vector_size(4 * kLanes)));
 typedef int vint __attribute__((vector_size(4 * kLanes)));
 
@@ -63,6 +64,33 @@ static inline vfloat vgather(const float* base, vint idx) {
   return v;
 #endif
 }
+// Float <-> int lane by lane (truncation), int stores, and the lanes' column indices.
+static inline int vtrunc(float x) {
+  return int(x);
+}
+static inline vint vtrunc(vfloat x) {
+  return __builtin_convertvector(x, vint);
+}
+static inline float vfloat_of(int x) {
+  return float(x);
+}
+static inline vfloat vfloat_of(vint x) {
+  return __builtin_convertvector(x, vfloat);
+}
+static inline void sti(int* p, int v) {
+  *p = v;
+}
+static inline void sti(int* p, vint v) {
+  std::memcpy(p, &v, sizeof v);
+}
+static inline float vindex(float, int i) {
+  return float(i);
+}
+static inline vfloat vindex(vfloat, int i) {
+  vfloat v;
+  for (int l = 0; l < kLanes; ++l) v[l] = float(i + l);
+  return v;
+}
 static inline float vexp_neg(float x) {
   return exp_neg(x);
 }
@@ -80,6 +108,32 @@ static inline vfloat vexp_neg(vfloat x) {
   p = p * f + 2.4022651e-1f;
   p = p * f + 6.9314718e-1f;
   p = p * f + 1.0f;
+  const vint n = (vint)shifted - 0x4B400000;
+  return tiny ? vfloat{} : p * (vfloat)((n + 127) << 23);
+}
+// 2^y (0 below 2^-115 ~ e^-80, and for y = -inf or NaN): 2^n 2^f with 2^f by a degree-5
+// minimax polynomial on [-0.5, 0.5] (relative error 8e-8). The filters' weights: log2 e folds
+// into their edge stops' scales and a tap's spline weight into the exponent (log2 h; -inf
+// for a tap outside the image), saving the exp's scaling, a multiply and a polynomial term.
+static inline float vexp2(float y) {
+  const bool tiny = !(y >= -115.0f);
+  y = tiny ? -115.0f : y;
+  const float shifted = y + 12582912.0f, f = y - (shifted - 12582912.0f);
+  const float p =
+      1.0000001f +
+      f * (0.69314694f +
+           f * (0.2402212f + f * (0.05550715f + f * (0.009675536f + f * 0.0013275768f))));
+  const int n = __builtin_bit_cast(int, shifted) - 0x4B400000;
+  return tiny ? 0.0f : p * __builtin_bit_cast(float, (n + 127) << 23);
+}
+static inline vfloat vexp2(vfloat y) {
+  const vint tiny = !(y >= -115.0f);
+  y = tiny ? vfloat{} - 115.0f : y;
+  const vfloat shifted = y + 12582912.0f, f = y - (shifted - 12582912.0f);
+  const vfloat p =
+      1.0000001f +
+      f * (0.69314694f +
+           f * (0.2402212f + f * (0.05550715f + f * (0.009675536f + f * 0.0013275768f))));
   const vint n = (vint)shifted - 0x4B400000;
   return tiny ? vfloat{} : p * (vfloat)((n + 127) << 23);
 }

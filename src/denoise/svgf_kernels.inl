@@ -13,35 +13,8 @@
 
 static constexpr int kSeg = 32;
 static constexpr float kSvgfB1[3] = {0.25f, 0.5f, 0.25f};  // the variance blur
-static constexpr float kLog2e = 1.44269504f;
 // The normal edge stop exp(sigma_n (n.n' - 1)), sigma_n = 128, in base 2.
 static constexpr float kSigmaN2 = 128.0f * kLog2e;
-
-// 2^y (0 below 2^-115 ~ e^-80, and for y = -inf): 2^n 2^f with 2^f by a degree-5 minimax
-// polynomial on [-0.5, 0.5] (relative error 8e-8). The weights' exp: the constant log2 e
-// folds into the edge stops' scales, a tap outside the image into the exponent (-inf).
-static inline float svgf_exp2(float y) {
-  const bool tiny = !(y >= -115.0f);
-  y = tiny ? -115.0f : y;
-  const float shifted = y + 12582912.0f, f = y - (shifted - 12582912.0f);
-  const float p =
-      1.0000001f +
-      f * (0.69314694f +
-           f * (0.2402212f + f * (0.05550715f + f * (0.009675536f + f * 0.0013275768f))));
-  const int n = __builtin_bit_cast(int, shifted) - 0x4B400000;
-  return tiny ? 0.0f : p * __builtin_bit_cast(float, (n + 127) << 23);
-}
-static inline vfloat svgf_exp2(vfloat y) {
-  const vint tiny = !(y >= -115.0f);
-  y = tiny ? vfloat{} - 115.0f : y;
-  const vfloat shifted = y + 12582912.0f, f = y - (shifted - 12582912.0f);
-  const vfloat p =
-      1.0000001f +
-      f * (0.69314694f +
-           f * (0.2402212f + f * (0.05550715f + f * (0.009675536f + f * 0.0013275768f))));
-  const vint n = (vint)shifted - 0x4B400000;
-  return tiny ? vfloat{} : p * (vfloat)((n + 127) << 23);
-}
 
 struct SvgfTaps {
   long off[9];      // index offsets from the pixel (row-major 3x3, the centre at 4)
@@ -71,7 +44,7 @@ static inline void svgf_pixels(const SvgfPass& a, size_t p, const SvgfTaps& taps
   const T kp = kClass ? ld<T>(a.black + p) : zero;
   const T floor = (n0 == zero) & (n1 == zero) & (n2 == zero) ? one : zero;
   // The centre: no luminance or depth difference, its own class.
-  T ws = svgf_exp2(kSigmaN2 * vmax(n0 * n0 + n1 * n1 + n2 * n2, floor) - kSigmaN2);
+  T ws = vexp2(kSigmaN2 * vmax(n0 * n0 + n1 * n1 + n2 * n2, floor) - kSigmaN2);
   T a0 = ws * ld<T>(a.x[0] + p), a1 = ws * ld<T>(a.x[1] + p), a2 = ws * ld<T>(a.x[2] + p);
   T va = ws * ws * ld<T>(a.var + p);
 #pragma GCC unroll 9
@@ -82,7 +55,7 @@ static inline void svgf_pixels(const SvgfPass& a, size_t p, const SvgfTaps& taps
     const T wz = vabs(z - ld<T>(a.z + q)) * rden[kSvgfSlope[t]];
     const T c =
         vmax(n0 * ld<T>(a.n[0] + q) + n1 * ld<T>(a.n[1] + q) + n2 * ld<T>(a.n[2] + q), floor);
-    T w = svgf_exp2((kSigmaN2 * c - kSigmaN2) + taps.lh[t] - wl - wz);
+    T w = vexp2((kSigmaN2 * c - kSigmaN2) + taps.lh[t] - wl - wz);
     if constexpr (kClass) w = kp == ld<T>(a.black + q) ? w : zero;  // radiance, irradiance
     a0 += w * ld<T>(a.x[0] + q);
     a1 += w * ld<T>(a.x[1] + q);
