@@ -158,22 +158,11 @@ void gather(const DenoiseInput& in, int align, Planes& p) {
           const float* src =
               s.img->pixels.data() + size_t(y) * size_t(cw) * size_t(stride) + size_t(k);
           const bool colour = s.first == 0;
-          switch (stride) {  // a constant stride lets the compiler vectorise the copy
-            case 1:
-              copy_clean<1>(src, dst, cw, 1, colour);
-              break;
-            case 2:
-              copy_clean<2>(src, dst, cw, 2, colour);
-              break;
-            case 3:
-              copy_clean<3>(src, dst, cw, 3, colour);
-              break;
-            case 4:
-              copy_clean<4>(src, dst, cw, 4, colour);
-              break;
-            default:
-              copy_clean<0>(src, dst, cw, stride, colour);
-          }
+          // A constant stride lets the compiler vectorise the copy.
+          using Copy = void (*)(const float*, float*, int, int, bool);
+          static constexpr Copy copies[] = {copy_clean<0>, copy_clean<1>, copy_clean<2>,
+                                            copy_clean<3>, copy_clean<4>};
+          copies[stride <= 4 ? stride : 0](src, dst, cw, stride, colour);
         }
     }
   });

@@ -233,22 +233,19 @@ static inline void svgf_temporal_px(const SvgfTemporal& a, size_t p, const T wb[
 // gathers), the row's tail pixel by pixel.
 static void svgf_temporal_rows(const SvgfTemporal& a, int y0, int y1) {
   const int W = a.width, H = a.height;
-  vfloat lane;
-  for (int l = 0; l < kLanes; ++l) lane[l] = float(l);
   for (int y = y0; y < y1; ++y) {
     const size_t row = size_t(y) * size_t(W);
     int i = 0;
     for (; i + kLanes <= W; i += kLanes) {
       const size_t p = row + size_t(i);
-      vfloat px = float(i) + lane + ld<vfloat>(a.mx + p);
-      vfloat py = float(y) + ld<vfloat>(a.my + p);
+      const vfloat column = vindex(vfloat{}, i);
+      vfloat px = column + ld<vfloat>(a.mx + p), py = float(y) + ld<vfloat>(a.my + p);
       // Within int's range (NaN is not): elsewhere far outside the image.
       const vint ok = (vabs(px) < 1e9f) & (vabs(py) < 1e9f);
       px = ok ? px : vfloat{} - 1e9f, py = ok ? py : vfloat{} - 1e9f;
-      const vfloat tx = __builtin_convertvector(__builtin_convertvector(px, vint), vfloat);
-      const vfloat ty = __builtin_convertvector(__builtin_convertvector(py, vint), vfloat);
+      const vfloat tx = vfloat_of(vtrunc(px)), ty = vfloat_of(vtrunc(py));
       const vfloat flx = tx > px ? tx - 1.0f : tx, fly = ty > py ? ty - 1.0f : ty;
-      const vint xi = __builtin_convertvector(flx, vint), yi = __builtin_convertvector(fly, vint);
+      const vint xi = vtrunc(flx), yi = vtrunc(fly);
       const vfloat fx = px - flx, fy = py - fly;
       const int x0 = xi[0], yy = yi[0];
       bool uniform = x0 >= 0 && x0 + kLanes < W && yy >= 0 && yy + 1 < H;
@@ -262,11 +259,11 @@ static void svgf_temporal_rows(const SvgfTemporal& a, int y0, int y1) {
         continue;
       }
       vint idx[4];
-      const vint own = int(i) + __builtin_convertvector(lane, vint);  // the pixel, in its row
+      const vint own = vtrunc(column) + y * W;  // the pixels themselves
       for (int t = 0; t < 4; ++t) {
         const vint sx = xi + (t & 1), sy = yi + (t >> 1);
         const vint in = (sx >= 0) & (sy >= 0) & (sx < W) & (sy < H);
-        idx[t] = in ? sy * W + sx : own + int(y) * W;
+        idx[t] = in ? sy * W + sx : own;
         wb[t] = in ? wb[t] : vfloat{};
       }
       svgf_temporal_px<vfloat>(a, p, wb, [&](const float* h, int t) { return vgather(h, idx[t]); });

@@ -44,8 +44,6 @@ class RadianceCache {
     float size;
   };
   Cell cell(Vec3 p, Vec3 ng) const;
-  uint64_t key(Vec3 p, Vec3 ng) const { return cell(p, ng).key; }
-  float cell_size(Vec3 p) const { return cell(p, Vec3{0, 0, 1}).size; }
   /// The cell's mean, when it has at least min_samples.
   bool lookup(uint64_t key, Vec3& radiance) const;
   /// Adds a pass's samples (call in a fixed order), then end_pass() blends them in.

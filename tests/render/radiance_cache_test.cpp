@@ -27,7 +27,7 @@ TEST(RadianceCacheCells, SizeIsThePowerOfTwoAboveEightPixels) {
   const RadianceCache c = cache_at_origin();
   for (float d : {0.3f, 1.0f, 7.0f, 100.0f, 3e4f}) {
     const float want = d * 0.01f * RadianceCache::cell_pixels;
-    const float got = c.cell_size({0, 0, d});
+    const float got = c.cell({0, 0, d}, {0, 0, 1}).size;
     int e = 0;
     EXPECT_EQ(std::frexp(got, &e), 0.5f) << d;  // a power of two
     EXPECT_GE(got, want) << d;
@@ -39,19 +39,20 @@ TEST(RadianceCacheCells, KeysFollowCellsAndFaces) {
   const RadianceCache c = cache_at_origin();
   const Vec3 up{0, 1, 0};
   const Vec3 p{10.1f, 0.3f, 20.2f};  // distance ~22.6: cells of 2
-  const float cell = c.cell_size(p);
+  const float cell = c.cell(p, {0, 0, 1}).size;
   ASSERT_EQ(cell, 2.0f);
-  EXPECT_EQ(c.key(p, up), c.key({10.9f, 1.9f, 21.9f}, {0.1f, 0.9f, 0.2f}));  // same cell, face
-  EXPECT_NE(c.key(p, up), c.key(p, {0, -1, 0}));                             // the other face
-  EXPECT_NE(c.key(p, up), c.key({12.1f, 0.3f, 20.2f}, up));                  // the next cell
-  EXPECT_NE(c.key(p, up), 0u);
+  EXPECT_EQ(c.cell(p, up).key,
+            c.cell({10.9f, 1.9f, 21.9f}, {0.1f, 0.9f, 0.2f}).key);     // same cell, face
+  EXPECT_NE(c.cell(p, up).key, c.cell(p, {0, -1, 0}).key);             // the other face
+  EXPECT_NE(c.cell(p, up).key, c.cell({12.1f, 0.3f, 20.2f}, up).key);  // the next cell
+  EXPECT_NE(c.cell(p, up).key, 0u);
   // Huge and tiny coordinates still give keys (clamped cells), never the empty one.
-  EXPECT_NE(c.key({3e38f, -3e38f, 1e-30f}, up), 0u);
+  EXPECT_NE(c.cell({3e38f, -3e38f, 1e-30f}, up).key, 0u);
 }
 
 TEST(RadianceCacheCells, MeansAreExactAndHistoryIsCapped) {
   RadianceCache c = cache_at_origin();
-  const uint64_t k = c.key({1, 2, 3}, {0, 0, 1});
+  const uint64_t k = c.cell({1, 2, 3}, {0, 0, 1}).key;
   Vec3 out;
   std::vector<CacheRecord> rs;
   for (int i = 0; i < 3; ++i) rs.push_back({k, {float(i), 1, 2}});
@@ -73,7 +74,7 @@ TEST(RadianceCacheCells, MeansAreExactAndHistoryIsCapped) {
   EXPECT_FLOAT_EQ(out.x, 3);
   EXPECT_FLOAT_EQ(out.z, 3);
   // A cell without samples for max_age passes is dropped; one that keeps getting them stays.
-  const uint64_t k2 = c.key({-5, 2, 3}, {0, 0, 1});
+  const uint64_t k2 = c.cell({-5, 2, 3}, {0, 0, 1}).key;
   for (uint32_t p = 0; p <= RadianceCache::max_age + 16; ++p) {
     rs.assign(4, {k2, {1, 1, 1}});
     c.add(rs);
@@ -88,7 +89,7 @@ TEST(RadianceCacheCells, ChangedLightingReachesAFullCellWithinEightHalfLives) {
   // A cell full of history (max_samples of 1) then one sample of 3 per pass: the history
   // halves every half_life passes, so the mean follows although few samples arrive.
   RadianceCache c = cache_at_origin();
-  const uint64_t k = c.key({1, 2, 3}, {0, 0, 1});
+  const uint64_t k = c.cell({1, 2, 3}, {0, 0, 1}).key;
   std::vector<CacheRecord> rs(size_t(RadianceCache::max_samples), {k, {1, 1, 1}});
   c.add(rs);
   c.end_pass();
