@@ -101,7 +101,7 @@ void run_upscale(const UpscaleArgs& a) {
   Upscaler up(o);
   const int count = a.sequence ? (a.frames > 0 ? a.frames : count_frames(a)) : 1;
   FloatImage out;
-  std::vector<double> ms;
+  std::vector<double> ms, stage[3];
   for (int i = 0; i < count; ++i) {
     const int frame = a.start + i;
     const Loaded l = load(a, frame);
@@ -113,10 +113,14 @@ void run_upscale(const UpscaleArgs& a) {
     for (int r = 0; r <= a.bench; ++r) {  // --bench: the frame again (history carried on)
       const auto t0 = std::chrono::steady_clock::now();
       up.upscale(in, out);
-      if (r > 0 || a.bench == 0)
+      if (r > 0 || a.bench == 0) {
         ms.push_back(
             std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0)
                 .count());
+        const Upscaler::Times t = up.last_times();
+        stage[0].push_back(t.features), stage[1].push_back(t.network),
+            stage[2].push_back(t.reconstruct);
+      }
     }
     const std::string path = a.sequence ? frame_name(a.out, frame) : a.out;
     write_image(path, out);
@@ -125,9 +129,15 @@ void run_upscale(const UpscaleArgs& a) {
                  l.color.width, l.color.height, out.width, out.height, a.method, in.jitter_x,
                  in.jitter_y, ms.back(), path);
   }
-  std::sort(ms.begin(), ms.end());
-  fmt::print("upscale  {} frames, {}: median {:.1f} ms per {}x{} output frame\n", count, a.method,
-             ms[ms.size() / 2], out.width, out.height);
+  const auto median = [](std::vector<double>& v) {
+    std::sort(v.begin(), v.end());
+    return v[v.size() / 2];
+  };
+  fmt::print(
+      "upscale  {} frames, {}: median {:.1f} ms per {}x{} output frame (features {:.1f}, network "
+      "{:.1f}, reconstruction {:.1f})\n",
+      count, a.method, median(ms), out.width, out.height, median(stage[0]), median(stage[1]),
+      median(stage[2]));
 }
 
 }  // namespace

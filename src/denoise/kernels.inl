@@ -1,27 +1,7 @@
 // Included by kernels_<isa>.cpp inside namespace kestrel::denoise::KESTREL_ISA_NS.
 // Per-pixel loops whose bodies hold a select (the exp, the log, clamps) are written once for
-// float and the ISA's vector (simd.inl: for_lanes, atrous_span): GCC's auto-vectoriser does
+// float and the ISA's vector (core/simd.inl: for_lanes, atrous_span): GCC's auto-vectoriser does
 // those only with AVX-512's masks. The rest are plain loops it vectorises on every ISA.
-
-// exp(x) for x <= 0 (0 below -80): 2^(x log2 e) = 2^n * 2^f, 2^f by its degree-6 Taylor
-// polynomial on [-0.5, 0.5] (relative error < 2e-7). Integer tricks only, so it vectorises.
-static inline float exp_neg(float x) {
-  const bool tiny = x < -80.0f;  // below e^-80 the result is 0: no denormals downstream
-  x = tiny ? -80.0f : x;
-  const float t = x * 1.44269504f;
-  // t + 1.5 * 2^23 rounds t to the nearest integer n, held in the low mantissa bits.
-  const float shifted = t + 12582912.0f;
-  const float f = t - (shifted - 12582912.0f);
-  float p = 1.5403530e-4f;
-  p = p * f + 1.3333558e-3f;
-  p = p * f + 9.6181291e-3f;
-  p = p * f + 5.5504109e-2f;
-  p = p * f + 2.4022651e-1f;
-  p = p * f + 6.9314718e-1f;
-  p = p * f + 1.0f;
-  const int n = __builtin_bit_cast(int, shifted) - 0x4B400000;
-  return tiny ? 0.0f : p * __builtin_bit_cast(float, (n + 127) << 23);
-}
 
 struct UpTap {
   int i0, i1;
@@ -36,23 +16,7 @@ static UpTap up_tap(int i, int in, float scale) {
   return {i0, i0 < in - 1 ? i0 + 1 : i0, s - float(i0)};
 }
 
-// log(1 + v) for v >= 0: u = 1 + v = m 2^e, m in [sqrt(1/2), sqrt(2)), log m by the atanh
-// series (s = (m-1)/(m+1), |s| < 0.172, 5 terms): absolute error < 1e-7.
-static inline float log1p_pos(float v) {
-  const float u = 1.0f + v;
-  const int bits = __builtin_bit_cast(int, u);
-  int e = ((bits >> 23) & 255) - 127;
-  float m = __builtin_bit_cast(float, (bits & 0x7FFFFF) | 0x3F800000);
-  const bool big = m > 1.41421356f;
-  m = big ? m * 0.5f : m;
-  e = big ? e + 1 : e;
-  const float s = (m - 1.0f) / (m + 1.0f), s2 = s * s;
-  const float series =
-      s * (2.0f + s2 * (0.6666667f + s2 * (0.4f + s2 * (0.2857143f + s2 * 0.2222222f))));
-  return float(e) * 0.69314718f + series;
-}
-
-#include "denoise/simd.inl"
+#include "core/simd.inl"
 
 #include "denoise/kernels_filter.inl"
 

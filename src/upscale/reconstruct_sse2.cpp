@@ -1,8 +1,9 @@
 // The upsampler's reconstruction built for sse2 (the x86-64 baseline; flags in CMakeLists.txt).
-#include <xmmintrin.h>
+#include <immintrin.h>
 
 #include <algorithm>
 #include <cmath>
+#include <cstring>
 #include <vector>
 
 #include "upscale/reconstruct.h"
@@ -11,7 +12,8 @@ namespace kestrel::upscale {
 namespace sse2_ns {
 constexpr float kLuma[3] = {0.2126f, 0.7152f, 0.0722f};
 // clang-format off
-#include "upscale/sampling.inl"  // first: the loop uses its helpers
+#include "core/simd.inl"
+#include "upscale/sampling.inl"  // clampi
 #include "upscale/reconstruct.inl"
 // clang-format on
 }  // namespace sse2_ns

@@ -102,7 +102,8 @@ ReconstructFn reconstruct_for(Isa isa) {
 }
 
 void Axis::build(int out, int in, int f, float jitter, float sharpness) {
-  i0.resize(size_t(out)), w.resize(3 * size_t(out)), d0.resize(size_t(out));
+  i0.resize(size_t(out)), d0.resize(size_t(out));
+  for (auto& wk : w) wk.resize(size_t(out));
   for (int X = 0; X < out; ++X) {
     const float u = (float(X) + 0.5f) / float(f) - jitter;
     const int i = clampi(floor_int(u + 0.5f), 0, in - 1);
@@ -110,7 +111,7 @@ void Axis::build(int out, int in, int f, float jitter, float sharpness) {
     d0[size_t(X)] = u - float(i);
     for (int k = 0; k < 3; ++k) {
       const float d = u - float(i + k - 1);
-      w[3 * size_t(X) + size_t(k)] = std::exp(-sharpness * d * d);
+      w[k][size_t(X)] = std::exp(-sharpness * d * d);
     }
   }
 }
@@ -440,8 +441,9 @@ void Upscaler::Impl::temporal(const UpscaleInput& in, FloatImage& out) {
             const float hx = float(f) * (float(i) + in.jitter_x + mx),
                         hy = float(f) * (float(j) + in.jitter_y + my);
             valid = (hx >= 0 && hx < float(W) && hy >= 0 && hy < float(H)) ? 1.0f : 0.0f;
-            float hc[3];
-            sample_bilinear<3>(hp, W, H, hx, hy, hc);
+            float hc[3];  // the history is planar (reconstruct.h)
+            for (size_t c = 0; c < 3; ++c)
+              sample_bilinear<1>(hp + c * size_t(W) * size_t(H), W, H, hx, hy, &hc[c]);
             Lh = luma(hc);
             const int px = clampi(floor_int(float(i) + 0.5f + mx), 0, w - 1);
             const int py = clampi(floor_int(float(j) + 0.5f + my), 0, h - 1);
@@ -513,7 +515,7 @@ void Upscaler::Impl::temporal(const UpscaleInput& in, FloatImage& out) {
   ax.build(W, w, f, in.jitter_x, kCurrentSharpness),
       ay.build(H, h, f, in.jitter_y, kCurrentSharpness);
   gx.build(W, gw), gy.build(H, gh);
-  next_hist.resize(size_t(W) * size_t(H) * 3 + 1);  // every pixel is written; + 1: padding
+  next_hist.resize(size_t(W) * size_t(H) * 3 + 1);  // three planes, every pixel written
   next_hist.back() = 0.0f;
   Recon r;
   r.y = y.data(), r.mdil = mdil.data(), r.mu = mu.data(), r.sigma = sigma.data(),

@@ -18,6 +18,7 @@
 
 #include "kestrel/error.h"
 #include "kestrel/io.h"
+#include "kestrel/isa.h"
 #include "kestrel/render.h"
 
 namespace kestrel {
@@ -71,6 +72,61 @@ TEST(Upscale, NeuralMatchesPyTorchOnTheFixture) {
     }
     set_default_isa(before);
   }
+}
+
+// The reconstruction reads the history by plain loads, shifted loads, permutes of a window or
+// gathers, chosen per group of pixels from how far apart their reprojections fall: SSE2 (4
+// lanes), AVX2 (8) and AVX-512 (16) group the same pixels differently, so each ISA's frames
+// must match SSE2's. The motion mixes a slow smooth pan, depth steps of different motion,
+// per-pixel noise, a vertical drift and motion that leaves the image.
+TEST(Upscale, EveryIsaReadsTheHistoryAsSse2Does) {
+  const int w = 61, h = 37;
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<float> u(0.0f, 1.0f);
+  std::vector<FloatImage> colour, depth, motion;
+  for (int t = 0; t < 4; ++t) {
+    FloatImage c(w, h, 3), d(w, h, 1), m(w, h, 2);
+    for (int j = 0; j < h; ++j)
+      for (int i = 0; i < w; ++i) {
+        for (int k = 0; k < 3; ++k) c.at(i, j)[k] = u(rng) * (k + 1) * 0.7f;
+        const int region = (i / 9 + j / 7) % 4;
+        d.at(i, j)[0] = 1.0f + float(region);
+        float mx = 0.37f * float(t) + 0.013f * float(i), my = 0.21f - 0.009f * float(j);
+        if (region == 1) mx += 0.6f * float(i % 5) - 1.1f;  // columns several pixels apart
+        if (region == 2) mx += 3.0f * (u(rng) - 0.5f), my += 2.0f * (u(rng) - 0.5f);
+        if (region == 3 && i > w - 12) mx += 20.0f;  // off the image
+        m.at(i, j)[0] = mx, m.at(i, j)[1] = my;
+      }
+    colour.push_back(c), depth.push_back(d), motion.push_back(m);
+  }
+  const Isa before = default_isa();
+  for (UpscaleMethod method : {UpscaleMethod::neural, UpscaleMethod::taau})
+    for (int f : {2, 4}) {
+      std::vector<FloatImage> reference;
+      for (Isa isa : {Isa::sse2, Isa::avx2, Isa::avx512}) {
+        if (!isa_supported(isa)) continue;
+        SCOPED_TRACE(isa_name(isa));
+        set_default_isa(isa);
+        Upscaler up(options(method, f));
+        for (int t = 0; t < 4; ++t) {
+          float jx, jy;
+          frame_jitter(uint32_t(t), jx, jy);
+          const FloatImage out =
+              up.upscale({&colour[size_t(t)], &depth[size_t(t)], &motion[size_t(t)], jx, jy});
+          if (isa == Isa::sse2) {
+            reference.push_back(out);
+            continue;
+          }
+          double worst = 0;
+          for (size_t i = 0; i < out.pixels.size(); ++i)
+            worst =
+                std::max(worst, std::abs(double(out.pixels[i]) - reference[size_t(t)].pixels[i]) /
+                                    (std::abs(double(reference[size_t(t)].pixels[i])) + 1e-2));
+          EXPECT_LT(worst, 1e-4) << upscale_method_name(method) << " x" << f << " frame " << t;
+        }
+      }
+    }
+  set_default_isa(before);
 }
 
 TEST(Upscale, CorruptOrMismatchedWeightsAreErrorsNamingTheFile) {
