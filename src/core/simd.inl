@@ -192,6 +192,19 @@ static inline vfloat vlog1p_pos(vfloat v) {
   return __builtin_convertvector(e, vfloat) * 0.69314718f + series;
 }
 
+// Calls f(T{}, i) for i in [lo, hi): T = vfloat for the pixels i .. i + kLanes - 1 while
+// they fit, then T = float one by one. f loads and stores with ld<T> / st.
+template <class F>
+static inline void for_lanes_in(int lo, int hi, F&& f) {
+  int i = lo;
+  for (; i + kLanes <= hi; i += kLanes) f(vfloat{}, i);
+  for (; i < hi; ++i) f(0.0f, i);
+}
+template <class F>
+static inline void for_lanes(int n, F&& f) {
+  for_lanes_in(0, n, f);
+}
+
 // ---- Integer lanes, lookups and lane tests (the upsampler's reconstruction). ----
 
 // The lane count of T (1 for the scalar form) and T's integer lanes.
@@ -235,6 +248,13 @@ static inline vint vfloor(vfloat x) {
 }
 static inline float vgather(const float* base, int idx) {
   return base[idx];
+}
+// Not, lane by lane, for a comparison's result (bool, or a vector's -1 / 0 lanes).
+static inline bool vnot(bool m) {
+  return !m;
+}
+static inline vint vnot(vint m) {
+  return ~m;
 }
 // True when every lane's mask is set.
 static inline bool all_of(bool m) {

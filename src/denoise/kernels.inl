@@ -59,15 +59,6 @@ static inline T demodulation(T a0, T a1, T a2, T a) {
 
 #include "denoise/kernels_history.inl"
 
-// Calls f(T{}, i) for i in [0, n): T = vfloat for the pixels i .. i + kLanes - 1 while they
-// fit, then T = float one by one. f loads and stores with ld<T> / st.
-template <class F>
-static inline void for_lanes(int n, F&& f) {
-  int i = 0;
-  for (; i + kLanes <= n; i += kLanes) f(vfloat{}, i);
-  for (; i < n; ++i) f(0.0f, i);
-}
-
 // 1 where every channel of the albedo is below kBlackAlbedo (not demodulated), else 0;
 // returns whether the row has any.
 static bool black_row(int n, const float* a0, const float* a1, const float* a2, float* k) {

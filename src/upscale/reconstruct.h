@@ -1,6 +1,8 @@
-// The upsampler's per-output-pixel reconstruction (scripts/upscale/model.py step), compiled
-// once per instruction set (reconstruct_*.cpp include reconstruct.inl with their own flags)
-// and picked per call by default_isa(), the choice --isa / KESTREL_ISA / set_default_isa make.
+// The upsampler's per-pixel stages (scripts/upscale/model.py: the inputs, their statistics,
+// the history test, the network's features and the reconstruction step), compiled once per
+// instruction set (reconstruct_*.cpp include prepare.inl and reconstruct.inl with their own
+// flags) and picked per frame by default_isa(), the choice --isa / KESTREL_ISA /
+// set_default_isa make.
 #pragma once
 #include <cstdint>
 #include <vector>
@@ -28,25 +30,71 @@ struct GridAxis {
   void build(int out, int grid);
 };
 
-// The per-output-pixel reconstruction (model.step), rows [r0, r1), by reconstruct_for(isa).
-// Low-resolution images (y, mu, sigma, grid: 3 channels; mdil: 2) are channels-last; the
-// history (hist, read, and next, written) is three planes of W x H (R, G, B), so a vector of
-// neighbouring output pixels reads each Catmull-Rom tap with one load; out is channels-last.
-struct Recon {
-  const float *y, *mdil, *mu, *sigma, *grid, *hist;
-  const uint8_t* keep;  // per low-resolution pixel: its history sample shows the same surface
-  float *next, *out;
-  const Axis *ax, *ay;
-  const GridAxis *gx, *gy;
-  int w, h, W, H, gw, f;
+constexpr float kMinDepth = 1e-3f, kMaxMotion = 65536.0f;
+// History is dropped where no previous depth around the reprojected position is within this
+// fraction of the current depth (the denoisers' test) plus the depth's slope: a disocclusion.
+constexpr float kDisocclusion = 0.1f;
+
+// A frame's low-resolution images (w x h, n = w h pixels), planar: channel c of an image at
+// image + c n, every buffer padded by kMaxLanes floats so a vector load at any pixel stays
+// inside it.
+constexpr int kMaxLanes = 16;
+struct LowRes {
+  int w = 0, h = 0;
+  size_t n = 0;
+  float* y = nullptr;       // 3: the colour in the tone-mapped space c / (1 + luma(c))
+  float* depth = nullptr;   // 1 (1 where the input has none)
+  float* motion = nullptr;  // 2: the input's motion, finite and clamped
+  float* mdil = nullptr;    // 2: the motion of the least depth in the 3x3 window
+  float* mu = nullptr;      // 3: the 3x3 mean of y
+  float* sigma = nullptr;   // 3: its standard deviation
+  float* keep = nullptr;    // 1: 1 where the history shows this pixel's surface (disocclusion)
+  float* feat = nullptr;    // 8: the network's low-resolution features (neural only)
+};
+
+// The input stage: colour (channels-last, 3), depth (1 channel or null), motion (mc channels,
+// 2 or 3, or null) into y, depth and motion; rows [r0, r1).
+struct InputArgs {
+  const float *color, *depth, *motion;
+  int mc;
+  LowRes lr;
+};
+// The history test (model.keep_history) and the network's features (model.features) read
+// the previous frame's depth (low resolution) and the history (three planes of W x H).
+struct HistoryArgs {
+  LowRes lr;
+  const float *prev_depth, *hist;
+  int W, H, f;
+  float jx, jy, prev_jx, prev_jy;
   bool history;
 };
 
-using ReconstructFn = void (*)(const Recon& a, int r0, int r1);
-ReconstructFn reconstruct_sse2();
-ReconstructFn reconstruct_avx2();
-ReconstructFn reconstruct_avx512();
-/// The reconstruction of an ISA (Error if this CPU lacks it).
-ReconstructFn reconstruct_for(Isa isa);
+// The per-output-pixel reconstruction (model.step), rows [r0, r1). The history (hist, read,
+// and next, written) is three planes of W x H (R, G, B), so a vector of neighbouring output
+// pixels reads each Catmull-Rom tap with one load; grid is channels-last (3 per cell), out
+// channels-last.
+struct Recon {
+  LowRes lr;
+  const float *grid, *hist;
+  float *next, *out;
+  const Axis *ax, *ay;
+  const GridAxis *gx, *gy;
+  int W, H, gw, f;
+  bool history;
+};
+
+// The upsampler's per-pixel stages for one instruction set, each over rows [r0, r1).
+struct UpscaleKernels {
+  void (*input)(const InputArgs& a, int r0, int r1);
+  void (*stats)(const LowRes& lr, int r0, int r1);             // mu, sigma, mdil
+  void (*disocclusion)(const HistoryArgs& a, int r0, int r1);  // keep
+  void (*features)(const HistoryArgs& a, int r0, int r1);      // feat
+  void (*reconstruct)(const Recon& a, int r0, int r1);
+};
+const UpscaleKernels& upscale_kernels_sse2();
+const UpscaleKernels& upscale_kernels_avx2();
+const UpscaleKernels& upscale_kernels_avx512();
+/// The kernels of an ISA (Error if this CPU lacks it).
+const UpscaleKernels& upscale_kernels(Isa isa);
 
 }  // namespace kestrel::upscale

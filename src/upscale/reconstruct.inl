@@ -3,23 +3,19 @@
 // at a time (T = vfloat) and, in images narrower than that, pixel by pixel (T = float): the
 // body is written once for both.
 //
-// Per output row the three current-frame rows are blended vertically (vert), the parameter
-// grid's two rows (gv), and the low-resolution row j0 is split into planes (mu, sigma, motion,
-// keep): each is then read at the lanes' column indices, which are non-decreasing and span a
-// few entries, by one load and a permute (lookup). The history is three planes, so its taps
+// Per output row the three current-frame rows are blended vertically (vert) and the parameter
+// grid's two rows (gv); those and the low-resolution planes' row j0 (mu, sigma, motion, keep)
+// are read at the lanes' column indices, which are non-decreasing and span a few entries, by
+// one load and a permute (lookup). The history is three planes, so its taps
 // are mostly plain loads (sample_history).
 
-// Row data of the low-resolution images, planar and padded by kLanes (lookup's loads).
+// The current frame's three rows blended for an output row (vert) and the grid's two (gv),
+// planar and padded by kLanes (lookup's loads).
 struct RowPlanes {
   size_t lw = 0, lgw = 0;
-  std::vector<float> vert, gv, low;  // 3, 3 and 9 planes (mu 0-2, sigma 3-5, motion 6-7, keep 8)
-  int low_row = -1;
+  std::vector<float> vert, gv;
   RowPlanes(int w, int gw)
-      : lw(size_t(w) + kLanes),
-        lgw(size_t(gw) + kLanes),
-        vert(3 * lw, 0.0f),
-        gv(3 * lgw, 0.0f),
-        low(9 * lw, 0.0f) {}
+      : lw(size_t(w) + kLanes), lgw(size_t(gw) + kLanes), vert(3 * lw, 0.0f), gv(3 * lgw, 0.0f) {}
 };
 
 struct RowContext {
@@ -167,8 +163,8 @@ static inline void reconstruct_pixels(const RowContext& r, int X) {
   // The current frame: 3 taps of the vertically blended rows.
   const I i0 = ldi<I>(&a.ax->i0[x]);
   const int ilo = a.ax->i0[x], ihi = a.ax->i0[x + L - 1];
-  const I cm = vmaxi(i0 - 1, I{}), cp = vmini(i0 + 1, I{} + (a.w - 1));
-  const int clo = std::max(ilo - 1, 0), chi = std::min(ihi + 1, a.w - 1);
+  const I cm = vmaxi(i0 - 1, I{}), cp = vmini(i0 + 1, I{} + (a.lr.w - 1));
+  const int clo = std::max(ilo - 1, 0), chi = std::min(ihi + 1, a.lr.w - 1);
   const T wx0 = ld<T>(&a.ax->w[0][x]), wx1 = ld<T>(&a.ax->w[1][x]), wx2 = ld<T>(&a.ax->w[2][x]);
   const T norm = 1.0f / ((wx0 + wx1 + wx2) * r.wy_sum);
   T o[3];
@@ -179,11 +175,13 @@ static inline void reconstruct_pixels(const RowContext& r, int X) {
            norm;
   }
   if (a.history) {
-    auto low = [&](int k) { return lookup(&rp.low[size_t(k) * rp.lw], i0, ilo, ihi); };
-    const T hx = (vindex(T{}, X) + 0.5f) + float(a.f) * low(6),
-            hy = splat<T>(float(r.Y) + 0.5f) + float(a.f) * low(7);
-    const auto valid =
-        (hx >= 0.0f) & (hx < float(a.W)) & (hy >= 0.0f) & (hy < float(a.H)) & (low(8) != 0.0f);
+    // Row j0 of a low-resolution plane at the lanes' nearest samples.
+    const size_t row = size_t(r.j0) * size_t(a.lr.w);
+    auto low = [&](const float* plane) { return lookup(plane + row, i0, ilo, ihi); };
+    const T hx = (vindex(T{}, X) + 0.5f) + float(a.f) * low(a.lr.mdil),
+            hy = splat<T>(float(r.Y) + 0.5f) + float(a.f) * low(a.lr.mdil + a.lr.n);
+    const auto valid = (hx >= 0.0f) & (hx < float(a.W)) & (hy >= 0.0f) & (hy < float(a.H)) &
+                       (low(a.lr.keep) != 0.0f);
     // Where no lane's history is valid, alpha = 1: the current frame alone.
     if (any_of(valid)) {
       // Parameters: bilinear from the grid (its rows already blended into gv).
@@ -201,7 +199,8 @@ static inline void reconstruct_pixels(const RowContext& r, int X) {
       T hc[3];
       sample_history(a.hist, r.plane, a.W, a.H, hx, hy, hc);
       for (int c = 0; c < 3; ++c) {
-        const T m = low(c), sg = prm[1] * low(3 + c);
+        const T m = low(a.lr.mu + size_t(c) * a.lr.n),
+                sg = prm[1] * low(a.lr.sigma + size_t(c) * a.lr.n);
         const T v = vmin(vmax(hc[c], m - sg), m + sg);
         o[c] = v + alpha * (o[c] - v);
       }
@@ -219,41 +218,30 @@ static inline void reconstruct_pixels(const RowContext& r, int X) {
 }
 
 static void reconstruct_rows(const Recon& a, int r0, int r1) {
-  RowPlanes rp(a.w, a.gw);
+  const LowRes& lr = a.lr;
+  RowPlanes rp(lr.w, a.gw);
   RowContext r{&a, &rp, size_t(a.W) * size_t(a.H), 0, 0, 0.0f, 0.0f};
   for (int Y = r0; Y < r1; ++Y) {
     const size_t yy = size_t(Y);
     const int j0 = a.ay->i0[yy];
     const float wy[3] = {a.ay->w[0][yy], a.ay->w[1][yy], a.ay->w[2][yy]};
-    const int rows[3] = {clampi(j0 - 1, 0, a.h - 1), j0, clampi(j0 + 1, 0, a.h - 1)};
+    const size_t rows[3] = {size_t(clampi(j0 - 1, 0, lr.h - 1)) * size_t(lr.w),
+                            size_t(j0) * size_t(lr.w),
+                            size_t(clampi(j0 + 1, 0, lr.h - 1)) * size_t(lr.w)};
     // The current frame's three rows, weighted for this output row: vert_c[i] = sum_b wy_b
     // y_c(i, row_b); the grid's two rows likewise.
-    const float* y0 = &a.y[size_t(rows[0]) * size_t(a.w) * 3];
-    const float* y1 = &a.y[size_t(rows[1]) * size_t(a.w) * 3];
-    const float* y2 = &a.y[size_t(rows[2]) * size_t(a.w) * 3];
-    for (size_t i = 0; i < size_t(a.w); ++i)
-      for (size_t c = 0; c < 3; ++c)
-        rp.vert[c * rp.lw + i] =
-            wy[0] * y0[3 * i + c] + wy[1] * y1[3 * i + c] + wy[2] * y2[3 * i + c];
+    for (size_t c = 0; c < 3; ++c) {
+      const float* y = lr.y + c * lr.n;
+      float* v = &rp.vert[c * rp.lw];
+      for (size_t i = 0; i < size_t(lr.w); ++i)
+        v[i] = wy[0] * y[rows[0] + i] + wy[1] * y[rows[1] + i] + wy[2] * y[rows[2] + i];
+    }
     const float ty = a.gy->t[yy];
     const float* ga = &a.grid[size_t(a.gy->a[yy]) * size_t(a.gw) * 3];
     const float* gb = &a.grid[size_t(a.gy->b[yy]) * size_t(a.gw) * 3];
     for (size_t i = 0; i < size_t(a.gw); ++i)
       for (size_t c = 0; c < 3; ++c)
         rp.gv[c * rp.lgw + i] = (1 - ty) * ga[3 * i + c] + ty * gb[3 * i + c];
-    if (a.history && j0 != rp.low_row) {
-      const size_t base = size_t(j0) * size_t(a.w);
-      for (size_t i = 0; i < size_t(a.w); ++i) {
-        for (size_t c = 0; c < 3; ++c) {
-          rp.low[c * rp.lw + i] = a.mu[3 * (base + i) + c];
-          rp.low[(3 + c) * rp.lw + i] = a.sigma[3 * (base + i) + c];
-        }
-        rp.low[6 * rp.lw + i] = a.mdil[2 * (base + i)];
-        rp.low[7 * rp.lw + i] = a.mdil[2 * (base + i) + 1];
-        rp.low[8 * rp.lw + i] = a.keep[base + i] ? 1.0f : 0.0f;
-      }
-      rp.low_row = j0;
-    }
     r.Y = Y, r.j0 = j0, r.dy0 = a.ay->d0[yy], r.wy_sum = wy[0] + wy[1] + wy[2];
     if (a.W >= kLanes) {
       int X = 0;

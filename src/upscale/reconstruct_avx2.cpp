@@ -1,5 +1,4 @@
-// The upsampler's reconstruction built for avx2 (-march=haswell, as the earlier target_clones
-// "arch=haswell" clone; flags in CMakeLists.txt).
+// The upsampler's per-pixel stages built for avx2 (-march=haswell; flags in CMakeLists.txt).
 #include <immintrin.h>
 
 #include <algorithm>
@@ -15,12 +14,16 @@ constexpr float kLuma[3] = {0.2126f, 0.7152f, 0.0722f};
 // clang-format off
 #include "core/simd.inl"
 #include "upscale/sampling.inl"  // clampi
+#include "upscale/prepare.inl"
 #include "upscale/reconstruct.inl"
 // clang-format on
 }  // namespace avx2_ns
 
-ReconstructFn reconstruct_avx2() {
-  return avx2_ns::reconstruct_rows;
+const UpscaleKernels& upscale_kernels_avx2() {
+  static const UpscaleKernels table{avx2_ns::input_rows, avx2_ns::stats_rows,
+                                    avx2_ns::disocclusion_rows, avx2_ns::features_rows,
+                                    avx2_ns::reconstruct_rows};
+  return table;
 }
 
 }  // namespace kestrel::upscale

@@ -1,5 +1,4 @@
-// The upsampler's reconstruction built for avx512 (-mavx512f, as the earlier target_clones
-// "avx512f" clone; flags in CMakeLists.txt).
+// The upsampler's per-pixel stages built for avx512 (-mavx512f; flags in CMakeLists.txt).
 #include <immintrin.h>
 
 #include <algorithm>
@@ -15,12 +14,16 @@ constexpr float kLuma[3] = {0.2126f, 0.7152f, 0.0722f};
 // clang-format off
 #include "core/simd.inl"
 #include "upscale/sampling.inl"  // clampi
+#include "upscale/prepare.inl"
 #include "upscale/reconstruct.inl"
 // clang-format on
 }  // namespace avx512_ns
 
-ReconstructFn reconstruct_avx512() {
-  return avx512_ns::reconstruct_rows;
+const UpscaleKernels& upscale_kernels_avx512() {
+  static const UpscaleKernels table{avx512_ns::input_rows, avx512_ns::stats_rows,
+                                    avx512_ns::disocclusion_rows, avx512_ns::features_rows,
+                                    avx512_ns::reconstruct_rows};
+  return table;
 }
 
 }  // namespace kestrel::upscale

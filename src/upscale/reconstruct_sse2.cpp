@@ -1,4 +1,4 @@
-// The upsampler's reconstruction built for sse2 (the x86-64 baseline; flags in CMakeLists.txt).
+// The upsampler's per-pixel stages built for sse2 (the x86-64 baseline; flags in CMakeLists.txt).
 #include <immintrin.h>
 
 #include <algorithm>
@@ -14,12 +14,16 @@ constexpr float kLuma[3] = {0.2126f, 0.7152f, 0.0722f};
 // clang-format off
 #include "core/simd.inl"
 #include "upscale/sampling.inl"  // clampi
+#include "upscale/prepare.inl"
 #include "upscale/reconstruct.inl"
 // clang-format on
 }  // namespace sse2_ns
 
-ReconstructFn reconstruct_sse2() {
-  return sse2_ns::reconstruct_rows;
+const UpscaleKernels& upscale_kernels_sse2() {
+  static const UpscaleKernels table{sse2_ns::input_rows, sse2_ns::stats_rows,
+                                    sse2_ns::disocclusion_rows, sse2_ns::features_rows,
+                                    sse2_ns::reconstruct_rows};
+  return table;
 }
 
 }  // namespace kestrel::upscale

@@ -24,6 +24,8 @@ namespace kestrel {
 
 using upscale::Axis;
 using upscale::GridAxis;
+using upscale::HistoryArgs;
+using upscale::LowRes;
 using upscale::Recon;
 
 namespace {
@@ -31,10 +33,6 @@ namespace {
 constexpr float kLuma[3] = {0.2126f, 0.7152f, 0.0722f};
 constexpr int kFeatures = 11, kLowFeatures = 8, kOutputs = 3;
 constexpr float kCurrentSharpness = 2.0f;
-constexpr float kMinDepth = 1e-3f, kMaxMotion = 65536.0f;
-// History is dropped where no previous depth around the reprojected position is within this
-// fraction of the current depth (the denoisers' test) plus the depth's slope: a disocclusion.
-constexpr float kDisocclusion = 0.1f;
 constexpr char kMagic[9] = "KSTRLUPW";
 constexpr uint32_t kArchitecture = 1;
 // The TAAU-like baseline's constants, picked on the training clips by a grid search
@@ -89,15 +87,15 @@ void check_input(const UpscaleInput& in) {
 }  // namespace
 
 namespace upscale {
-ReconstructFn reconstruct_for(Isa isa) {
+const UpscaleKernels& upscale_kernels(Isa isa) {
   require_supported(isa);
   switch (isa) {
     case Isa::avx512:
-      return reconstruct_avx512();
+      return upscale_kernels_avx512();
     case Isa::avx2:
-      return reconstruct_avx2();
+      return upscale_kernels_avx2();
     default:
-      return reconstruct_sse2();
+      return upscale_kernels_sse2();
   }
 }
 
@@ -183,18 +181,17 @@ struct Upscaler::Impl {
   int w = 0, h = 0;
   bool has_history = false;
   // Per-frame buffers (reused).
-  std::vector<float> y, depth, mdil, mu, sigma, feat, grid, act0, act1, scratch, hist, next_hist,
-      prev_depth;
-  std::vector<uint8_t> keep;       // per low-resolution pixel: not disoccluded (disocclusion())
+  std::vector<float> y, depth, motion, mdil, mu, sigma, keep, feat, grid, act0, act1, scratch, hist,
+      next_hist, prev_depth;
+  LowRes lr;                       // the planes above (reconstruct.h)
   float prev_jx = 0, prev_jy = 0;  // the previous frame's jitter
   Axis ax, ay;
   GridAxis gx, gy;
   std::unique_ptr<upscale::NsrrNetwork> nsrr;
 
-  void prepare(const UpscaleInput& in);
+  void prepare(const UpscaleInput& in, const upscale::UpscaleKernels& k);
   void spatial(const UpscaleInput& in, FloatImage& out, bool cubic);
   void temporal(const UpscaleInput& in, FloatImage& out);
-  void disocclusion(float jx, float jy);
 };
 
 Upscaler::Upscaler(const UpscalerOptions& options) : impl_(std::make_unique<Impl>()) {
@@ -305,170 +302,43 @@ void Upscaler::Impl::spatial(const UpscaleInput& in, FloatImage& out, bool cubic
   times.reconstruct = timer.ms();
 }
 
-// Inputs in the tone-mapped space, the least-depth motion, the 3x3 statistics and (for the
-// network) the low-resolution features pooled onto the grid.
-void Upscaler::Impl::prepare(const UpscaleInput& in) {
-  const size_t n = size_t(w) * size_t(h);
-  // + 1: room for the reconstruction's 4-float loads of the last pixel.
-  y.resize(3 * n + 1), depth.resize(n), mdil.resize(2 * n), mu.resize(3 * n + 1),
-      sigma.resize(3 * n + 1);
-  y[3 * n] = mu[3 * n] = sigma[3 * n] = 0.0f;
-  std::vector<float>& motion = scratch;  // raw motion, reused below as conv scratch
-  motion.resize(2 * n);
-  const int mc = in.motion ? in.motion->channels : 0;
-  parallel_rows(h, 8, [&](int r0, int r1) {
-    for (size_t p = size_t(r0) * size_t(w); p < size_t(r1) * size_t(w); ++p) {
-      float c[3];
-      for (int k = 0; k < 3; ++k)
-        c[k] = std::max(finite_or_zero(in.color->pixels[3 * p + size_t(k)]), 0.0f);
-      const float s = 1.0f / (1.0f + luma(c));
-      for (int k = 0; k < 3; ++k) y[3 * p + size_t(k)] = c[k] * s;
-      depth[p] = in.depth ? std::max(finite_or_zero(in.depth->pixels[p]), 0.0f) : 1.0f;
-      for (int k = 0; k < 2; ++k)  // beyond any frame, and safe to convert to int
-        motion[2 * p + size_t(k)] =
-            mc ? std::clamp(finite_or_zero(in.motion->pixels[size_t(mc) * p + size_t(k)]),
-                            -kMaxMotion, kMaxMotion)
-               : 0.0f;
-    }
-  });
-  parallel_rows(h, 8, [&](int r0, int r1) {
-    std::vector<float> c1(3 * size_t(w)), c2(3 * size_t(w));  // vertical 3-sums of y and y^2
-    for (int j = r0; j < r1; ++j) {
-      const float* rows[3] = {&y[size_t(clampi(j - 1, 0, h - 1)) * size_t(w) * 3],
-                              &y[size_t(j) * size_t(w) * 3],
-                              &y[size_t(clampi(j + 1, 0, h - 1)) * size_t(w) * 3]};
-      for (size_t q = 0; q < 3 * size_t(w); ++q) {
-        const float a = rows[0][q], b = rows[1][q], c = rows[2][q];
-        c1[q] = a + b + c, c2[q] = a * a + b * b + c * c;
-      }
-      const float* drow[3] = {&depth[size_t(clampi(j - 1, 0, h - 1)) * size_t(w)],
-                              &depth[size_t(j) * size_t(w)],
-                              &depth[size_t(clampi(j + 1, 0, h - 1)) * size_t(w)]};
-      const int row_of[3] = {clampi(j - 1, 0, h - 1), j, clampi(j + 1, 0, h - 1)};
-      for (int i = 0; i < w; ++i) {
-        const size_t p = size_t(j) * size_t(w) + size_t(i);
-        const int cols[3] = {clampi(i - 1, 0, w - 1), i, clampi(i + 1, 0, w - 1)};
-        // The least depth (0 = sky, farthest); the first of equals in row-major order.
-        float best = 3e38f;
-        size_t arg = p;
-        for (int b = 0; b < 3; ++b)
-          for (int a = 0; a < 3; ++a) {
-            const float d0 = drow[b][cols[a]];
-            const float d = d0 > 0 ? d0 : 3e38f;
-            if (d < best) best = d, arg = size_t(row_of[b]) * size_t(w) + size_t(cols[a]);
-          }
-        mdil[2 * p] = motion[2 * arg], mdil[2 * p + 1] = motion[2 * arg + 1];
-        for (int k = 0; k < 3; ++k) {
-          const float s1 = c1[3 * size_t(cols[0]) + size_t(k)] + c1[3 * size_t(i) + size_t(k)] +
-                           c1[3 * size_t(cols[2]) + size_t(k)];
-          const float s2 = c2[3 * size_t(cols[0]) + size_t(k)] + c2[3 * size_t(i) + size_t(k)] +
-                           c2[3 * size_t(cols[2]) + size_t(k)];
-          const float m = s1 / 9.0f;
-          mu[3 * p + size_t(k)] = m;
-          sigma[3 * p + size_t(k)] = std::sqrt(std::max(s2 / 9.0f - m * m, 0.0f));
-        }
-      }
-    }
-  });
-}
-
-// keep[p] = 1 where the history of low-resolution pixel p shows the surface p shows: one of
-// the four previous samples around where p's sample was (its position plus m, the least-depth
-// motion the history is fetched with, in the previous frame's sample grid, jitter included;
-// edges clamped) has a depth within kDisocclusion of p's plus p's depth slope (the change to
-// the next sample on the smoother side, in x plus in y: at most a pixel separates the two
-// frames' samples), or both are sky. (model.keep_history)
-void Upscaler::Impl::disocclusion(float jx, float jy) {
-  keep.resize(size_t(w) * size_t(h));
-  parallel_rows(h, 8, [&](int r0, int r1) {
-    for (int j = r0; j < r1; ++j) {
-      const float* up = &depth[size_t(clampi(j - 1, 0, h - 1)) * size_t(w)];
-      const float* mid = &depth[size_t(j) * size_t(w)];
-      const float* down = &depth[size_t(clampi(j + 1, 0, h - 1)) * size_t(w)];
-      for (int i = 0; i < w; ++i) {
-        const size_t p = size_t(j) * size_t(w) + size_t(i);
-        const float d = mid[i];
-        // The depth's change to the next sample on the smoother side, in x and in y: a
-        // surface seen at a grazing angle changes that much between neighbouring samples.
-        const float left = std::fabs(mid[clampi(i - 1, 0, w - 1)] - d),
-                    right = std::fabs(mid[clampi(i + 1, 0, w - 1)] - d);
-        const float above = std::fabs(up[i] - d), below = std::fabs(down[i] - d);
-        const float slope = std::min(left, right) + std::min(above, below);
-        const float tol = kDisocclusion * std::max(d, kMinDepth) + slope;
-        const int qx = floor_int(float(i) + jx + mdil[2 * p] - prev_jx);
-        const int qy = floor_int(float(j) + jy + mdil[2 * p + 1] - prev_jy);
-        const bool sky = !(d > 0);
-        bool same = false;
-        for (int b = 0; b <= 1; ++b) {
-          const float* row = &prev_depth[size_t(clampi(qy + b, 0, h - 1)) * size_t(w)];
-          for (int a = 0; a <= 1; ++a) {
-            const float dq = row[clampi(qx + a, 0, w - 1)];
-            // Both surfaces within tol, or both sky (depths are >= 0).
-            same |= (sky == !(dq > 0)) & (sky | (std::fabs(dq - d) <= tol));
-          }
-        }
-        keep[p] = same;
-      }
-    }
-  });
+// The low-resolution planes (LowRes): inputs in the tone-mapped space, the least-depth motion
+// and the 3x3 statistics.
+void Upscaler::Impl::prepare(const UpscaleInput& in, const upscale::UpscaleKernels& k) {
+  const size_t n = size_t(w) * size_t(h), pad = upscale::kMaxLanes;
+  for (auto [buf, planes] :
+       {std::pair{&y, 3}, {&depth, 1}, {&motion, 2}, {&mdil, 2}, {&mu, 3}, {&sigma, 3}, {&keep, 1}})
+    buf->resize(size_t(planes) * n + pad);
+  lr.w = w, lr.h = h, lr.n = n;
+  lr.y = y.data(), lr.depth = depth.data(), lr.motion = motion.data(), lr.mdil = mdil.data(),
+  lr.mu = mu.data(), lr.sigma = sigma.data(), lr.keep = keep.data(), lr.feat = nullptr;
+  upscale::InputArgs a{in.color->pixels.data(), in.depth ? in.depth->pixels.data() : nullptr,
+                       in.motion ? in.motion->pixels.data() : nullptr,
+                       in.motion ? in.motion->channels : 0, lr};
+  parallel_rows(h, 8, [&](int r0, int r1) { k.input(a, r0, r1); });
+  parallel_rows(h, 8, [&](int r0, int r1) { k.stats(lr, r0, r1); });
 }
 
 void Upscaler::Impl::temporal(const UpscaleInput& in, FloatImage& out) {
   const int f = options.factor;
   const int W = out.width, H = out.height;
   const bool neural = options.method == UpscaleMethod::neural;
+  const upscale::UpscaleKernels& kern = upscale::upscale_kernels(default_isa());
   Timer timer;
-  prepare(in);
-  if (has_history &&
-      (hist.size() != size_t(W) * size_t(H) * 3 + 1 || prev_depth.size() != size_t(w) * size_t(h)))
+  prepare(in, kern);
+  const size_t n = size_t(w) * size_t(h);
+  if (has_history && (hist.size() != size_t(W) * size_t(H) * 3 + 1 || prev_depth.size() != n))
     has_history = false;
+  HistoryArgs ha{lr,          prev_depth.data(), hist.data(), W,       H,          f,
+                 in.jitter_x, in.jitter_y,       prev_jx,     prev_jy, has_history};
   // Parameters on the grid (gw x gh, 3 per cell): the network's, decoded, or the constants.
   const int gw = f == 2 ? (w + 1) / 2 : w, gh = f == 2 ? (h + 1) / 2 : h;
   grid.resize(size_t(gw) * size_t(gh) * 3);
   if (neural) {
     // Low-resolution features (model.features), then pooled onto the grid (pool_features).
-    const size_t n = size_t(w) * size_t(h);
-    feat.resize(n * kLowFeatures);
-    const float* hp = hist.data();
-    parallel_rows(h, 8, [&](int r0, int r1) {
-      for (int j = r0; j < r1; ++j)
-        for (int i = 0; i < w; ++i) {
-          const size_t p = size_t(j) * size_t(w) + size_t(i);
-          const float L = luma(&y[3 * p]), muL = luma(&mu[3 * p]), sigL = luma(&sigma[3 * p]);
-          const float mx = mdil[2 * p], my = mdil[2 * p + 1];
-          float valid = 0, Lh = L, dchange = 0;
-          if (has_history) {
-            const float hx = float(f) * (float(i) + in.jitter_x + mx),
-                        hy = float(f) * (float(j) + in.jitter_y + my);
-            valid = (hx >= 0 && hx < float(W) && hy >= 0 && hy < float(H)) ? 1.0f : 0.0f;
-            float hc[3];  // the history is planar (reconstruct.h)
-            for (size_t c = 0; c < 3; ++c)
-              sample_bilinear<1>(hp + c * size_t(W) * size_t(H), W, H, hx, hy, &hc[c]);
-            Lh = luma(hc);
-            const int px = clampi(floor_int(float(i) + 0.5f + mx), 0, w - 1);
-            const int py = clampi(floor_int(float(j) + 0.5f + my), 0, h - 1);
-            const float dp = prev_depth[size_t(py) * size_t(w) + size_t(px)], d = depth[p];
-            if (d > 0 && dp > 0)
-              dchange = std::clamp((dp - d) / std::max(d, kMinDepth), -1.0f, 1.0f);
-            else if ((d > 0) != (dp > 0))
-              dchange = 1.0f;
-          }
-          const float mmag = std::min(std::sqrt(mx * mx + my * my) / 8.0f, 1.0f);
-          const float d = depth[p];
-          float edge = 0;
-          const int nb[4][2] = {{0, -1}, {-1, 0}, {1, 0}, {0, 1}};
-          for (const auto& o : nb) {
-            const float dn = depth[size_t(clampi(j + o[1], 0, h - 1)) * size_t(w) +
-                                   size_t(clampi(i + o[0], 0, w - 1))];
-            edge = std::max(edge, std::fabs(dn - d));
-          }
-          edge = std::min(edge / std::max(d, kMinDepth), 1.0f);
-          float* o = &feat[p * kLowFeatures];
-          o[0] = L, o[1] = (Lh - L) * valid, o[2] = sigL, o[3] = (Lh - muL) * valid,
-          o[4] = dchange * valid;
-          o[5] = mmag, o[6] = valid, o[7] = edge;
-        }
-    });
+    feat.resize(n * kLowFeatures + upscale::kMaxLanes);
+    ha.lr.feat = feat.data();
+    parallel_rows(h, 8, [&](int r0, int r1) { kern.features(ha, r0, r1); });
     act0.resize(size_t(gw) * size_t(gh) * kFeatures);
     const int s = f == 2 ? 2 : 1;
     parallel_rows(gh, 8, [&](int r0, int r1) {
@@ -480,9 +350,9 @@ void Upscaler::Impl::temporal(const UpscaleInput& in, FloatImage& out) {
             for (int a = 0; a < s; ++a) {
               const size_t q = size_t(clampi(s * gj + b, 0, h - 1)) * size_t(w) +
                                size_t(clampi(s * gi + a, 0, w - 1));
-              const float* fq = &feat[q * kLowFeatures];
-              for (int k = 0; k < kLowFeatures; ++k) sum[k] += fq[k];
-              mx1 = std::max(mx1, std::fabs(fq[1])), mx4 = std::max(mx4, std::fabs(fq[4]));
+              for (size_t k = 0; k < size_t(kLowFeatures); ++k) sum[k] += feat[k * n + q];
+              mx1 = std::max(mx1, std::fabs(feat[n + q])),
+              mx4 = std::max(mx4, std::fabs(feat[4 * n + q]));
             }
           const float inv = 1.0f / float(s * s);
           for (int k = 0; k < kLowFeatures; ++k) o[k] = sum[k] * inv;
@@ -511,23 +381,20 @@ void Upscaler::Impl::temporal(const UpscaleInput& in, FloatImage& out) {
     timer = Timer();
   }
   // Reconstruction (model.step): per output pixel.
-  if (has_history) disocclusion(in.jitter_x, in.jitter_y);
+  if (has_history) parallel_rows(h, 8, [&](int r0, int r1) { kern.disocclusion(ha, r0, r1); });
   ax.build(W, w, f, in.jitter_x, kCurrentSharpness),
       ay.build(H, h, f, in.jitter_y, kCurrentSharpness);
   gx.build(W, gw), gy.build(H, gh);
   next_hist.resize(size_t(W) * size_t(H) * 3 + 1);  // three planes, every pixel written
   next_hist.back() = 0.0f;
   Recon r;
-  r.y = y.data(), r.mdil = mdil.data(), r.mu = mu.data(), r.sigma = sigma.data(),
-  r.grid = grid.data();
+  r.lr = lr, r.grid = grid.data();
   r.hist = hist.data(), r.next = next_hist.data(), r.out = out.pixels.data();
-  r.keep = keep.data();
   r.ax = &ax, r.ay = &ay, r.gx = &gx, r.gy = &gy;
-  r.w = w, r.h = h, r.W = W, r.H = H, r.gw = gw, r.f = f, r.history = has_history;
-  const upscale::ReconstructFn reconstruct_rows = upscale::reconstruct_for(default_isa());
-  parallel_rows(H, 4, [&](int r0, int r1) { reconstruct_rows(r, r0, r1); });
+  r.W = W, r.H = H, r.gw = gw, r.f = f, r.history = has_history;
+  parallel_rows(H, 4, [&](int r0, int r1) { kern.reconstruct(r, r0, r1); });
   hist.swap(next_hist);
-  prev_depth.swap(depth);  // prepare() rewrites every pixel of depth next frame
+  prev_depth.assign(depth.begin(), depth.begin() + std::ptrdiff_t(n));
   prev_jx = in.jitter_x, prev_jy = in.jitter_y;
   has_history = true;
   times.reconstruct = timer.ms();
