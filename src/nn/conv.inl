@@ -24,19 +24,26 @@ static constexpr int kLanes = 4, kPx = 2;
 static constexpr int kParts = 16 / kLanes;
 typedef float VN __attribute__((vector_size(4 * kLanes)));
 
-static void conv_rows_padded(const ConvArgs& a, const float* padded, int row0, int row1) {
+// Output rows [row0, row1), 16-channel blocks [cb0, cb1) of cout, each computed with P of
+// its kParts vectors (P < kParts: the block's last channels are zeros in the weights and the
+// bias, a head whose outputs do not fill the block; they are written as zeros). With fewer
+// vectors per pixel more pixels fit the registers: kPx * kParts / P.
+template <int P>
+static void conv_rows_padded(const ConvArgs& a, const float* padded, int row0, int row1, int cb0,
+                             int cb1) {
+  constexpr int Px = kPx * kParts / P;
   const int w = a.width, cin = a.cin, cout = a.cout, k = a.ksize, r = k / 2;
   const int wp = (w + 7) / 8 * 8, pw = wp + 2;
   for (int y = row0; y < row1; ++y)
-    for (int x0 = 0; x0 < w; x0 += kPx)
-      for (int cb = 0; cb < cout; cb += 16) {
-        VN acc[kPx][kParts];
+    for (int x0 = 0; x0 < w; x0 += Px)
+      for (int cb = cb0; cb < cb1; cb += 16) {
+        VN acc[Px][P];
 #pragma GCC unroll 4
-        for (int j = 0; j < kParts; ++j) {
+        for (int j = 0; j < P; ++j) {
           VN bias;
           __builtin_memcpy(&bias, a.bias + cb + j * kLanes, sizeof bias);
 #pragma GCC unroll 8
-          for (int b = 0; b < kPx; ++b) acc[b][j] = bias;
+          for (int b = 0; b < Px; ++b) acc[b][j] = bias;
         }
         for (int ky = 0; ky < k; ++ky)
           for (int kx = 0; kx < k; ++kx) {
@@ -46,31 +53,53 @@ static void conv_rows_padded(const ConvArgs& a, const float* padded, int row0, i
             const float* wk =
                 a.weights + size_t(ky * k + kx) * size_t(cin) * size_t(cout) + size_t(cb);
             for (int ci = 0; ci < cin; ++ci) {
-              VN wv[kParts];
+              VN wv[P];
 #pragma GCC unroll 4
-              for (int j = 0; j < kParts; ++j)
+              for (int j = 0; j < P; ++j)
                 __builtin_memcpy(&wv[j], wk + size_t(ci) * size_t(cout) + size_t(j * kLanes),
                                  sizeof(VN));
 #pragma GCC unroll 8
-              for (int b = 0; b < kPx; ++b) {
+              for (int b = 0; b < Px; ++b) {
                 const float v = in[size_t(b) * size_t(cin) + size_t(ci)];
 #pragma GCC unroll 4
-                for (int j = 0; j < kParts; ++j) acc[b][j] += v * wv[j];
+                for (int j = 0; j < P; ++j) acc[b][j] += v * wv[j];
               }
             }
           }
         const VN zero = {};
 #pragma GCC unroll 8
-        for (int b = 0; b < kPx; ++b) {
+        for (int b = 0; b < Px; ++b) {
           if (x0 + b >= w) break;
           float* o = a.out + (size_t(y) * size_t(w) + size_t(x0 + b)) * size_t(cout) + size_t(cb);
 #pragma GCC unroll 4
-          for (int j = 0; j < kParts; ++j) {
+          for (int j = 0; j < P; ++j) {
             const VN v = a.relu ? (acc[b][j] > zero ? acc[b][j] : zero) : acc[b][j];
             __builtin_memcpy(o + j * kLanes, &v, sizeof v);
           }
+          for (int j = P; j < kParts; ++j) __builtin_memcpy(o + j * kLanes, &zero, sizeof zero);
         }
       }
+}
+
+// Every output block with all its vectors, the last with as few as its outputs need.
+static void conv_rows_padded(const ConvArgs& a, int outputs, const float* padded, int row0,
+                             int row1) {
+  const int last = (outputs - 1) / 16 * 16, used = (outputs - last + kLanes - 1) / kLanes;
+  if (last > 0) conv_rows_padded<kParts>(a, padded, row0, row1, 0, last);
+  switch (used) {
+#if !defined(__AVX512F__)
+    case 1:
+      conv_rows_padded<1>(a, padded, row0, row1, last, last + 16);
+      break;
+#endif
+#if !defined(__AVX__)
+    case 2:
+      conv_rows_padded<2>(a, padded, row0, row1, last, last + 16);
+      break;
+#endif
+    default:
+      conv_rows_padded<kParts>(a, padded, row0, row1, last, last + 16);
+  }
 }
 
 // Zero-pads a channels-last image by one pixel and to a multiple of 8 columns (rows in
@@ -102,6 +131,6 @@ static void conv_layer(const ConvLayer& l, const std::vector<float>& in, int w, 
                scratch);  // l.cout is a multiple of 16 (NeuralWeights::load)
   parallel_for(0, size_t(h), 2, [&](size_t r0, size_t r1) {
     FlushDenormals ftz;
-    conv_rows_padded(a, scratch.data(), int(r0), int(r1));
+    conv_rows_padded(a, l.outputs, scratch.data(), int(r0), int(r1));
   });
 }
