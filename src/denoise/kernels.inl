@@ -1,7 +1,7 @@
 // Included by kernels_<isa>.cpp inside namespace kestrel::denoise::KESTREL_ISA_NS.
 // Per-pixel loops whose bodies hold a select (the exp, the log, clamps) are written once for
-// float and the ISA's vector (core/simd.inl: for_lanes, atrous_span): GCC's auto-vectoriser does
-// those only with AVX-512's masks. The rest are plain loops it vectorises on every ISA.
+// float and the ISA's vector (core/simd/lanes.inl: for_lanes, atrous_span): GCC's auto-vectoriser
+// does those only with AVX-512's masks. The rest are plain loops it vectorises on every ISA.
 
 struct UpTap {
   int i0, i1;
@@ -16,7 +16,7 @@ static UpTap up_tap(int i, int in, float scale) {
   return {i0, i0 < in - 1 ? i0 + 1 : i0, s - float(i0)};
 }
 
-#include "core/simd.inl"
+#include "core/simd/lanes.inl"
 
 #include "denoise/kernels_filter.inl"
 

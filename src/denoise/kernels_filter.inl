@@ -1,5 +1,5 @@
-// Included by kernels.inl (inside namespace kestrel::denoise::KESTREL_ISA_NS, after simd.inl):
-// the neural denoiser's a-trous filter, one level's rows (model.py's filter).
+// Included by kernels.inl (inside namespace kestrel::denoise::KESTREL_ISA_NS, after
+// core/simd/lanes.inl): the neural denoiser's a-trous filter, one level's rows (model.py's filter).
 
 // One a-trous level's row: its planes, the two quarter-res parameter rows it lerps (fy the
 // weight of the lower one) and the 8 outer taps (the centre weighs exactly 1: every

@@ -1,5 +1,5 @@
 // SVGF's hot loops (svgf.h), included by kernels_<isa>.cpp after kernels.inl (the vector
-// helpers of simd.inl, FlushDenormals: the weights' tails underflow into denormals).
+// helpers of core/simd/lanes.inl, FlushDenormals: the weights' tails underflow into denormals).
 //
 // The a-trous pass runs pixel by pixel with its 3x3 taps unrolled and the sums in registers,
 // vectorised across the pixels of a row's interior, every edge stop in one exp per tap; the

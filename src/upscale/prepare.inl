@@ -1,6 +1,6 @@
 // The upsampler's low-resolution stages (model.py: the inputs, their 3x3 statistics, the
 // history test and the network's features) for one instruction set; included by
-// reconstruct_*.cpp inside a namespace of their own, after core/simd.inl. Bodies are written
+// reconstruct_*.cpp inside a namespace of their own, after core/simd/lanes.inl. Bodies are written
 // once for float and the ISA's vector (for_lanes); neighbours outside the image are clamped
 // to its edge, so the vector form runs where all its lanes' neighbours are inside and the
 // float form takes the border columns.

@@ -1,5 +1,5 @@
 // The reconstruction loop (model.step) for one instruction set; included by reconstruct_*.cpp
-// inside a namespace of their own, after core/simd.inl. Each output row is done kLanes pixels
+// inside a namespace of their own, after core/simd/lanes.inl. Each output row is done kLanes pixels
 // at a time (T = vfloat) and, in images narrower than that, pixel by pixel (T = float): the
 // body is written once for both.
 //

@@ -12,7 +12,7 @@ namespace kestrel::upscale {
 namespace avx512_ns {
 constexpr float kLuma[3] = {0.2126f, 0.7152f, 0.0722f};
 // clang-format off
-#include "core/simd.inl"
+#include "core/simd/lanes.inl"
 #include "upscale/sampling.inl"  // clampi
 #include "upscale/prepare.inl"
 #include "upscale/reconstruct.inl"
