@@ -9,11 +9,8 @@ template <class T>
 static inline T luma3(T r, T g, T b) {
   return kLuma[0] * r + kLuma[1] * g + kLuma[2] * b;
 }
-// v where finite, else 0.
-static inline float finite_or_0(float v) {
-  return std::isfinite(v) ? v : 0.0f;
-}
-static inline vfloat finite_or_0(vfloat v) {
+// v where finite, else 0, lane by lane (the scalar form: sampling.inl).
+static inline vfloat finite_or_zero(vfloat v) {
   return ((vint)v & 0x7F800000) != 0x7F800000 ? v : vfloat{};
 }
 template <class T>
@@ -36,15 +33,16 @@ static void input_rows(const InputArgs& a, int r0, int r1) {
   for_lanes_in(begin, end, [&](auto tag, int p) {
     using T = decltype(tag);
     T c[3];
-    for (int k = 0; k < 3; ++k) c[k] = vmax(finite_or_0(ld_channel<T>(a.color + k, 3, p)), T{});
+    for (int k = 0; k < 3; ++k) c[k] = vmax(finite_or_zero(ld_channel<T>(a.color + k, 3, p)), T{});
     const T s = 1.0f / (1.0f + luma3(c[0], c[1], c[2]));
     for (int k = 0; k < 3; ++k) st(lr.y + size_t(k) * n + size_t(p), c[k] * s);
     st(lr.depth + p,
-       a.depth ? vmax(finite_or_0(ld<T>(a.depth + p)), T{}) : T{} + 1.0f);  // one channel
+       a.depth ? vmax(finite_or_zero(ld<T>(a.depth + p)), T{}) : T{} + 1.0f);  // one channel
     for (int k = 0; k < 2; ++k)  // beyond any frame, and safe to convert to int
       st(lr.motion + size_t(k) * n + size_t(p),
-         a.mc ? clampv(finite_or_0(ld_channel<T>(a.motion + k, a.mc, p)), -kMaxMotion, kMaxMotion)
-              : T{});
+         a.mc
+             ? clampv(finite_or_zero(ld_channel<T>(a.motion + k, a.mc, p)), -kMaxMotion, kMaxMotion)
+             : T{});
   });
 }
 

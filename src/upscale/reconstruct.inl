@@ -1,13 +1,13 @@
 // The reconstruction loop (model.step) for one instruction set; included by reconstruct_*.cpp
-// inside a namespace of their own, after core/simd/lanes.inl. Each output row is done kLanes pixels
-// at a time (T = vfloat) and, in images narrower than that, pixel by pixel (T = float): the
-// body is written once for both.
+// inside a namespace of their own, after core/simd/lanes.inl. Each output row is done kLanes
+// pixels at a time (T = vfloat) and, in images narrower than that, pixel by pixel (T = float):
+// the body is written once for both.
 //
 // Per output row the three current-frame rows are blended vertically (vert) and the parameter
 // grid's two rows (gv); those and the low-resolution planes' row j0 (mu, sigma, motion, keep)
 // are read at the lanes' column indices, which are non-decreasing and span a few entries, by
-// one load and a permute (lookup). The history is three planes, so its taps
-// are mostly plain loads (sample_history).
+// one load and a permute (lookup). The history is three planes, so its taps are mostly plain
+// loads (sample_history).
 
 // The current frame's three rows blended for an output row (vert) and the grid's two (gv),
 // planar and padded by kLanes (lookup's loads).

@@ -292,12 +292,6 @@ static inline vfloat lookup(const float* base, vint idx, int lo, int hi) {
 #endif
   return vgather(base, idx);
 }
-static inline int first_lane(int x) {
-  return x;
-}
-static inline int first_lane(vint x) {
-  return x[0];
-}
 // 0, 1, 2, ... (the scalar form: 0).
 static inline int lane_iota(int) {
   return 0;
