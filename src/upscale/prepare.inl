@@ -128,7 +128,8 @@ static void disocclusion_rows(const HistoryArgs& a, int r0, int r1) {
         for (int c = 0; c <= 1; ++c) {
           const T dq = vgather(a.prev_depth, row + vmini(vmaxi(qx + c, I{}), I{} + (w - 1)));
           // Both surfaces within tol, or both sky (depths are >= 0).
-          same = same | ((sky == vnot(dq > 0.0f)) & (sky | (vabs(dq - d) <= tol)));
+          const auto near = vabs(dq - d) <= tol, sky_q = vnot(dq > 0.0f);
+          same = same | ((sky == sky_q) & (sky | near));
         }
       }
       st(lr.keep + p, same ? T{} + 1.0f : T{});

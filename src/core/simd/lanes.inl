@@ -361,17 +361,7 @@ static inline int lane_max(int v) {
   return v;
 }
 static inline int lane_min(vint v) {
-#if defined(__AVX512F__)
-  vint m = v, t = __builtin_shuffle(m, vint{8, 9, 10, 11, 12, 13, 14, 15, 0, 1, 2, 3, 4, 5, 6, 7});
-  m = t < m ? t : m;
-  t = __builtin_shuffle(m, vint{4, 5, 6, 7, 0, 1, 2, 3, 12, 13, 14, 15, 8, 9, 10, 11});
-  m = t < m ? t : m;
-  t = __builtin_shuffle(m, vint{2, 3, 0, 1, 6, 7, 4, 5, 10, 11, 8, 9, 14, 15, 12, 13});
-  m = t < m ? t : m;
-  t = __builtin_shuffle(m, vint{1, 0, 3, 2, 5, 4, 7, 6, 9, 8, 11, 10, 13, 12, 15, 14});
-  m = t < m ? t : m;
-  return m[0];
-#elif defined(__AVX2__)
+#if defined(__AVX2__) && !defined(__AVX512F__)
   __m256i m = _mm256_min_epi32((__m256i)v, _mm256_permute2x128_si256((__m256i)v, (__m256i)v, 1));
   m = _mm256_min_epi32(m, _mm256_shuffle_epi32(m, 0x4E));
   m = _mm256_min_epi32(m, _mm256_shuffle_epi32(m, 0xB1));
@@ -383,17 +373,7 @@ static inline int lane_min(vint v) {
 #endif
 }
 static inline int lane_max(vint v) {
-#if defined(__AVX512F__)
-  vint m = v, t = __builtin_shuffle(m, vint{8, 9, 10, 11, 12, 13, 14, 15, 0, 1, 2, 3, 4, 5, 6, 7});
-  m = t > m ? t : m;
-  t = __builtin_shuffle(m, vint{4, 5, 6, 7, 0, 1, 2, 3, 12, 13, 14, 15, 8, 9, 10, 11});
-  m = t > m ? t : m;
-  t = __builtin_shuffle(m, vint{2, 3, 0, 1, 6, 7, 4, 5, 10, 11, 8, 9, 14, 15, 12, 13});
-  m = t > m ? t : m;
-  t = __builtin_shuffle(m, vint{1, 0, 3, 2, 5, 4, 7, 6, 9, 8, 11, 10, 13, 12, 15, 14});
-  m = t > m ? t : m;
-  return m[0];
-#elif defined(__AVX2__)
+#if defined(__AVX2__) && !defined(__AVX512F__)
   __m256i m = _mm256_max_epi32((__m256i)v, _mm256_permute2x128_si256((__m256i)v, (__m256i)v, 1));
   m = _mm256_max_epi32(m, _mm256_shuffle_epi32(m, 0x4E));
   m = _mm256_max_epi32(m, _mm256_shuffle_epi32(m, 0xB1));
