@@ -243,13 +243,11 @@ static void svgf_temporal_rows(const SvgfTemporal& a, int y0, int y1) {
       // Within int's range (NaN is not): elsewhere far outside the image.
       const vint ok = (vabs(px) < 1e9f) & (vabs(py) < 1e9f);
       px = ok ? px : vfloat{} - 1e9f, py = ok ? py : vfloat{} - 1e9f;
-      const vfloat tx = vfloat_of(vtrunc(px)), ty = vfloat_of(vtrunc(py));
-      const vfloat flx = tx > px ? tx - 1.0f : tx, fly = ty > py ? ty - 1.0f : ty;
-      const vint xi = vtrunc(flx), yi = vtrunc(fly);
-      const vfloat fx = px - flx, fy = py - fly;
+      const vint xi = vfloor(px), yi = vfloor(py);
+      const vfloat fx = px - vfloat_of(xi), fy = py - vfloat_of(yi);
       const int x0 = xi[0], yy = yi[0];
-      bool uniform = x0 >= 0 && x0 + kLanes < W && yy >= 0 && yy + 1 < H;
-      for (int l = 0; l < kLanes; ++l) uniform &= xi[l] == x0 + l && yi[l] == yy;
+      const bool uniform = x0 >= 0 && x0 + kLanes < W && yy >= 0 && yy + 1 < H &&
+                           all_of((xi == x0 + lane_iota(xi)) & (yi == yy));
       vfloat wb[4] = {(1.0f - fx) * (1.0f - fy), fx * (1.0f - fy), (1.0f - fx) * fy, fx * fy};
       if (uniform) {
         const size_t s = size_t(yy) * size_t(W) + size_t(x0);

@@ -41,34 +41,28 @@ static inline T splat(float v) {
   return T{} + v;
 }
 
-// The lanes' taps from a window of each plane: every lane's y1 is y0 or y0 + 1 and its x1
-// within 2 kLanes - 4 of xmin, away from the border. Rows y0 - 1 .. y0 + 3 are filtered
-// horizontally once, each lane then takes its own four.
-static inline void sample_history_window(const float* hist, size_t plane, int W, vint x1, vint y1,
-                                         int xmin, int y0, const vfloat wx[4], const vfloat wy[4],
-                                         vfloat out[3]) {
-  const vint dx = x1 - xmin;
-  const vint down = y1 != y0;  // the lanes one row lower
-  const int rows = all_of(~down) ? 4 : 5;
-  for (int c = 0; c < 3; ++c) {
-    vfloat h[5], lo[5], hi[5];
-    for (int k = 0; k < rows; ++k) {
-      const float* p = hist + size_t(c) * plane + size_t(y0 + k - 1) * size_t(W) + size_t(xmin - 1);
-      const vfloat a = ld<vfloat>(p), b = ld<vfloat>(p + kLanes);
-      vfloat t[4];
-      for (int i = 0; i < 4; ++i) t[i] = perm2(a, b, dx + i);
-      h[k] = wx[0] * t[0];
-      for (int i = 1; i < 4; ++i) h[k] = h[k] + wx[i] * t[i];
-      lo[k] = vmin(t[1], t[2]), hi[k] = vmax(t[1], t[2]);
-    }
-    vfloat acc{};
-    for (int j = 0; j < 4; ++j) acc = acc + wy[j] * (rows == 5 ? (down ? h[j + 1] : h[j]) : h[j]);
-    const vfloat l1 = rows == 5 ? (down ? lo[2] : lo[1]) : lo[1];
-    const vfloat l2 = rows == 5 ? (down ? lo[3] : lo[2]) : lo[2];
-    const vfloat h1 = rows == 5 ? (down ? hi[2] : hi[1]) : hi[1];
-    const vfloat h2 = rows == 5 ? (down ? hi[3] : hi[2]) : hi[2];
-    out[c] = vmin(vmax(acc, vmin(l1, l2)), vmax(h1, h2));
+// One channel of the history from its rows ymin - 1 .. ymin + rows - 2 (rows: 4, or 5 where
+// some lanes' taps start a row lower: `down`), each filtered horizontally once with the lanes'
+// taps (taps(p, t): row p's four taps from column `col` on), the lanes one row lower taking the
+// next row's: the Catmull-Rom sum clamped to the range of the four central taps.
+template <class T, class Mask, class Taps>
+static inline T filter_rows(const float* channel, int W, int ymin, int col, int rows, Mask down,
+                            const T wx[4], const T wy[4], Taps&& taps) {
+  T h[5], lo[5], hi[5];
+  for (int k = 0; k < rows; ++k) {
+    T t[4];
+    taps(channel + size_t(ymin + k - 1) * size_t(W) + size_t(col), t);
+    h[k] = wx[0] * t[0];
+    for (int i = 1; i < 4; ++i) h[k] = h[k] + wx[i] * t[i];
+    lo[k] = vmin(t[1], t[2]), hi[k] = vmax(t[1], t[2]);
   }
+  if (rows == 5)
+    for (int k = 0; k < 4; ++k)
+      h[k] = down ? h[k + 1] : h[k], lo[k] = down ? lo[k + 1] : lo[k],
+      hi[k] = down ? hi[k + 1] : hi[k];
+  T acc = wy[0] * h[0];
+  for (int j = 1; j < 4; ++j) acc = acc + wy[j] * h[j];
+  return vmin(vmax(acc, vmin(lo[1], lo[2])), vmax(hi[1], hi[2]));
 }
 
 // The history (three planes of W x H) at (x, y), pixel centres at k + 0.5, edges clamped:
@@ -94,41 +88,34 @@ static inline void sample_history(const float* hist, size_t plane, int W, int H,
   catmull_rom_weights(yf - vfloat_of(y1), wy);
   const I b = x1 - lane_iota(x1);
   const int bmin = lane_min(b), bmax = lane_max(b), ymin = lane_min(y1), ymax = lane_max(y1);
+  const auto down = y1 != ymin;
+  const int rows = ymax > ymin ? 5 : 4;
   if (bmax - bmin <= 1 && ymax - ymin <= 1 && bmin >= 1 && bmin + L + 3 <= W && ymin >= 1 &&
       ymax + 2 < H) {
-    const auto right = b != bmin, down = y1 != ymin;
+    const auto right = b != bmin;
     const bool shift = bmax > bmin;
-    const int rows = ymax > ymin ? 5 : 4;
-    for (int c = 0; c < 3; ++c) {
-      T h[5], lo[5], hi[5];
-      for (int k = 0; k < rows; ++k) {
-        const float* p =
-            hist + size_t(c) * plane + size_t(ymin + k - 1) * size_t(W) + size_t(bmin - 1);
-        T t[5];
-        for (int m = 0; m < 4; ++m) t[m] = ld<T>(p + m);
-        if (shift) {
-          t[4] = ld<T>(p + 4);
-          for (int i = 0; i < 4; ++i) t[i] = right ? t[i + 1] : t[i];
-        }
-        h[k] = wx[0] * t[0];
-        for (int i = 1; i < 4; ++i) h[k] = h[k] + wx[i] * t[i];
-        lo[k] = vmin(t[1], t[2]), hi[k] = vmax(t[1], t[2]);
-      }
-      if (rows == 5)
-        for (int k = 0; k < 4; ++k)
-          h[k] = down ? h[k + 1] : h[k], lo[k] = down ? lo[k + 1] : lo[k],
-          hi[k] = down ? hi[k + 1] : hi[k];
-      T acc = wy[0] * h[0];
-      for (int j = 1; j < 4; ++j) acc = acc + wy[j] * h[j];
-      out[c] = vmin(vmax(acc, vmin(lo[1], lo[2])), vmax(hi[1], hi[2]));
-    }
+    for (int c = 0; c < 3; ++c)
+      out[c] = filter_rows(hist + size_t(c) * plane, W, ymin, bmin - 1, rows, down, wx, wy,
+                           [&](const float* p, T t[4]) {
+                             T s[5];
+                             for (int m = 0; m < (shift ? 5 : 4); ++m) s[m] = ld<T>(p + m);
+                             for (int i = 0; i < 4; ++i)
+                               t[i] = shift ? (right ? s[i + 1] : s[i]) : s[i];
+                           });
     return;
   }
   if constexpr (L > 1) {
     const int xmin = lane_min(x1), xmax = lane_max(x1);
     if (xmax - xmin + 3 < 2 * L && ymax - ymin <= 1 && xmin >= 1 && xmin + 2 * L - 1 <= W &&
         ymin >= 1 && ymax + 2 < H) {
-      sample_history_window(hist, plane, W, x1, y1, xmin, ymin, wx, wy, out);
+      // A window of 2 kLanes pixels from column xmin - 1, each lane's taps permuted out of it.
+      const vint dx = x1 - xmin;
+      for (int c = 0; c < 3; ++c)
+        out[c] = filter_rows(hist + size_t(c) * plane, W, ymin, xmin - 1, rows, down, wx, wy,
+                             [&](const float* p, vfloat t[4]) {
+                               const vfloat lo = ld<vfloat>(p), hi = ld<vfloat>(p + kLanes);
+                               for (int i = 0; i < 4; ++i) t[i] = perm2(lo, hi, dx + i);
+                             });
       return;
     }
   }

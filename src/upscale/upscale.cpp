@@ -327,7 +327,8 @@ void Upscaler::Impl::temporal(const UpscaleInput& in, FloatImage& out) {
   Timer timer;
   prepare(in, kern);
   const size_t n = size_t(w) * size_t(h);
-  if (has_history && (hist.size() != size_t(W) * size_t(H) * 3 + 1 || prev_depth.size() != n))
+  if (has_history &&
+      (hist.size() != size_t(W) * size_t(H) * 3 + 1 || prev_depth.size() != depth.size()))
     has_history = false;
   HistoryArgs ha{lr,          prev_depth.data(), hist.data(), W,       H,          f,
                  in.jitter_x, in.jitter_y,       prev_jx,     prev_jy, has_history};
@@ -394,7 +395,7 @@ void Upscaler::Impl::temporal(const UpscaleInput& in, FloatImage& out) {
   r.W = W, r.H = H, r.gw = gw, r.f = f, r.history = has_history;
   parallel_rows(H, 4, [&](int r0, int r1) { kern.reconstruct(r, r0, r1); });
   hist.swap(next_hist);
-  prev_depth.assign(depth.begin(), depth.begin() + std::ptrdiff_t(n));
+  prev_depth.swap(depth);  // prepare() rewrites every pixel of depth next frame
   prev_jx = in.jitter_x, prev_jy = in.jitter_y;
   has_history = true;
   times.reconstruct = timer.ms();
