@@ -26,11 +26,14 @@ quarter-res pixel, activated there (sigmoid / softplus) and bilinearly upsampled
 blend weight alpha, for each of 4 a-trous levels (3x3 taps, dilation 1, 2, 4, 8)
 edge-stopping strengths for colour, normal (at least SN_MIN = 2) and depth (at least
 SZ_MIN = 3) and a mix weight beta, and a firefly allowance kappa.
-  rc = min(r, max(m + kappa * mu, 4 yw valid))     fireflies of this frame: m = the second
+  rc = min(r, max(m + kappa * mo, 4 yw valid))     fireflies of this frame: m = the second
        largest of the 8 neighbours' r (per channel; neighbours outside the image count as 0,
        so a firefly on the border is not its own neighbour, and a pair does not shield
        itself), mu = the mean r of a 12x12 window (3x3 box over quarter-res cells of 4x4
-       block means); kappa -> 0 is a full neighbourhood clamp, kappa large leaves r alone;
+       block means), mo = max(mu - r / 144, 0) that mean without r's own share: a firefly
+       does not raise its own allowance (since 2026-12-04, a fixed rule added after the
+       weights were trained: a 2-spp sample 3e4 times its neighbours had made mu ~200x their
+       level); kappa -> 0 is a full neighbourhood clamp, kappa large leaves r alone;
        where the history is valid nothing up to 4x it is cut (ordinary noise of a static
        scene passes, so its mean converges; a firefly 100x the history is cut to 4x).
        Cut before it enters the history: a firefly in the state would be smeared over 2x2
@@ -123,7 +126,7 @@ def shift0(t, dy, dx):
 
 
 def firefly_clamp(r, kappa, size=None, history=None):
-    """min(r, max(m + kappa * mu, HISTORY_ALLOWANCE * history)): m the second largest of the 8 neighbours inside the image (size
+    """min(r, max(m + kappa * max(mu - r / 144, 0), HISTORY_ALLOWANCE * history)): m the second largest of the 8 neighbours inside the image (size
     = (h, w) of the image inside the padding, None: all; outside neighbours count as 0, so a
     firefly on the border is not its own neighbour; the second largest, so a pair of
     fireflies does not shield itself), mu the 12x12 window mean (3x3 box over quarter-res 4x4
@@ -145,7 +148,7 @@ def firefly_clamp(r, kappa, size=None, history=None):
     mu = F.avg_pool2d(r, 4)
     mu = F.avg_pool2d(F.pad(mu, (1, 1, 1, 1), mode="replicate"), 3, stride=1)
     mu = F.interpolate(mu, scale_factor=4, mode="nearest")
-    bound = top2 + kappa * mu
+    bound = top2 + kappa * (mu - r * (1.0 / 144.0)).clamp(min=0)  # mu without r's own share
     if history is not None:
         bound = torch.maximum(bound, HISTORY_ALLOWANCE * history)
     return torch.minimum(r, bound)

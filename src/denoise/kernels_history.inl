@@ -69,9 +69,12 @@ static inline void add_neighbour(float& top1, float& top2, float q) {
   top1 = top1 > q ? top1 : q;
 }
 
-// r cut to max(m + kappa mu, 4 yw valid): m the second largest neighbour, yw the history.
+// r cut to max(m + kappa max(mu - r / 144, 0), 4 yw valid): m the second largest neighbour, mu
+// the 12x12 window's mean (r's own share taken out: a firefly does not raise its own
+// allowance), yw the history.
 static inline float firefly_cut(float r, float m, float kappa, float mu, float yw, float valid) {
-  const float t = m + kappa * mu;
+  const float others = mu - r * (1.0f / 144.0f);
+  const float t = m + kappa * (others > 0.0f ? others : 0.0f);
   const float hist = kHistoryAllowance * (yw * valid);
   const float bound = t > hist ? t : hist;
   return r < bound ? r : bound;
@@ -98,9 +101,10 @@ static void firefly_row(int i0, int i1, const float* __restrict a, const float* 
 }
 
 // model.py's firefly_clamp on this frame's irradiance (ws.xlin) into ws.xo:
-// min(r, max(m + kappa mu, 4 yw valid)), m the second largest of the 8 neighbours inside the
-// image_w x image_h image (outside ones count as 0: a firefly on the border is not its own
-// neighbour), mu the 3x3 box (edge replicated) over quarter-res cells of 4x4 block means, kappa the
+// min(r, max(m + kappa max(mu - r / 144, 0), 4 yw valid)), m the second largest of the 8
+// neighbours inside the image_w x image_h image (outside ones count as 0: a firefly on the border
+// is not its own neighbour), mu the 3x3 box (edge replicated) over quarter-res cells of 4x4
+// block means, kappa the
 // activation map 17 upsampled as alpha is (ws.hrows).
 static void firefly_clamp(Workspace& ws, int W, int H, int image_w, int image_h) {
   const int Wq = W / 4, Hq = H / 4;

@@ -224,6 +224,26 @@ TEST(Denoise, NeuralOutputIsBoundedByTheCurrentSamples) {
   }
 }
 
+// A 1-spp firefly far above its neighbours (the held-out mirror rooms have samples 3e4 times
+// theirs) is cut near their level: the window mean that scales the network's allowance
+// leaves the pixel's own share out, so a firefly cannot raise its own bound. With the
+// window mean of r itself this frame's output kept ~3e4 times the background (1594).
+TEST(Denoise, AnIsolatedFireflyDoesNotRaiseItsOwnAllowance) {
+  const int w = 48, h = 40;
+  Aux aux(w, h);
+  std::mt19937 rng(5);
+  std::uniform_real_distribution<float> u(0.5f, 1.5f);
+  FloatImage c(w, h, 3);
+  for (float& v : c.pixels) v = 0.05f * u(rng);  // the background: mean 0.05
+  for (int k = 0; k < 3; ++k) c.at(21, 17)[k] = 3e4f;
+  for (int k = 0; k < 3; ++k) c.at(5, 33)[k] = 2e3f;  // a second one, elsewhere
+  Denoiser d(options(DenoiseMethod::neural));
+  const FloatImage out = d.denoise(aux.with(c));
+  float top = 0;
+  for (float v : out.pixels) top = std::max(top, v);
+  EXPECT_LT(top, 0.05f * 50) << "the fireflies were not cut to their neighbourhood's level";
+}
+
 // The other direction of a lighting change: a light comes on. The history (8 dim frames,
 // accumulated) is raised to the darkest current sample of its window, so the first bright
 // frame is already bright, not a blend with the dim past (architecture 3 kept up to ~40 % of
