@@ -104,7 +104,7 @@ int main(int argc, char** argv) {
   std::string out_dir = std::string(KESTREL_SOURCE_DIR) + "/docs/denoiser";
   std::string weights;
   int threads = int(std::thread::hardware_concurrency()), repeat = 9;
-  bool quick = false;
+  bool quick = false, no_rae = false;
   CLI::App app{"kestrel_denoise_eval: the denoisers on the held-out clips"};
   app.add_option("--dataset", dataset, "The dataset of scripts/denoise/make_dataset.py")
       ->capture_default_str();
@@ -114,6 +114,7 @@ int main(int argc, char** argv) {
   app.add_option("--threads", threads, "Worker threads")->capture_default_str();
   app.add_option("--repeat", repeat, "Timed frames (median; 0: no timing)")->capture_default_str();
   app.add_flag("--quick", quick, "Three frames per clip, 1 spp only (smoke test)");
+  app.add_flag("--no-rae", no_rae, "Leave out the rae quality mode (seconds per 720p frame)");
   CLI11_PARSE(app, argc, argv);
   tbb::global_control threads_limit(tbb::global_control::max_allowed_parallelism,
                                     size_t(std::max(threads, 1)));
@@ -131,6 +132,11 @@ int main(int argc, char** argv) {
     o.recurrent = true;
     methods.push_back({"neural (recurrent)", o, false});
     const size_t params = Denoiser(o).parameter_count();
+    if (!no_rae) {
+      DenoiserOptions r;
+      r.method = DenoiseMethod::rae;
+      methods.push_back({"rae (Chaitanya 2017)", r, false});
+    }
 
     // Test clips from the manifest.
     std::ifstream mf(fs::path(dataset) / "manifest.json");
@@ -252,7 +258,9 @@ int main(int argc, char** argv) {
       Denoiser d(m.options);
       std::vector<double> times;
       FloatImage out;  // reused, as a real-time loop would
-      for (int r = 0; r < repeat + 2; ++r) {
+      // rae takes seconds per frame: at most 3 timed.
+      const int n = m.options.method == DenoiseMethod::rae ? std::min(repeat, 3) : repeat;
+      for (int r = 0; r < n + 2; ++r) {
         const auto t0 = std::chrono::steady_clock::now();
         d.denoise(big[size_t(r % 2)].input(), out);
         const double t =
@@ -262,7 +270,7 @@ int main(int argc, char** argv) {
       }
       ms[m.name] = median(times);
       fmt::print("{:26s} {:.1f} ms per 1280x720 frame ({} threads, median of {})\n", m.name,
-                 ms[m.name], threads, repeat);
+                 ms[m.name], threads, n);
     }
     // Table.
     std::string md = fmt::format(
@@ -272,8 +280,8 @@ int main(int argc, char** argv) {
         "fit, exposure 0), relMSE on "
         "linear HDR ((o-r)^2/(r^2+0.01)), tErr = mean |(o_t - o_t-1) - (r_t - r_t-1)| on "
         "tone-mapped values; ms per "
-        "1280x720 frame with {} threads (median of {} after 2 warm-up frames). Neural parameters: "
-        "{}.\n\n"
+        "1280x720 frame with {} threads (median of {} after 2 warm-up frames; rae: of at most 3). "
+        "Neural (recurrent) parameters: {}.\n\n"
         "PSNR₀ is the first frame alone (no history: the single-frame score); max/ref the "
         "brightest output pixel of a frame over the brightest pixel of that frame's reference "
         "after a 3x3 median (the reference's own fireflies do not count; the largest over "
@@ -326,7 +334,7 @@ int main(int argc, char** argv) {
         per_clip;
     md +=
         "\nCrops (last frame, 1 spp; left to right: input, a-trous, SVGF-like, neural frame by "
-        "frame, neural, reference): "
+        "frame, neural, rae (unless --no-rae), reference): "
         "`<clip>_crops.png`.\n";
     std::ofstream(fs::path(out_dir) / "eval.md") << md;
     std::ofstream(fs::path(out_dir) / "eval.json") << json;

@@ -169,8 +169,12 @@ Action add_denoise_command(CLI::App& cmd) {
   cmd.add_option("-i,--input", a->input,
                  "kestrel's multi-layer EXR (every AOV) instead of separate files");
   cmd.add_option("-o,--output", a->out, "Output .pfm or .exr")->required();
-  cmd.add_option("--method", a->method, "neural | svgf | atrous")->capture_default_str();
-  cmd.add_option("--weights", a->weights, "Neural weights file (default: weights/denoiser.kdw)");
+  cmd.add_option("--method", a->method,
+                 "neural | svgf | atrous | rae (the recurrent autoencoder, Chaitanya et al. 2017: "
+                 "seconds per 720p frame, for final frames)")
+      ->capture_default_str();
+  cmd.add_option("--weights", a->weights,
+                 "Weights file of neural or rae (default: weights/denoiser.kdw, denoiser_rae.kdw)");
   cmd.add_flag("--sequence", a->sequence,
                "File names are printf patterns (%04d); recurrent state carries over");
   cmd.add_option("--frames", a->frames, "Frames of the sequence");

@@ -77,9 +77,10 @@ void add_common(CLI::App& cmd, RenderArgs& a) {
   cmd.add_flag("--fixed-jitter", a.fixed_jitter,
                "Every sample at the frame's jitter (point-sampled, as an upsampler's input)");
   cmd.add_flag("--quiet", a.quiet, "No progress bar");
-  cmd.add_option("--denoise", a.denoise,
-                 "Denoise the colour AOV: neural | svgf | atrous (the noisy one is kept as layer "
-                 "'noisy' / noisy.pfm)");
+  cmd.add_option(
+      "--denoise", a.denoise,
+      "Denoise the colour AOV: neural | svgf | atrous | rae (the noisy one is kept as layer "
+      "'noisy' / noisy.pfm)");
 }
 
 RenderSettings settings_of(const RenderArgs& a) {

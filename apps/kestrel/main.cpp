@@ -28,7 +28,7 @@ int main(int argc, char** argv) {
   add(kestrel::cli::add_render_sequence_command, "render-sequence",
       "Path-trace a camera path, one file set per frame");
   add(kestrel::cli::add_denoise_command, "denoise",
-      "Denoise a frame or a sequence (neural, svgf, atrous)");
+      "Denoise a frame or a sequence (neural, svgf, atrous, rae)");
   add(kestrel::cli::add_upscale_command, "upscale",
       "Upsample a jittered low-resolution sequence (" + kestrel::upscale_method_list() + ")");
   add(kestrel::cli::add_run_command, "run",

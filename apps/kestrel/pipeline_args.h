@@ -33,7 +33,8 @@ struct PipelineArgs {
                    "Internal (render) resolution WxH: output / 1, 2 or 4 (overrides --factor)");
     cmd.add_option("--factor", factor, "Output / internal resolution: 1, 2 or 4")
         ->capture_default_str();
-    cmd.add_option("--denoise", denoise, "neural | svgf | atrous | none")->capture_default_str();
+    cmd.add_option("--denoise", denoise, "neural | svgf | atrous | rae | none")
+        ->capture_default_str();
     cmd.add_option("--upscale", upscale, upscale_method_list(" | "))->capture_default_str();
     cmd.add_option("--spp", spp, "Samples per pixel per frame")
         ->capture_default_str()

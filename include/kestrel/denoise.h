@@ -1,6 +1,7 @@
 // Denoising path-traced frames: kestrel's recurrent neural denoiser (a small CNN at 1/4
 // resolution predicting the per-pixel temporal blend and edge-stopping strengths of a
-// full-resolution a-trous filter on albedo-demodulated colour) and two non-neural
+// full-resolution a-trous filter on albedo-demodulated colour), a quality mode (the
+// recurrent denoising autoencoder of Chaitanya et al. 2017, oneDNN) and two non-neural
 // baselines, an edge-avoiding a-trous wavelet filter (Dammertz et al. 2010) and an
 // SVGF-like filter (Schied et al. 2017). See docs/denoiser.md.
 #pragma once
@@ -13,7 +14,7 @@
 
 namespace kestrel {
 
-enum class DenoiseMethod { neural, svgf, atrous };
+enum class DenoiseMethod { neural, svgf, atrous, rae };
 const char* denoise_method_name(DenoiseMethod m);
 std::optional<DenoiseMethod> denoise_method_from_name(std::string_view name);
 
@@ -33,13 +34,14 @@ struct DenoiseInput {
 
 struct DenoiserOptions {
   DenoiseMethod method = DenoiseMethod::neural;
-  std::string weights;    ///< neural: weights file ("" = default_denoiser_weights())
-  bool recurrent = true;  ///< neural: carry the warped previous output (false: frame by frame)
+  /// neural, rae: weights file ("" = default_denoiser_weights(method))
+  std::string weights;
+  bool recurrent = true;  ///< neural, rae: carry the state (false: every frame starts afresh)
 };
 
-/// Where the committed weights are: $KESTREL_WEIGHTS_DIR/denoiser.kdw, else the source
-/// tree's weights/denoiser.kdw.
-std::string default_denoiser_weights();
+/// Where the committed weights are: $KESTREL_WEIGHTS_DIR/FILE, else the source tree's
+/// weights/FILE; FILE denoiser.kdw (neural) or denoiser_rae.kdw (rae).
+std::string default_denoiser_weights(DenoiseMethod method = DenoiseMethod::neural);
 
 /// A denoiser for one sequence of frames (state carries from frame to frame; reset() starts
 /// a new sequence). Work runs on the TBB thread pool of the caller's arena.

@@ -70,7 +70,7 @@ DenoiserOptions denoiser_options(const std::string& method, const std::string& w
   auto m = denoise_method_from_name(method);
   if (!m)
     throw py::value_error(
-        fmt::format("method: unknown denoiser '{}' (neural, svgf, atrous)", method));
+        fmt::format("method: unknown denoiser '{}' (neural, svgf, atrous, rae)", method));
   o.method = *m;
   o.weights = weights;
   o.recurrent = recurrent;
@@ -205,8 +205,8 @@ PipelineSettings pipeline_settings(std::pair<int, int> res, int factor,
   if (s.denoise) {
     auto m = denoise_method_from_name(*denoiser);
     if (!m)
-      throw py::value_error(
-          fmt::format("denoiser: unknown denoiser '{}' (neural, svgf, atrous, None)", *denoiser));
+      throw py::value_error(fmt::format(
+          "denoiser: unknown denoiser '{}' (neural, svgf, atrous, rae, None)", *denoiser));
     s.denoiser = *m;
   }
   auto u = upscale_method_from_name(upscaler);

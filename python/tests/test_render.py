@@ -110,7 +110,7 @@ def test_render_arguments_are_checked(cornell):
 def test_denoise_equals_the_cli(cli, frame, tmp_path):
     for name in ("color", "albedo", "normal"):
         kestrel.write_pfm(str(tmp_path / f"{name}.pfm"), frame[name])
-    for method in ("neural", "svgf", "atrous"):
+    for method in ("neural", "svgf", "atrous", "rae"):
         cli("denoise", "--hdr", tmp_path / "color.pfm", "--alb", tmp_path / "albedo.pfm", "--nrm",
             tmp_path / "normal.pfm", "-o", tmp_path / "out.pfm", "--method", method, "--quiet")
         expected = kestrel.read_pfm(str(tmp_path / "out.pfm"))

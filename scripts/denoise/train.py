@@ -141,6 +141,66 @@ def write_fixture_frames(model, ins, out_dir):
             state = tuple(s[..., :h, :w] for s in state)
 
 
+def add_loss_arguments(ap):
+    ap.add_argument("--w-spatial", type=float, default=W_SPATIAL)
+    ap.add_argument("--w-grad", type=float, default=W_GRAD)
+    ap.add_argument("--w-temporal", type=float, default=W_TEMPORAL)
+    ap.add_argument("--w-energy", type=float, default=W_ENERGY)
+
+
+def fit(model, clips, args, every=50):
+    """The training loop of both denoisers (this file's and train_rae.py's): Adam with a one-cycle
+    schedule peaking at args.lr over args.steps steps, each a batch of args.batch random
+    args.crop-pixel crops of whole clips (the recurrence runs over every frame), losses()
+    weighted by args.w_*, gradients clipped to norm 1, a checkpoint every `every` steps
+    (args.checkpoint; args.resume continues from it). -> the history, one row per step:
+    step, total, spatial, gradient, temporal, energy."""
+    opt = torch.optim.Adam(model.parameters(), lr=args.lr)
+    sched = torch.optim.lr_scheduler.OneCycleLR(opt, max_lr=args.lr, total_steps=args.steps, pct_start=0.1)
+    history, first = [], 0
+    if args.resume and os.path.exists(args.checkpoint):
+        ck = torch.load(args.checkpoint)
+        model.load_state_dict(ck["model"]), opt.load_state_dict(ck["opt"]), sched.load_state_dict(ck["sched"])
+        history, first = ck["history"], ck["step"]
+        random.setstate(ck["random"]), np.random.set_state(ck["numpy"]), torch.set_rng_state(ck["torch"])
+        print(f"resumed at step {first}", flush=True)
+    t0 = time.time()
+    cs = args.crop
+    for step in range(first, args.steps):
+        if step % every == 0 and step > first:
+            os.makedirs(os.path.dirname(args.checkpoint), exist_ok=True)
+            torch.save(dict(model=model.state_dict(), opt=opt.state_dict(), sched=sched.state_dict(), history=history,
+                            step=step, random=random.getstate(), numpy=np.random.get_state(),
+                            torch=torch.get_rng_state()), args.checkpoint + ".tmp")
+            os.replace(args.checkpoint + ".tmp", args.checkpoint)
+        batch_in, batch_ref = [], []
+        for _ in range(args.batch):
+            ins, refs = clips[random.randrange(len(clips))]
+            T, H, W, _ = ins.shape
+            y, x = random.randrange(0, H - cs + 1), random.randrange(0, W - cs + 1)
+            batch_in.append(ins[:, y:y + cs, x:x + cs])
+            batch_ref.append(refs[:, y:y + cs, x:x + cs])
+        seq = torch.from_numpy(np.stack(batch_in)).permute(0, 1, 4, 2, 3).contiguous()
+        ref = torch.from_numpy(np.stack(batch_ref)).permute(0, 1, 4, 2, 3).contiguous()
+        out = run_sequence(model, seq)
+        ls, lg, lt, le = losses(out, ref)
+        loss = args.w_spatial * ls + args.w_grad * lg + args.w_temporal * lt + args.w_energy * le
+        opt.zero_grad()
+        loss.backward()
+        norm = torch.nn.utils.clip_grad_norm_(model.parameters(), 1.0)
+        if not torch.isfinite(loss) or not torch.isfinite(norm):
+            print(f"step {step}: non-finite loss or gradient, step skipped", flush=True)
+            sched.step()
+            continue
+        opt.step()
+        sched.step()
+        history.append([step, loss.item(), ls.item(), lg.item(), lt.item(), le.item()])
+        if step % 50 == 0 or step == args.steps - 1:
+            print(f"step {step:5d}  loss {loss.item():.4f}  l1 {ls.item():.4f}  grad {lg.item():.4f}  "
+                  f"temporal {lt.item():.4f}  energy {le.item():.4f}  {time.time() - t0:.0f} s", flush=True)
+    return history
+
+
 def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("--data", default=os.path.join(ROOT, "out", "denoise_dataset"))
@@ -156,10 +216,7 @@ def main():
     ap.add_argument("--fixture-refresh", action="store_true",
                     help="recompute the committed fixture's expected outputs (its inputs kept) from --out's weights "
                          "and stop: after a change to model.py that keeps the weights")
-    ap.add_argument("--w-spatial", type=float, default=W_SPATIAL)
-    ap.add_argument("--w-grad", type=float, default=W_GRAD)
-    ap.add_argument("--w-temporal", type=float, default=W_TEMPORAL)
-    ap.add_argument("--w-energy", type=float, default=W_ENERGY)
+    add_loss_arguments(ap)
     ap.add_argument("--checkpoint", default=os.path.join(ROOT, "out", "denoise_train.ckpt"),
                     help="saved every 100 steps; --resume continues from it")
     ap.add_argument("--resume", action="store_true")
@@ -201,49 +258,8 @@ def main():
             with torch.no_grad():
                 model.head.bias[0] += 2.0
         print("initialised from", args.init, flush=True)
-    opt = torch.optim.Adam(model.parameters(), lr=args.lr)
-    sched = torch.optim.lr_scheduler.OneCycleLR(opt, max_lr=args.lr, total_steps=args.steps, pct_start=0.1)
-    history, first = [], 0
-    if args.resume and os.path.exists(args.checkpoint):
-        ck = torch.load(args.checkpoint)
-        model.load_state_dict(ck["model"]), opt.load_state_dict(ck["opt"]), sched.load_state_dict(ck["sched"])
-        history, first = ck["history"], ck["step"]
-        random.setstate(ck["random"]), np.random.set_state(ck["numpy"]), torch.set_rng_state(ck["torch"])
-        print(f"resumed at step {first}", flush=True)
     t0 = time.time()
-    cs = args.crop
-    for step in range(first, args.steps):
-        if step % 100 == 0 and step > first:
-            os.makedirs(os.path.dirname(args.checkpoint), exist_ok=True)
-            torch.save(dict(model=model.state_dict(), opt=opt.state_dict(), sched=sched.state_dict(), history=history,
-                            step=step, random=random.getstate(), numpy=np.random.get_state(),
-                            torch=torch.get_rng_state()), args.checkpoint + ".tmp")
-            os.replace(args.checkpoint + ".tmp", args.checkpoint)
-        batch_in, batch_ref = [], []
-        for _ in range(args.batch):
-            ins, refs = clips[random.randrange(len(clips))]
-            T, H, W, _ = ins.shape
-            y, x = random.randrange(0, H - cs + 1), random.randrange(0, W - cs + 1)
-            batch_in.append(ins[:, y:y + cs, x:x + cs])
-            batch_ref.append(refs[:, y:y + cs, x:x + cs])
-        seq = torch.from_numpy(np.stack(batch_in)).permute(0, 1, 4, 2, 3).contiguous()
-        ref = torch.from_numpy(np.stack(batch_ref)).permute(0, 1, 4, 2, 3).contiguous()
-        out = run_sequence(model, seq)
-        ls, lg, lt, le = losses(out, ref)
-        loss = args.w_spatial * ls + args.w_grad * lg + args.w_temporal * lt + args.w_energy * le
-        opt.zero_grad()
-        loss.backward()
-        norm = torch.nn.utils.clip_grad_norm_(model.parameters(), 1.0)
-        if not torch.isfinite(loss) or not torch.isfinite(norm):
-            print(f"step {step}: non-finite loss or gradient, step skipped", flush=True)
-            sched.step()
-            continue
-        opt.step()
-        sched.step()
-        history.append([step, loss.item(), ls.item(), lg.item(), lt.item(), le.item()])
-        if step % 50 == 0 or step == args.steps - 1:
-            print(f"step {step:5d}  loss {loss.item():.4f}  l1 {ls.item():.4f}  grad {lg.item():.4f}  "
-                  f"temporal {lt.item():.4f}  energy {le.item():.4f}  {time.time() - t0:.0f} s", flush=True)
+    history = fit(model, clips, args)
     os.makedirs(args.out, exist_ok=True)
     export_weights(model, os.path.join(args.out, "denoiser.kdw"))
     tail = np.array(history[-100:])

@@ -14,6 +14,7 @@
 #include "core/parallel.h"
 #include "denoise/kernels.h"
 #include "denoise/neural.h"
+#include "denoise/rae.h"
 #include "denoise/svgf.h"
 #include "kestrel/error.h"
 #include "kestrel/trace.h"
@@ -49,20 +50,24 @@ const char* denoise_method_name(DenoiseMethod m) {
       return "svgf";
     case DenoiseMethod::atrous:
       return "atrous";
+    case DenoiseMethod::rae:
+      return "rae";
   }
   return "?";
 }
 
 std::optional<DenoiseMethod> denoise_method_from_name(std::string_view name) {
-  for (DenoiseMethod m : {DenoiseMethod::neural, DenoiseMethod::svgf, DenoiseMethod::atrous})
+  for (DenoiseMethod m :
+       {DenoiseMethod::neural, DenoiseMethod::svgf, DenoiseMethod::atrous, DenoiseMethod::rae})
     if (name == denoise_method_name(m)) return m;
   return std::nullopt;
 }
 
-std::string default_denoiser_weights() {
+std::string default_denoiser_weights(DenoiseMethod method) {
+  const char* file = method == DenoiseMethod::rae ? "denoiser_rae.kdw" : "denoiser.kdw";
   if (const char* dir = std::getenv("KESTREL_WEIGHTS_DIR"); dir && *dir)
-    return std::string(dir) + "/denoiser.kdw";
-  return std::string(KESTREL_SOURCE_DIR) + "/weights/denoiser.kdw";
+    return std::string(dir) + "/" + file;
+  return std::string(KESTREL_SOURCE_DIR) + "/weights/" + file;
 }
 
 namespace {
@@ -195,7 +200,8 @@ Planes gather(const DenoiseInput& in, int align) {
 struct Denoiser::Impl {
   DenoiserOptions options;
   std::optional<denoise::NeuralWeights> weights;
-  Planes state, inputs;
+  std::optional<denoise::Rae> rae;
+  Planes state, inputs, output;
   denoise::Workspace workspace;
   bool profile = std::getenv("KESTREL_DENOISE_PROFILE") != nullptr;
   denoise::Svgf svgf;
@@ -203,9 +209,12 @@ struct Denoiser::Impl {
 
 Denoiser::Denoiser(const DenoiserOptions& options) : impl_(std::make_unique<Impl>()) {
   impl_->options = options;
+  const std::string weights =
+      options.weights.empty() ? default_denoiser_weights(options.method) : options.weights;
   if (options.method == DenoiseMethod::neural)
-    impl_->weights = denoise::NeuralWeights::load(
-        options.weights.empty() ? default_denoiser_weights() : options.weights);
+    impl_->weights = denoise::NeuralWeights::load(weights);
+  else if (options.method == DenoiseMethod::rae)
+    impl_->rae.emplace(weights);
 }
 Denoiser::~Denoiser() = default;
 Denoiser::Denoiser(Denoiser&&) noexcept = default;
@@ -214,13 +223,14 @@ Denoiser& Denoiser::operator=(Denoiser&&) noexcept = default;
 void Denoiser::reset() {
   impl_->state = Planes();
   impl_->svgf.reset();
+  if (impl_->rae) impl_->rae->reset();
 }
 
 DenoiseMethod Denoiser::method() const {
   return impl_->options.method;
 }
 size_t Denoiser::parameter_count() const {
-  return impl_->weights ? impl_->weights->parameters : 0;
+  return impl_->weights ? impl_->weights->parameters : impl_->rae ? impl_->rae->parameters() : 0;
 }
 
 FloatImage Denoiser::denoise(const DenoiseInput& input) {
@@ -268,6 +278,12 @@ void Denoiser::denoise(const DenoiseInput& input, FloatImage& out) {
     }
     case DenoiseMethod::atrous:
       to_image(denoise::atrous_filter(gather(input, 1)), width, height, out);
+      return;
+    case DenoiseMethod::rae:
+      gather(input, 1, impl_->inputs);
+      if (!impl_->options.recurrent) impl_->rae->reset();
+      impl_->rae->run(impl_->inputs, impl_->output);
+      to_image(impl_->output, width, height, out);
       return;
   }
 }

@@ -15,11 +15,15 @@
 #include "core/parallel.h"
 #include "kestrel/image.h"
 #include "kestrel/upscale.h"
+#include "nn/dnn.h"
 #include "nn/weights.h"
 #include "upscale/nsrr.h"
 #include "upscale/nsrr_warp.h"
 
 namespace kestrel::upscale::nsrr {
+
+using nn::Dnn;
+using nn::Net;
 
 constexpr float kReweightMax = 10.0f, kYMax = 0.999f;
 constexpr char kMagic[9] = "KSTRLNSR";
@@ -35,18 +39,6 @@ inline int floor_int(float x) {  // |x| < 2^31
   const int i = int(x);
   return i - (float(i) > x);
 }
-/// A chain of oneDNN primitives and the memories they read and write.
-struct Net {
-  struct Step {
-    dnnl::primitive p;
-    std::unordered_map<int, dnnl::memory> args;
-  };
-  std::vector<Step> steps;
-  void run(dnnl::stream& s) {
-    for (Step& st : steps) st.p.execute(s, st.args);
-  }
-};
-
 /// One low-resolution frame of the window, cleaned as nsrr.clean does: planar y = c / (1 +
 /// L(c)) (3), depth (1), motion (2), and where its samples land at the output resolution.
 struct Frame {
@@ -71,30 +63,6 @@ class Window {
 
  private:
   std::deque<Frame> frames_;
-};
-
-/// The networks' building blocks on one engine, f32 or bf16 activations.
-struct Dnn {
-  dnnl::engine eng{dnnl::engine::kind::cpu, 0};
-  dnnl::stream strm{eng};
-  bool bf16 = false;
-
-  static bool bf16_available();
-  dnnl::memory::data_type act() const {
-    return bf16 ? dnnl::memory::data_type::bf16 : dnnl::memory::data_type::f32;
-  }
-  /// A convolution of `L` (its kernel size, padding to keep the size) on `in` (batch x L.cin x
-  /// hh x ww), ReLU after it if `relu`, `extra` post-ops before; `last`: f32 output in the
-  /// layout `last_tag`.
-  dnnl::memory conv(Net& net, dnnl::memory in, const nn::ConvLayer& L, bool relu, bool last,
-                    const dnnl::post_ops* extra = nullptr,
-                    dnnl::memory::format_tag last_tag = dnnl::memory::format_tag::nchw);
-  dnnl::memory pool(Net& net, dnnl::memory in);  ///< 2x2 max pooling
-  /// Bilinear 2x upsampling of `low` (edges clamped) concatenated with `skip` by channel.
-  dnnl::memory up_concat(Net& net, dnnl::memory low, dnnl::memory skip);
-
- private:
-  dnnl::memory weights_of(const nn::ConvLayer& L, const dnnl::memory::desc& want);
 };
 
 /// The current frame's y bilinearly upsampled (nsrr.bilinear_base: model.bilinear_at at

@@ -12,4 +12,5 @@ done
 echo '{"clips": {"test_box": {"split": "test"}}}' > "$dir/manifest.json"
 "$eval" --dataset "$dir" --out "$dir/eval" --quick --repeat 1
 grep -q "neural (recurrent)" "$dir/eval/eval.md"
+grep -q "rae (Chaitanya 2017)" "$dir/eval/eval.md"
 test -s "$dir/eval/test_box_crops.png"

@@ -1,0 +1,124 @@
+#!/usr/bin/env python3
+"""Trains kestrel's `rae` denoiser (rae.py, Chaitanya et al. 2017) on the same train clips,
+targets and loss as the fast denoiser (train.py) and writes
+  weights/denoiser_rae.kdw       the weights (format v1, docs/denoiser.md; magic KSTRLRAE)
+  weights/denoiser_rae.json      provenance: dataset, command, steps, seed, final losses
+  weights/denoiser_rae_loss.png  the loss curve
+  tests/data/denoise_rae/        a parity fixture: three small frames and this model's output
+
+    train_rae.py [--data out/denoise_families] [--steps 1200] [--seed 1] [--threads 2]
+
+Resumable: a checkpoint every 50 steps, --resume continues from it (train.fit, the fast
+denoiser's training loop).
+"""
+import argparse
+import json
+import os
+import random
+import subprocess
+import sys
+import time
+
+import numpy as np
+import torch
+
+import rae as R
+import train as T
+
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), ".."))
+import kestrel_nn  # noqa: E402
+
+ROOT = T.ROOT
+MAGIC, ARCHITECTURE = b"KSTRLRAE", 1
+
+
+def write_fixture(model, clip, out_dir):
+    """Three frames of a 44 x 30 crop (not a multiple of 16: exercises the padding) from the
+    middle of a clip, the third 4x brighter (the recurrent state meets a change), their
+    inputs as PFMs and the model's outputs."""
+    _, H, W, _ = clip.shape
+    y0, x0 = H // 2 - 15, W // 2 - 22
+    ins = clip[:3, y0:y0 + 30, x0:x0 + 44].copy()
+    ins[2, :, :, 0:3] *= 4
+    os.makedirs(out_dir, exist_ok=True)
+    seq = torch.from_numpy(ins).permute(0, 3, 1, 2)[None].contiguous()
+    with torch.no_grad():
+        out = T.run_sequence(model, seq)
+    for t in range(ins.shape[0]):
+        d = os.path.join(out_dir, f"frame_{t}")
+        os.makedirs(d, exist_ok=True)
+        fr = ins[t]
+        for name, a, b in [("color", 0, 3), ("albedo", 3, 6), ("normal", 6, 9)]:
+            kestrel_nn.write_pfm(os.path.join(d, name + ".pfm"), fr[:, :, a:b])
+        kestrel_nn.write_pfm(os.path.join(d, "depth.pfm"), fr[:, :, 9])
+        kestrel_nn.write_pfm(os.path.join(d, "roughness.pfm"), fr[:, :, 10])
+        kestrel_nn.write_pfm(os.path.join(d, "motion.pfm"),
+                             np.concatenate([fr[:, :, 11:13], np.zeros_like(fr[:, :, :1])], 2))
+        kestrel_nn.write_pfm(os.path.join(d, "expected.pfm"), out[0, t].permute(1, 2, 0).numpy())
+
+
+def main():
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--data", default=os.path.join(ROOT, "out", "denoise_families"))
+    ap.add_argument("--steps", type=int, default=1200)
+    ap.add_argument("--batch", type=int, default=4)
+    ap.add_argument("--crop", type=int, default=64)
+    ap.add_argument("--lr", type=float, default=1e-3)
+    ap.add_argument("--seed", type=int, default=1)
+    ap.add_argument("--threads", type=int, default=2)
+    ap.add_argument("--channels", default=",".join(map(str, R.CHANNELS)))
+    ap.add_argument("--out", default=os.path.join(ROOT, "weights"))
+    ap.add_argument("--fixture", default=os.path.join(ROOT, "tests", "data", "denoise_rae"))
+    ap.add_argument("--fixture-only", action="store_true", help="write the parity fixture from --out's weights and stop")
+    T.add_loss_arguments(ap)
+    ap.add_argument("--checkpoint", default=os.path.join(ROOT, "out", "denoise_rae_train.ckpt"))
+    ap.add_argument("--resume", action="store_true")
+    args = ap.parse_args()
+    torch.set_num_threads(args.threads)
+    torch.set_flush_denormal(True)
+    torch.manual_seed(args.seed)
+    random.seed(args.seed)
+    np.random.seed(args.seed)
+    channels = tuple(int(c) for c in args.channels.split(","))
+    assert channels == R.CHANNELS, "the engine runs rae.CHANNELS"
+    manifest = json.load(open(os.path.join(args.data, "manifest.json")))
+    names = sorted(n for n, c in manifest["clips"].items() if c["split"] == "train")
+    model = R.RAE(channels)
+    weights = os.path.join(args.out, "denoiser_rae.kdw")
+    if args.fixture_only:
+        kestrel_nn.load_kdw(model, weights, MAGIC, ARCHITECTURE)
+        write_fixture(model, T.load_clip(args.data, names[0], 3)[0], args.fixture)
+        print("wrote", args.fixture)
+        return
+    clips = [T.load_clip(args.data, n, manifest["clips"][n]["frames"]) for n in names]
+    print(f"{len(clips)} train clips, {R.parameter_count(model)} parameters", flush=True)
+    t0 = time.time()
+    history = T.fit(model, clips, args)
+    os.makedirs(args.out, exist_ok=True)
+    kestrel_nn.export_kdw(model, weights, MAGIC, ARCHITECTURE)
+    tail = np.array(history[-100:])
+    commit = subprocess.run(["git", "-C", ROOT, "rev-parse", "--short", "HEAD"], capture_output=True,
+                            text=True).stdout.strip()
+    prov = dict(file="denoiser_rae.kdw",
+                architecture=f"kestrel-rae-{ARCHITECTURE} (scripts/denoise/rae.py), channels {list(channels)}",
+                parameters=R.parameter_count(model), framework=f"PyTorch {torch.__version__} (Debian python3-torch)",
+                dataset=dict(command=manifest.get("commands", {}).get("train"), clips=names,
+                             targets=manifest.get("targets", {}).get("train", "references")),
+                command="python3 scripts/denoise/train_rae.py " + " ".join(sys.argv[1:]), steps=args.steps,
+                batch=args.batch, crop=args.crop, seed=args.seed, lr=args.lr, threads=args.threads,
+                loss=dict(weights=dict(spatial=args.w_spatial, gradient=args.w_grad, temporal=args.w_temporal,
+                                       energy=args.w_energy),
+                          final_mean_last_100=dict(total=float(tail[:, 1].mean()), spatial=float(tail[:, 2].mean()),
+                                                   gradient=float(tail[:, 3].mean()),
+                                                   temporal=float(tail[:, 4].mean()),
+                                                   energy=float(tail[:, 5].mean()))),
+                seconds=round(time.time() - t0), git=commit)
+    json.dump(prov, open(os.path.join(args.out, "denoiser_rae.json"), "w"), indent=1)
+    kestrel_nn.plot_loss([(h[0], 1, h[1]) for h in history], os.path.join(args.out, "denoiser_rae_loss.png"),
+                         max(1, min(25, len(history) // 4)), label="total loss")
+    write_fixture(model, clips[0][0], args.fixture)
+    print("wrote", weights, args.fixture)
+
+
+if __name__ == "__main__":
+    main()
