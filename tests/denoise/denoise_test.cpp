@@ -81,15 +81,17 @@ TEST(Denoise, NeuralMatchesPyTorchOnTheFixture) {
   }
 }
 
-std::string copy_weights(const std::string& name) {
+std::string copy_weights(const std::string& name, DenoiseMethod m = DenoiseMethod::neural) {
   const std::string path = (std::filesystem::temp_directory_path() / name).string();
-  std::filesystem::copy_file(default_denoiser_weights(), path,
+  std::filesystem::copy_file(default_denoiser_weights(m), path,
                              std::filesystem::copy_options::overwrite_existing);
   return path;
 }
 
-void expect_error(const std::string& weights, const std::string& fragment) {
+void expect_error(const std::string& weights, const std::string& fragment,
+                  DenoiseMethod m = DenoiseMethod::neural) {
   DenoiserOptions o;
+  o.method = m;
   o.weights = weights;
   try {
     Denoiser d(o);
@@ -124,6 +126,20 @@ TEST(Denoise, CorruptOrMismatchedWeightsAreClearErrors) {
       (std::filesystem::temp_directory_path() / "kestrel_garbage.kdw").string();
   std::ofstream(garbage) << "this is not a weights file at all, just text";
   expect_error(garbage, "bad magic");
+}
+
+// The rae denoiser's weights file goes through the same checks (nn::load_layers).
+TEST(Denoise, CorruptOrForeignRaeWeightsAreClearErrors) {
+  expect_error("/nonexistent/denoiser_rae.kdw", "no such", DenoiseMethod::rae);
+  expect_error(default_denoiser_weights(), "not a", DenoiseMethod::rae);  // the fast network's
+  const std::string flipped = copy_weights("kestrel_rae_flipped.kdw", DenoiseMethod::rae);
+  {
+    std::fstream f(flipped, std::ios::in | std::ios::out | std::ios::binary);
+    f.seekp(4000);
+    f.put('\x55');
+  }
+  expect_error(flipped, "checksum", DenoiseMethod::rae);
+  std::filesystem::remove(flipped);
 }
 
 TEST(Denoise, AConstantImageIsAFixedPoint) {
