@@ -9,7 +9,6 @@
 """
 import argparse
 import json
-import math
 import os
 import random
 import struct
@@ -117,6 +116,29 @@ def write_fixture(model, clip, out_dir):
     write_fixture_frames(model, ins, out_dir)
 
 
+def write_frame_pfms(d, f, expected):
+    """A fixture frame's directory: its inputs f (H,W,13) as the engine's AOV files and the
+    model's output expected (H,W,3) as expected.pfm."""
+    os.makedirs(d, exist_ok=True)
+    write_pfm(os.path.join(d, "color.pfm"), f[:, :, 0:3])
+    write_pfm(os.path.join(d, "albedo.pfm"), f[:, :, 3:6])
+    write_pfm(os.path.join(d, "normal.pfm"), f[:, :, 6:9])
+    write_pfm(os.path.join(d, "depth.pfm"), f[:, :, 9])
+    write_pfm(os.path.join(d, "roughness.pfm"), f[:, :, 10])
+    write_pfm(os.path.join(d, "motion.pfm"), np.concatenate([f[:, :, 11:13], np.zeros_like(f[:, :, :1])], 2))
+    write_pfm(os.path.join(d, "expected.pfm"), expected)
+
+
+def loss_summary(history, args):
+    """The loss weights and the mean of each term over the last 100 steps (fit's history)."""
+    tail = np.array(history[-100:])
+    return dict(weights=dict(spatial=args.w_spatial, gradient=args.w_grad, temporal=args.w_temporal,
+                             energy=args.w_energy),
+                final_mean_last_100=dict(total=float(tail[:, 1].mean()), spatial=float(tail[:, 2].mean()),
+                                         gradient=float(tail[:, 3].mean()), temporal=float(tail[:, 4].mean()),
+                                         energy=float(tail[:, 5].mean())))
+
+
 def write_fixture_frames(model, ins, out_dir):
     """ins (T,H,W,13): the frames' inputs as PFMs and the model's outputs (expected.pfm)."""
     os.makedirs(out_dir, exist_ok=True)
@@ -128,16 +150,7 @@ def write_fixture_frames(model, ins, out_dir):
             h, w = x["color"].shape[-2:]
             padded_state = None if state is None else tuple(M.pad8(s) for s in state)
             o, state = model(**{k: M.pad8(v) for k, v in x.items()}, state=padded_state, size=(h, w))
-            d = os.path.join(out_dir, f"frame_{t}")
-            os.makedirs(d, exist_ok=True)
-            f = ins[t]
-            write_pfm(os.path.join(d, "color.pfm"), f[:, :, 0:3])
-            write_pfm(os.path.join(d, "albedo.pfm"), f[:, :, 3:6])
-            write_pfm(os.path.join(d, "normal.pfm"), f[:, :, 6:9])
-            write_pfm(os.path.join(d, "depth.pfm"), f[:, :, 9])
-            write_pfm(os.path.join(d, "roughness.pfm"), f[:, :, 10])
-            write_pfm(os.path.join(d, "motion.pfm"), np.concatenate([f[:, :, 11:13], np.zeros_like(f[:, :, :1])], 2))
-            write_pfm(os.path.join(d, "expected.pfm"), o[0, :, :h, :w].permute(1, 2, 0).numpy())
+            write_frame_pfms(os.path.join(out_dir, f"frame_{t}"), ins[t], o[0, :, :h, :w].permute(1, 2, 0).numpy())
             state = tuple(s[..., :h, :w] for s in state)
 
 
@@ -262,7 +275,6 @@ def main():
     history = fit(model, clips, args)
     os.makedirs(args.out, exist_ok=True)
     export_weights(model, os.path.join(args.out, "denoiser.kdw"))
-    tail = np.array(history[-100:])
     commit = subprocess.run(["git", "-C", ROOT, "rev-parse", "--short", "HEAD"], capture_output=True, text=True).stdout.strip()
     prov = dict(file="denoiser.kdw", architecture=f"kestrel-denoiser-{ARCHITECTURE} (scripts/denoise/model.py)",
                 parameters=M.parameter_count(model), framework=f"PyTorch {torch.__version__} (Debian python3-torch)",
@@ -271,12 +283,7 @@ def main():
                 init=args.init,
                 command="python3 scripts/denoise/train.py " + " ".join(sys.argv[1:]), steps=args.steps,
                 batch=args.batch, crop=args.crop, seed=args.seed, lr=args.lr, threads=args.threads,
-                loss=dict(weights=dict(spatial=args.w_spatial, gradient=args.w_grad, temporal=args.w_temporal,
-                                       energy=args.w_energy),
-                          final_mean_last_100=dict(total=float(tail[:, 1].mean()), spatial=float(tail[:, 2].mean()),
-                                                   gradient=float(tail[:, 3].mean()), temporal=float(tail[:, 4].mean()),
-                                                   energy=float(tail[:, 5].mean()) if tail.shape[1] > 5 else None)),
-                seconds=round(time.time() - t0), git=commit)
+                loss=loss_summary(history, args), seconds=round(time.time() - t0), git=commit)
     init_json = os.path.splitext(args.init)[0] + ".json" if args.init else None
     if init_json and os.path.exists(init_json):  # what the starting weights were trained on
         prov["init_provenance"] = json.load(open(init_json))

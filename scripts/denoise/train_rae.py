@@ -6,7 +6,7 @@ targets and loss as the fast denoiser (train.py) and writes
   weights/denoiser_rae_loss.png  the loss curve
   tests/data/denoise_rae/        a parity fixture: three small frames and this model's output
 
-    train_rae.py [--data out/denoise_families] [--steps 1200] [--seed 1] [--threads 2]
+    train_rae.py [--data out/denoise_families] [--steps 3000] [--seed 1] [--threads 2]
 
 Resumable: a checkpoint every 50 steps, --resume continues from it (train.fit, the fast
 denoiser's training loop).
@@ -40,33 +40,22 @@ def write_fixture(model, clip, out_dir):
     y0, x0 = H // 2 - 15, W // 2 - 22
     ins = clip[:3, y0:y0 + 30, x0:x0 + 44].copy()
     ins[2, :, :, 0:3] *= 4
-    os.makedirs(out_dir, exist_ok=True)
     seq = torch.from_numpy(ins).permute(0, 3, 1, 2)[None].contiguous()
     with torch.no_grad():
         out = T.run_sequence(model, seq)
     for t in range(ins.shape[0]):
-        d = os.path.join(out_dir, f"frame_{t}")
-        os.makedirs(d, exist_ok=True)
-        fr = ins[t]
-        for name, a, b in [("color", 0, 3), ("albedo", 3, 6), ("normal", 6, 9)]:
-            kestrel_nn.write_pfm(os.path.join(d, name + ".pfm"), fr[:, :, a:b])
-        kestrel_nn.write_pfm(os.path.join(d, "depth.pfm"), fr[:, :, 9])
-        kestrel_nn.write_pfm(os.path.join(d, "roughness.pfm"), fr[:, :, 10])
-        kestrel_nn.write_pfm(os.path.join(d, "motion.pfm"),
-                             np.concatenate([fr[:, :, 11:13], np.zeros_like(fr[:, :, :1])], 2))
-        kestrel_nn.write_pfm(os.path.join(d, "expected.pfm"), out[0, t].permute(1, 2, 0).numpy())
+        T.write_frame_pfms(os.path.join(out_dir, f"frame_{t}"), ins[t], out[0, t].permute(1, 2, 0).numpy())
 
 
 def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("--data", default=os.path.join(ROOT, "out", "denoise_families"))
-    ap.add_argument("--steps", type=int, default=1200)
+    ap.add_argument("--steps", type=int, default=3000)
     ap.add_argument("--batch", type=int, default=4)
     ap.add_argument("--crop", type=int, default=64)
-    ap.add_argument("--lr", type=float, default=1e-3)
+    ap.add_argument("--lr", type=float, default=5e-4)
     ap.add_argument("--seed", type=int, default=1)
     ap.add_argument("--threads", type=int, default=2)
-    ap.add_argument("--channels", default=",".join(map(str, R.CHANNELS)))
     ap.add_argument("--out", default=os.path.join(ROOT, "weights"))
     ap.add_argument("--fixture", default=os.path.join(ROOT, "tests", "data", "denoise_rae"))
     ap.add_argument("--fixture-only", action="store_true", help="write the parity fixture from --out's weights and stop")
@@ -79,11 +68,9 @@ def main():
     torch.manual_seed(args.seed)
     random.seed(args.seed)
     np.random.seed(args.seed)
-    channels = tuple(int(c) for c in args.channels.split(","))
-    assert channels == R.CHANNELS, "the engine runs rae.CHANNELS"
     manifest = json.load(open(os.path.join(args.data, "manifest.json")))
     names = sorted(n for n, c in manifest["clips"].items() if c["split"] == "train")
-    model = R.RAE(channels)
+    model = R.RAE()
     weights = os.path.join(args.out, "denoiser_rae.kdw")
     if args.fixture_only:
         kestrel_nn.load_kdw(model, weights, MAGIC, ARCHITECTURE)
@@ -96,23 +83,16 @@ def main():
     history = T.fit(model, clips, args)
     os.makedirs(args.out, exist_ok=True)
     kestrel_nn.export_kdw(model, weights, MAGIC, ARCHITECTURE)
-    tail = np.array(history[-100:])
     commit = subprocess.run(["git", "-C", ROOT, "rev-parse", "--short", "HEAD"], capture_output=True,
                             text=True).stdout.strip()
     prov = dict(file="denoiser_rae.kdw",
-                architecture=f"kestrel-rae-{ARCHITECTURE} (scripts/denoise/rae.py), channels {list(channels)}",
+                architecture=f"kestrel-rae-{ARCHITECTURE} (scripts/denoise/rae.py), channels {list(R.CHANNELS)}",
                 parameters=R.parameter_count(model), framework=f"PyTorch {torch.__version__} (Debian python3-torch)",
                 dataset=dict(command=manifest.get("commands", {}).get("train"), clips=names,
                              targets=manifest.get("targets", {}).get("train", "references")),
                 command="python3 scripts/denoise/train_rae.py " + " ".join(sys.argv[1:]), steps=args.steps,
                 batch=args.batch, crop=args.crop, seed=args.seed, lr=args.lr, threads=args.threads,
-                loss=dict(weights=dict(spatial=args.w_spatial, gradient=args.w_grad, temporal=args.w_temporal,
-                                       energy=args.w_energy),
-                          final_mean_last_100=dict(total=float(tail[:, 1].mean()), spatial=float(tail[:, 2].mean()),
-                                                   gradient=float(tail[:, 3].mean()),
-                                                   temporal=float(tail[:, 4].mean()),
-                                                   energy=float(tail[:, 5].mean()))),
-                seconds=round(time.time() - t0), git=commit)
+                loss=T.loss_summary(history, args), seconds=round(time.time() - t0), git=commit)
     json.dump(prov, open(os.path.join(args.out, "denoiser_rae.json"), "w"), indent=1)
     kestrel_nn.plot_loss([(h[0], 1, h[1]) for h in history], os.path.join(args.out, "denoiser_rae_loss.png"),
                          max(1, min(25, len(history) // 4)), label="total loss")

@@ -28,7 +28,7 @@ constexpr char kMagic[9] = "KSTRLRAE";
 constexpr uint32_t kArchitecture = 1;
 constexpr int kRaeLevels = 5, kRaeInputs = 12, kMultiple = 16;  // 16 = 2^(levels - 1)
 constexpr std::array<int, kRaeLevels> kRaeChannels = {32, 48, 64, 80, 96};
-constexpr float kSlope = 0.1f, kEps = 0.01f, kBlack = 0.02f;
+constexpr float kSlope = 0.1f;
 
 // The tensors of weights/denoiser_rae.kdw, in order (rae.RAE's named_parameters): enc_a.0-4,
 // enc_b.0-4, enc_c.0-4, dec_d.0-3, dec_e.0-3, out.
@@ -53,13 +53,9 @@ std::vector<nn::LayerSpec> specs() {
 }
 enum : size_t { kEncA = 0, kEncB = 5, kEncC = 10, kDecD = 15, kDecE = 19, kOut = 23 };
 
-bool is_black(const float* a0, const float* a1, const float* a2, size_t p) {
-  return std::max(a0[p], std::max(a1[p], a2[p])) < kBlack;
-}
-
 // model.demodulation: albedo + 0.01 per channel, 1 where the albedo is (nearly) black.
-float demodulation(const float* albedo, bool black) {
-  return black ? 1.0f : std::max(*albedo, 0.0f) + kEps;
+float demodulation(float albedo, bool black) {
+  return black ? 1.0f : std::max(albedo, 0.0f) + kAlbedoEps;
 }
 
 }  // namespace
@@ -85,6 +81,8 @@ void Rae::Impl::build(int w_, int h_) {
   Hp = (h + kMultiple - 1) / kMultiple * kMultiple;
   net = nn::Net{};
   input = memory({{1, kRaeInputs, Hp, Wp}, dt::f32, tag::nchw}, dnn.eng);
+  // Zeros in the padding: run() writes only the image.
+  std::memset(input.get_data_handle(), 0, input.get_desc().get_size());
   std::array<memory, kRaeLevels> enc;
   memory t = input;
   for (int l = 0; l < kRaeLevels; ++l) {
@@ -147,38 +145,33 @@ void Rae::run(const Planes& in, Planes& out) {
   // s: the mean non-sky depth (per-row sums added in row order: the same at any thread count).
   std::vector<double> row_sum(static_cast<size_t>(h));
   std::vector<size_t> row_count(static_cast<size_t>(h));
-  std::vector<float> row_max(static_cast<size_t>(h));
   parallel_for(0, size_t(h), 8, [&](size_t y0, size_t y1) {
     for (size_t y = y0; y < y1; ++y) {
       double sum = 0;
       size_t count = 0;
-      float top = 0;
-      for (size_t p = y * W; p < (y + 1) * W; ++p) {
+      for (size_t p = y * W; p < (y + 1) * W; ++p)
         if (depth[p] > 0) sum += double(depth[p]), ++count;
-        const bool black = is_black(a[0], a[1], a[2], p);
-        for (size_t k = 0; k < 3; ++k)
-          top = std::max(top, std::max(c[k][p], 0.0f) / demodulation(a[k] + p, black));
-      }
-      row_sum[y] = sum, row_count[y] = count, row_max[y] = top;
+      row_sum[y] = sum, row_count[y] = count;
     }
   });
   double sum = 0;
   size_t count = 0;
-  float top = 0;
-  for (size_t y = 0; y < size_t(h); ++y)
-    sum += row_sum[y], count += row_count[y], top = std::max(top, row_max[y]);
-  const float s = count ? float(sum / double(count)) : 1.0f, log_top = std::log1p(top);
-  // x = [log(1 + r), albedo, normal, d(z), roughness, black], zeros in the padding.
+  for (size_t y = 0; y < size_t(h); ++y) sum += row_sum[y], count += row_count[y];
+  const float s = count ? float(sum / double(count)) : 1.0f;
+  // x = [log(1 + r), albedo, normal, d(z), roughness, black] over the image (the padding stays
+  // 0), and per row the largest r.
+  std::vector<float> row_max(static_cast<size_t>(h));
   float* x = static_cast<float*>(m.input.get_data_handle());
-  parallel_for(0, size_t(m.Hp), 8, [&](size_t y0, size_t y1) {
+  parallel_for(0, size_t(h), 8, [&](size_t y0, size_t y1) {
     for (size_t y = y0; y < y1; ++y) {
-      for (size_t k = 0; k < size_t(kRaeInputs); ++k) std::fill_n(x + k * Np + y * Wp, Wp, 0.0f);
-      if (y >= size_t(h)) continue;
+      float top = 0;
       for (size_t i = 0; i < W; ++i) {
         const size_t p = y * W + i, q = y * Wp + i;
-        const bool black = is_black(a[0], a[1], a[2], p);
+        const bool black = black_albedo(a[0][p], a[1][p], a[2][p]);
         for (size_t k = 0; k < 3; ++k) {
-          x[k * Np + q] = std::log1p(std::max(c[k][p], 0.0f) / demodulation(a[k] + p, black));
+          const float r = std::max(c[k][p], 0.0f) / demodulation(a[k][p], black);
+          top = std::max(top, r);
+          x[k * Np + q] = std::log1p(r);
           x[(3 + k) * Np + q] = a[k][p];
           x[(6 + k) * Np + q] = in.ch(6 + int(k))[p];
         }
@@ -186,8 +179,10 @@ void Rae::run(const Planes& in, Planes& out) {
         x[10 * Np + q] = in.ch(10)[p];
         x[11 * Np + q] = black ? 1.0f : 0.0f;
       }
+      row_max[y] = top;
     }
   });
+  const float log_top = std::log1p(*std::max_element(row_max.begin(), row_max.end()));
   try {
     m.net.run(m.dnn.strm);
     m.dnn.strm.wait();
@@ -201,11 +196,11 @@ void Rae::run(const Planes& in, Planes& out) {
     for (size_t y = y0; y < y1; ++y)
       for (size_t i = 0; i < W; ++i) {
         const size_t p = y * W + i, q = y * Wp + i;
-        const bool black = is_black(a[0], a[1], a[2], p);
+        const bool black = black_albedo(a[0][p], a[1][p], a[2][p]);
         for (size_t k = 0; k < 3; ++k) {
           const float ok = o[k * Np + q];
           const float v = std::min(ok > 20.0f ? ok : std::log1p(std::exp(ok)), log_top);
-          out.ch(int(k))[p] = std::expm1(v) * demodulation(a[k] + p, black);
+          out.ch(int(k))[p] = std::expm1(v) * demodulation(a[k][p], black);
         }
       }
   });
