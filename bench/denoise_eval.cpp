@@ -104,7 +104,7 @@ int main(int argc, char** argv) {
   std::string out_dir = std::string(KESTREL_SOURCE_DIR) + "/docs/denoiser";
   std::string weights;
   int threads = int(std::thread::hardware_concurrency()), repeat = 9;
-  bool quick = false, no_rae = false;
+  bool quick = false, no_rae = false, rae_fp32 = false;
   CLI::App app{"kestrel_denoise_eval: the denoisers on the held-out clips"};
   app.add_option("--dataset", dataset, "The dataset of scripts/denoise/make_dataset.py")
       ->capture_default_str();
@@ -115,6 +115,8 @@ int main(int argc, char** argv) {
   app.add_option("--repeat", repeat, "Timed frames (median; 0: no timing)")->capture_default_str();
   app.add_flag("--quick", quick, "Three frames per clip, 1 spp only (smoke test)");
   app.add_flag("--no-rae", no_rae, "Leave out the rae quality mode (seconds per 720p frame)");
+  app.add_flag("--rae-fp32", rae_fp32,
+               "Where the CPU has bf16 convolutions (rae's default there): rae in fp32 as well");
   CLI11_PARSE(app, argc, argv);
   tbb::global_control threads_limit(tbb::global_control::max_allowed_parallelism,
                                     size_t(std::max(threads, 1)));
@@ -135,7 +137,12 @@ int main(int argc, char** argv) {
     if (!no_rae) {
       DenoiserOptions r;
       r.method = DenoiseMethod::rae;
-      methods.push_back({"rae (Chaitanya 2017)", r, false});
+      const bool bf16 = Denoiser(r).uses_bf16();
+      methods.push_back({bf16 ? "rae (Chaitanya 2017), bf16" : "rae (Chaitanya 2017)", r, false});
+      if (bf16 && rae_fp32) {
+        r.bf16 = false;
+        methods.push_back({"rae (Chaitanya 2017), fp32", r, false});
+      }
     }
 
     // Test clips from the manifest.

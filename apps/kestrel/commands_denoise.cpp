@@ -19,7 +19,7 @@ namespace {
 
 struct DenoiseArgs {
   std::string hdr, alb, nrm, depth, rough, motion, input, out, method = "neural", weights;
-  bool sequence = false, no_recurrent = false, quiet = false;
+  bool sequence = false, no_recurrent = false, quiet = false, fp32 = false;
   int frames = 0, start = 0, bench = 0;
 };
 
@@ -110,14 +110,16 @@ void run_denoise(const DenoiseArgs& a) {
     throw Error(ErrorCode::invalid_argument, "denoise: -o out.pfm|out.exr is required");
   const auto method = denoise_method_from_name(a.method);
   if (!method)
-    throw Error(ErrorCode::invalid_argument,
-                fmt::format("denoise: unknown --method '{}' (neural, svgf, atrous)", a.method));
+    throw Error(
+        ErrorCode::invalid_argument,
+        fmt::format("denoise: unknown --method '{}' (neural, svgf, atrous, rae)", a.method));
   if (a.sequence && a.frames <= 0)
     throw Error(ErrorCode::invalid_argument, "denoise: --sequence needs --frames N");
   DenoiserOptions o;
   o.method = *method;
   o.weights = a.weights;
   o.recurrent = !a.no_recurrent;
+  o.bf16 = !a.fp32;
   Denoiser denoiser(o);
   const int count = a.sequence ? a.frames : 1;
   for (int i = 0; i < count; ++i) {
@@ -151,8 +153,8 @@ void run_denoise(const DenoiseArgs& a) {
     const std::string path = a.sequence ? frame_name(a.out, frame) : a.out;
     write_image(path, out);
     if (!a.quiet)
-      fmt::print("denoised {}x{} ({}) in {:.1f} ms -> {}\n", out.width, out.height, a.method, ms,
-                 path);
+      fmt::print("denoised {}x{} ({}{}) in {:.1f} ms -> {}\n", out.width, out.height, a.method,
+                 denoiser.uses_bf16() ? ", bf16" : "", ms, path);
   }
 }
 
@@ -181,6 +183,8 @@ Action add_denoise_command(CLI::App& cmd) {
   cmd.add_option("--start", a->start, "First frame number")->capture_default_str();
   cmd.add_flag("--no-recurrent", a->no_recurrent,
                "Neural: each frame alone (no warped previous output)");
+  cmd.add_flag("--fp32", a->fp32,
+               "rae: fp32 convolutions even where the CPU has bf16 ones (the default there)");
   cmd.add_flag("--quiet", a->quiet, "Print nothing");
   cmd.add_option("--bench", a->bench,
                  "Denoise each frame this many more times and print the median time");

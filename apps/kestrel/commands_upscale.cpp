@@ -21,7 +21,7 @@ namespace {
 struct UpscaleArgs {
   std::string input, pattern, color, depth, motion, out, method = "neural", weights,
                                                          jitter = "halton";
-  bool sequence = false, quiet = false;
+  bool sequence = false, quiet = false, fp32 = false;
   int frames = 0, start = 0, factor = 2, bench = 0;
 };
 
@@ -97,7 +97,7 @@ void run_upscale(const UpscaleArgs& a) {
     throw Error(ErrorCode::invalid_argument, fmt::format("upscale: unknown --method '{}' ({})",
                                                          a.method, upscale_method_list()));
   UpscalerOptions o;
-  o.method = *method, o.factor = a.factor, o.weights = a.weights;
+  o.method = *method, o.factor = a.factor, o.weights = a.weights, o.bf16 = !a.fp32;
   Upscaler up(o);
   const int count = a.sequence ? (a.frames > 0 ? a.frames : count_frames(a)) : 1;
   FloatImage out;
@@ -134,10 +134,10 @@ void run_upscale(const UpscaleArgs& a) {
     return v[v.size() / 2];
   };
   fmt::print(
-      "upscale  {} frames, {}: median {:.1f} ms per {}x{} output frame (features {:.1f}, network "
-      "{:.1f}, reconstruction {:.1f})\n",
-      count, a.method, median(ms), out.width, out.height, median(stage[0]), median(stage[1]),
-      median(stage[2]));
+      "upscale  {} frames, {}{}: median {:.1f} ms per {}x{} output frame (features {:.1f}, "
+      "network {:.1f}, reconstruction {:.1f})\n",
+      count, a.method, up.uses_bf16() ? " (bf16)" : "", median(ms), out.width, out.height,
+      median(stage[0]), median(stage[1]), median(stage[2]));
 }
 
 }  // namespace
@@ -175,6 +175,9 @@ Action add_upscale_command(CLI::App& cmd) {
   cmd.add_option("--start", a->start, "First frame number")->capture_default_str();
   cmd.add_option("--bench", a->bench,
                  "Upscale each frame this many more times; the median counts those");
+  cmd.add_flag("--fp32", a->fp32,
+               "nsrr, nsrr-rt: fp32 convolutions even where the CPU has bf16 ones (the default "
+               "there)");
   cmd.add_flag("--quiet", a->quiet, "Only the summary line");
   return [a] {
     if (!a->pattern.empty()) {

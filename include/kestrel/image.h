@@ -13,6 +13,12 @@ struct FloatImage {
   FloatImage() = default;
   FloatImage(int w, int h, int c)
       : width(w), height(h), channels(c), pixels(size_t(w) * size_t(h) * size_t(c), 0.0f) {}
+  /// w x h x c, keeping the storage when it is large enough (the values are left as they
+  /// are: for a caller that writes every pixel).
+  void reshape(int w, int h, int c) {
+    width = w, height = h, channels = c;
+    pixels.resize(size_t(w) * size_t(h) * size_t(c));
+  }
   float* at(int x, int y) {
     return &pixels[(size_t(y) * size_t(width) + size_t(x)) * size_t(channels)];
   }

@@ -53,8 +53,8 @@ struct PipelineTimes {
 
 /// What the loop shows. The images are reused from frame to frame.
 struct PipelineFrame {
-  FloatImage noisy;  ///< the internal-resolution render (colour)
-  Frame render;      ///< that render's other AOVs and stats (its colour slot is moved into noisy)
+  FloatImage noisy;           ///< the internal-resolution render (colour)
+  Frame render;               ///< that render: every AOV (its colour also in noisy) and stats
   FloatImage denoised;        ///< after the denoiser (= noisy without one)
   FloatImage upscaled;        ///< the output resolution, linear
   std::vector<uint8_t> rgb8;  ///< upscaled, tone-mapped sRGB, width x height x 3

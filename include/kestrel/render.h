@@ -248,6 +248,8 @@ void write_frame_exr(const std::string& path, const Frame& frame);
 void write_frame_pfms(const std::string& dir, const Frame& frame);
 /// The documented tone map: exposure 2^stops, ACES filmic (Narkowicz 2015), sRGB OETF.
 std::vector<uint8_t> tonemap_srgb8(const FloatImage& color, float exposure_stops = 0.0f);
+/// The same into `out` (resized; its storage reused).
+void tonemap_srgb8(const FloatImage& color, float exposure_stops, std::vector<uint8_t>& out);
 /// One channel's tone map as above (for evaluation code).
 float tonemap_aces_srgb(float linear);
 
@@ -270,6 +272,10 @@ class Renderer {
   /// nullopt = this camera). Throws Error for bad settings or a bad camera.
   Frame render(const Camera& camera, const RenderSettings& settings,
                std::optional<Camera> prev_camera = std::nullopt);
+  /// The same into `frame`, reusing its images' storage (a loop that keeps its Frame pays
+  /// no allocation, page faults included, frame after frame).
+  void render(const Camera& camera, const RenderSettings& settings,
+              std::optional<Camera> prev_camera, Frame& frame);
   /// Renders only the listed tiles (render_tile_size() pixels square, row-major over the
   /// image; every pass of each) into `frame`, which is sized (and zeroed) when its size
   /// differs from the settings'; other pixels are left as they are. Every rendered pixel

@@ -141,7 +141,9 @@ class Renderer:
 class Denoiser:
     method: str
     parameter_count: int
-    def __init__(self, method: str = "neural", weights: str = "", recurrent: bool = True) -> None: ...
+    uses_bf16: bool
+    def __init__(self, method: str = "neural", weights: str = "", recurrent: bool = True,
+                 bf16: bool = True) -> None: ...
     def denoise(self, color: FloatArray, albedo: Optional[FloatArray] = None, normal: Optional[FloatArray] = None,
                 depth: Optional[FloatArray] = None, roughness: Optional[FloatArray] = None,
                 motion: Optional[FloatArray] = None, threads: int = 0, nan_policy: str = "zero",

@@ -65,7 +65,7 @@ struct PyRenderer {
 };
 
 DenoiserOptions denoiser_options(const std::string& method, const std::string& weights,
-                                 bool recurrent) {
+                                 bool recurrent, bool bf16 = true) {
   DenoiserOptions o;
   auto m = denoise_method_from_name(method);
   if (!m)
@@ -74,6 +74,7 @@ DenoiserOptions denoiser_options(const std::string& method, const std::string& w
   o.method = *m;
   o.weights = weights;
   o.recurrent = recurrent;
+  o.bf16 = bf16;
   return o;
 }
 
@@ -368,10 +369,12 @@ void bind_render(py::module_& m) {
   py::class_<Denoiser>(
       m, "Denoiser",
       "A denoiser for one sequence of frames (recurrent state; reset() starts anew).")
-      .def(py::init([](const std::string& method, const std::string& weights, bool recurrent) {
-             return std::make_unique<Denoiser>(denoiser_options(method, weights, recurrent));
+      .def(py::init([](const std::string& method, const std::string& weights, bool recurrent,
+                       bool bf16) {
+             return std::make_unique<Denoiser>(denoiser_options(method, weights, recurrent, bf16));
            }),
-           py::arg("method") = "neural", py::arg("weights") = "", py::arg("recurrent") = true)
+           py::arg("method") = "neural", py::arg("weights") = "", py::arg("recurrent") = true,
+           py::arg("bf16") = true)
       .def(
           "denoise",
           [](Denoiser& d, py::handle color, py::handle albedo, py::handle normal, py::handle depth,
@@ -388,7 +391,8 @@ void bind_render(py::module_& m) {
       .def("reset", &Denoiser::reset)
       .def_property_readonly(
           "method", [](const Denoiser& d) { return std::string(denoise_method_name(d.method())); })
-      .def_property_readonly("parameter_count", &Denoiser::parameter_count);
+      .def_property_readonly("parameter_count", &Denoiser::parameter_count)
+      .def_property_readonly("uses_bf16", &Denoiser::uses_bf16);
 
   m.def(
       "denoise",

@@ -117,6 +117,14 @@ def test_denoise_equals_the_cli(cli, frame, tmp_path):
         got = kestrel.denoise(frame["color"], albedo=frame["albedo"], normal=frame["normal"], method=method)
         assert got.shape == (RES[1], RES[0], 3)
         assert np.array_equal(bits(got), bits(expected)), method
+    # rae in fp32 where bf16 is the default: the CLI's --fp32
+    cli("denoise", "--hdr", tmp_path / "color.pfm", "--alb", tmp_path / "albedo.pfm", "--nrm",
+        tmp_path / "normal.pfm", "-o", tmp_path / "out.pfm", "--method", "rae", "--fp32", "--quiet")
+    expected = kestrel.read_pfm(str(tmp_path / "out.pfm"))
+    d = kestrel.Denoiser("rae", bf16=False)
+    assert not d.uses_bf16
+    got = d.denoise(frame["color"], albedo=frame["albedo"], normal=frame["normal"])
+    assert np.array_equal(bits(got), bits(expected))
 
 
 def test_denoise_inputs_are_checked(frame, tmp_path):

@@ -214,7 +214,7 @@ Denoiser::Denoiser(const DenoiserOptions& options) : impl_(std::make_unique<Impl
   if (options.method == DenoiseMethod::neural)
     impl_->weights = denoise::NeuralWeights::load(weights);
   else if (options.method == DenoiseMethod::rae)
-    impl_->rae.emplace(weights);
+    impl_->rae.emplace(weights, options.bf16);
 }
 Denoiser::~Denoiser() = default;
 Denoiser::Denoiser(Denoiser&&) noexcept = default;
@@ -231,6 +231,9 @@ DenoiseMethod Denoiser::method() const {
 }
 size_t Denoiser::parameter_count() const {
   return impl_->weights ? impl_->weights->parameters : impl_->rae ? impl_->rae->parameters() : 0;
+}
+bool Denoiser::uses_bf16() const {
+  return impl_->rae && impl_->rae->bf16();
 }
 
 FloatImage Denoiser::denoise(const DenoiseInput& input) {

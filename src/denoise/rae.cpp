@@ -113,8 +113,9 @@ void Rae::Impl::clear_states() {
   fresh = false;
 }
 
-Rae::Rae(const std::string& weights) : impl_(std::make_unique<Impl>()) {
+Rae::Rae(const std::string& weights, bool bf16) : impl_(std::make_unique<Impl>()) {
   impl_->layers = nn::load_layers(weights, kMagic, kArchitecture, specs(), "rae denoiser");
+  impl_->dnn.bf16 = bf16 && nn::Dnn::bf16_available();
   for (const nn::ConvLayer& L : impl_->layers)
     impl_->parameters += size_t(L.outputs) * (size_t(L.cin) * size_t(L.ksize * L.ksize) + 1);
 }
@@ -124,6 +125,10 @@ Rae& Rae::operator=(Rae&&) noexcept = default;
 
 size_t Rae::parameters() const {
   return impl_->parameters;
+}
+
+bool Rae::bf16() const {
+  return impl_->dnn.bf16;
 }
 
 void Rae::reset() {

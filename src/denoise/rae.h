@@ -13,13 +13,16 @@ namespace kestrel::denoise {
 
 class Rae {
  public:
-  /// Throws Error naming the file for a missing, corrupt or foreign weights file.
-  explicit Rae(const std::string& weights);
+  /// Throws Error naming the file for a missing, corrupt or foreign weights file. `bf16`:
+  /// bf16 activations and weights in the convolutions where the CPU has them (oneDNN's
+  /// avx512_core_bf16 or better), accumulation in f32; else fp32.
+  Rae(const std::string& weights, bool bf16);
   ~Rae();
   Rae(Rae&&) noexcept;
   Rae& operator=(Rae&&) noexcept;
 
   size_t parameters() const;
+  bool bf16() const;  ///< whether the convolutions run in bf16
   /// The next frame starts a new sequence (recurrent states at 0).
   void reset();
   /// One frame: `in` the gathered inputs (13 planes, no padding: colour, albedo, normal,

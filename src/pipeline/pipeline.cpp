@@ -195,17 +195,20 @@ const PipelineFrame& Pipeline::frame(const Camera& camera, double time) {
   const double t1 = clock.ms();
   const int iw = s.width / s.factor, ih = s.height / s.factor;
   const RenderSettings rs = m.render_settings(iw, ih, o.index);
-  Frame f = m.render_fn ? m.render_fn(*m.renderer, camera, rs, m.prev_camera)
-                        : m.renderer->render(camera, rs, m.prev_camera);
+  // The render lands in o.render, whose images keep their storage from frame to frame.
+  Frame& f = o.render;
+  if (m.render_fn)
+    f = m.render_fn(*m.renderer, camera, rs, m.prev_camera);
+  else
+    m.renderer->render(camera, rs, m.prev_camera, f);
   m.prev_camera = camera;
   const double t2 = clock.ms();
   if (f.width == 0) {  // a worker of a distributed render: the frame is elsewhere
-    o.render = std::move(f);
     o.times = {t1, t2 - t1, 0, 0, 0, t2};
     ++o.index;
     return o;
   }
-  o.noisy = std::move(f.aov[int(Aov::color)]);
+  o.noisy = f[Aov::color];
   if (m.denoiser)
     m.denoiser->denoise({&o.noisy, &f[Aov::albedo], &f[Aov::normal], &f[Aov::depth],
                          &f[Aov::roughness], &f[Aov::motion]},
@@ -220,13 +223,12 @@ const PipelineFrame& Pipeline::frame(const Camera& camera, double time) {
     o.upscaled = o.denoised;
   const double t4 = clock.ms();
   o.exposure = s.exposure + (s.auto_exposure ? m.auto_exposure(o.upscaled) : 0.0f);
-  o.rgb8 = tonemap_srgb8(o.upscaled, o.exposure);
+  tonemap_srgb8(o.upscaled, o.exposure, o.rgb8);
   const double t5 = clock.ms(), t0 = 0;
   o.width = s.width, o.height = s.height, o.internal_width = iw, o.internal_height = ih,
   o.factor = s.factor;
   o.times = {t1 - t0, t2 - t1, t3 - t2, t4 - t3, t5 - t4, t5 - t0};
   o.stats = f.stats;
-  o.render = std::move(f);
   ++o.index;
   // Hold the target frame time: a coarser factor when slow, a finer one when well under.
   if (s.target_ms > 0) {

@@ -109,6 +109,12 @@ float tonemap_aces_srgb(float x) {
 }
 
 std::vector<uint8_t> tonemap_srgb8(const FloatImage& color, float exposure_stops) {
+  std::vector<uint8_t> out;
+  tonemap_srgb8(color, exposure_stops, out);
+  return out;
+}
+
+void tonemap_srgb8(const FloatImage& color, float exposure_stops, std::vector<uint8_t>& out) {
   if (color.channels < 3)
     throw Error(ErrorCode::invalid_argument, "tone map: the image needs 3 channels");
   // The sRGB OETF of the ACES output y in [0, 1], quantised to 8 bits, from a table of y
@@ -123,7 +129,7 @@ std::vector<uint8_t> tonemap_srgb8(const FloatImage& color, float exposure_stops
   }();
   const float scale = std::exp2(exposure_stops);
   const size_t n = size_t(color.width) * size_t(color.height), ch = size_t(color.channels);
-  std::vector<uint8_t> out(n * 3);
+  out.resize(n * 3);  // every byte written
   parallel_for(0, n, 16384, [&](size_t b, size_t e) {
     constexpr size_t block = 256;  // pixels
     uint32_t idx[3 * block];
@@ -140,7 +146,6 @@ std::vector<uint8_t> tonemap_srgb8(const FloatImage& color, float exposure_stops
       for (size_t k = 0; k < 3 * m; ++k) out[3 * p0 + k] = oetf[idx[k]];
     }
   });
-  return out;
 }
 
 }  // namespace kestrel

@@ -278,17 +278,26 @@ void Renderer::Impl::render_passes(const Camera& camera, const RenderSettings& s
 
 Frame Renderer::render(const Camera& camera, const RenderSettings& s,
                        std::optional<Camera> prev_camera) {
+  Frame frame;
+  render(camera, s, prev_camera, frame);
+  return frame;
+}
+
+void Renderer::render(const Camera& camera, const RenderSettings& s,
+                      std::optional<Camera> prev_camera, Frame& frame) {
   check_render_settings(camera, s, prev_camera);
   if (impl_->scene->generation() != impl_->generation) impl_->sync();
-  Accumulator acc(s.width, s.height);
-  Frame frame;
+  Accumulator& acc = impl_->acc;
+  acc.reset(s.width, s.height);
+  frame.stats = RenderStats{};
   impl_->render_passes(camera, s, prev_camera, nullptr, acc, frame);
-  // Means of the sums.
+  // Means of the sums (every pixel of every AOV written: the images' storage is reused).
   frame.width = s.width, frame.height = s.height;
-  for (int a = 0; a < aov_count; ++a)
-    frame.aov[a] = FloatImage(s.width, s.height, aov_channels(Aov(a)));
-  for (size_t p = 0; p < size_t(s.width) * size_t(s.height); ++p) finish_pixel(acc, frame, p);
-  return frame;
+  for (int a = 0; a < aov_count; ++a) frame.aov[a].reshape(s.width, s.height, aov_channels(Aov(a)));
+  parallel_for(0, size_t(s.height), 8, [&](size_t y0, size_t y1) {
+    for (size_t p = y0 * size_t(s.width); p < y1 * size_t(s.width); ++p)
+      finish_pixel(acc, frame, p);
+  });
 }
 
 void Renderer::render_tiles(const Camera& camera, const RenderSettings& s,

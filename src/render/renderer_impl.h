@@ -143,7 +143,10 @@ struct Accumulator {
   std::vector<float> color, albedo, normal, depth, rough, motion;  // sums
   std::vector<double> lum_mean, lum_m2;                            // Welford on luminance
   std::vector<int> n;
-  Accumulator(int w, int h) : width(w), height(h) {
+  Accumulator(int w, int h) { reset(w, h); }
+  /// Sums of w x h pixels at 0 (the storage kept: no page faults frame after frame).
+  void reset(int w, int h) {
+    width = w, height = h;
     const size_t p = size_t(w) * size_t(h);
     color.assign(3 * p, 0), albedo.assign(3 * p, 0), normal.assign(3 * p, 0), depth.assign(p, 0),
         rough.assign(p, 0);
@@ -214,6 +217,7 @@ struct Renderer::Impl {
   Bounds3 bounds;
   RayCapture* capture = nullptr;
   std::unique_ptr<Accumulator> tile_acc;  // render_tiles: sums kept between calls of one size
+  Accumulator acc{0, 0};                  // render: the sums, storage kept from frame to frame
   RestirBuffer restir[2];                 // ReSTIR: [restir_last] is the last pass's
   int restir_last = 0;
   bool restir_valid = false;  // restir[restir_last] holds a pass of frame restir_frame

@@ -378,6 +378,34 @@ TEST(Determinism, SameBitsForOneAndTwoThreads) {
   EXPECT_NE(a[Aov::color].pixels, c[Aov::color].pixels);
 }
 
+TEST(Determinism, RenderIntoAKeptFrameIsAFreshRender) {
+  // What the frame loop relies on: a Frame kept from frame to frame (last holding another
+  // size, seed and sample count) gets the fresh render's bits and stats, in the same storage
+  // when the size repeats.
+  SceneRenderer r(load_scene("builtin:cornell_box"));
+  const Camera cam = *find_view(load_scene("builtin:cornell_box"), "front");
+  RenderSettings big;
+  big.width = 80, big.height = 60, big.spp = 2, big.seed = 5;
+  RenderSettings rs;
+  rs.width = 72, rs.height = 56, rs.spp = 3, rs.seed = 42;
+  Frame kept;
+  r.render(cam, big, std::nullopt, kept);
+  r.render(cam, rs, std::nullopt, kept);
+  const Frame fresh = r.render(cam, rs);
+  ASSERT_EQ(kept.width, 72);
+  ASSERT_EQ(kept.height, 56);
+  for (int k = 0; k < aov_count; ++k) {
+    EXPECT_EQ(kept.aov[k].pixels, fresh.aov[k].pixels) << aov_name(Aov(k));
+    EXPECT_EQ(kept.aov[k].channels, fresh.aov[k].channels) << aov_name(Aov(k));
+  }
+  EXPECT_EQ(kept.stats.camera_rays, fresh.stats.camera_rays);
+  EXPECT_EQ(kept.stats.bounce_rays, fresh.stats.bounce_rays);
+  const float* storage = kept[Aov::color].pixels.data();
+  r.render(cam, rs, std::nullopt, kept);
+  EXPECT_EQ(kept[Aov::color].pixels.data(), storage);
+  EXPECT_EQ(kept[Aov::color].pixels, fresh[Aov::color].pixels);
+}
+
 TEST(Determinism, TilesRenderedApartEqualOneRender) {
   // What distributed rendering relies on: any split of the tiles, in any order, over several
   // calls gives render()'s bits for every pixel (72x56: edge tiles of 8 and 24 pixels).
