@@ -137,8 +137,7 @@ void Renderer::Impl::prefetch_texels(const SurfaceHit& h) const {
 
 // World position (and object-space position, for motion vectors), geometric and shading
 // normals facing the ray, texture coordinates, and the material's BSDF parameters there.
-Renderer::Impl::Surface Renderer::Impl::surface_at(const SurfaceHit& h, const Ray& ray) const {
-  Surface sf;
+void Renderer::Impl::surface_geometry(const SurfaceHit& h, const Ray& ray, Surface& sf) const {
   const InstanceShade& is = instances[h.instance];
   const TriangleMesh& mesh = *is.mesh;
   const uint32_t i0 = mesh.indices[3 * h.prim], i1 = mesh.indices[3 * h.prim + 1],
@@ -152,10 +151,37 @@ Renderer::Impl::Surface Renderer::Impl::surface_at(const SurfaceHit& h, const Ra
   Vec3 ng = cross(p1 - p0, p2 - p0);
   const float ng_len = length(ng);
   ng = ng_len > 0 ? ng * (1.0f / ng_len) : -wo;
-  const float cos_hit = dot(ng, wo);
-  if (cos_hit < 0) ng = -ng;
+  sf.cos_hit = dot(ng, wo);
+  sf.ng = sf.cos_hit < 0 ? -ng : ng;
+  sf.mat = &material_of(mesh, h.prim);
+}
+
+// The material's roughness in [0, 1] at uv (its metallic-roughness texture's G scales it) and
+// its metallic factor (the texture's B).
+float Renderer::Impl::roughness_at(const Material& mat, Vec2 uv, float& metallic) const {
+  float roughness = mat.roughness;
+  metallic = mat.metallic;
+  if (const Texture* t = texture(mat.metallic_roughness_texture)) {
+    float c[4];
+    sample_texture(*t, uv, false, c);
+    roughness *= c[1];
+    metallic *= c[2];
+  }
+  metallic = std::clamp(metallic, 0.0f, 1.0f);
+  return std::clamp(roughness, 0.0f, 1.0f);
+}
+
+Renderer::Impl::Surface Renderer::Impl::surface_at(const SurfaceHit& h, const Ray& ray) const {
+  Surface sf;
+  surface_geometry(h, ray, sf);
+  const InstanceShade& is = instances[h.instance];
+  const TriangleMesh& mesh = *is.mesh;
+  const float b0 = 1 - h.u - h.v;
+  const Vec3 ng = sf.ng, wo = sf.wo;
   Vec3 ns = ng;
   if (!mesh.normals.empty()) {
+    const uint32_t i0 = mesh.indices[3 * h.prim], i1 = mesh.indices[3 * h.prim + 1],
+                   i2 = mesh.indices[3 * h.prim + 2];
     Vec3 nn = mesh.normals[i0] * b0 + mesh.normals[i1] * h.u + mesh.normals[i2] * h.v;
     if (!is.identity) nn = normal_transform(is.nrm, nn);
     const float len = length(nn);
@@ -166,29 +192,37 @@ Renderer::Impl::Surface Renderer::Impl::surface_at(const SurfaceHit& h, const Ra
     }
   }
   const Vec2 uv = sf.uv = uv_at(mesh, h.prim, h.u, h.v);
-  const Material& mat = *(sf.mat = &material_of(mesh, h.prim));
+  const Material& mat = *sf.mat;
   BsdfParams& bp = sf.bp;
   bp.base = mat.base_color;
-  float roughness = mat.roughness;
-  bp.metallic = mat.metallic;
   if (const Texture* t = texture(mat.base_color_texture)) {
     float c[4];
     sample_texture(*t, uv, true, c);
     bp.base = bp.base * Vec3{c[0], c[1], c[2]};
   }
-  if (const Texture* t = texture(mat.metallic_roughness_texture)) {
-    float c[4];
-    sample_texture(*t, uv, false, c);
-    roughness *= c[1];
-    bp.metallic *= c[2];
-  }
   bp.base = min(max(bp.base, Vec3{0, 0, 0}), Vec3{1, 1, 1});
-  bp.metallic = std::clamp(bp.metallic, 0.0f, 1.0f);
-  roughness = std::clamp(roughness, 0.0f, 1.0f);
+  const float roughness = roughness_at(mat, uv, bp.metallic);
   bp.alpha = std::max(roughness * roughness, min_alpha);
   bp.specular = std::clamp(mat.specular, 0.0f, 1.0f);
-  sf.ng = ng, sf.ns = ns, sf.cos_hit = cos_hit, sf.roughness = roughness;
+  sf.ns = ns, sf.roughness = roughness;
   return sf;
+}
+
+// The radiance cache's answer at a path's second vertex, ahead of the full shading: the
+// cell's mean where the shading below would stop the path there (a rough, non-emissive
+// surface, a bounce longer than the cell, a cell with enough samples), without the shading
+// normal and base colour texel that such a path never uses. The same cell, the same test.
+bool Renderer::Impl::cache_answer(const SurfaceHit& h, const Ray& ray, Vec3& lc) const {
+  Surface sf;
+  surface_geometry(h, ray, sf);
+  const Material& mat = *sf.mat;
+  if (luminance(mat.emission) > 0) return false;
+  float metallic;
+  const float roughness =
+      roughness_at(mat, uv_at(*instances[h.instance].mesh, h.prim, h.u, h.v), metallic);
+  if (!(std::max(roughness * roughness, min_alpha) >= cache_alpha_second)) return false;
+  const RadianceCache::Cell cell = radiance_cache.cell(sf.p, sf.ng);
+  return h.t >= cell.size && radiance_cache.lookup(cell.key, lc);
 }
 
 // ---- next-event estimation -------------------------------------------------------------------
@@ -396,6 +430,15 @@ void Renderer::Impl::render_tile(const CameraModel& cam, const CameraModel& prev
           out.roughness = 0;
         }
         continue;
+      }
+      // A path the radiance cache stops at its second vertex needs no more shading.
+      if (cache_records && depth == 1 && ps.rough && !ps.train && !ps.aov_pending &&
+          depth + 1 < s.max_depth) {
+        Vec3 lc;
+        if (cache_answer(h, ray, lc)) {
+          ps.radiance = ps.radiance + ps.throughput * lc;
+          continue;
+        }
       }
       // Surface interaction.
       const InstanceShade& is = instances[h.instance];
