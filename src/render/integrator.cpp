@@ -391,11 +391,18 @@ void Renderer::Impl::render_tile(const CameraModel& cam, const CameraModel& prev
     // they name, then texels (misses overlap instead of stalling one hit at a time).
     for (size_t k = 0; k < std::min(n, index_distance); ++k) prefetch_indices(hits[k]);
     for (size_t k = 0; k < std::min(n, vertex_distance); ++k) prefetch_vertices(hits[k]);
-    for (size_t k = 0; k < std::min(n, texel_distance); ++k) prefetch_texels(hits[k]);
+    // Texels only for paths that will shade (not those the radiance cache likely answers).
+    auto wants_texels = [&](size_t k) {
+      const PathState& q = paths[active[k]];
+      return !(cache_records && depth == 1 && q.rough && !q.train && !q.aov_pending);
+    };
+    for (size_t k = 0; k < std::min(n, texel_distance); ++k)
+      if (wants_texels(k)) prefetch_texels(hits[k]);
     for (size_t k = 0; k < n; ++k) {
       if (k + index_distance < n) prefetch_indices(hits[k + index_distance]);
       if (k + vertex_distance < n) prefetch_vertices(hits[k + vertex_distance]);
-      if (k + texel_distance < n) prefetch_texels(hits[k + texel_distance]);
+      if (k + texel_distance < n && wants_texels(k + texel_distance))
+        prefetch_texels(hits[k + texel_distance]);
       PathState& ps = paths[active[k]];
       Rng& rng = rngs[active[k]];
       PixelSample& out = px[ps.pixel];
