@@ -212,17 +212,24 @@ Renderer::Impl::Surface Renderer::Impl::surface_at(const SurfaceHit& h, const Ra
 // cell's mean where the shading below would stop the path there (a rough, non-emissive
 // surface, a bounce longer than the cell, a cell with enough samples), without the shading
 // normal and base colour texel that such a path never uses. The same cell, the same test.
-bool Renderer::Impl::cache_answer(const SurfaceHit& h, const Ray& ray, Vec3& lc) const {
-  Surface sf;
-  surface_geometry(h, ray, sf);
-  const Material& mat = *sf.mat;
+// `cell`: the hit's cell (cache_cell), found a few hits ahead so its slot is prefetched.
+bool Renderer::Impl::cache_answer(const SurfaceHit& h, const RadianceCache::Cell& cell,
+                                  Vec3& lc) const {
+  const TriangleMesh& mesh = *instances[h.instance].mesh;
+  const Material& mat = material_of(mesh, h.prim);
   if (luminance(mat.emission) > 0) return false;
   float metallic;
-  const float roughness =
-      roughness_at(mat, uv_at(*instances[h.instance].mesh, h.prim, h.u, h.v), metallic);
+  const float roughness = roughness_at(mat, uv_at(mesh, h.prim, h.u, h.v), metallic);
   if (!(std::max(roughness * roughness, min_alpha) >= cache_alpha_second)) return false;
-  const RadianceCache::Cell cell = radiance_cache.cell(sf.p, sf.ng);
   return h.t >= cell.size && radiance_cache.lookup(cell.key, lc);
+}
+
+RadianceCache::Cell Renderer::Impl::cache_cell(const SurfaceHit& h, const Ray& ray) const {
+  Surface sf;
+  surface_geometry(h, ray, sf);
+  const RadianceCache::Cell cell = radiance_cache.cell(sf.p, sf.ng);
+  radiance_cache.prefetch(cell.key);
+  return cell;
 }
 
 // ---- next-event estimation -------------------------------------------------------------------
@@ -338,6 +345,7 @@ void Renderer::Impl::render_tile(const CameraModel& cam, const CameraModel& prev
   std::vector<Ray> rays(count), next_rays;
   std::vector<SurfaceHit> hits(count);
   std::vector<uint32_t> active(count), next_active;
+  std::vector<RadianceCache::Cell> cells;  // of hits the radiance cache likely answers, else key 0
   std::vector<Ray> shadow_rays;
   std::vector<Shadow> shadows;
   std::vector<uint8_t> blocked;
@@ -391,18 +399,23 @@ void Renderer::Impl::render_tile(const CameraModel& cam, const CameraModel& prev
     // they name, then texels (misses overlap instead of stalling one hit at a time).
     for (size_t k = 0; k < std::min(n, index_distance); ++k) prefetch_indices(hits[k]);
     for (size_t k = 0; k < std::min(n, vertex_distance); ++k) prefetch_vertices(hits[k]);
-    // Texels only for paths that will shade (not those the radiance cache likely answers).
-    auto wants_texels = [&](size_t k) {
+    // Paths the radiance cache likely answers at their second vertex: their cell (its slot
+    // prefetched) instead of texels.
+    const bool cache_stops = cache_records && depth == 1 && depth + 1 < s.max_depth;
+    cells.resize(n);
+    auto ahead = [&](size_t k) {
       const PathState& q = paths[active[k]];
-      return !(cache_records && depth == 1 && q.rough && !q.train && !q.aov_pending);
+      cells[k].key = 0;
+      if (!(cache_stops && q.rough && !q.train && !q.aov_pending))
+        prefetch_texels(hits[k]);
+      else if (hits[k].hit())
+        cells[k] = cache_cell(hits[k], rays[k]);
     };
-    for (size_t k = 0; k < std::min(n, texel_distance); ++k)
-      if (wants_texels(k)) prefetch_texels(hits[k]);
+    for (size_t k = 0; k < std::min(n, texel_distance); ++k) ahead(k);
     for (size_t k = 0; k < n; ++k) {
       if (k + index_distance < n) prefetch_indices(hits[k + index_distance]);
       if (k + vertex_distance < n) prefetch_vertices(hits[k + vertex_distance]);
-      if (k + texel_distance < n && wants_texels(k + texel_distance))
-        prefetch_texels(hits[k + texel_distance]);
+      if (k + texel_distance < n) ahead(k + texel_distance);
       PathState& ps = paths[active[k]];
       Rng& rng = rngs[active[k]];
       PixelSample& out = px[ps.pixel];
@@ -439,10 +452,9 @@ void Renderer::Impl::render_tile(const CameraModel& cam, const CameraModel& prev
         continue;
       }
       // A path the radiance cache stops at its second vertex needs no more shading.
-      if (cache_records && depth == 1 && ps.rough && !ps.train && !ps.aov_pending &&
-          depth + 1 < s.max_depth) {
+      if (cells[k].key != 0) {
         Vec3 lc;
-        if (cache_answer(h, ray, lc)) {
+        if (cache_answer(h, cells[k], lc)) {
           ps.radiance = ps.radiance + ps.throughput * lc;
           continue;
         }

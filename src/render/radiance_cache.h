@@ -46,6 +46,10 @@ class RadianceCache {
   Cell cell(Vec3 p, Vec3 ng) const;
   /// The cell's mean, when it has at least min_samples.
   bool lookup(uint64_t key, Vec3& radiance) const;
+  /// Starts loading the slot where lookup(key) begins.
+  void prefetch(uint64_t key) const {
+    if (!cells_.empty()) __builtin_prefetch(&cells_[key & (capacity - 1)]);
+  }
   /// Adds a pass's samples (call in a fixed order), then end_pass() blends them in.
   void add(std::span<const CacheRecord> records);
   void end_pass();

@@ -335,7 +335,8 @@ struct Renderer::Impl {
   // surface_at's first part: p, p_obj, wo, ng (facing wo), cos_hit, the material.
   void surface_geometry(const SurfaceHit& h, const Ray& ray, Surface& sf) const;
   float roughness_at(const Material& mat, Vec2 uv, float& metallic) const;
-  bool cache_answer(const SurfaceHit& h, const Ray& ray, Vec3& lc) const;
+  bool cache_answer(const SurfaceHit& h, const RadianceCache::Cell& cell, Vec3& lc) const;
+  RadianceCache::Cell cache_cell(const SurfaceHit& h, const Ray& ray) const;
   bool sample_light(const Surface& sf, const Basis& frame, Vec3 wo_l, Vec3 origin, Vec3 throughput,
                     Rng& rng, bool tree, Ray& shadow, Vec3& contribution) const;
   // A punctual light seen from origin: direction, the ray's vector and end, radiance x falloff.
