@@ -30,10 +30,12 @@ SZ_MIN = 3) and a mix weight beta, and a firefly allowance kappa.
        largest of the 8 neighbours' r (per channel; neighbours outside the image count as 0,
        so a firefly on the border is not its own neighbour, and a pair does not shield
        itself), mu = the mean r of a 12x12 window (3x3 box over quarter-res cells of 4x4
-       block means), mo = max(mu - r / 144, 0) that mean without r's own share: a firefly
-       does not raise its own allowance (since 2026-12-04, a fixed rule added after the
-       weights were trained: a 2-spp sample 3e4 times its neighbours had made mu ~200x their
-       level); kappa -> 0 is a full neighbourhood clamp, kappa large leaves r alone;
+       block means), mo = max(mu - r s, 0) that mean without r's own share s (own_share: 1/144
+       inside; more on the border, where the box counts edge cells twice and the padding
+       holds copies of the edge pixels): a
+       firefly does not raise its own allowance (since 2026-12-04, a fixed rule added after
+       the weights were trained: a 2-spp sample 3e4 times its neighbours had made mu ~200x
+       their level); kappa -> 0 is a full neighbourhood clamp, kappa large leaves r alone;
        where the history is valid nothing up to 4x it is cut (ordinary noise of a static
        scene passes, so its mean converges; a firefly 100x the history is cut to 4x).
        Cut before it enters the history: a firefly in the state would be smeared over 2x2
@@ -125,8 +127,38 @@ def shift0(t, dy, dx):
     return tp[..., 1 + dy:1 + dy + h, 1 + dx:1 + dx + w]
 
 
+def own_counts(n, inside):
+    """Per position along one axis of n (the image's `inside` first ones, the rest their last
+    one replicated by pad8): how many times the value there counts in its 12x12 window mean,
+    in units of 1/12 of the window's extent. The window is a 3-cell box (edge cells
+    replicated) over 4-pixel cells, so a value counts once per window cell holding one of its
+    copies: 1 inside, 2 in a cell on the grid's edge (its replicated neighbour), more where
+    pad8 copied an edge pixel into the padding."""
+    cells = n // 4
+    counts = []
+    for x in range(n):
+        c = x // 4
+        window = [min(max(c - 1, 0), cells - 1), c, min(max(c + 1, 0), cells - 1)]
+        copies = [x] if x < inside - 1 else range(inside - 1, n)
+        counts.append(float(sum(window.count(q // 4) for q in copies)))
+    return counts
+
+
+def own_share(mu, size=None):
+    """The weight of each pixel's own value in the 12x12 window mean mu (.., H, W), its copies
+    in the padding included: 1/144 inside the image; more in the cells on the grid's edge and
+    next to the padding (since 2026-12-04: fireflies on the image's border had kept their
+    own allowance). size: (h, w) of the image inside the padding (None: all)."""
+    H, W = mu.shape[-2], mu.shape[-1]
+    h, w = size if size is not None else (H, W)
+    oy = torch.tensor(own_counts(H, h), dtype=mu.dtype, device=mu.device)
+    ox = torch.tensor(own_counts(W, w), dtype=mu.dtype, device=mu.device)
+    return (oy[:, None] * ox[None, :]) * (1.0 / 144.0)
+
+
 def firefly_clamp(r, kappa, size=None, history=None):
-    """min(r, max(m + kappa * max(mu - r / 144, 0), HISTORY_ALLOWANCE * history)): m the second largest of the 8 neighbours inside the image (size
+    """min(r, max(m + kappa * max(mu - r s, 0), HISTORY_ALLOWANCE * history)) (s = own_share,
+    1/144 away from the border): m the second largest of the 8 neighbours inside the image (size
     = (h, w) of the image inside the padding, None: all; outside neighbours count as 0, so a
     firefly on the border is not its own neighbour; the second largest, so a pair of
     fireflies does not shield itself), mu the 12x12 window mean (3x3 box over quarter-res 4x4
@@ -148,7 +180,7 @@ def firefly_clamp(r, kappa, size=None, history=None):
     mu = F.avg_pool2d(r, 4)
     mu = F.avg_pool2d(F.pad(mu, (1, 1, 1, 1), mode="replicate"), 3, stride=1)
     mu = F.interpolate(mu, scale_factor=4, mode="nearest")
-    bound = top2 + kappa * (mu - r * (1.0 / 144.0)).clamp(min=0)  # mu without r's own share
+    bound = top2 + kappa * (mu - r * own_share(mu, size)).clamp(min=0)  # mu without r's own share
     if history is not None:
         bound = torch.maximum(bound, HISTORY_ALLOWANCE * history)
     return torch.minimum(r, bound)

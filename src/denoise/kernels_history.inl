@@ -69,11 +69,12 @@ static inline void add_neighbour(float& top1, float& top2, float q) {
   top1 = top1 > q ? top1 : q;
 }
 
-// r cut to max(m + kappa max(mu - r / 144, 0), 4 yw valid): m the second largest neighbour, mu
-// the 12x12 window's mean (r's own share taken out: a firefly does not raise its own
+// r cut to max(m + kappa max(mu - r s, 0), 4 yw valid): m the second largest neighbour, mu
+// the 12x12 window's mean, s r's own share of it (taken out: a firefly does not raise its own
 // allowance), yw the history.
-static inline float firefly_cut(float r, float m, float kappa, float mu, float yw, float valid) {
-  const float others = mu - r * (1.0f / 144.0f);
+static inline float firefly_cut(float r, float m, float kappa, float mu, float s, float yw,
+                                float valid) {
+  const float others = mu - r * s;
   const float t = m + kappa * (others > 0.0f ? others : 0.0f);
   const float hist = kHistoryAllowance * (yw * valid);
   const float bound = t > hist ? t : hist;
@@ -84,8 +85,9 @@ static inline float firefly_cut(float r, float m, float kappa, float mu, float y
 // a, b, d the rows above, at and below; restrict-qualified so that it vectorises.
 static void firefly_row(int i0, int i1, const float* __restrict a, const float* __restrict b,
                         const float* __restrict d, const float* __restrict kappa,
-                        const float* __restrict mu, const float* __restrict yw,
-                        const float* __restrict valid, float* __restrict out) {
+                        const float* __restrict mu, const float* __restrict share,
+                        const float* __restrict yw, const float* __restrict valid,
+                        float* __restrict out) {
   for (int i = i0; i < i1; ++i) {
     float top1 = 0.0f, top2 = 0.0f;
     add_neighbour(top1, top2, a[i - 1]);
@@ -96,13 +98,31 @@ static void firefly_row(int i0, int i1, const float* __restrict a, const float* 
     add_neighbour(top1, top2, d[i - 1]);
     add_neighbour(top1, top2, d[i]);
     add_neighbour(top1, top2, d[i + 1]);
-    out[i] = firefly_cut(b[i], top2, kappa[i], mu[i], yw[i], valid[i]);
+    out[i] = firefly_cut(b[i], top2, kappa[i], mu[i], share[i], yw[i], valid[i]);
   }
 }
 
+// model.own_counts: along an axis of n positions (the first `inside` the image's, the rest
+// copies of its last one), how many times each position's value counts in its window mean
+// (a 3-cell box, edge cells replicated, over 4-pixel cells), its copies included.
+static std::vector<float> own_counts(int n, int inside) {
+  const int cells = n / 4;
+  std::vector<float> counts(static_cast<size_t>(n));
+  for (int x = 0; x < n; ++x) {
+    const int c = x / 4;
+    const int window[3] = {std::clamp(c - 1, 0, cells - 1), c, std::clamp(c + 1, 0, cells - 1)};
+    const int q0 = x < inside - 1 ? x : inside - 1, q1 = x < inside - 1 ? x + 1 : n;
+    int k = 0;
+    for (int q = q0; q < q1; ++q)
+      for (int j : window) k += j == q / 4 ? 1 : 0;
+    counts[size_t(x)] = float(k);
+  }
+  return counts;
+}
+
 // model.py's firefly_clamp on this frame's irradiance (ws.xlin) into ws.xo:
-// min(r, max(m + kappa max(mu - r / 144, 0), 4 yw valid)), m the second largest of the 8
-// neighbours inside the image_w x image_h image (outside ones count as 0: a firefly on the
+// min(r, max(m + kappa max(mu - r s, 0), 4 yw valid)) (s: own_counts / 144), m the second largest
+// of the 8 neighbours inside the image_w x image_h image (outside ones count as 0: a firefly on the
 // border is not its own neighbour), mu the 3x3 box (edge replicated) over quarter-res cells of
 // 4x4 block means, kappa the activation map 17 upsampled as alpha is (ws.hrows).
 static void firefly_clamp(Workspace& ws, int W, int H, int image_w, int image_h) {
@@ -136,8 +156,10 @@ static void firefly_clamp(Workspace& ws, int W, int H, int image_w, int image_h)
         }
   });
   const size_t hplane = size_t(Hq) * size_t(W);
+  const std::vector<float> ox = own_counts(W, image_w), oy = own_counts(H, image_h);
   parallel_rows(H, 8, [&](int r0, int r1) {
-    std::vector<float> kappa(static_cast<size_t>(W)), mu_row(static_cast<size_t>(W));
+    std::vector<float> kappa(static_cast<size_t>(W)), mu_row(static_cast<size_t>(W)),
+        share(static_cast<size_t>(W));
     for (int y = r0; y < r1; ++y) {
       const UpTap ty = up_tap(y, Hq, 0.25f);
       const float* top =
@@ -149,6 +171,7 @@ static void firefly_clamp(Workspace& ws, int W, int H, int image_w, int image_h)
       // at the image's edges and beyond it take the checked path, the rest the plain one.
       const size_t row = size_t(y) * size_t(W);
       const bool inner_row = y >= 1 && y + 1 < image_h;
+      for (int i = 0; i < W; ++i) share[size_t(i)] = ox[size_t(i)] * oy[size_t(y)] / 144.0f;
       for (int c = 0; c < 3; ++c) {
         const float* b = r.ch(c) + row;
         const float *a = b - (y >= 1 ? W : 0), *d = b + (y + 1 < H ? W : 0);
@@ -166,13 +189,14 @@ static void firefly_clamp(Workspace& ws, int W, int H, int image_w, int image_h)
               add_neighbour(top1, top2,
                             inside ? r.ch(c)[size_t(yy) * size_t(W) + size_t(xx)] : 0.0f);
             }
-          out[i] = firefly_cut(b[i], top2, kappa[size_t(i)], mu[i / 4], yw[i], valid[i]);
+          out[i] = firefly_cut(b[i], top2, kappa[size_t(i)], mu[i / 4], share[size_t(i)], yw[i],
+                               valid[i]);
         };
         const int i1 = inner_row ? std::min(image_w - 1, W) : 0;
         if (i1 > 0) checked(0);
         if (i1 > 1) {
           for (int i = 1; i < i1; ++i) mu_row[size_t(i)] = mu[i / 4];
-          firefly_row(1, i1, a, b, d, kappa.data(), mu_row.data(), yw, valid, out);
+          firefly_row(1, i1, a, b, d, kappa.data(), mu_row.data(), share.data(), yw, valid, out);
         }
         for (int i = i1 > 0 ? i1 : 0; i < W; ++i) checked(i);
       }
