@@ -180,7 +180,9 @@ def firefly_clamp(r, kappa, size=None, history=None):
     mu = F.avg_pool2d(r, 4)
     mu = F.avg_pool2d(F.pad(mu, (1, 1, 1, 1), mode="replicate"), 3, stride=1)
     mu = F.interpolate(mu, scale_factor=4, mode="nearest")
-    bound = top2 + kappa * (mu - r * own_share(mu, size)).clamp(min=0)  # mu without r's own share
+    # mu without r's own share, nor its brightest neighbour's (at r's weight): a pair of
+    # adjacent fireflies does not raise each other's allowance
+    bound = top2 + kappa * (mu - (r + top1) * own_share(mu, size)).clamp(min=0)
     if history is not None:
         bound = torch.maximum(bound, HISTORY_ALLOWANCE * history)
     return torch.minimum(r, bound)

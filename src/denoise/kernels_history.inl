@@ -69,12 +69,13 @@ static inline void add_neighbour(float& top1, float& top2, float q) {
   top1 = top1 > q ? top1 : q;
 }
 
-// r cut to max(m + kappa max(mu - r s, 0), 4 yw valid): m the second largest neighbour, mu
-// the 12x12 window's mean, s r's own share of it (taken out: a firefly does not raise its own
-// allowance), yw the history.
-static inline float firefly_cut(float r, float m, float kappa, float mu, float s, float yw,
-                                float valid) {
-  const float others = mu - r * s;
+// r cut to max(m + kappa max(mu - (r + m1) s, 0), 4 yw valid): m1, m the largest and second
+// largest neighbour, mu the 12x12 window's mean, s r's own share of it (r's share and its
+// brightest neighbour's at the same weight taken out: a firefly does not raise its own
+// allowance, nor do two adjacent ones each other's), yw the history.
+static inline float firefly_cut(float r, float m1, float m, float kappa, float mu, float s,
+                                float yw, float valid) {
+  const float others = mu - (r + m1) * s;
   const float t = m + kappa * (others > 0.0f ? others : 0.0f);
   const float hist = kHistoryAllowance * (yw * valid);
   const float bound = t > hist ? t : hist;
@@ -98,7 +99,7 @@ static void firefly_row(int i0, int i1, const float* __restrict a, const float* 
     add_neighbour(top1, top2, d[i - 1]);
     add_neighbour(top1, top2, d[i]);
     add_neighbour(top1, top2, d[i + 1]);
-    out[i] = firefly_cut(b[i], top2, kappa[i], mu[i], share[i], yw[i], valid[i]);
+    out[i] = firefly_cut(b[i], top1, top2, kappa[i], mu[i], share[i], yw[i], valid[i]);
   }
 }
 
@@ -189,8 +190,8 @@ static void firefly_clamp(Workspace& ws, int W, int H, int image_w, int image_h)
               add_neighbour(top1, top2,
                             inside ? r.ch(c)[size_t(yy) * size_t(W) + size_t(xx)] : 0.0f);
             }
-          out[i] = firefly_cut(b[i], top2, kappa[size_t(i)], mu[i / 4], share[size_t(i)], yw[i],
-                               valid[i]);
+          out[i] = firefly_cut(b[i], top1, top2, kappa[size_t(i)], mu[i / 4], share[size_t(i)],
+                               yw[i], valid[i]);
         };
         const int i1 = inner_row ? std::min(image_w - 1, W) : 0;
         if (i1 > 0) checked(0);
