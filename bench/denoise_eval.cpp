@@ -14,6 +14,7 @@
 #include <filesystem>
 #include <fstream>
 #include <map>
+#include <set>
 #include <sstream>
 #include <string>
 #include <thread>
@@ -172,6 +173,7 @@ int main(int argc, char** argv) {
     std::map<std::string, std::map<std::string, Scores>> by_family;  // family -> method (1 spp)
     std::string per_clip;
     const std::vector<int> spps = quick ? std::vector<int>{1} : std::vector<int>{1, 2, 4};
+    std::set<std::string> cropped;  // families whose crops are written
     for (const std::string& clip : clips) {
       const fs::path root = fs::path(dataset) / clip;
       int frames = 0;
@@ -234,7 +236,7 @@ int main(int argc, char** argv) {
           if (spp == 1) add(by_family[family_of(clip)][m.name]);
           last.push_back(out);
         }
-        if (spp == 1) {
+        if (spp == 1 && cropped.insert(family_of(clip)).second) {  // a family's first clip
           std::vector<const FloatImage*> imgs;
           for (const FloatImage& f : last) imgs.push_back(&f);
           imgs.push_back(&refs.back());
@@ -339,10 +341,10 @@ int main(int argc, char** argv) {
         "\nPer clip:\n\n| clip | spp | method | PSNR₀ dB | PSNR dB | SSIM | relMSE | tErr | "
         "max/ref |\n|---|---:|---|---:|---:|---:|---:|---:|---:|\n" +
         per_clip;
-    md +=
-        "\nCrops (last frame, 1 spp; left to right: input, a-trous, SVGF-like, neural frame by "
-        "frame, neural, rae (unless --no-rae), reference): "
-        "`<clip>_crops.png`.\n";
+    std::string panels;
+    for (const Method& m : methods) panels += m.name + "; ";
+    md += "\nCrops (last frame, 1 spp; left to right: " + panels +
+          "reference): `<clip>_crops.png` (the first clip of each family).\n";
     std::ofstream(fs::path(out_dir) / "eval.md") << md;
     std::ofstream(fs::path(out_dir) / "eval.json") << json;
     fmt::print("wrote {}/eval.md, eval.json and crops\n", out_dir);
