@@ -68,12 +68,15 @@ void demodulate(const Planes& g, Planes& x, Planes& demod, float* black_out, uin
 
 void remodulate(const Planes& x, const Planes& demod, Planes& out) {
   ensure(out, x.width, x.height, 3);
-  const size_t n = size_t(x.width) * size_t(x.height);
-  for (int c = 0; c < 3; ++c) {
-    const float *xc = x.ch(c), *dc = demod.ch(c);
-    float* oc = out.ch(c);
-    for (size_t i = 0; i < n; ++i) oc[i] = std::max(xc[i], 0.0f) * dc[i];
-  }
+  const size_t W = size_t(x.width);
+  rows(x.height, [&](int r0, int r1) {
+    for (int c = 0; c < 3; ++c) {
+      const float *xc = x.ch(c), *dc = demod.ch(c);
+      float* oc = out.ch(c);
+      for (size_t i = size_t(r0) * W; i < size_t(r1) * W; ++i)
+        oc[i] = std::max(xc[i], 0.0f) * dc[i];
+    }
+  });
 }
 
 void svgf_temporal(const Planes& g, const Planes& x, const Planes& history, Planes& acc, float* m1,
@@ -228,9 +231,13 @@ const Planes& Svgf::run(const Planes& g, SvgfTimes* times) {
     in = &out;
   }
   lap(&SvgfTimes::passes);
-  std::memcpy(next_.ch(6), g.ch(9), sizeof(float) * N);
-  for (int c = 0; c < 3; ++c) std::memcpy(next_.ch(7 + c), g.ch(6 + c), sizeof(float) * N);
-  std::memcpy(next_.ch(10), black, sizeof(float) * N);
+  // The next history's depth, normals and black flags, by rows on every thread.
+  rows(H, [&](int r0, int r1) {
+    const size_t b = size_t(r0) * size_t(W), n = sizeof(float) * size_t(r1 - r0) * size_t(W);
+    std::memcpy(next_.ch(6) + b, g.ch(9) + b, n);
+    for (int c = 0; c < 3; ++c) std::memcpy(next_.ch(7 + c) + b, g.ch(6 + c) + b, n);
+    std::memcpy(next_.ch(10) + b, black + b, n);
+  });
   std::swap(history_, next_);
   remodulate(*in, demod_, out_);
   lap(&SvgfTimes::output);
