@@ -135,8 +135,8 @@ void Renderer::Impl::prefetch_texels(const SurfaceHit& h) const {
 
 // ---- the surface at a hit --------------------------------------------------------------------
 
-// World position (and object-space position, for motion vectors), geometric and shading
-// normals facing the ray, texture coordinates, and the material's BSDF parameters there.
+// surface_at's first part: the world position (and the object-space one, for motion
+// vectors), the geometric normal facing the ray, the material.
 void Renderer::Impl::surface_geometry(const SurfaceHit& h, const Ray& ray, Surface& sf) const {
   const InstanceShade& is = instances[h.instance];
   const TriangleMesh& mesh = *is.mesh;
@@ -171,6 +171,8 @@ float Renderer::Impl::roughness_at(const Material& mat, Vec2 uv, float& metallic
   return std::clamp(roughness, 0.0f, 1.0f);
 }
 
+// World position (and object-space position, for motion vectors), geometric and shading
+// normals facing the ray, texture coordinates, and the material's BSDF parameters there.
 Renderer::Impl::Surface Renderer::Impl::surface_at(const SurfaceHit& h, const Ray& ray) const {
   Surface sf;
   surface_geometry(h, ray, sf);
