@@ -30,9 +30,10 @@ SZ_MIN = 3) and a mix weight beta, and a firefly allowance kappa.
        largest of the 8 neighbours' r (per channel; neighbours outside the image count as 0,
        so a firefly on the border is not its own neighbour, and a pair does not shield
        itself), mu = the mean r of a 12x12 window (3x3 box over quarter-res cells of 4x4
-       block means), mo = max(mu - r s, 0) that mean without r's own share s (own_share: 1/144
-       inside; more on the border, where the box counts edge cells twice and the padding
-       holds copies of the edge pixels): a
+       block means), mo = max(mu - (r + m1) s, 0) that mean without r's own share s
+       (own_share: 1/144 inside; more on the border, where the box counts edge cells twice
+       and the padding holds copies of the edge pixels) nor, at the same weight, its largest
+       neighbour m1's (two adjacent fireflies do not raise each other's allowance): a
        firefly does not raise its own allowance (since 2026-12-04, a fixed rule added after
        the weights were trained: a 2-spp sample 3e4 times its neighbours had made mu ~200x
        their level); kappa -> 0 is a full neighbourhood clamp, kappa large leaves r alone;
@@ -129,8 +130,8 @@ def shift0(t, dy, dx):
 
 def own_counts(n, inside):
     """Per position along one axis of n (the image's `inside` first ones, the rest their last
-    one replicated by pad8): how many times the value there counts in its 12x12 window mean,
-    in units of 1/12 of the window's extent. The window is a 3-cell box (edge cells
+    one replicated by pad8): how many times the value there counts along that axis of its
+    12x12 window mean (a pixel's share is the product of its two axes' counts / 144). The window is a 3-cell box (edge cells
     replicated) over 4-pixel cells, so a value counts once per window cell holding one of its
     copies: 1 inside, 2 in a cell on the grid's edge (its replicated neighbour), more where
     pad8 copied an edge pixel into the padding."""
@@ -157,8 +158,8 @@ def own_share(mu, size=None):
 
 
 def firefly_clamp(r, kappa, size=None, history=None):
-    """min(r, max(m + kappa * max(mu - r s, 0), HISTORY_ALLOWANCE * history)) (s = own_share,
-    1/144 away from the border): m the second largest of the 8 neighbours inside the image (size
+    """min(r, max(m + kappa * max(mu - (r + m1) s, 0), HISTORY_ALLOWANCE * history)) (s =
+    own_share, 1/144 away from the border; m1 the largest neighbour): m the second largest of the 8 neighbours inside the image (size
     = (h, w) of the image inside the padding, None: all; outside neighbours count as 0, so a
     firefly on the border is not its own neighbour; the second largest, so a pair of
     fireflies does not shield itself), mu the 12x12 window mean (3x3 box over quarter-res 4x4

@@ -122,10 +122,11 @@ static std::vector<float> own_counts(int n, int inside) {
 }
 
 // model.py's firefly_clamp on this frame's irradiance (ws.xlin) into ws.xo:
-// min(r, max(m + kappa max(mu - r s, 0), 4 yw valid)) (s: own_counts / 144), m the second largest
-// of the 8 neighbours inside the image_w x image_h image (outside ones count as 0: a firefly on the
-// border is not its own neighbour), mu the 3x3 box (edge replicated) over quarter-res cells of
-// 4x4 block means, kappa the activation map 17 upsampled as alpha is (ws.hrows).
+// min(r, max(m + kappa max(mu - (r + m1) s, 0), 4 yw valid)) (s: own_counts / 144), m1 and m the
+// largest and second largest of the 8 neighbours inside the image_w x image_h image (outside ones
+// count as 0: a firefly on the border is not its own neighbour), mu the 3x3 box (edge replicated)
+// over quarter-res cells of 4x4 block means, kappa the activation map 17 upsampled as alpha is
+// (ws.hrows).
 static void firefly_clamp(Workspace& ws, int W, int H, int image_w, int image_h) {
   const int Wq = W / 4, Hq = H / 4;
   const size_t Nq = size_t(Wq) * size_t(Hq);

@@ -171,7 +171,6 @@ const Planes& Svgf::run(const Planes& g, SvgfTimes* times) {
     last = now;
   };
   const int W = g.width, H = g.height;
-  const size_t N = size_t(W) * size_t(H);
   ensure(next_, W, H, 11);
   ensure(tmp_, W, H, 3);
   ensure(aux_, W, H, 7);  // planes, not separate vectors: see Planes on cache sets
