@@ -40,6 +40,7 @@ namespace {
 // clang-format off
 #include "traverse/wide_tests.inl"
 #include "traverse/wide_traversal.inl"
+#include "traverse/wide_packet_lanes.inl"
 #include "traverse/wide_packets.inl"
 // clang-format on
 

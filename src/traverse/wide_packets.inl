@@ -1,5 +1,5 @@
-// Packets: up to 8 rays walking one traversal order (any ISA), and lane packets of 8 / 16
-// rays in vector lanes (AVX2 / AVX-512) for coherent batches, closest and any hit.
+// Packets: up to 8 rays walking one traversal order (any ISA), and the dispatch of batches to
+// the lane packets (wide_packet_lanes.inl) where the ISA has them.
 // Part of wide_kernels.inl: included inside namespace kestrel::kernels::KESTREL_ISA_NS (an
 // anonymous namespace within it), once per instruction set.
 // Packets of up to 8 rays (closest hit). The packet walks one traversal order and fetches
@@ -138,234 +138,52 @@ done:
   }
 }
 
-#ifdef __AVX2__
-// Coherent packets, L rays (8, or 16 with AVX-512) in the lanes of every vector: each child box of
-// a node is tested against all rays at once and each triangle of a leaf against all rays at once,
-// so the control flow (which children, in which order, which leaves) is decided once per packet.
-// Needs rays that agree on their direction signs (near planes) and on the watertight test's
-// axis permutation (kx, ky, kz); the caller falls back otherwise. Every per-ray operation is
-// the single-ray kernel's, lane by lane, so the hits are identical.
-template <class V, class M>
-inline V select_lanes(M m, V a, V b) {
-  return m != M{} ? a : b;
-}
-
-// Horizontal minimum, broadcast to every lane.
-inline vf8 hmin_lanes(vf8 d) {
-  d = vmin(d, __builtin_shufflevector(d, d, 4, 5, 6, 7, 0, 1, 2, 3));
-  d = vmin(d, __builtin_shufflevector(d, d, 2, 3, 0, 1, 6, 7, 4, 5));
-  return vmin(d, __builtin_shufflevector(d, d, 1, 0, 3, 2, 5, 4, 7, 6));
-}
-inline vf16 hmin_lanes(vf16 d) {
-  d = vmin(d, __builtin_shufflevector(d, d, 8, 9, 10, 11, 12, 13, 14, 15, 0, 1, 2, 3, 4, 5, 6, 7));
-  d = vmin(d, __builtin_shufflevector(d, d, 4, 5, 6, 7, 0, 1, 2, 3, 12, 13, 14, 15, 8, 9, 10, 11));
-  d = vmin(d, __builtin_shufflevector(d, d, 2, 3, 0, 1, 6, 7, 4, 5, 10, 11, 8, 9, 14, 15, 12, 13));
-  return vmin(d,
-              __builtin_shufflevector(d, d, 1, 0, 3, 2, 5, 4, 7, 6, 9, 8, 11, 10, 13, 12, 15, 14));
-}
-
-// AnyHit: occlusion; a lane leaves the packet at its first hit (t < tmax), children are not
-// sorted, and the packet ends when every lane is done.
-template <int L, bool AnyHit>
-bool trace_packet_lanes(const Bvh8Node* nodes, const TriangleBlock* blocks, const Ray* rays,
-                        Hit* hits, unsigned n) {
-  using S = Simd<L>;
-  using VF = typename S::F;
-  using VI = typename S::I;
-  const auto bcast = [](float x) { return S::splat(x); };
-  TriRay tr[L];
-  for (unsigned r = 0; r < n; ++r) {
-    tr[r].init(rays[r]);
-    if (tr[r].kx != tr[0].kx || tr[r].ky != tr[0].ky || tr[r].kz != tr[0].kz) return false;
-    if (__builtin_signbit(rays[r].dir.x) != __builtin_signbit(rays[0].dir.x) ||
-        __builtin_signbit(rays[r].dir.y) != __builtin_signbit(rays[0].dir.y) ||
-        __builtin_signbit(rays[r].dir.z) != __builtin_signbit(rays[0].dir.z))
-      return false;
-  }
-  alignas(64) float o[3][L], inv[3][L], inv_far[3][L], tmin_a[L], tmax_a[L], sx_a[L], sy_a[L],
-      okx_a[L], oky_a[L], okz_a[L], dkx_a[L], dky_a[L], dkz_a[L];
-  const int kx = tr[0].kx, ky = tr[0].ky, kz = tr[0].kz;
-  for (unsigned l = 0; l < unsigned(L); ++l) {
-    const unsigned r = l < n ? l : n - 1;  // idle lanes repeat the last ray, masked out
-    const float d[3] = {rays[r].dir.x, rays[r].dir.y, rays[r].dir.z};
-    const float org[3] = {rays[r].org.x, rays[r].org.y, rays[r].org.z};
-    for (int a = 0; a < 3; ++a) {
-      o[a][l] = org[a];
-      inv[a][l] = 1.0f / d[a];
-      inv_far[a][l] = far_scale(1.0f / d[a]);
-    }
-    tmin_a[l] = rays[r].tmin;
-    tmax_a[l] = rays[r].tmax;
-    sx_a[l] = tr[r].sx, sy_a[l] = tr[r].sy;
-    okx_a[l] = org[kx], oky_a[l] = org[ky], okz_a[l] = org[kz];
-    dkx_a[l] = d[kx], dky_a[l] = d[ky], dkz_a[l] = d[kz];
-  }
-  const VF ox = S::load(o[0]), oy = S::load(o[1]), oz = S::load(o[2]);
-  const VF ix = S::load(inv[0]), iy = S::load(inv[1]), iz = S::load(inv[2]);
-  const VF fx = S::load(inv_far[0]), fy = S::load(inv_far[1]), fz = S::load(inv_far[2]);
-  const VF tmin = S::load(tmin_a), sx = S::load(sx_a), sy = S::load(sy_a);
-  const VF okx = S::load(okx_a), oky = S::load(oky_a), okz = S::load(okz_a);
-  const VF dkx = S::load(dkx_a), dky = S::load(dky_a), dkz = S::load(dkz_a);
-  const VF inf = bcast(__builtin_inff()), zero = {};
-  VI lane_index;
-  for (int l = 0; l < L; ++l) lane_index[l] = l;
-  VF best_t = S::load(tmax_a), best_v = zero, best_w = zero, best_det = bcast(1.0f);
-  VI best_id = VI{} - 1;  // invalid_id in every lane
-  const VF scale = bcast(0x1p-12f);
-  auto cull_of = [&](VF t) { return t + (t < zero ? -t : t) * scale; };
-  VF cull =
-      AnyHit ? best_t : cull_of(best_t);  // any hit: the ray's own tmax, as the single-ray kernel
-  unsigned done = 0;                      // any hit: lanes that found their hit
-  const int nrx = __builtin_signbit(rays[0].dir.x) ? 1 : 0,
-            nry = 2 + (__builtin_signbit(rays[0].dir.y) ? 1 : 0),
-            nrz = 4 + (__builtin_signbit(rays[0].dir.z) ? 1 : 0);
-  struct Entry {
-    uint32_t ref, rays;
-    float dist;
-  };
-  Entry stack[stack_size<8>];
-  Entry* sp = stack;
-  uint32_t cur = 0;
-  unsigned cur_rays = (1u << n) - 1;
-  while (true) {
-    if (!(cur & wide_leaf_bit)) {
-      const Bvh8Node& node = nodes[cur];
-      cur_rays &= ~done;
-      const VI active = ((VI{} + int(cur_rays)) >> lane_index & 1) != 0;
-      Entry* base = sp;
-      for (int j = 0; j < 8; ++j) {
-        if (node.child[j] == wide_empty) continue;
-        const VF nx = (bcast(node.bounds[nrx][j]) - ox) * ix,
-                 ny = (bcast(node.bounds[nry][j]) - oy) * iy,
-                 nz = (bcast(node.bounds[nrz][j]) - oz) * iz;
-        const VF gx = (bcast(node.bounds[nrx ^ 1][j]) - ox) * fx,
-                 gy = (bcast(node.bounds[nry ^ 1][j]) - oy) * fy,
-                 gz = (bcast(node.bounds[nrz ^ 1][j]) - oz) * fz;
-        const VF tn = vmax(nz, vmax(ny, vmax(nx, tmin)));
-        const VF tf = vmin(gz, vmin(gy, vmin(gx, cull)));
-        const VI hit = (tn <= tf) & active;
-        const unsigned m = S::mask(hit);
-        if (!m) continue;
-        if constexpr (AnyHit) {
-          *sp++ = {node.child[j], m, 0.0f};
-          continue;
-        }
-        const VF d = hmin_lanes(select_lanes(hit, tn, inf));
-        const Entry e{node.child[j], m, d[0]};
-        Entry* k = sp++;  // farthest first: the nearest ends on top
-        for (; k > base && k[-1].dist < e.dist; --k) *k = k[-1];
-        *k = e;
-      }
-      if (sp == base) goto pop;
-      --sp;
-      cur = sp->ref;
-      cur_rays = sp->rays;
-      continue;
-    }
-    {
-      cur_rays &= ~done;
-      const VI active = ((VI{} + int(cur_rays)) >> lane_index & 1) != 0;
-      for (const TriangleBlock* blk = blocks + (cur & ~wide_leaf_bit);; ++blk) {
-        for (int i = 0; i < 4; ++i) {
-          const VF akz = bcast(blk->v[0][kz][i]) - okz, bkz = bcast(blk->v[1][kz][i]) - okz,
-                   ckz = bcast(blk->v[2][kz][i]) - okz;
-          const VF akx = bcast(blk->v[0][kx][i]) - okx, aky = bcast(blk->v[0][ky][i]) - oky;
-          const VF bkx = bcast(blk->v[1][kx][i]) - okx, bky = bcast(blk->v[1][ky][i]) - oky;
-          const VF ckx = bcast(blk->v[2][kx][i]) - okx, cky = bcast(blk->v[2][ky][i]) - oky;
-          const VF ax = akx - sx * akz, ay = aky - sy * akz;
-          const VF bx = bkx - sx * bkz, by = bky - sy * bkz;
-          const VF cx = ckx - sx * ckz, cy = cky - sy * ckz;
-          VF u = cx * by - cy * bx, v = ax * cy - ay * cx, w = bx * ay - by * ax;
-          VF det = u + v + w;
-          VI ok;
-          const unsigned slow = S::mask((u == zero) | (v == zero) | (w == zero) | (det != det));
-          if (__builtin_expect(slow == 0, 1)) {
-            const VI ui = reinterpret_cast<VI>(u), vi = reinterpret_cast<VI>(v),
-                     wi = reinterpret_cast<VI>(w);
-            ok = ((ui ^ vi) | (ui ^ wi)) >= VI{};
-          } else {
-            unsigned retry = S::mask((u == zero) | (v == zero) | (w == zero));
-            while (retry) {
-              const unsigned l = ctz(retry);
-              retry &= retry - 1;
-              u[l] = float(double(cx[l]) * by[l] - double(cy[l]) * bx[l]);
-              v[l] = float(double(ax[l]) * cy[l] - double(ay[l]) * cx[l]);
-              w[l] = float(double(bx[l]) * ay[l] - double(by[l]) * ax[l]);
-            }
-            const VI neg = (u < zero) | (v < zero) | (w < zero);
-            const VI pos = (u > zero) | (v > zero) | (w > zero);
-            ok = ~(neg & pos);
-            det = u + v + w;
-          }
-          ok &= (det != zero) & active;
-          if (!S::mask(ok)) continue;
-          const VF e10 = bkx - akx, e11 = bky - aky, e12 = bkz - akz;
-          const VF e20 = ckx - akx, e21 = cky - aky, e22 = ckz - akz;
-          const VF n0 = e11 * e22 - e12 * e21, n1 = e12 * e20 - e10 * e22,
-                   n2 = e10 * e21 - e11 * e20;
-          const VF ndd = n0 * dkx + n1 * dky + n2 * dkz;
-          const VF t = (n0 * akx + n1 * aky + n2 * akz) / ndd;
-          const VI id = VI{} + int(blk->prim_id[i] & ~block_last_bit);
-          if constexpr (AnyHit) {
-            const VI found = ok & (ndd != zero) & (t > tmin) & (t < best_t) & (best_id == VI{} - 1);
-            const unsigned f = S::mask(found);
-            if (!f) continue;
-            best_t = select_lanes(found, t, best_t);
-            best_id = select_lanes(found, id, best_id);
-            done |= f;
-            continue;
-          }
-          // closer(): nearer, or equally near with a smaller id once a hit exists.
-          const VI better =
-              ok & (ndd != zero) & (t > tmin) &
-              ((t < best_t) | ((t == best_t) & (best_id != VI{} - 1) & (id < best_id)));
-          if (!S::mask(better)) continue;
-          best_t = select_lanes(better, t, best_t);
-          best_id = select_lanes(better, id, best_id);
-          best_v = select_lanes(better, v, best_v);
-          best_w = select_lanes(better, w, best_w);
-          best_det = select_lanes(better, det, best_det);
-        }
-        if (blk->prim_id[0] & block_last_bit) break;
-      }
-      if (!AnyHit) cull = cull_of(best_t);
-    }
-  pop:
-    while (true) {
-      if (sp == stack || (AnyHit && done == (1u << n) - 1)) goto finish;
-      --sp;
-      // Rays whose best hit may lie beyond the entry's nearest point (any hit: not done).
-      const unsigned keep = AnyHit ? sp->rays & ~done : sp->rays & S::mask(bcast(sp->dist) <= cull);
-      if (keep) {
-        cur = sp->ref;
-        cur_rays = keep;
-        break;
-      }
-    }
-  }
-finish:
-  for (unsigned r = 0; r < n; ++r) {
-    Hit& hit = hits[r];
-    if (uint32_t(best_id[r]) != invalid_id) {
-      const float inv_det = 1.0f / best_det[r];
-      hit.t = best_t[r];
-      hit.prim_id = uint32_t(best_id[r]);
-      hit.u = AnyHit ? 0.0f : best_v[r] * inv_det;
-      hit.v = AnyHit ? 0.0f : best_w[r] * inv_det;
-    } else {
-      hit.t = __builtin_inff();
-      hit.prim_id = invalid_id;
-      hit.u = hit.v = 0;
-    }
-  }
-  return true;
-}
-#endif
-
 #ifdef __AVX512F__
 constexpr int packet_lanes = 16;  // one zmm per ray quantity
 #else
 constexpr int packet_lanes = 8;
+#endif
+
+#ifdef __AVX2__
+// A lane packet's rays must agree on their direction signs and the watertight test's axis
+// permutation: where they do not (a packet across the image's centre lines or the diagonals
+// where the dominant axis changes), each group of agreeing rays becomes a packet of its own.
+inline unsigned lane_class(const Ray& r) {
+  const TriRay t(r);
+  return unsigned(__builtin_signbit(r.dir.x) != 0) |
+         unsigned(__builtin_signbit(r.dir.y) != 0) << 1 |
+         unsigned(__builtin_signbit(r.dir.z) != 0) << 2 | unsigned(t.kz) << 3 |
+         unsigned(t.dir[t.kz] < 0.0f) << 5;
+}
+
+template <bool AnyHit>
+void trace_lane_packet(const Bvh8Node* nodes, const TriangleBlock* blocks, const Ray* rays,
+                       Hit* hits, unsigned n) {
+  const PacketOutcome outcome =
+      trace_packet_lanes<packet_lanes, AnyHit>(nodes, blocks, rays, hits, n);
+  if (outcome == PacketOutcome::traced) return;
+  unsigned cls[packet_lanes];
+  for (unsigned r = 0; r < n; ++r) cls[r] = lane_class(rays[r]);
+  Ray sub[packet_lanes];
+  Hit sub_hits[packet_lanes];
+  unsigned index[packet_lanes];
+  for (unsigned left = (1u << n) - 1; left;) {
+    const unsigned c = cls[ctz(left)];
+    unsigned k = 0;
+    for (unsigned rs = left; rs; rs &= rs - 1) {
+      const unsigned r = ctz(rs);
+      if (cls[r] != c) continue;
+      index[k] = r;
+      sub[k++] = rays[r];
+      left &= ~(1u << r);
+    }
+    // One class: never split again (single rays all the same, should it be).
+    if (trace_packet_lanes<packet_lanes, AnyHit>(nodes, blocks, sub, sub_hits, k) !=
+        PacketOutcome::traced)
+      trace_batch<8, AnyHit>(nodes, blocks, sub, sub_hits, k);
+    for (unsigned i = 0; i < k; ++i) hits[index[i]] = sub_hits[i];
+  }
+}
 #endif
 
 template <int W, class Node>
@@ -375,9 +193,7 @@ void trace_packets(const Node* nodes, const TriangleBlock* blocks, const Ray* ra
   if constexpr (W == 8) {
     for (size_t i = 0; i < n; i += packet_lanes) {
       const unsigned m = unsigned(n - i < size_t(packet_lanes) ? n - i : size_t(packet_lanes));
-      if (trace_packet_lanes<packet_lanes, false>(nodes, blocks, rays + i, hits + i, m)) continue;
-      for (unsigned k = 0; k < m; k += 8)
-        trace_packet<W>(nodes, blocks, rays + i + k, hits + i + k, m - k < 8 ? m - k : 8);
+      trace_lane_packet<false>(nodes, blocks, rays + i, hits + i, m);
     }
     return;
   }
@@ -394,8 +210,7 @@ void occlusion_packets(const Node* nodes, const TriangleBlock* blocks, const Ray
   if constexpr (W == 8) {
     for (size_t i = 0; i < n; i += packet_lanes) {
       const unsigned m = unsigned(n - i < size_t(packet_lanes) ? n - i : size_t(packet_lanes));
-      if (trace_packet_lanes<packet_lanes, true>(nodes, blocks, rays + i, hits + i, m)) continue;
-      trace_batch<W, true>(nodes, blocks, rays + i, hits + i, m);
+      trace_lane_packet<true>(nodes, blocks, rays + i, hits + i, m);
     }
     return;
   }

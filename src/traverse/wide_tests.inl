@@ -44,7 +44,15 @@ struct Simd<16> {
   using F = vf16;
   using I = vi16;
   static F load(const float* p) { return *reinterpret_cast<const vf16u*>(p); }
-  static F splat(float x) { return F{} + x; }
+#ifdef __AVX512F__
+  static F splat(float x) {
+    return reinterpret_cast<F>(_mm512_set1_ps(x));
+  }  // -0 stays -0
+#else
+  static F splat(float x) {
+    return F{} + x;
+  }
+#endif
   static unsigned mask(I m) {
 #ifdef __AVX512F__
     return unsigned(_mm512_cmplt_epi32_mask(reinterpret_cast<__m512i>(m), _mm512_setzero_si512()));

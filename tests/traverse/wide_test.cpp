@@ -67,14 +67,20 @@ void expect_same_as_reference(const Scene& scene, std::span<const Ray> rays, Bui
           ASSERT_EQ(got[i].v, want[i].v) << "ray " << i;
         }
       }
-      for (bool stream : {false, true}) {
+      for (int mode = 0; mode < 6; ++mode) {  // packets auto / off / on, stream off / on
+        const std::optional<bool> packets =
+            mode % 3 == 0 ? std::nullopt : std::optional<bool>(mode % 3 == 2);
+        const bool stream = mode >= 3;
         std::vector<uint8_t> occ(rays.size());
         TraceOptions opt;
         opt.isa = isa;
+        opt.packets = packets;
         opt.stream = stream;
         occluded(wide, rays, occ, opt);
         for (size_t i = 0; i < rays.size(); ++i)
-          ASSERT_EQ(bool(occ[i]), want_any[i].hit()) << "ray " << i << " stream " << stream;
+          ASSERT_EQ(bool(occ[i]), want_any[i].hit())
+              << "ray " << i << " packets " << (packets ? int(*packets) : -1) << " stream "
+              << stream;
       }
     }
   }
@@ -180,6 +186,49 @@ TEST(WideKernels, ScenesPrimaryShadowDiffuse) {
     }
     expect_same_as_reference(scene, rays, Builder::binned, rel);
   }
+}
+
+// Packets of 16 (8) rays decide with the packet's frustum (interval bounds over its rays):
+// alone where the frustum is tight, before the per-ray tests otherwise. Every shape of packet
+// those paths distinguish must give the single rays' hits: fans from one point (tight), with
+// per-ray tmin / tmax; parallel rays from a grid of origins (an orthographic camera), close
+// together and spread over the scene; rays converging on a point (shadow rays); rays with a
+// zero or negative-zero direction component (no frustum); and a fan whose rays stop short.
+TEST(WideKernels, PacketFrustumShapesMatchTheReference) {
+  Scene scene = test::closed_box({-2, -1, -2}, {2, 2, 2});
+  scene.meshes.push_back(test::closed_sphere(4, {0.3f, 0, 0.2f}, 0.6f).meshes[0]);
+  scene.meshes.push_back(test::random_soup(3000, 0.08f, 5).meshes[0]);
+  test::Rng rng{17};
+  std::vector<Ray> rays;
+  auto fan = [&](Vec3 eye, Vec3 centre, float width, int count, bool vary_range) {
+    for (int i = 0; i < count; ++i) {
+      const float s = width * (float(i % 16) / 15.0f - 0.5f), r = width * (float(i / 16) - 0.5f);
+      Ray ray{eye, centre - eye + Vec3{s, r * 0.5f, s * 0.3f}};
+      if (vary_range) ray.tmin = 0.05f * rng.uniform(), ray.tmax = 0.5f + 3.0f * rng.uniform();
+      rays.push_back(ray);
+    }
+  };
+  fan({-1.8f, 0.5f, -1.8f}, {0.3f, 0, 0.2f}, 0.05f, 64, false);     // narrow: tight
+  fan({-1.8f, 0.5f, -1.8f}, {0.3f, 0, 0.2f}, 0.05f, 64, true);      // with tmin / tmax
+  fan({1.5f, -0.5f, 1.7f}, {-1.0f, 1.0f, -1.0f}, 1.5f, 64, false);  // wide: not tight
+  for (int k = 0; k < 24; ++k)  // into the soup from all sides, tight but not narrow
+    fan(Vec3{0.5f, 0.5f, 0.5f} + rng.on_sphere() * 1.4f, {0.5f, 0.5f, 0.5f}, 0.08f, 64, k % 2);
+  for (float spacing : {0.001f, 0.2f})  // orthographic
+    for (int i = 0; i < 64; ++i)
+      rays.push_back({{-1.9f, spacing * float(i % 8) - 0.5f, spacing * float(i / 8) - 0.9f},
+                      {1, 0.02f, 0.01f}});
+  const Vec3 light{0.1f, 1.9f, 0.1f};
+  for (int i = 0; i < 64; ++i) {  // shadow rays from a patch and from all over the room
+    const Vec3 near{-1.0f + 0.01f * float(i % 8), -0.99f, -1.0f + 0.01f * float(i / 8)};
+    const Vec3 far{-1.9f + 3.8f * rng.uniform(), -0.99f, -1.9f + 3.8f * rng.uniform()};
+    for (Vec3 o : {near, far}) rays.push_back({o, light - o, 1e-4f, 1.0f});
+  }
+  for (float zero : {0.0f, -0.0f})  // a zero component in every ray of the packet
+    for (int i = 0; i < 32; ++i)
+      rays.push_back({{-1.9f, 0.01f * float(i), 0.3f}, {1, 0.001f * float(i), zero}});
+  for (int i = 0; i < 16; ++i)  // a packet with one axis-parallel ray among oblique ones
+    rays.push_back({{-1.9f, 0.2f, 0.3f}, {1, i == 7 ? 0.0f : 0.01f * float(i), 0.02f}});
+  expect_same_as_reference(scene, rays, Builder::binned, "packet shapes");
 }
 
 TEST(WideLayout, NodeSizes) {
