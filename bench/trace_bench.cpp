@@ -1,6 +1,7 @@
 // Trace benchmark: kestrel against Embree on the same rays, in the same run, one thread.
 //
-// For each scene: primary rays from its view (the inside camera for Sponza), shadow rays
+// For each scene (the shared scenes, then the procedural soup, hairball, terrain and sphere
+// field): primary rays from its view (the inside camera for Sponza), shadow rays
 // (any hit) from the primary hits towards a point light, and diffuse bounce rays. Each ray
 // set is traced by kestrel (the library's default choice, and optionally every layout x ISA)
 // and by Embree (rtcIntersect1 / rtcOccluded1, and rtcIntersect16 for packets), runs
@@ -55,7 +56,23 @@ std::vector<SceneSpec> default_scenes(const std::string& root) {
     if (std::filesystem::exists(p)) out.push_back({p, view});
   }
   if (out.empty()) out.push_back({"builtin:cornell_box", "front"});
+  // Geometry the shared scenes lack, generated (src/io/procedural_scenes.cpp).
+  for (auto [name, view] : {std::pair{"soup", "framing"},
+                            {"hairball", "framing"},
+                            {"terrain", "low"},
+                            {"sphere_field", "low"}})
+    out.push_back({std::string("builtin:") + name, view});
   return out;
+}
+
+// "path[:view]", "builtin:NAME[:view]"; without a view: "front" where the scene has one,
+// else "framing".
+SceneSpec parse_scene_spec(const std::string& s) {
+  const bool builtin = s.rfind("builtin:", 0) == 0;
+  const size_t colon = s.rfind(':');
+  if (colon != std::string::npos && (builtin ? colon > 7 : colon > 1))
+    return {s.substr(0, colon), s.substr(colon + 1)};
+  return {s, ""};
 }
 
 struct Result {
@@ -122,13 +139,7 @@ int main(int argc, char** argv) {
     width = 160, height = 90;
   } else if (!scenes_arg.empty()) {
     std::stringstream ss(scenes_arg);
-    for (std::string s; std::getline(ss, s, ',');) {
-      const size_t colon = s.rfind(':');
-      if (colon != std::string::npos && s.rfind("builtin:", 0) != 0 && colon > 1)
-        scenes.push_back({s.substr(0, colon), s.substr(colon + 1)});
-      else
-        scenes.push_back({s, s.rfind("builtin:", 0) == 0 ? "front" : "framing"});
-    }
+    for (std::string s; std::getline(ss, s, ',');) scenes.push_back(parse_scene_spec(s));
   } else {
     scenes = default_scenes(scene_root);
   }
@@ -166,7 +177,9 @@ int main(int argc, char** argv) {
     for (const SceneSpec& spec : scenes) {
       const Scene scene = load_scene(spec.path);
       const std::string name = label(spec.path);
-      auto cam = tools::named_view(scene, spec.view);
+      auto cam = spec.view.empty() ? tools::named_view(scene, "front")
+                                   : tools::named_view(scene, spec.view);
+      if (!cam && spec.view.empty()) cam = tools::named_view(scene, "framing");
       if (!cam)
         throw Error(ErrorCode::invalid_argument,
                     fmt::format("{}: no view named '{}'", spec.path, spec.view));

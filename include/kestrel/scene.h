@@ -102,7 +102,8 @@ SceneValidation validate_scene(const Scene& scene);
 /// Bounds of every finite vertex used by a triangle (empty for an empty scene).
 Bounds3 scene_bounds(const Scene& scene);
 
-/// Loads an OBJ (+MTL), glTF or GLB file, or a built-in scene named "builtin:cornell_box".
+/// Loads an OBJ (+MTL), glTF or GLB file, or a built-in scene "builtin:NAME" (cornell_box,
+/// lamp_hall, and the procedural soup, hairball, terrain and sphere_field: builtin_scene_names).
 /// Throws Error naming the file (and line, where the format has lines) on failure.
 Scene load_scene(const std::string& path);
 

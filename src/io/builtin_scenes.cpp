@@ -5,6 +5,7 @@
 #include <cmath>
 
 #include "io/loaders.h"
+#include "io/procedural_scenes.h"
 #include "kestrel/error.h"
 
 namespace kestrel {
@@ -125,12 +126,15 @@ Scene lamp_hall() {
 }  // namespace
 
 std::vector<std::string> builtin_scene_names() {
-  return {"cornell_box", "lamp_hall"};
+  std::vector<std::string> names = {"cornell_box", "lamp_hall"};
+  for (std::string& n : procedural_scene_names()) names.push_back(std::move(n));
+  return names;
 }
 
 Scene make_builtin_scene(const std::string& name) {
   if (name == "cornell_box") return cornell_box();
   if (name == "lamp_hall") return lamp_hall();
+  if (std::optional<Scene> scene = make_procedural_scene(name)) return std::move(*scene);
   throw Error(ErrorCode::invalid_argument,
               fmt::format("builtin:{}: no such built-in scene (known: {})", name,
                           fmt::join(builtin_scene_names(), ", ")));

@@ -2,7 +2,9 @@
 // gives an Error naming the file (and line); validation counts and skips bad triangles.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
 
@@ -195,6 +197,41 @@ TEST(Scene, UnknownFormatAndBuiltins) {
   EXPECT_EQ(error_of([&] { load_scene(path); }).code(), ErrorCode::unsupported);
   EXPECT_EQ(error_of([] { load_scene("builtin:nope"); }).code(), ErrorCode::invalid_argument);
   EXPECT_EQ(load_scene("builtin:cornell_box").triangle_count(), 32u);
+}
+
+// The procedural built-ins the trace benchmark runs: documented sizes, every triangle valid,
+// inside their documented extents, and the same triangles on every load (fixed seeds).
+TEST(Scene, ProceduralBuiltinsAreValidAndRepeatable) {
+  struct Expect {
+    const char* name;
+    size_t triangles;
+    Vec3 lo, hi;
+  };
+  for (const Expect& e : {Expect{"soup", 400000, {-0.6f, -0.6f, -0.6f}, {10.6f, 10.6f, 10.6f}},
+                          Expect{"hairball", 720000, {-2, -2, -2}, {2, 2, 2}},
+                          Expect{"terrain", 522242, {0, 0, 0}, {100, 40, 100}},
+                          Expect{"sphere_field", 528002, {-2, -0.01f, -2}, {102, 4.1f, 102}}}) {
+    SCOPED_TRACE(e.name);
+    const Scene a = load_scene(std::string("builtin:") + e.name);
+    ASSERT_EQ(a.triangle_count(), e.triangles);
+    EXPECT_EQ(validate_scene(a).report.valid_triangle_count, e.triangles);
+    const Bounds3 b = scene_bounds(a);
+    const float lo[3] = {b.lo.x, b.lo.y, b.lo.z}, hi[3] = {b.hi.x, b.hi.y, b.hi.z};
+    const float want_lo[3] = {e.lo.x, e.lo.y, e.lo.z}, want_hi[3] = {e.hi.x, e.hi.y, e.hi.z};
+    for (int k = 0; k < 3; ++k) {
+      EXPECT_GE(lo[k], want_lo[k]) << "axis " << k;
+      EXPECT_LE(hi[k], want_hi[k]) << "axis " << k;
+      EXPECT_GT(hi[k] - lo[k], 0.1f * (want_hi[k] - want_lo[k])) << "axis " << k;
+    }
+    const Scene again = load_scene(std::string("builtin:") + e.name);
+    ASSERT_EQ(again.meshes[0].positions.size(), a.meshes[0].positions.size());
+    EXPECT_EQ(0, std::memcmp(again.meshes[0].positions.data(), a.meshes[0].positions.data(),
+                             a.meshes[0].positions.size() * sizeof(Vec3)));
+    EXPECT_EQ(again.meshes[0].indices, a.meshes[0].indices);
+  }
+  const std::vector<std::string> names = builtin_scene_names();
+  for (const char* n : {"cornell_box", "lamp_hall", "soup", "hairball", "terrain", "sphere_field"})
+    EXPECT_NE(std::find(names.begin(), names.end(), n), names.end()) << n;
 }
 
 TEST(Gltf, MalformedAndTruncatedFilesAreErrors) {
