@@ -2,6 +2,7 @@
 
 #include <cmath>
 
+#include "core/splitmix.h"
 #include "core/vec.h"
 
 namespace kestrel::tools {
@@ -20,19 +21,7 @@ std::vector<Ray> primary_rays(const PinholeCamera& cam, int width, int height) {
   return rays;
 }
 
-namespace {
-// splitmix64: a tiny, well-mixed generator; enough for ray directions.
-struct Rng {
-  uint64_t state;
-  uint64_t next() {
-    uint64_t z = (state += 0x9E3779B97F4A7C15ull);
-    z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ull;
-    z = (z ^ (z >> 27)) * 0x94D049BB133111EBull;
-    return z ^ (z >> 31);
-  }
-  float uniform() { return float(next() >> 40) * (1.0f / 16777216.0f); }
-};
-}  // namespace
+using Rng = SplitMix64;  // enough for ray directions
 
 std::vector<Triangle> scene_triangles(const Scene& scene) {
   std::vector<Triangle> tris;

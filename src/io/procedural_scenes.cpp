@@ -8,22 +8,17 @@
 #include <cmath>
 #include <cstdint>
 
+#include "core/splitmix.h"
 #include "io/procedural_scenes.h"
 
 namespace kestrel {
 
 namespace {
 
-// SplitMix64: a fixed stream from a seed.
-struct Rng {
-  uint64_t state;
-  uint64_t next() {
-    uint64_t z = (state += 0x9E3779B97F4A7C15ull);
-    z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ull;
-    z = (z ^ (z >> 27)) * 0x94D049BB133111EBull;
-    return z ^ (z >> 31);
-  }
-  float uniform() { return float(next() >> 40) * (1.0f / 16777216.0f); }  // [0, 1)
+// A fixed stream from a seed, with the shapes the generators draw.
+struct Rng : SplitMix64 {
+  explicit Rng(uint64_t seed) : SplitMix64{seed} {}
+  using SplitMix64::uniform;
   float uniform(float lo, float hi) { return lo + (hi - lo) * uniform(); }
   Vec3 on_sphere() {
     const float z = uniform(-1, 1), phi = uniform(0, 6.2831853f);

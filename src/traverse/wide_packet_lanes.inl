@@ -148,9 +148,9 @@ PacketOutcome trace_packet_lanes(const Bvh8Node* nodes, const TriangleBlock* blo
     if (S::mask((sign_x | sign_y | sign_z) | (lane_kz != kz) | (swap ^ swap0)))
       return PacketOutcome::split;
   }
-  const VF dk[3] = {dx, dy, dz}, ok[3] = {ox, oy, oz};
+  const VF dk[3] = {dx, dy, dz}, orgs[3] = {ox, oy, oz};
   const VF dkx = dk[kx], dky = dk[ky], dkz = dk[kz];
-  const VF okx = ok[kx], oky = ok[ky], okz = ok[kz];
+  const VF okx = orgs[kx], oky = orgs[ky], okz = orgs[kz];
   const VF sx = dkx / dkz, sy = dky / dkz;  // TriRay's shear, the same division
   const VF one = bcast(1.0f), far_factor = bcast(1.00000072f);
   const VF ix = one / dx, iy = one / dy, iz = one / dz;
