@@ -1,6 +1,6 @@
 // Stream mode for large incoherent batches: rays are traced in an order that groups similar
-// ones (Pharr et al. 1997; Eisenacher et al. 2013 sort by direction and origin), as packets,
-// and every hit is written back to its caller's slot. Hits are the ones single rays get: each
+// ones (Pharr et al. 1997; Eisenacher et al. 2013 sort by direction and origin), as packets
+// or single rays, and every hit is written back to its caller's slot. Hits are the ones single rays get: each
 // ray's traversal is exact and independent of its packet mates.
 //
 // The order is global within groups of up to 2^20 rays: a stable LSD radix sort (8-bit
@@ -10,7 +10,8 @@
 // ray's index. Sorting only within windows of 4-16 k consecutive rays was tried and gained
 // nothing on Sponza's diffuse rays: too few rays share a cell there. Measured there (900 k
 // rays, one thread): ordering ~50 ms, the random gather and write-back ~70 ms, tracing the
-// sorted rays as packets ~240 ms against ~420 ms for the caller's order.
+// sorted rays as packets ~240 ms against ~420 ms for the caller's order. Whether the sorted
+// chunks go as packets or single rays is timed as the stream runs (trace.cpp: trace_stream).
 #pragma once
 #include <cstdint>
 #include <span>
