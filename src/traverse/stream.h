@@ -1,7 +1,7 @@
 // Stream mode for large incoherent batches: rays are traced in an order that groups similar
 // ones (Pharr et al. 1997; Eisenacher et al. 2013 sort by direction and origin), as packets
-// or single rays, and every hit is written back to its caller's slot. Hits are the ones single rays get: each
-// ray's traversal is exact and independent of its packet mates.
+// or single rays, and every hit is written back to its caller's slot. Hits are the ones single rays
+// get: each ray's traversal is exact and independent of its packet mates.
 //
 // The order is global within groups of up to 2^20 rays: a stable LSD radix sort (8-bit
 // digits, so the scatter's 256 streams stay within the TLB) of 40-bit keys - direction octant,
