@@ -108,15 +108,27 @@ inline typename Simd<L>::F gather_rays(const Ray* rays, typename Simd<L>::I offs
                                  _mm256_castsi256_ps(_mm256_set1_epi32(-1)), sizeof(float)));
 }
 
-// AnyHit: occlusion; a lane leaves the packet at its first hit (t < tmax), children are not
-// sorted, and the packet ends when every lane is done.
 // What became of a lane packet: traced, or not because its rays disagree on the near planes
 // or the axis permutation (split it).
 enum class PacketOutcome { traced, split };
 
+// The scene's largest extent along an axis, from the root's child boxes (for
+// PacketFrustum::tight): once per batch.
+inline float scene_extent(const Bvh8Node& root) {
+  float scene = 0;
+  for (int a = 0; a < 3; ++a) {
+    const vf8 lo = Simd<8>::load(root.bounds[2 * a]), hi = Simd<8>::load(root.bounds[2 * a + 1]);
+    const float w = -hmin_lanes(-hi)[0] - hmin_lanes(lo)[0];
+    scene = w > scene ? w : scene;
+  }
+  return scene;
+}
+
+// AnyHit: occlusion; a lane leaves the packet at its first hit (t < tmax), children are not
+// sorted, and the packet ends when every lane is done. `scene` is scene_extent(nodes[0]).
 template <int L, bool AnyHit>
 PacketOutcome trace_packet_lanes(const Bvh8Node* nodes, const TriangleBlock* blocks,
-                                 const Ray* rays, Hit* hits, unsigned n) {
+                                 const Ray* rays, Hit* hits, unsigned n, float scene) {
   using S = Simd<L>;
   using VF = typename S::F;
   using VI = typename S::I;
@@ -133,14 +145,14 @@ PacketOutcome trace_packet_lanes(const Bvh8Node* nodes, const TriangleBlock* blo
            dz = gather_rays<L>(rays, offsets, 5);
   const VF tmin = gather_rays<L>(rays, offsets, 6);
   // The packet needs one set of near planes and one axis permutation of the watertight test
-  // (TriRay::init's, lane by lane): every lane as the first ray, else the caller falls back.
+  // (TriRay::init's, lane by lane): every lane as the first ray, else the caller splits.
   const TriRay tr0(rays[0]);
   const int kx = tr0.kx, ky = tr0.ky, kz = tr0.kz;
+  const VF ax = dx < VF{} ? -dx : dx, ay = dy < VF{} ? -dy : dy, az = dz < VF{} ? -dz : dz;
   {
     const VI sign_x = reinterpret_cast<VI>(dx) ^ reinterpret_cast<VI>(bcast(rays[0].dir.x));
     const VI sign_y = reinterpret_cast<VI>(dy) ^ reinterpret_cast<VI>(bcast(rays[0].dir.y));
     const VI sign_z = reinterpret_cast<VI>(dz) ^ reinterpret_cast<VI>(bcast(rays[0].dir.z));
-    const VF ax = dx < VF{} ? -dx : dx, ay = dy < VF{} ? -dy : dy, az = dz < VF{} ? -dz : dz;
     const VI c1 = ax >= ay, c2 = ax >= az, c3 = ay >= az;
     const VI lane_kz = c1 ? (c2 ? VI{} : VI{} + 2) : (c3 ? VI{} + 1 : VI{} + 2);
     const VF d_kz = kz == 0 ? dx : kz == 1 ? dy : dz;
@@ -173,11 +185,13 @@ PacketOutcome trace_packet_lanes(const Bvh8Node* nodes, const TriangleBlock* blo
     const VF o[3] = {ox, oy, oz}, inv[3] = {ix, iy, iz}, inv_far[3] = {fx, fy, fz};
     VI bad = (tmin != tmin) | (cull != cull);
     fr.tmin_lo = hmin_lanes(tmin)[0];
+    float extent = 0;  // of the origins, largest over the axes
     for (int a = 0; a < 3; ++a) {
       const VF ai = inv[a] < zero ? -inv[a] : inv[a],
                af = inv_far[a] < zero ? -inv_far[a] : inv_far[a];
       bad |= ~((ai > zero) & (ai < inf) & (af < inf)) | (o[a] != o[a]);
       const float olo = hmin_lanes(o[a])[0], ohi = -hmin_lanes(-o[a])[0];
+      extent = ohi - olo > extent ? ohi - olo : extent;
       fr.inv_lo[a] = hmin_lanes(inv[a])[0], fr.inv_hi[a] = -hmin_lanes(-inv[a])[0];
       fr.far_lo[a] = hmin_lanes(inv_far[a])[0], fr.far_hi[a] = -hmin_lanes(-inv_far[a])[0];
       const bool positive = (near_rows[a] & 1) == 0;  // entry on the low plane
@@ -193,19 +207,12 @@ PacketOutcome trace_packet_lanes(const Bvh8Node* nodes, const TriangleBlock* blo
     // 1 % of the scene's extent (the root's box). Otherwise the per-ray tests, with the
     // frustum as a first cull. Either way the same hits; only the work differs.
     if (fr.on) {
-      const VF ax = dx < zero ? -dx : dx, ay = dy < zero ? -dy : dy, az = dz < zero ? -dz : dz;
       const VF big = vmax(az, vmax(ay, ax));
-      float spread = 0, extent = 0, scene = 0;
+      float spread = 0;
       for (int a = 0; a < 3; ++a) {
         const VF u = dk[a] / big;
         const float s = -hmin_lanes(-u)[0] - hmin_lanes(u)[0];
         spread = s > spread ? s : spread;
-        const float e = -hmin_lanes(-o[a])[0] - hmin_lanes(o[a])[0];
-        extent = e > extent ? e : extent;
-        const vf8 lo = Simd<8>::load(nodes[0].bounds[2 * a]),
-                  hi = Simd<8>::load(nodes[0].bounds[2 * a + 1]);
-        const float w = -hmin_lanes(-hi)[0] - hmin_lanes(lo)[0];
-        scene = w > scene ? w : scene;
       }
       fr.tight = spread <= tight_spread && extent <= tight_extent * scene;
       const unsigned mid = n / 2;

@@ -158,9 +158,9 @@ inline unsigned lane_class(const Ray& r) {
 
 template <bool AnyHit>
 void trace_lane_packet(const Bvh8Node* nodes, const TriangleBlock* blocks, const Ray* rays,
-                       Hit* hits, unsigned n) {
+                       Hit* hits, unsigned n, float scene) {
   const PacketOutcome outcome =
-      trace_packet_lanes<packet_lanes, AnyHit>(nodes, blocks, rays, hits, n);
+      trace_packet_lanes<packet_lanes, AnyHit>(nodes, blocks, rays, hits, n, scene);
   if (outcome == PacketOutcome::traced) return;
   unsigned cls[packet_lanes];
   for (unsigned r = 0; r < n; ++r) cls[r] = lane_class(rays[r]);
@@ -177,8 +177,8 @@ void trace_lane_packet(const Bvh8Node* nodes, const TriangleBlock* blocks, const
       sub[k++] = rays[r];
       left &= ~(1u << r);
     }
-    // One class: never split again (single rays all the same, should it be).
-    if (trace_packet_lanes<packet_lanes, AnyHit>(nodes, blocks, sub, sub_hits, k) !=
+    // One class, so it is traced (single rays would give the same hits otherwise).
+    if (trace_packet_lanes<packet_lanes, AnyHit>(nodes, blocks, sub, sub_hits, k, scene) !=
         PacketOutcome::traced)
       trace_batch<8, AnyHit>(nodes, blocks, sub, sub_hits, k);
     for (unsigned i = 0; i < k; ++i) hits[index[i]] = sub_hits[i];
@@ -191,9 +191,10 @@ void trace_packets(const Node* nodes, const TriangleBlock* blocks, const Ray* ra
                    size_t n) {
 #ifdef __AVX2__
   if constexpr (W == 8) {
+    const float scene = scene_extent(nodes[0]);
     for (size_t i = 0; i < n; i += packet_lanes) {
       const unsigned m = unsigned(n - i < size_t(packet_lanes) ? n - i : size_t(packet_lanes));
-      trace_lane_packet<false>(nodes, blocks, rays + i, hits + i, m);
+      trace_lane_packet<false>(nodes, blocks, rays + i, hits + i, m, scene);
     }
     return;
   }
@@ -208,9 +209,10 @@ void occlusion_packets(const Node* nodes, const TriangleBlock* blocks, const Ray
                        size_t n) {
 #ifdef __AVX2__
   if constexpr (W == 8) {
+    const float scene = scene_extent(nodes[0]);
     for (size_t i = 0; i < n; i += packet_lanes) {
       const unsigned m = unsigned(n - i < size_t(packet_lanes) ? n - i : size_t(packet_lanes));
-      trace_lane_packet<true>(nodes, blocks, rays + i, hits + i, m);
+      trace_lane_packet<true>(nodes, blocks, rays + i, hits + i, m, scene);
     }
     return;
   }

@@ -45,9 +45,10 @@ struct Simd<16> {
   using I = vi16;
   static F load(const float* p) { return *reinterpret_cast<const vf16u*>(p); }
 #ifdef __AVX512F__
+  // A broadcast: -0 stays -0 (F{} + x would make it +0).
   static F splat(float x) {
     return reinterpret_cast<F>(_mm512_set1_ps(x));
-  }  // -0 stays -0
+  }
 #else
   static F splat(float x) {
     return F{} + x;
