@@ -1,11 +1,24 @@
 // kestrel public API: the vector type for large arrays of plain records.
 #pragma once
+#include <cstddef>
 #include <memory>
 #include <new>
 #include <utility>
 #include <vector>
 
 namespace kestrel {
+
+namespace detail {
+/// Blocks of at least this many bytes come from kestrel's pool of huge-page mappings, which
+/// keeps freed blocks for the next build (src/core/memory.h); smaller ones from operator new.
+inline constexpr size_t large_block_min = size_t(1) << 20;
+void* allocate_large_block(size_t bytes);
+void free_large_block(void* p, size_t bytes) noexcept;
+}  // namespace detail
+
+/// Unmaps the large blocks kestrel keeps for reuse after a build (up to 512 MiB, see
+/// src/core/memory.h). For applications that are done building BVHs for a while.
+void release_cached_memory() noexcept;
 
 /// std::allocator that leaves elements uninitialised on resize(n) (it skips the value
 /// initialisation std::vector would do). For arrays of plain records -- BVH nodes,
@@ -21,6 +34,18 @@ struct UninitializedAllocator : std::allocator<T> {
   UninitializedAllocator() = default;
   template <class U>
   UninitializedAllocator(const UninitializedAllocator<U>&) noexcept {}
+  T* allocate(size_t n) {
+    if (n > size_t(-1) / sizeof(T)) throw std::bad_array_new_length();
+    if (n * sizeof(T) >= detail::large_block_min)
+      return static_cast<T*>(detail::allocate_large_block(n * sizeof(T)));
+    return std::allocator<T>::allocate(n);
+  }
+  void deallocate(T* p, size_t n) noexcept {
+    if (n * sizeof(T) >= detail::large_block_min)
+      detail::free_large_block(p, n * sizeof(T));
+    else
+      std::allocator<T>::deallocate(p, n);
+  }
   template <class U>
   void construct(U*) noexcept {}  // no value-initialisation: the caller writes every element
   template <class U, class... Args>

@@ -1,20 +1,12 @@
 #include "bvh/node_slots.h"
 
-#include "core/memory.h"
-
 #include <cstdlib>
 #include <new>
 #include <vector>
 
 namespace kestrel {
 
-NodeSlots::NodeSlots(size_t prim_count)
-    : slots_(static_cast<Bvh2Node*>(
-          allocate_buffer(sizeof(Bvh2Node) * (2 * prim_count + 2), alignof(Bvh2Node)))) {}
-
-void NodeSlots::Free::operator()(Bvh2Node* p) const {
-  free_buffer(p);
-}
+NodeSlots::NodeSlots(size_t prim_count) : slots_(2 * prim_count + 2) {}
 
 Bvh2 compact_slots(NodeSlots& slots, std::span<const uint32_t> ordered_prim_ids) {
   Bvh2 out;

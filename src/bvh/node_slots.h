@@ -12,6 +12,7 @@
 #include <span>
 
 #include "core/parallel.h"
+#include "core/raw_array.h"
 #include "kestrel/bvh.h"
 
 namespace kestrel {
@@ -19,14 +20,11 @@ namespace kestrel {
 /// Uninitialised storage for 2n slots (the nodes are written before being read).
 struct NodeSlots {
   explicit NodeSlots(size_t prim_count);
-  Bvh2Node* data() { return slots_.get(); }
+  Bvh2Node* data() { return slots_.data(); }
   Bvh2Node& operator[](size_t i) { return slots_[i]; }
 
  private:
-  struct Free {
-    void operator()(Bvh2Node* p) const;
-  };
-  std::unique_ptr<Bvh2Node[], Free> slots_;
+  RawArray<Bvh2Node> slots_;
 };
 
 /// Descendant range start of the right child, given the pair at `pair` and left count.

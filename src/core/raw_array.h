@@ -20,8 +20,10 @@ class RawArray {
   RawArray() = default;
   explicit RawArray(size_t n) { resize(n); }
   void resize(size_t n) {
+    data_.reset();  // the old block goes back before the new one is taken
+    data_ = std::unique_ptr<T[], Free>(
+        n ? static_cast<T*>(allocate_buffer(sizeof(T) * n, 64)) : nullptr, Free{sizeof(T) * n});
     size_ = n;
-    data_.reset(n ? static_cast<T*>(allocate_buffer(sizeof(T) * n, 64)) : nullptr);
   }
   T& operator[](size_t i) { return data_[i]; }
   const T& operator[](size_t i) const { return data_[i]; }
@@ -39,7 +41,8 @@ class RawArray {
 
  private:
   struct Free {
-    void operator()(T* p) const { free_buffer(p); }
+    size_t bytes = 0;
+    void operator()(T* p) const { free_buffer(p, bytes); }
   };
   std::unique_ptr<T[], Free> data_;
   size_t size_ = 0;

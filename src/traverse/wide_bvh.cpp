@@ -47,21 +47,21 @@ void set_slot(Node& node, int j, const Bounds3& b, uint32_t ref) {
 // most max_leaf primitives is flattened when that is no more expensive; a subtree of at most
 // four always is. This turns the binary builders' many 2-triangle leaves into full blocks.
 struct LeafPlan {
-  std::vector<uint32_t> count;  // primitives under each Bvh2 node
-  std::vector<uint8_t> flat;    // 1: emit the whole subtree as one leaf
+  Buffer<uint32_t> count;  // primitives under each Bvh2 node
+  Buffer<uint8_t> flat;    // 1: emit the whole subtree as one leaf
   size_t blocks = 0;            // triangle blocks of all leaves (flat subtrees, parent not flat)
 };
 
 // Nodes in an order that puts every child after its parent: the node array itself when its
 // builder allocated children after their parent (all of kestrel's do; one linear check),
 // else breadth first.
-std::vector<uint32_t> parents_first(const Bvh2& bvh) {
+Buffer<uint32_t> parents_first(const Bvh2& bvh) {
   const size_t n = bvh.nodes.size();
   bool sorted = true;
   for (size_t i = 0; i < n && sorted; ++i)
     sorted = bvh.nodes[i].is_leaf() || bvh.nodes[i].index > i;
   if (sorted) return {};  // empty: use the array order
-  std::vector<uint32_t> order{0};
+  Buffer<uint32_t> order{0};
   order.reserve(n);
   for (size_t i = 0; i < order.size(); ++i) {
     const Bvh2Node& node = bvh.nodes[order[i]];
@@ -75,10 +75,11 @@ std::vector<uint32_t> parents_first(const Bvh2& bvh) {
 
 LeafPlan plan_leaves(const Bvh2& bvh, uint32_t max_leaf) {
   const size_t n = bvh.nodes.size();
-  LeafPlan plan{std::vector<uint32_t>(n, 0), std::vector<uint8_t>(n, 0)};
-  std::vector<float> cost(n, 0);
-  std::vector<uint32_t> blocks(n, 0);  // blocks the subtree's leaves take (flat: one leaf's)
-  const std::vector<uint32_t> order = parents_first(bvh);
+  // Every entry is written below (children before parents) before it is read.
+  LeafPlan plan{Buffer<uint32_t>(n), Buffer<uint8_t>(n)};
+  Buffer<float> cost(n);
+  Buffer<uint32_t> blocks(n);  // blocks the subtree's leaves take (flat: one leaf's)
+  const Buffer<uint32_t> order = parents_first(bvh);
   const size_t m = order.empty() ? n : order.size();
   // Children before parents: the order backwards. (Reading the array backwards, not a
   // breadth-first list, took this pass from ~12 % of an LBVH's ready-to-trace build to ~3 %.)
@@ -103,6 +104,7 @@ LeafPlan plan_leaves(const Bvh2& bvh, uint32_t max_leaf) {
       cost[id] = leaf;
       blocks[id] = (c + 3) / 4;
     } else {
+      plan.flat[id] = 0;
       cost[id] = split;
       blocks[id] = blocks[l] + blocks[r];
     }
@@ -114,7 +116,7 @@ LeafPlan plan_leaves(const Bvh2& bvh, uint32_t max_leaf) {
 // Wide nodes from a binary tree: flat[i] marks the binary subtrees that become one leaf
 // slot; emit_leaf(i) returns that slot's child reference.
 template <int W, class Node, class EmitLeaf>
-void build_wide_nodes(const Bvh2& bvh, const std::vector<uint8_t>& flat, Buffer<Node>& nodes,
+void build_wide_nodes(const Bvh2& bvh, std::span<const uint8_t> flat, Buffer<Node>& nodes,
                       EmitLeaf&& emit_leaf) {
   struct Work {
     uint32_t src, dst;
@@ -304,7 +306,7 @@ template <int W, class Wide>
 double refit_nodes(Wide& bvh, BlockRewrite rewrite) {
   using simd::Vec4f;
   if (bvh.empty()) return 0;
-  std::vector<BlockBox> boxes(bvh.blocks.size());
+  Buffer<BlockBox> boxes(bvh.blocks.size());  // every entry written by refit_blocks
   const uint32_t bad = refit_blocks({bvh.blocks.data(), bvh.blocks.size()}, boxes, rewrite);
   if (bad != ~0u)
     throw Error(
@@ -313,7 +315,7 @@ double refit_nodes(Wide& bvh, BlockRewrite rewrite) {
                     bad));
   const float inf = INFINITY;
   double cost = 0;
-  std::vector<BlockBox> node_box(bvh.nodes.size());  // each node's box, once its slots are set
+  Buffer<BlockBox> node_box(bvh.nodes.size());  // each node's box, written once its slots are set
   constexpr size_t ahead = 4;  // leaf block boxes are gathers: prefetch a few nodes ahead
   for (size_t i = bvh.nodes.size(); i-- > 0;) {
     if (i >= ahead)
@@ -378,7 +380,7 @@ template <int W, class Node>
 Buffer<Node> collapse_instance_tree(const Bvh2& bvh) {
   Buffer<Node> nodes;
   if (bvh.empty()) return nodes;
-  std::vector<uint8_t> flat(bvh.nodes.size());
+  Buffer<uint8_t> flat(bvh.nodes.size());
   for (size_t i = 0; i < bvh.nodes.size(); ++i) {
     if (bvh.nodes[i].is_leaf() && bvh.nodes[i].count != 1)
       throw Error(ErrorCode::invalid_argument,

@@ -8,6 +8,8 @@
 #include "bvh/binary_tree.h"
 #include "bvh/cost_model.h"
 #include "bvh/radix_sort.h"
+#include "core/memory.h"
+#include "core/raw_array.h"
 #include "geometry/prim_ref.h"
 #include "kestrel/kestrel.h"
 #include "support/oracles.h"
@@ -382,6 +384,45 @@ TEST(RadixSortPacked, MatchesStableSortOnTheKeyBits) {
       for (size_t i = 0; i < n; ++i)
         ASSERT_EQ(got[i], want[i]) << "n " << n << " variant " << variant << " at " << i;
     }
+}
+
+
+// The large-block pool behind build buffers: blocks come back whole (every byte writable and
+// kept), a freed block is handed to the next request of its size instead of being remapped,
+// and release_cached_memory() unmaps what is kept. Without caching (AddressSanitizer builds)
+// nothing is kept.
+TEST(Memory, LargeBlocksAreRecycledAndReleased) {
+  release_cached_memory();
+  EXPECT_EQ(cached_large_bytes(), 0u);
+  const size_t n = (size_t(3) << 20) / sizeof(uint32_t) + 7;  // 3 MiB and a bit: two huge pages
+  const uint32_t* first = nullptr;
+  {
+    Buffer<uint32_t> a(n);
+    for (size_t i = 0; i < n; ++i) a[i] = uint32_t(i * 2654435761u);
+    for (size_t i = 0; i < n; i += 4099) ASSERT_EQ(a[i], uint32_t(i * 2654435761u));
+    EXPECT_EQ(reinterpret_cast<uintptr_t>(a.data()) % 64, 0u);
+    first = a.data();
+  }
+  const size_t kept = cached_large_bytes();
+  if (kept == 0) GTEST_SKIP() << "large blocks are not cached in this build (sanitizer)";
+  EXPECT_EQ(kept, size_t(4) << 20);  // rounded up to whole 2 MiB pages
+  {
+    RawArray<uint32_t> b(n - 5);  // another size within the same pages: the same block
+    EXPECT_EQ(b.data(), first);
+    EXPECT_EQ(cached_large_bytes(), 0u);
+    Buffer<uint8_t> small(1000);  // below the threshold: not from the pool
+    EXPECT_EQ(cached_large_bytes(), 0u);
+  }
+  EXPECT_EQ(cached_large_bytes(), kept);
+  release_cached_memory();
+  EXPECT_EQ(cached_large_bytes(), 0u);
+  // Far more than the cache keeps (512 MiB): the oldest blocks are unmapped on the way.
+  for (int i = 0; i < 6; ++i) {
+    Buffer<uint8_t> big(size_t(100 + i * 10) << 20);
+    big[0] = 1, big.back() = 2;
+  }
+  EXPECT_LE(cached_large_bytes(), size_t(512) << 20);
+  release_cached_memory();
 }
 
 }  // namespace
