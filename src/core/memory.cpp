@@ -44,8 +44,8 @@ constexpr bool caching = false;
 // A 2 MiB-aligned anonymous mapping of `bytes` (a multiple of 2 MiB): mapped with one huge
 // page of slack, the misaligned head and the tail unmapped.
 void* map_block(size_t bytes) {
-  void* raw = mmap(nullptr, bytes + huge_page, PROT_READ | PROT_WRITE, MAP_PRIVATE | MAP_ANONYMOUS,
-                   -1, 0);
+  void* raw =
+      mmap(nullptr, bytes + huge_page, PROT_READ | PROT_WRITE, MAP_PRIVATE | MAP_ANONYMOUS, -1, 0);
   if (raw == MAP_FAILED) throw std::bad_alloc();
   const uintptr_t base = reinterpret_cast<uintptr_t>(raw);
   const uintptr_t aligned = (base + huge_page - 1) & ~(huge_page - 1);

@@ -49,7 +49,7 @@ void set_slot(Node& node, int j, const Bounds3& b, uint32_t ref) {
 struct LeafPlan {
   Buffer<uint32_t> count;  // primitives under each Bvh2 node
   Buffer<uint8_t> flat;    // 1: emit the whole subtree as one leaf
-  size_t blocks = 0;            // triangle blocks of all leaves (flat subtrees, parent not flat)
+  size_t blocks = 0;       // triangle blocks of all leaves (flat subtrees, parent not flat)
 };
 
 // Nodes in an order that puts every child after its parent: the node array itself when its

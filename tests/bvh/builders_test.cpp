@@ -386,7 +386,6 @@ TEST(RadixSortPacked, MatchesStableSortOnTheKeyBits) {
     }
 }
 
-
 // The large-block pool behind build buffers: blocks come back whole (every byte writable and
 // kept), a freed block is handed to the next request of its size instead of being remapped,
 // and release_cached_memory() unmaps what is kept. Without caching (AddressSanitizer builds)
