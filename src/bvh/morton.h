@@ -1,5 +1,6 @@
 // Morton-code bit spreading (interleaving three coordinates), for LBVH and the instance tree.
 #pragma once
+#include <bit>
 #include <cstdint>
 
 namespace kestrel {
@@ -28,6 +29,26 @@ inline uint64_t spread_bits_21(uint64_t x) {
 /// 30-bit Morton code of cell coordinates in [0, 1024).
 inline uint32_t morton30(uint32_t x, uint32_t y, uint32_t z) {
   return (spread_bits_10(x) << 2) | (spread_bits_10(y) << 1) | spread_bits_10(z);
+}
+
+/// Where a node over sorted keys [b, e) (e - b >= 2) splits (Karras 2012): the first index
+/// whose key has the highest bit in which keys[b] and keys[e - 1] differ set; the middle when
+/// all keys are equal. The keys of [b, e) share every bit above that one and are sorted, so
+/// those with it clear come first. A branch-free binary search: the branchy one mispredicted
+/// about every other step.
+template <class Key>
+inline uint32_t morton_split(const Key* keys, uint32_t b, uint32_t e) {
+  const Key x = keys[b] ^ keys[e - 1];
+  if (x == 0) return b + (e - b) / 2;
+  const int bit = int(sizeof(Key) * 8) - 1 - std::countl_zero(x);
+  const Key* base = keys + b;  // the last key with the bit clear is in [base, base + len)
+  uint32_t len = e - b;
+  while (len > 1) {
+    const uint32_t half = len / 2;
+    base = ((base[half] >> bit) & 1u) ? base : base + half;
+    len -= half;
+  }
+  return uint32_t(base - keys) + 1;
 }
 
 }  // namespace kestrel

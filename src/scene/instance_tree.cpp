@@ -17,24 +17,7 @@ struct TreeBuilder {
   const uint32_t* keys;
   Buffer<Node>& nodes;
 
-  // First index in [b, e) whose key differs from keys[b] in the highest bit where keys[b]
-  // and keys[e - 1] differ; the middle when all keys are equal.
-  uint32_t split(uint32_t b, uint32_t e) const {
-    const uint32_t x = keys[b] ^ keys[e - 1];
-    if (x == 0) return b + (e - b) / 2;
-    const uint32_t bit = 31u - uint32_t(__builtin_clz(x));
-    // The keys of [b, e) share every bit above `bit` and are sorted: those with it clear come
-    // first. A branch-free binary search (the branchy one mispredicted about every other
-    // step: most of this builder's time); keys[b] has the bit clear, keys[e - 1] set.
-    const uint32_t* base = keys + b;
-    uint32_t len = e - b;
-    while (len > 1) {
-      const uint32_t half = len / 2;
-      base = ((base[half] >> bit) & 1u) ? base : base + half;
-      len -= half;
-    }
-    return uint32_t(base - keys) + 1;
-  }
+  uint32_t split(uint32_t b, uint32_t e) const { return morton_split(keys, b, e); }
 
   // Fills node `index` over sorted positions [b, e) (e - b >= 2) and returns its bounds.
   Bounds3 build(uint32_t index, uint32_t b, uint32_t e) {

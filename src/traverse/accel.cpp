@@ -13,6 +13,7 @@
 #include "core/vec.h"
 #include "geometry/prim_ref.h"
 #include "kestrel/error.h"
+#include "traverse/morton_wide.h"
 #include "traverse/traverse_bvh2.h"
 #include "traverse/wide_bvh.h"
 
@@ -74,6 +75,22 @@ Accel build_accel(const Scene& scene, const BuildConfig& config) {
   // Wide layouts: the build that knows its leaves become 4-triangle blocks.
   const bool blocks = accel.layout == Layout::bvh4 || accel.layout == Layout::bvh8;
   const Builder builder = resolve_builder(config, refs.size());
+  if (builder == Builder::lbvh && blocks) {
+    // Straight from Morton order to the wide layout (morton_wide.h): no binary tree, no
+    // collapse. Its depth is bounded by the key bits, as the binary LBVH's.
+    accel.builder = builder;
+    accel.prim_count = refs.size();
+    if (accel.layout == Layout::bvh4) {
+      accel.nodes->bvh4 = build_morton_bvh4(scene, refs, config);
+      if (!accel.nodes->bvh4.empty()) accel.bounds = wide_bounds(accel.nodes->bvh4);
+    } else {
+      accel.nodes->bvh8 = build_morton_bvh8(scene, refs, config);
+      if (!accel.nodes->bvh8.empty()) accel.bounds = wide_bounds(accel.nodes->bvh8);
+    }
+    accel.validation = std::move(validation);
+    accel.build_ms = timer.ms();
+    return accel;
+  }
   const Buffer<Triangle> by_id = triangles_for_builder(scene, validation, builder);
   Bvh2 bvh = blocks ? build_bvh_for_blocks(refs, by_id, config) : build_bvh(refs, by_id, config);
   // LBVH depth is bounded by its key bits (at most 3 x 21 + 32 levels) and the median split

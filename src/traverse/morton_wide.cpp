@@ -1,0 +1,328 @@
+#include "traverse/morton_wide.h"
+
+#include <algorithm>
+#include <bit>
+#include <cmath>
+#include <vector>
+
+#include "bvh/morton.h"
+#include "bvh/radix_sort.h"
+#include "core/check.h"
+#include "core/parallel.h"
+#include "core/raw_array.h"
+#include "core/vec.h"
+#include "geometry/prim_ref.h"
+#include "kestrel/error.h"
+
+namespace kestrel {
+
+namespace {
+
+// Ranges of at most this many triangles are built as one task, in parallel with the others.
+constexpr uint32_t task_size = 4096;
+constexpr uint32_t leaf_size = 4;              // one TriangleBlock
+constexpr uint32_t top_pending = 0x7FFFFFFFu;  // a top node's slot whose task is not yet built
+
+template <class Key>
+Key morton_code(float x, float y, float z);
+template <>
+uint32_t morton_code<uint32_t>(float x, float y, float z) {
+  return morton30(uint32_t(x), uint32_t(y), uint32_t(z));
+}
+template <>
+uint64_t morton_code<uint64_t>(float x, float y, float z) {
+  return (spread_bits_21(uint64_t(x)) << 2) | (spread_bits_21(uint64_t(y)) << 1) |
+         spread_bits_21(uint64_t(z));
+}
+
+Bounds3 empty_box() {
+  return {{INFINITY, INFINITY, INFINITY}, {-INFINITY, -INFINITY, -INFINITY}};
+}
+
+template <class Node>
+void set_slot(Node& node, int j, const Bounds3& b, uint32_t ref) {
+  node.bounds[0][j] = b.lo.x, node.bounds[1][j] = b.hi.x;
+  node.bounds[2][j] = b.lo.y, node.bounds[3][j] = b.hi.y;
+  node.bounds[4][j] = b.lo.z, node.bounds[5][j] = b.hi.z;
+  node.child[j] = ref;
+}
+
+// Splits [b, e) into at most W parts: the largest part above the leaf size is split again
+// until there are W parts or every part is a leaf. Returns the part count.
+template <int W, class Key>
+int partition_node(const Key* keys, uint32_t b, uint32_t e, uint32_t* lo, uint32_t* hi) {
+  int parts = 1;
+  lo[0] = b, hi[0] = e;
+  while (parts < W) {
+    int big = -1;
+    uint64_t best = 0;
+    for (int i = 0; i < parts; ++i) {
+      const uint32_t size = hi[i] - lo[i];
+      if (size <= leaf_size) continue;
+      // The part of the largest Morton cell (fewest common leading key bits), then of most
+      // references: the cell stands in for the part's box, which is not known yet.
+      const Key x = keys[lo[i]] ^ keys[hi[i] - 1];
+      const uint64_t prefix = x ? uint64_t(std::countl_zero(x)) : uint64_t(sizeof(Key) * 8);
+      const uint64_t rank = (uint64_t(127 - prefix) << 32) | size;
+      if (rank > best) big = i, best = rank;
+    }
+    if (big < 0) break;
+    const uint32_t m = morton_split(keys, lo[big], hi[big]);
+    lo[parts] = m, hi[parts] = hi[big];
+    hi[big] = m;
+    ++parts;
+  }
+  return parts;
+}
+
+// Nodes and blocks a subtree over [b, e) (e - b > leaf_size) takes: the build's own splits,
+// without writing anything, so every task knows where its part of the arrays starts.
+template <int W, class Key>
+void count_subtree(const Key* keys, uint32_t b, uint32_t e, size_t& nodes, size_t& blocks) {
+  uint32_t lo[W], hi[W];
+  const int parts = partition_node<W>(keys, b, e, lo, hi);
+  ++nodes;
+  for (int j = 0; j < parts; ++j) {
+    if (hi[j] - lo[j] <= leaf_size)
+      ++blocks;
+    else
+      count_subtree<W>(keys, lo[j], hi[j], nodes, blocks);
+  }
+}
+
+// Writes nodes and blocks at consecutive indices from next_node / next_block (absolute:
+// the arrays are sized in advance, or grown for the top).
+template <int W, class Node, class Key>
+struct Builder {
+  const Key* keys;       // sorted
+  const Triangle* tris;  // in key order
+  const uint32_t* ids;   // prim ids in key order
+  Node* nodes;
+  TriangleBlock* blocks;
+  uint32_t next_node, next_block;
+
+  // One block over [b, e) (1 to 4 triangles; unused lanes repeat the last); its box.
+  uint32_t leaf(uint32_t b, uint32_t e, Bounds3& box) {
+    const uint32_t index = next_block++;
+    TriangleBlock& blk = blocks[index];
+    Vec3 lo{INFINITY, INFINITY, INFINITY}, hi{-INFINITY, -INFINITY, -INFINITY};
+    for (uint32_t lane = 0; lane < 4; ++lane) {
+      const uint32_t k = std::min(b + lane, e - 1);
+      const Triangle& t = tris[k];
+      const Vec3* v[3] = {&t.v0, &t.v1, &t.v2};
+      for (int c = 0; c < 3; ++c) {
+        blk.v[c][0][lane] = v[c]->x;
+        blk.v[c][1][lane] = v[c]->y;
+        blk.v[c][2][lane] = v[c]->z;
+      }
+      blk.prim_id[lane] = ids[k];
+      lo = min(lo, min(t.v0, min(t.v1, t.v2)));
+      hi = max(hi, max(t.v0, max(t.v1, t.v2)));
+    }
+    blk.prim_id[0] |= block_last_bit;
+    box = {lo, hi};
+    return wide_leaf_bit | index;
+  }
+
+  // Fills node `index` over [b, e) (e - b > leaf_size) and returns its box.
+  Bounds3 build(uint32_t index, uint32_t b, uint32_t e) {
+    uint32_t lo[W], hi[W];
+    const int parts = partition_node<W>(keys, b, e, lo, hi);
+    Node node;
+    Bounds3 total = empty_box();
+    for (int j = 0; j < W; ++j) {
+      if (j >= parts) {
+        set_slot(node, j, empty_box(), wide_empty);
+        continue;
+      }
+      Bounds3 box;
+      uint32_t ref;
+      if (hi[j] - lo[j] <= leaf_size) {
+        ref = leaf(lo[j], hi[j], box);
+      } else {
+        ref = next_node++;
+        box = build(ref, lo[j], hi[j]);
+      }
+      set_slot(node, j, box, ref);
+      extend(total, box);
+    }
+    nodes[index] = node;
+    return total;
+  }
+};
+
+// The top of the tree, serially: nodes until ranges fit a task, into growing arrays (the
+// top is small); a task's slot is left pending (its box and index come once it is built).
+template <int W, class Node, class Key>
+struct Top {
+  const Key* keys;
+  const Triangle* tris;
+  const uint32_t* ids;
+  std::vector<Node> nodes;
+  std::vector<TriangleBlock> blocks;
+  struct Task {
+    uint32_t node, slot, b, e;
+  };
+  std::vector<Task> tasks;
+
+  void build(uint32_t index, uint32_t b, uint32_t e) {
+    uint32_t lo[W], hi[W];
+    const int parts = partition_node<W>(keys, b, e, lo, hi);
+    Node node;
+    std::vector<std::pair<int, uint32_t>> inner;  // (slot, node) of top children
+    for (int j = 0; j < W; ++j) {
+      if (j >= parts) {
+        set_slot(node, j, empty_box(), wide_empty);
+        continue;
+      }
+      const uint32_t n = hi[j] - lo[j];
+      if (n <= leaf_size) {
+        blocks.emplace_back();
+        Builder<W, Node, Key> leaf_writer{
+            keys, tris, ids, nullptr, blocks.data(), 0, uint32_t(blocks.size() - 1)};
+        Bounds3 box;
+        const uint32_t ref = leaf_writer.leaf(lo[j], hi[j], box);
+        set_slot(node, j, box, ref);
+      } else if (n <= task_size) {
+        tasks.push_back({index, uint32_t(j), lo[j], hi[j]});
+        set_slot(node, j, empty_box(), top_pending);
+      } else {
+        const uint32_t child = uint32_t(nodes.size());
+        nodes.emplace_back();
+        set_slot(node, j, empty_box(), child);
+        inner.push_back({j, child});
+      }
+    }
+    nodes[index] = node;
+    for (const auto& [slot, child] : inner) build(child, lo[slot], hi[slot]);
+  }
+};
+
+template <class Node>
+Bounds3 node_box(const Node& node, int width) {
+  Bounds3 box = empty_box();
+  for (int j = 0; j < width; ++j)
+    if (node.child[j] != wide_empty)
+      extend(box, Bounds3{{node.bounds[0][j], node.bounds[2][j], node.bounds[4][j]},
+                          {node.bounds[1][j], node.bounds[3][j], node.bounds[5][j]}});
+  return box;
+}
+
+template <int W, class Node, class Wide, class Key>
+Wide build_wide(const Scene& scene, std::span<const PrimRef> refs, int bits_per_axis) {
+  Wide out;
+  const size_t n = refs.size();
+  if (n == 0) return out;
+  if (n >= size_t(block_last_bit))
+    throw Error(ErrorCode::invalid_argument, "wide BVH: more than 2^31 primitives");
+  // Centroid bounds (doubled centroids lo + hi), reduced over fixed chunks.
+  constexpr size_t chunk = 1u << 14;
+  const size_t chunks = chunk_count(n, chunk);
+  std::vector<Bounds3> partial(chunks);
+  parallel_for(0, chunks, 1, [&](size_t cb, size_t ce) {
+    for (size_t c = cb; c < ce; ++c)
+      for (size_t i = c * chunk; i < std::min(n, (c + 1) * chunk); ++i)
+        extend(partial[c], refs[i].lo + refs[i].hi);
+  });
+  Bounds3 cb;
+  for (const Bounds3& p : partial) extend(cb, p);
+  const float cells = float(1u << bits_per_axis), last_cell = cells - 1.0f;
+  const Vec3 ext = extent(cb);
+  const Vec3 scale{ext.x > 0 ? cells / ext.x : 0.0f, ext.y > 0 ? cells / ext.y : 0.0f,
+                   ext.z > 0 ? cells / ext.z : 0.0f};
+  // v > 0 ? v : 0, not clamp: a NaN maps to 0 (refs are finite; this keeps it defined).
+  auto cell = [last_cell](float v) {
+    v = v > 0.0f ? v : 0.0f;
+    return v < last_cell ? v : last_cell;
+  };
+  RawArray<Key> keys(n);
+  RawArray<uint32_t> order(n);
+  parallel_for(0, n, 16384, [&](size_t b, size_t e) {
+    for (size_t i = b; i < e; ++i) {
+      const Vec3 q = (refs[i].lo + refs[i].hi - cb.lo) * scale;
+      keys[i] = morton_code<Key>(cell(q.x), cell(q.y), cell(q.z));
+      order[i] = uint32_t(i);
+    }
+  });
+  radix_sort(keys, order, 3 * bits_per_axis);
+  RawArray<uint32_t> ids(n);
+  parallel_for(0, n, 16384, [&](size_t b, size_t e) {
+    for (size_t i = b; i < e; ++i) {
+      if (i + 16 < e) __builtin_prefetch(&refs[order[i + 16]]);
+      ids[i] = refs[order[i]].prim_id;
+    }
+  });
+  const Buffer<Triangle> tris = gather_triangles(scene, {ids.data(), n});
+
+  // The top, serially; then the tasks, in parallel: counted, placed after the top in task
+  // order, and built in place.
+  Top<W, Node, Key> top{keys.data(), tris.data(), ids.data(), {Node{}}, {}, {}};
+  if (n <= leaf_size) {  // the root (always an inner node) with one leaf
+    top.blocks.emplace_back();
+    Builder<W, Node, Key> leaf_writer{keys.data(),       tris.data(), ids.data(), nullptr,
+                                      top.blocks.data(), 0,           0};
+    Bounds3 box;
+    const uint32_t ref = leaf_writer.leaf(0, uint32_t(n), box);
+    set_slot(top.nodes[0], 0, box, ref);
+    for (int j = 1; j < W; ++j) set_slot(top.nodes[0], j, empty_box(), wide_empty);
+  } else {
+    top.build(0, 0, uint32_t(n));
+  }
+  const size_t tasks = top.tasks.size();
+  std::vector<size_t> node_at(tasks + 1, top.nodes.size()), block_at(tasks + 1, top.blocks.size());
+  parallel_for(0, tasks, 1, [&](size_t t0, size_t t1) {
+    for (size_t t = t0; t < t1; ++t)  // counts first, made offsets below
+      count_subtree<W>(keys.data(), top.tasks[t].b, top.tasks[t].e, node_at[t + 1],
+                       block_at[t + 1]);
+  });
+  for (size_t t = 0; t < tasks; ++t) {
+    node_at[t + 1] = node_at[t] + (node_at[t + 1] - top.nodes.size());
+    block_at[t + 1] = block_at[t] + (block_at[t + 1] - top.blocks.size());
+  }
+  if (block_at[tasks] >= size_t(wide_leaf_bit) || node_at[tasks] >= size_t(wide_leaf_bit))
+    throw Error(ErrorCode::invalid_argument, "wide BVH: too many nodes or triangle blocks");
+  out.nodes.resize(node_at[tasks]);
+  out.blocks.resize(block_at[tasks]);
+  std::copy(top.nodes.begin(), top.nodes.end(), out.nodes.begin());
+  std::copy(top.blocks.begin(), top.blocks.end(), out.blocks.begin());
+  parallel_for(0, tasks, 1, [&](size_t t0, size_t t1) {
+    for (size_t t = t0; t < t1; ++t) {
+      const auto& task = top.tasks[t];
+      const uint32_t root = uint32_t(node_at[t]);
+      Builder<W, Node, Key> b{keys.data(),          tris.data(),       ids.data(),
+                              out.nodes.data(),     out.blocks.data(), root + 1,
+                              uint32_t(block_at[t])};
+      const Bounds3 box = b.build(root, task.b, task.e);
+      KESTREL_CHECK(b.next_node == node_at[t + 1] && b.next_block == block_at[t + 1],
+                    "morton wide build: a task wrote other counts than it counted");
+      // Tasks of one parent fill different slots of it: different floats, no race.
+      set_slot(out.nodes[task.node], int(task.slot), box, root);
+    }
+  });
+  // The top's boxes, bottom-up: its children follow their parents in the array.
+  const uint32_t top_nodes = uint32_t(top.nodes.size());
+  for (uint32_t i = top_nodes; i-- > 0;) {
+    Node& node = out.nodes[i];
+    for (int j = 0; j < W; ++j) {
+      const uint32_t ref = node.child[j];
+      if (ref < top_nodes) set_slot(node, j, node_box(out.nodes[ref], W), ref);
+    }
+  }
+  return out;
+}
+
+}  // namespace
+
+Bvh4 build_morton_bvh4(const Scene& scene, std::span<const PrimRef> refs,
+                       const BuildConfig& config) {
+  return config.morton_bits == 63 ? build_wide<4, Bvh4Node, Bvh4, uint64_t>(scene, refs, 21)
+                                  : build_wide<4, Bvh4Node, Bvh4, uint32_t>(scene, refs, 10);
+}
+
+Bvh8 build_morton_bvh8(const Scene& scene, std::span<const PrimRef> refs,
+                       const BuildConfig& config) {
+  return config.morton_bits == 63 ? build_wide<8, Bvh8Node, Bvh8, uint64_t>(scene, refs, 21)
+                                  : build_wide<8, Bvh8Node, Bvh8, uint32_t>(scene, refs, 10);
+}
+
+}  // namespace kestrel
