@@ -16,13 +16,16 @@ struct BuilderCost {
   double build_ns_per_prim;  // build_accel, wide layout included
   double ray_factor;         // trace cost per ray relative to binned
 };
-// fitted from a first run of the amortization benchmark (2026-12-03, AMD EPYC, the CSV in
-// docs/ is a second run): scenes bunny_grid, lamborghini, sponza, teapot
+// Builder rows fitted from the amortization benchmark of 2026-12-04 (AMD Zen 5, after the
+// build-buffer pool and the direct wide LBVH; scenes bunny_grid, lamborghini, sponza, teapot;
+// docs/amortization.csv). ray_ns_base and ray_ns_per_log2n are the 2026-12-03 fit's: this
+// run's line through the four scenes had a negative intercept (-42.4 ns, 8.99 per log2 n),
+// which would predict negative trace times for scenes of a few dozen triangles.
 constexpr double ray_ns_base = 21.93, ray_ns_per_log2n = 5.49;
 constexpr BuilderCost costs[] = {
-    {Builder::median, 397.4, 1.247},   {Builder::lbvh, 185.5, 1.080},
-    {Builder::binned, 549.3, 1.000},   {Builder::sweep, 1012.0, 0.987},
-    {Builder::spatial, 2210.3, 0.941},
+    {Builder::median, 396.6, 1.206},   {Builder::lbvh, 123.8, 1.154},
+    {Builder::binned, 557.2, 1.000},   {Builder::sweep, 1155.1, 1.003},
+    {Builder::spatial, 2245.1, 0.948},
 };
 }  // namespace
 

@@ -171,17 +171,7 @@ BinaryTree build_tree(std::span<const PrimRef> refs, const BuildConfig& config, 
   const size_t n = refs.size();
   BinaryTree tree;
   tree.allocate(n);
-  // Centroid bounds, reduced over fixed chunks.
-  constexpr size_t chunk = 1u << 14;
-  const size_t chunks = chunk_count(n, chunk);
-  std::vector<Bounds3> partial(chunks);
-  parallel_for(0, chunks, 1, [&](size_t cb, size_t ce) {
-    for (size_t c = cb; c < ce; ++c)
-      for (size_t i = c * chunk; i < std::min(n, (c + 1) * chunk); ++i)
-        extend(partial[c], refs[i].lo + refs[i].hi);
-  });
-  Bounds3 cb;
-  for (const Bounds3& p : partial) extend(cb, p);
+  const Bounds3 cb = centroid_bounds(refs);
   const float cells = float(1u << bits_per_axis);
   const Vec3 ext = extent(cb);
   const Vec3 scale{ext.x > 0 ? cells / ext.x : 0.0f, ext.y > 0 ? cells / ext.y : 0.0f,
@@ -220,6 +210,20 @@ BinaryTree build_any(std::span<const PrimRef> refs, const BuildConfig& config, b
 }
 
 }  // namespace
+
+Bounds3 centroid_bounds(std::span<const PrimRef> refs) {
+  constexpr size_t chunk = 1u << 14;
+  const size_t n = refs.size(), chunks = chunk_count(n, chunk);
+  std::vector<Bounds3> partial(chunks);
+  parallel_for(0, chunks, 1, [&](size_t cb, size_t ce) {
+    for (size_t c = cb; c < ce; ++c)
+      for (size_t i = c * chunk; i < std::min(n, (c + 1) * chunk); ++i)
+        extend(partial[c], refs[i].lo + refs[i].hi);
+  });
+  Bounds3 b;
+  for (const Bounds3& p : partial) extend(b, p);
+  return b;
+}
 
 BinaryTree build_lbvh_tree(std::span<const PrimRef> refs, const BuildConfig& config) {
   return build_any(refs, config, /* top_down = */ false);

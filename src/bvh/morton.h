@@ -2,6 +2,9 @@
 #pragma once
 #include <bit>
 #include <cstdint>
+#include <span>
+
+#include "kestrel/bvh.h"
 
 namespace kestrel {
 
@@ -30,6 +33,10 @@ inline uint64_t spread_bits_21(uint64_t x) {
 inline uint32_t morton30(uint32_t x, uint32_t y, uint32_t z) {
   return (spread_bits_10(x) << 2) | (spread_bits_10(y) << 1) | spread_bits_10(z);
 }
+
+/// Bounds of the doubled centroids (lo + hi) of the refs: what Morton codes quantise.
+/// Reduced over fixed chunks, in parallel (the same result for any thread count).
+Bounds3 centroid_bounds(std::span<const PrimRef> refs);
 
 /// Where a node over sorted keys [b, e) (e - b >= 2) splits (Karras 2012): the first index
 /// whose key has the highest bit in which keys[b] and keys[e - 1] differ set; the middle when

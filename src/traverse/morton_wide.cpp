@@ -215,17 +215,7 @@ Wide build_wide(const Scene& scene, std::span<const PrimRef> refs, int bits_per_
   if (n == 0) return out;
   if (n >= size_t(block_last_bit))
     throw Error(ErrorCode::invalid_argument, "wide BVH: more than 2^31 primitives");
-  // Centroid bounds (doubled centroids lo + hi), reduced over fixed chunks.
-  constexpr size_t chunk = 1u << 14;
-  const size_t chunks = chunk_count(n, chunk);
-  std::vector<Bounds3> partial(chunks);
-  parallel_for(0, chunks, 1, [&](size_t cb, size_t ce) {
-    for (size_t c = cb; c < ce; ++c)
-      for (size_t i = c * chunk; i < std::min(n, (c + 1) * chunk); ++i)
-        extend(partial[c], refs[i].lo + refs[i].hi);
-  });
-  Bounds3 cb;
-  for (const Bounds3& p : partial) extend(cb, p);
+  const Bounds3 cb = centroid_bounds(refs);
   const float cells = float(1u << bits_per_axis), last_cell = cells - 1.0f;
   const Vec3 ext = extent(cb);
   const Vec3 scale{ext.x > 0 ? cells / ext.x : 0.0f, ext.y > 0 ? cells / ext.y : 0.0f,
