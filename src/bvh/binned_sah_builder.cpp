@@ -16,6 +16,7 @@
 #include "bvh/node_slots.h"
 #include "bvh/sah.h"
 #include "core/parallel.h"
+#include "core/raw_array.h"
 #include "core/simd/vec4f.h"
 #include "core/vec.h"
 
@@ -113,26 +114,58 @@ struct BinMapping {
   Vec4f top = Vec4f(0.0f);
 };
 
+// Side accumulators of a branch-free partition: a reference's box joins one side's bounds
+// through a lane mask instead of a branch (the side is as unpredictable as a coin).
+struct SideBounds {
+  Vec4f geom_lo = Vec4f(std::numeric_limits<float>::infinity()),
+        geom_hi = Vec4f(-std::numeric_limits<float>::infinity()),
+        cent_lo = Vec4f(std::numeric_limits<float>::infinity()),
+        cent_hi = Vec4f(-std::numeric_limits<float>::infinity());
+  // Adds [lo, hi] where mask is all ones (else +-inf, which changes nothing).
+  void add_masked(__m128 mask, Vec4f lo, Vec4f hi) {
+    const __m128 inf = _mm_set1_ps(std::numeric_limits<float>::infinity());
+    const Vec4f l(_mm_or_ps(_mm_and_ps(mask, lo.v), _mm_andnot_ps(mask, inf)));
+    const Vec4f h(_mm_or_ps(_mm_and_ps(mask, hi.v), _mm_andnot_ps(mask, _mm_sub_ps(_mm_setzero_ps(), inf))));
+    geom_lo = min(geom_lo, l);
+    geom_hi = max(geom_hi, h);
+    const Vec4f c = lo + hi;
+    cent_lo = min(cent_lo, Vec4f(_mm_or_ps(_mm_and_ps(mask, c.v), _mm_andnot_ps(mask, inf))));
+    cent_hi = max(cent_hi, Vec4f(_mm_or_ps(_mm_and_ps(mask, c.v),
+                                           _mm_andnot_ps(mask, _mm_sub_ps(_mm_setzero_ps(), inf)))));
+  }
+  RangeInfo range(size_t begin, size_t end) const {
+    return {geom_lo, geom_hi, cent_lo, cent_hi, begin, end};
+  }
+};
+
+inline __m128 lane_mask(bool b) {
+  return _mm_castsi128_ps(_mm_set1_epi32(-int32_t(b)));
+}
+
+// The references are partitioned out of place: a range lives in one of two buffers and its
+// children in the other (each node records which), so a partition is one branch-free pass
+// that writes every reference once. Leaves write their prim ids into `ids` (leaf order).
 struct BinnedBuilder {
-  PrimRef* refs;
   const BuildConfig& config;
   NodeSlots& slots;
+  uint32_t* ids;
   int bin_count;
   size_t exact_max;   // exact sweep for ranges up to this size
   size_t block_leaf;  // ranges up to this size are leaves (0: none; see build_binned_sah)
 
-  Vec4f ref_lo(size_t i) const { return Vec4f::load(&refs[i].lo); }
-  Vec4f ref_hi(size_t i) const { return Vec4f::load(&refs[i].hi); }
+  static Vec4f ref_lo(const PrimRef* r, size_t i) { return Vec4f::load(&r[i].lo); }
+  static Vec4f ref_hi(const PrimRef* r, size_t i) { return Vec4f::load(&r[i].hi); }
 
   // Alternate references go to two bin sets, merged at the end: runs of neighbouring
   // references fall in the same bin, and one set would serialise on its read-modify-writes.
-  void bin_range(const BinMapping& map, size_t begin, size_t end, Bins& bins) const {
+  void bin_range(const BinMapping& map, const PrimRef* r, size_t begin, size_t end,
+                 Bins& bins) const {
     bins.clear(map.bin_count);
     int b0[4], b1[4];
     size_t i = begin;
     if (end - begin < two_set_min) {  // small ranges: clearing and merging a second set costs more
       for (; i < end; ++i) {
-        const Vec4f lo = ref_lo(i), hi = ref_hi(i);
+        const Vec4f lo = ref_lo(r, i), hi = ref_hi(r, i);
         map.bin_of(lo, hi, b0);
         bins.add(b0, lo, hi);
       }
@@ -141,35 +174,37 @@ struct BinnedBuilder {
     Bins odd;
     odd.clear(map.bin_count);
     for (; i + 1 < end; i += 2) {
-      const Vec4f lo0 = ref_lo(i), hi0 = ref_hi(i), lo1 = ref_lo(i + 1), hi1 = ref_hi(i + 1);
+      const Vec4f lo0 = ref_lo(r, i), hi0 = ref_hi(r, i), lo1 = ref_lo(r, i + 1),
+                  hi1 = ref_hi(r, i + 1);
       map.bin_of(lo0, hi0, b0);
       map.bin_of(lo1, hi1, b1);
       bins.add(b0, lo0, hi0);
       odd.add(b1, lo1, hi1);
     }
     if (i < end) {
-      const Vec4f lo = ref_lo(i), hi = ref_hi(i);
+      const Vec4f lo = ref_lo(r, i), hi = ref_hi(r, i);
       map.bin_of(lo, hi, b0);
       bins.add(b0, lo, hi);
     }
     bins.merge(odd, map.bin_count);
   }
 
-  void bin(const BinMapping& map, const RangeInfo& info, Bins& bins) const {
+  void bin(const BinMapping& map, const RangeInfo& info, const PrimRef* r, Bins& bins) const {
     const size_t n = info.end - info.begin;
-    if (n < parallel_binning_threshold) return bin_range(map, info.begin, info.end, bins);
+    if (n < parallel_binning_threshold) return bin_range(map, r, info.begin, info.end, bins);
     const size_t chunks = chunk_count(n, binning_chunk);
     std::vector<Bins> partial(chunks);
     parallel_for(0, chunks, 1, [&](size_t cb, size_t ce) {
       for (size_t c = cb; c < ce; ++c)
-        bin_range(map, info.begin + c * binning_chunk,
+        bin_range(map, r, info.begin + c * binning_chunk,
                   std::min(info.end, info.begin + (c + 1) * binning_chunk), partial[c]);
     });
     bins = partial[0];
     for (size_t c = 1; c < chunks; ++c) bins.merge(partial[c], map.bin_count);
   }
 
-  void make_leaf(uint32_t slot, const RangeInfo& info) {
+  void make_leaf(uint32_t slot, const RangeInfo& info, const PrimRef* r) {
+    for (size_t i = info.begin; i < info.end; ++i) ids[i] = r[i].prim_id;
     Bvh2Node& node = slots[slot];
     alignas(16) float lo[4], hi[4];
     info.geom_lo.store(lo);
@@ -181,29 +216,34 @@ struct BinnedBuilder {
   }
 
   // Splits [begin, end) at its middle (all centroids equal: no SAH split exists).
-  void split_middle(const RangeInfo& info, RangeInfo& left, RangeInfo& right) const {
+  static void split_middle(const RangeInfo& info, const PrimRef* r, RangeInfo& left,
+                           RangeInfo& right) {
     size_t mid = info.begin + (info.end - info.begin) / 2;
     left = RangeInfo::empty_at(info.begin);
     right = RangeInfo::empty_at(mid);
-    for (size_t i = info.begin; i < mid; ++i) left.add(ref_lo(i), ref_hi(i));
-    for (size_t i = mid; i < info.end; ++i) right.add(ref_lo(i), ref_hi(i));
+    for (size_t i = info.begin; i < mid; ++i) left.add(ref_lo(r, i), ref_hi(r, i));
+    for (size_t i = mid; i < info.end; ++i) right.add(ref_lo(r, i), ref_hi(r, i));
     left.end = mid;
     right.end = info.end;
   }
 
-  void build(uint32_t slot, uint32_t pair, const RangeInfo& info) {
+  // Builds slot `slot` over `info`, whose references are in r[info.begin, info.end); `spare`
+  // is the other buffer. The children's references end up in r or in spare (`data`).
+  void build(uint32_t slot, uint32_t pair, const RangeInfo& info, PrimRef* r, PrimRef* spare) {
     const size_t n = info.end - info.begin;
-    if (n == 1 || n <= block_leaf) return make_leaf(slot, info);
+    if (n == 1 || n <= block_leaf) return make_leaf(slot, info, r);
+    PrimRef* data = r;  // where the range's references are now
+    PrimRef* other = spare;
     const float node_area = simd::half_area(info.geom_lo, info.geom_hi);
     const float inv_area = inverse_area(node_area);
     RangeInfo left, right;
     alignas(16) float cext[4];
     (info.cent_hi - info.cent_lo).store(cext);
     if (cext[0] <= 0.0f && cext[1] <= 0.0f && cext[2] <= 0.0f) {
-      if (n <= config.max_leaf_size) return make_leaf(slot, info);
-      split_middle(info, left, right);
+      if (n <= config.max_leaf_size) return make_leaf(slot, info, r);
+      split_middle(info, r, left, right);
     } else if (n <= exact_max) {
-      if (!exact_split(info, inv_area, left, right)) return make_leaf(slot, info);
+      if (!exact_split(info, r, inv_area, left, right)) return make_leaf(slot, info, r);
     } else {
       // Bins scale with the range: the top levels (few nodes, many references) get the full
       // count -- coarse bins there cut through clustered objects -- while small nodes, where
@@ -211,7 +251,7 @@ struct BinnedBuilder {
       const int bins_here = std::clamp(int(n / 4), 8, bin_count);
       const BinMapping map(info, bins_here);
       Bins bins;
-      bin(map, info, bins);
+      bin(map, info, r, bins);
       // Sweep: right-to-left suffix areas, then left-to-right costs.
       float best_cost = std::numeric_limits<float>::infinity();
       int best_axis = -1, best_split = 0;
@@ -248,19 +288,21 @@ struct BinnedBuilder {
       }
       if (best_axis >= 0) {
         if (n >= refine_min) {
-          best_cost = refine_and_partition(best_axis, best_split, map, inv_area, info, left, right);
+          best_cost = refine_and_partition(best_axis, best_split, map, inv_area, info, r, spare,
+                                           left, right);
         } else {
-          partition(map, best_axis, best_split, info, left, right);
+          partition(map, best_axis, best_split, info, r, spare, left, right);
         }
+        std::swap(data, other);
       }
       // A leaf is weighed against the refined split (refinement only reorders the range).
       if (n <= config.max_leaf_size && leaf_cost(config, n) <= best_cost)
-        return make_leaf(slot, info);
-      if (best_axis < 0) split_middle(info, left, right);
+        return make_leaf(slot, info, data);
+      if (best_axis < 0) split_middle(info, data, left, right);
     }
     // A split that separates nothing (every cost NaN: areas overflow float in scenes wider
     // than ~1e19, and the sweeps then keep an empty side) would recurse forever: halves.
-    if (left.end == left.begin || right.end == right.begin) split_middle(info, left, right);
+    if (left.end == left.begin || right.end == right.begin) split_middle(info, data, left, right);
     slots[slot] = Bvh2Node{{}, pair, {}, 0};
     alignas(16) float lo[4], hi[4];
     info.geom_lo.store(lo);
@@ -269,12 +311,13 @@ struct BinnedBuilder {
     slots[slot].hi = {hi[0], hi[1], hi[2]};
     const size_t left_count = left.end - left.begin;
     build_children(
-        n > config.parallel_threshold, [&] { build(pair, pair + 2, left); },
-        [&] { build(pair + 1, right_descendants(pair, left_count), right); });
+        n > config.parallel_threshold, [&] { build(pair, pair + 2, left, data, other); },
+        [&] { build(pair + 1, right_descendants(pair, left_count), right, data, other); });
   }
 
   // Exact SAH over the sorted centroids of a small range; false when a leaf is cheaper.
-  bool exact_split(const RangeInfo& info, float inv_area, RangeInfo& left, RangeInfo& right) const {
+  bool exact_split(const RangeInfo& info, PrimRef* refs, float inv_area, RangeInfo& left,
+                   RangeInfo& right) const {
     const size_t n = info.end - info.begin;
     const PrimRef* r = refs + info.begin;
     uint8_t order[3][exact_sweep_cap];
@@ -336,105 +379,117 @@ struct BinnedBuilder {
   // doubled centroid. Its bin is trunc(clamp(x)), so "bin < b" is exactly x < b -- computed
   // with the same float operations as in binning, so every reference lands on the side it
   // was counted on.
-  float position(size_t k, int axis, const BinMapping& map) const {
-    return ((&refs[k].lo.x)[axis] + (&refs[k].hi.x)[axis] - map.offset[axis]) * map.scale[axis];
+  static float position(const PrimRef& ref, int axis, const BinMapping& map) {
+    return ((&ref.lo.x)[axis] + (&ref.hi.x)[axis] - map.offset[axis]) * map.scale[axis];
   }
 
-  // Hoare partition of [begin, end) into x < bound | x >= bound; swaps only misplaced
-  // references and gathers the bounds of either side when asked. Returns the split point.
-  size_t hoare(size_t begin, size_t end, int axis, const BinMapping& map, float bound,
-               RangeInfo* left_info, RangeInfo* right_info) const {
-    size_t i = begin, j = end;
-    while (true) {
-      while (i < j && position(i, axis, map) < bound) {
-        if (left_info) left_info->add(ref_lo(i), ref_hi(i));
-        ++i;
-      }
-      while (i < j && !(position(j - 1, axis, map) < bound)) {
-        if (right_info) right_info->add(ref_lo(j - 1), ref_hi(j - 1));
-        --j;
-      }
-      if (i >= j) return i;
-      std::swap(refs[i], refs[j - 1]);
+  // Out of place: src[b, e) into dst[b, e), references with x < bound to the front (in
+  // order), the rest to the back (in reverse order), with either side's bounds. Branch-free:
+  // every reference is written once, to a slot chosen by a select. Returns the split point.
+  static size_t scatter(const PrimRef* src, PrimRef* dst, size_t b, size_t e, int axis,
+                        const BinMapping& map, float bound, SideBounds& front,
+                        SideBounds& back) {
+    size_t f = b, k = e;  // dst[b, f) front, dst[k, e) back
+    for (size_t i = b; i < e; ++i) {
+      const Vec4f lo = ref_lo(src, i), hi = ref_hi(src, i);
+      const bool left = position(src[i], axis, map) < bound;
+      PrimRef* to = dst + (left ? f : k - 1);
+      lo.store(&to->lo);
+      hi.store(&to->hi);
+      f += left;
+      k -= !left;
+      const __m128 m = lane_mask(left);
+      front.add_masked(m, lo, hi);
+      back.add_masked(_mm_xor_ps(m, lane_mask(true)), lo, hi);
     }
+    return f;
   }
 
-  // Partitions at a bin boundary: a reference goes left when its bin on `axis` is below `split`.
-  void partition(const BinMapping& map, int axis, int split, const RangeInfo& info, RangeInfo& left,
-                 RangeInfo& right) const {
-    left = RangeInfo::empty_at(info.begin);
-    right = RangeInfo::empty_at(info.end);
-    const size_t mid = hoare(info.begin, info.end, axis, map, float(split), &left, &right);
-    left.end = mid;
-    right.begin = mid;
-    right.end = info.end;
+  // Partitions at a bin boundary, into `dst`: a reference goes left when its bin on `axis`
+  // is below `split`.
+  void partition(const BinMapping& map, int axis, int split, const RangeInfo& info,
+                 const PrimRef* src, PrimRef* dst, RangeInfo& left, RangeInfo& right) const {
+    SideBounds l, r;
+    const size_t mid = scatter(src, dst, info.begin, info.end, axis, map, float(split), l, r);
+    left = l.range(info.begin, mid);
+    right = r.range(mid, info.end);
   }
 
-  // Refines the chosen bin boundary, then partitions. On regular structures (grids,
-  // tessellated planes) bin boundaries cut through rows of centroids, so the references of
-  // the two bins at the boundary are gathered in the middle of the range, sorted by
-  // centroid, and the exact SAH split among them is taken (the binned split is one of the
-  // candidates: never worse). Returns the split's cost.
+  // Refines the chosen bin boundary while partitioning into `dst`. On regular structures
+  // (grids, tessellated planes) bin boundaries cut through rows of centroids, so the
+  // references of the two bins at the boundary are gathered in the middle of the range,
+  // sorted by centroid, and the exact SAH split among them is taken (the binned split is one
+  // of the candidates: never worse). Returns the split's cost.
   float refine_and_partition(int axis, int split, const BinMapping& map, float inv_area,
-                             const RangeInfo& info, RangeInfo& left, RangeInfo& right) const {
+                             const RangeInfo& info, PrimRef* src, PrimRef* dst, RangeInfo& left,
+                             RangeInfo& right) const {
     const float below = float(split - 1), above = float(split + 1);  // middle: bins split-1, split
-    // Two passes: [lower + middle | upper], then [lower | middle].
-    RangeInfo lower = RangeInfo::empty_at(info.begin), upper = RangeInfo::empty_at(info.end);
-    const size_t gt = hoare(info.begin, info.end, axis, map, above, nullptr, &upper);
-    const size_t lt = hoare(info.begin, gt, axis, map, below, &lower, nullptr);
-    const size_t m = gt - lt, n_lower = lt - info.begin, n_upper = info.end - gt;
-    PrimRef* mid = refs + lt;
-    // Sorted as packed (order-preserving key bits, position) words, then permuted once. Ties
-    // keep the partition's order, which is deterministic.
+    // One pass: lower bins to the front of dst, upper bins to its back, the middle packed at
+    // the front of src's own range, which the pass has already read (every reference written
+    // to one of three places, chosen by selects).
     thread_local std::vector<uint64_t> order;
-    thread_local std::vector<PrimRef> sorted;
     thread_local std::vector<float> suffix_area;
+    const size_t b = info.begin, e = info.end;
+    PrimRef* middle = src + b;
+    SideBounds lower, upper;
+    size_t f = b, k = e, t = 0;
+    for (size_t i = b; i < e; ++i) {
+      const Vec4f lo = ref_lo(src, i), hi = ref_hi(src, i);
+      const float x = position(src[i], axis, map);
+      const bool is_lower = x < below, is_upper = !(x < above), is_middle = !is_lower && !is_upper;
+      PrimRef* to = is_middle ? &middle[t] : dst + (is_lower ? f : k - 1);
+      lo.store(&to->lo);
+      hi.store(&to->hi);
+      f += is_lower;
+      k -= is_upper;
+      t += is_middle;
+      lower.add_masked(lane_mask(is_lower), lo, hi);
+      upper.add_masked(lane_mask(is_upper), lo, hi);
+    }
+    const size_t m = t, n_lower = f - b, n_upper = e - k;
+    PrimRef* mid = dst + f;
+    // Sorted as packed (order-preserving key bits, position) words into the gap. Ties keep
+    // the pass's order, which is deterministic.
     order.resize(m);
-    for (size_t k = 0; k < m; ++k) {
-      const float key = (&mid[k].lo.x)[axis] + (&mid[k].hi.x)[axis];
+    for (size_t q = 0; q < m; ++q) {
+      const float key = (&middle[q].lo.x)[axis] + (&middle[q].hi.x)[axis];
       uint32_t bits;
       std::memcpy(&bits, &key, 4);
       bits = (bits & 0x80000000u) ? ~bits : bits | 0x80000000u;  // float order as unsigned order
-      order[k] = uint64_t(bits) << 32 | uint32_t(k);
+      order[q] = uint64_t(bits) << 32 | uint32_t(q);
     }
     std::sort(order.begin(), order.end());
-    sorted.resize(m);
-    for (size_t k = 0; k < m; ++k) sorted[k] = mid[uint32_t(order[k])];
-    std::copy(sorted.begin(), sorted.end(), mid);
+    for (size_t q = 0; q < m; ++q) mid[q] = middle[uint32_t(order[q])];
     // Exact sweep over the m + 1 split positions in the middle.
     suffix_area.resize(m + 1);
     Vec4f lo = upper.geom_lo, hi = upper.geom_hi;
     suffix_area[m] = n_upper ? simd::half_area(lo, hi) : 0.0f;
-    for (size_t k = m; k-- > 0;) {
-      lo = min(lo, Vec4f::load(&mid[k].lo));
-      hi = max(hi, Vec4f::load(&mid[k].hi));
-      suffix_area[k] = simd::half_area(lo, hi);
+    for (size_t q = m; q-- > 0;) {
+      lo = min(lo, Vec4f::load(&mid[q].lo));
+      hi = max(hi, Vec4f::load(&mid[q].hi));
+      suffix_area[q] = simd::half_area(lo, hi);
     }
     lo = lower.geom_lo;
     hi = lower.geom_hi;
     float best_cost = std::numeric_limits<float>::infinity();
     size_t best_k = 0;
-    for (size_t k = 0; k <= m; ++k) {
-      if (k > 0) {
-        lo = min(lo, Vec4f::load(&mid[k - 1].lo));
-        hi = max(hi, Vec4f::load(&mid[k - 1].hi));
+    for (size_t q = 0; q <= m; ++q) {
+      if (q > 0) {
+        lo = min(lo, Vec4f::load(&mid[q - 1].lo));
+        hi = max(hi, Vec4f::load(&mid[q - 1].hi));
       }
-      const size_t nl = n_lower + k, nr = n_upper + (m - k);
+      const size_t nl = n_lower + q, nr = n_upper + (m - q);
       if (nl == 0 || nr == 0) continue;
-      const float c = split_cost(config, inv_area, simd::half_area(lo, hi), nl, suffix_area[k], nr);
+      const float c = split_cost(config, inv_area, simd::half_area(lo, hi), nl, suffix_area[q], nr);
       if (c < best_cost) {
         best_cost = c;
-        best_k = k;
+        best_k = q;
       }
     }
-    left = lower;
-    right = upper;
-    for (size_t k = 0; k < m; ++k)
-      (k < best_k ? left : right).add(Vec4f::load(&mid[k].lo), Vec4f::load(&mid[k].hi));
-    left.begin = info.begin;
-    left.end = lt + best_k;
-    right.begin = lt + best_k;
-    right.end = info.end;
+    left = lower.range(b, f + best_k);
+    right = upper.range(f + best_k, e);
+    for (size_t q = 0; q < m; ++q)
+      (q < best_k ? left : right).add(Vec4f::load(&mid[q].lo), Vec4f::load(&mid[q].hi));
     return best_cost;
   }
 };
@@ -443,12 +498,13 @@ struct BinnedBuilder {
 
 Bvh2 build_binned_sah(std::span<const PrimRef> input, const BuildConfig& config,
                       bool block_leaves) {
-  Buffer<PrimRef> refs(input.begin(), input.end());
+  Buffer<PrimRef> refs(input.begin(), input.end()), spare(input.size());
   const size_t n = refs.size();
   NodeSlots slots(n);
-  BinnedBuilder builder{refs.data(),
-                        config,
+  RawArray<uint32_t> ids(n);
+  BinnedBuilder builder{config,
                         slots,
+                        ids.data(),
                         int(config.bin_count),
                         n <= small_input ? exact_sweep_cap : exact_sweep_max,
                         block_leaves ? size_t(4) : size_t(0)};
@@ -459,7 +515,8 @@ Bvh2 build_binned_sah(std::span<const PrimRef> input, const BuildConfig& config,
     parallel_for(0, chunks, 1, [&](size_t cb, size_t ce) {
       for (size_t c = cb; c < ce; ++c)
         for (size_t i = c * binning_chunk; i < std::min(n, (c + 1) * binning_chunk); ++i)
-          partial[c].add(builder.ref_lo(i), builder.ref_hi(i));
+          partial[c].add(BinnedBuilder::ref_lo(refs.data(), i),
+                         BinnedBuilder::ref_hi(refs.data(), i));
     });
     for (const RangeInfo& p : partial) {
       root.geom_lo = min(root.geom_lo, p.geom_lo);
@@ -469,10 +526,8 @@ Bvh2 build_binned_sah(std::span<const PrimRef> input, const BuildConfig& config,
     }
     root.end = n;
   }
-  builder.build(0, 1, root);
-  std::vector<uint32_t> ids(n);
-  for (size_t i = 0; i < n; ++i) ids[i] = refs[i].prim_id;
-  return compact_slots(slots, ids);
+  builder.build(0, 1, root, refs.data(), spare.data());
+  return compact_slots(slots, {ids.data(), n});
 }
 
 }  // namespace kestrel
