@@ -65,8 +65,9 @@ constexpr bool caching = true;
 class LargeBlockPool {
  public:
   void* take(size_t bytes) {
+    if (!caching) return map_block(bytes);  // the exact size: the sanitizer sees its end
     bytes = mapped_size(bytes);
-    if (caching) {
+    {
       std::lock_guard<std::mutex> lock(mutex_);
       // The most recently freed block of the same mapped size (a scene rebuilt asks for the
       // same sizes again; exact sizes keep give_back free of bookkeeping).
@@ -82,8 +83,8 @@ class LargeBlockPool {
   }
 
   void give_back(void* p, size_t bytes) noexcept {
-    bytes = mapped_size(bytes);
     if (!caching) return unmap_block(p, bytes);
+    bytes = mapped_size(bytes);
     std::lock_guard<std::mutex> lock(mutex_);  // munmap under the lock: rare and short
     try {
       free_.push_back({p, bytes});

@@ -47,8 +47,9 @@ void set_slot(Node& node, int j, const Bounds3& b, uint32_t ref) {
   node.child[j] = ref;
 }
 
-// Splits [b, e) into at most W parts: the largest part above the leaf size is split again
-// until there are W parts or every part is a leaf. Returns the part count.
+// Splits [b, e) into at most W parts: a part above the leaf size is split again (the one of
+// the largest Morton cell, then of most references) until there are W parts or every part
+// is a leaf. Returns the part count.
 template <int W, class Key>
 int partition_node(const Key* keys, uint32_t b, uint32_t e, uint32_t* lo, uint32_t* hi) {
   int parts = 1;
