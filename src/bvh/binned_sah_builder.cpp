@@ -124,14 +124,15 @@ struct SideBounds {
   // Adds [lo, hi] where mask is all ones (else +-inf, which changes nothing).
   void add_masked(__m128 mask, Vec4f lo, Vec4f hi) {
     const __m128 inf = _mm_set1_ps(std::numeric_limits<float>::infinity());
-    const Vec4f l(_mm_or_ps(_mm_and_ps(mask, lo.v), _mm_andnot_ps(mask, inf)));
-    const Vec4f h(_mm_or_ps(_mm_and_ps(mask, hi.v), _mm_andnot_ps(mask, _mm_sub_ps(_mm_setzero_ps(), inf))));
-    geom_lo = min(geom_lo, l);
-    geom_hi = max(geom_hi, h);
+    const __m128 neg_inf = _mm_set1_ps(-std::numeric_limits<float>::infinity());
+    auto pick = [mask](__m128 v, __m128 other) {
+      return Vec4f(_mm_or_ps(_mm_and_ps(mask, v), _mm_andnot_ps(mask, other)));
+    };
     const Vec4f c = lo + hi;
-    cent_lo = min(cent_lo, Vec4f(_mm_or_ps(_mm_and_ps(mask, c.v), _mm_andnot_ps(mask, inf))));
-    cent_hi = max(cent_hi, Vec4f(_mm_or_ps(_mm_and_ps(mask, c.v),
-                                           _mm_andnot_ps(mask, _mm_sub_ps(_mm_setzero_ps(), inf)))));
+    geom_lo = min(geom_lo, pick(lo.v, inf));
+    geom_hi = max(geom_hi, pick(hi.v, neg_inf));
+    cent_lo = min(cent_lo, pick(c.v, inf));
+    cent_hi = max(cent_hi, pick(c.v, neg_inf));
   }
   RangeInfo range(size_t begin, size_t end) const {
     return {geom_lo, geom_hi, cent_lo, cent_hi, begin, end};
@@ -387,8 +388,7 @@ struct BinnedBuilder {
   // order), the rest to the back (in reverse order), with either side's bounds. Branch-free:
   // every reference is written once, to a slot chosen by a select. Returns the split point.
   static size_t scatter(const PrimRef* src, PrimRef* dst, size_t b, size_t e, int axis,
-                        const BinMapping& map, float bound, SideBounds& front,
-                        SideBounds& back) {
+                        const BinMapping& map, float bound, SideBounds& front, SideBounds& back) {
     size_t f = b, k = e;  // dst[b, f) front, dst[k, e) back
     for (size_t i = b; i < e; ++i) {
       const Vec4f lo = ref_lo(src, i), hi = ref_hi(src, i);
