@@ -76,18 +76,23 @@ int partition_node(const Key* keys, uint32_t b, uint32_t e, uint32_t* lo, uint32
   return parts;
 }
 
-// Nodes and blocks a subtree over [b, e) (e - b > leaf_size) takes: the build's own splits,
-// without writing anything, so every task knows where its part of the arrays starts.
+// Nodes and blocks a subtree over [b, e) (e - b > leaf_size) takes, so every task knows
+// where its part of the arrays starts. Its splits are recorded in `plan` (per node, depth
+// first: the part count, then each part's first and end), which the build replays instead of
+// searching the keys again.
 template <int W, class Key>
-void count_subtree(const Key* keys, uint32_t b, uint32_t e, size_t& nodes, size_t& blocks) {
+void count_subtree(const Key* keys, uint32_t b, uint32_t e, size_t& nodes, size_t& blocks,
+                   std::vector<uint32_t>& plan) {
   uint32_t lo[W], hi[W];
   const int parts = partition_node<W>(keys, b, e, lo, hi);
   ++nodes;
+  plan.push_back(uint32_t(parts));
+  for (int j = 0; j < parts; ++j) plan.push_back(lo[j]), plan.push_back(hi[j]);
   for (int j = 0; j < parts; ++j) {
     if (hi[j] - lo[j] <= leaf_size)
       ++blocks;
     else
-      count_subtree<W>(keys, lo[j], hi[j], nodes, blocks);
+      count_subtree<W>(keys, lo[j], hi[j], nodes, blocks, plan);
   }
 }
 
@@ -101,6 +106,7 @@ struct Builder {
   Node* nodes;
   TriangleBlock* blocks;
   uint32_t next_node, next_block;
+  const uint32_t* plan = nullptr;  // count_subtree's record of the splits, read in order
 
   // One block over [b, e) (1 to 4 triangles; unused lanes repeat the last); its box.
   uint32_t leaf(uint32_t b, uint32_t e, Bounds3& box) {
@@ -126,9 +132,10 @@ struct Builder {
   }
 
   // Fills node `index` over [b, e) (e - b > leaf_size) and returns its box.
-  Bounds3 build(uint32_t index, uint32_t b, uint32_t e) {
+  Bounds3 build(uint32_t index, uint32_t, uint32_t) {
     uint32_t lo[W], hi[W];
-    const int parts = partition_node<W>(keys, b, e, lo, hi);
+    const int parts = int(*plan++);
+    for (int j = 0; j < parts; ++j) lo[j] = *plan++, hi[j] = *plan++;
     Node node;
     Bounds3 total = empty_box();
     for (int j = 0; j < W; ++j) {
@@ -261,10 +268,13 @@ Wide build_wide(const Scene& scene, std::span<const PrimRef> refs, int bits_per_
   }
   const size_t tasks = top.tasks.size();
   std::vector<size_t> node_at(tasks + 1, top.nodes.size()), block_at(tasks + 1, top.blocks.size());
+  std::vector<std::vector<uint32_t>> plans(tasks);
   parallel_for(0, tasks, 1, [&](size_t t0, size_t t1) {
-    for (size_t t = t0; t < t1; ++t)  // counts first, made offsets below
-      count_subtree<W>(keys.data(), top.tasks[t].b, top.tasks[t].e, node_at[t + 1],
-                       block_at[t + 1]);
+    for (size_t t = t0; t < t1; ++t) {  // counts first, made offsets below
+      plans[t].reserve((top.tasks[t].e - top.tasks[t].b) / 2);
+      count_subtree<W>(keys.data(), top.tasks[t].b, top.tasks[t].e, node_at[t + 1], block_at[t + 1],
+                       plans[t]);
+    }
   });
   for (size_t t = 0; t < tasks; ++t) {
     node_at[t + 1] = node_at[t] + (node_at[t + 1] - top.nodes.size());
@@ -280,11 +290,12 @@ Wide build_wide(const Scene& scene, std::span<const PrimRef> refs, int bits_per_
     for (size_t t = t0; t < t1; ++t) {
       const auto& task = top.tasks[t];
       const uint32_t root = uint32_t(node_at[t]);
-      Builder<W, Node, Key> b{keys.data(),          tris.data(),       ids.data(),
-                              out.nodes.data(),     out.blocks.data(), root + 1,
-                              uint32_t(block_at[t])};
+      Builder<W, Node, Key> b{keys.data(),           tris.data(),       ids.data(),
+                              out.nodes.data(),      out.blocks.data(), root + 1,
+                              uint32_t(block_at[t]), plans[t].data()};
       const Bounds3 box = b.build(root, task.b, task.e);
-      KESTREL_CHECK(b.next_node == node_at[t + 1] && b.next_block == block_at[t + 1],
+      KESTREL_CHECK(b.next_node == node_at[t + 1] && b.next_block == block_at[t + 1] &&
+                        b.plan == plans[t].data() + plans[t].size(),
                     "morton wide build: a task wrote other counts than it counted");
       // Tasks of one parent fill different slots of it: different floats, no race.
       set_slot(out.nodes[task.node], int(task.slot), box, root);
