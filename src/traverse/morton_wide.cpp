@@ -234,22 +234,17 @@ Wide build_wide(const Scene& scene, std::span<const PrimRef> refs, int bits_per_
     return v < last_cell ? v : last_cell;
   };
   RawArray<Key> keys(n);
-  RawArray<uint32_t> order(n);
+  // The prim ids ride along the sort as its values (the sort is stable and the refs are in
+  // id order, so ties keep id order): no gather through the refs afterwards.
+  RawArray<uint32_t> ids(n);
   parallel_for(0, n, 16384, [&](size_t b, size_t e) {
     for (size_t i = b; i < e; ++i) {
       const Vec3 q = (refs[i].lo + refs[i].hi - cb.lo) * scale;
       keys[i] = morton_code<Key>(cell(q.x), cell(q.y), cell(q.z));
-      order[i] = uint32_t(i);
+      ids[i] = refs[i].prim_id;
     }
   });
-  radix_sort(keys, order, 3 * bits_per_axis);
-  RawArray<uint32_t> ids(n);
-  parallel_for(0, n, 16384, [&](size_t b, size_t e) {
-    for (size_t i = b; i < e; ++i) {
-      if (i + 16 < e) __builtin_prefetch(&refs[order[i + 16]]);
-      ids[i] = refs[order[i]].prim_id;
-    }
-  });
+  radix_sort(keys, ids, 3 * bits_per_axis);
   const Buffer<Triangle> tris = gather_triangles(scene, {ids.data(), n});
 
   // The top, serially; then the tasks, in parallel: counted, placed after the top in task
