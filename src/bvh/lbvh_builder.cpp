@@ -29,19 +29,6 @@ namespace kestrel {
 
 namespace {
 
-template <class Key>
-Key morton_code(Vec3 q);
-template <>
-uint32_t morton_code<uint32_t>(Vec3 q) {
-  return (spread_bits_10(uint32_t(q.x)) << 2) | (spread_bits_10(uint32_t(q.y)) << 1) |
-         spread_bits_10(uint32_t(q.z));
-}
-template <>
-uint64_t morton_code<uint64_t>(Vec3 q) {
-  return (spread_bits_21(uint64_t(q.x)) << 2) | (spread_bits_21(uint64_t(q.y)) << 1) |
-         spread_bits_21(uint64_t(q.z));
-}
-
 // "Distance" of the keys across boundary i (between sorted keys i and i + 1): the xor of
 // the (key, index) pairs, compared lexicographically. Smaller = longer common prefix.
 template <class Key>
@@ -166,28 +153,20 @@ void emit_top_down(const SortedKeys<Key>& sk, BinaryTree& tree, const BuildConfi
 }
 
 template <class Key>
-BinaryTree build_tree(std::span<const PrimRef> refs, const BuildConfig& config, int bits_per_axis,
-                      bool top_down) {
+BinaryTree build_tree(std::span<const PrimRef> refs, const BuildConfig& config, bool top_down) {
   const size_t n = refs.size();
   BinaryTree tree;
   tree.allocate(n);
-  const Bounds3 cb = centroid_bounds(refs);
-  const float cells = float(1u << bits_per_axis);
-  const Vec3 ext = extent(cb);
-  const Vec3 scale{ext.x > 0 ? cells / ext.x : 0.0f, ext.y > 0 ? cells / ext.y : 0.0f,
-                   ext.z > 0 ? cells / ext.z : 0.0f};
-  const float top = cells - 1.0f;
+  const MortonQuantizer<Key> code(centroid_bounds(refs));
   RawArray<Key> keys(n);
   RawArray<uint32_t> order(n);
   parallel_for(0, n, 16384, [&](size_t b, size_t e) {
     for (size_t i = b; i < e; ++i) {
-      Vec3 q = (refs[i].lo + refs[i].hi - cb.lo) * scale;
-      q = {std::clamp(q.x, 0.0f, top), std::clamp(q.y, 0.0f, top), std::clamp(q.z, 0.0f, top)};
-      keys[i] = morton_code<Key>(q);
+      keys[i] = code(refs[i]);
       order[i] = uint32_t(i);
     }
   });
-  radix_sort(keys, order, 3 * bits_per_axis);
+  radix_sort(keys, order, 3 * code.bits_per_axis);
   parallel_for(0, n, 16384, [&](size_t b, size_t e) {
     for (size_t i = b; i < e; ++i) tree.leaves[i] = refs[order[i]];
   });
@@ -205,8 +184,8 @@ BinaryTree build_tree(std::span<const PrimRef> refs, const BuildConfig& config, 
 }
 
 BinaryTree build_any(std::span<const PrimRef> refs, const BuildConfig& config, bool top_down) {
-  return config.morton_bits == 63 ? build_tree<uint64_t>(refs, config, 21, top_down)
-                                  : build_tree<uint32_t>(refs, config, 10, top_down);
+  return config.morton_bits == 63 ? build_tree<uint64_t>(refs, config, top_down)
+                                  : build_tree<uint32_t>(refs, config, top_down);
 }
 
 }  // namespace

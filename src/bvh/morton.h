@@ -4,6 +4,7 @@
 #include <cstdint>
 #include <span>
 
+#include "core/vec.h"
 #include "kestrel/bvh.h"
 
 namespace kestrel {
@@ -34,9 +35,44 @@ inline uint32_t morton30(uint32_t x, uint32_t y, uint32_t z) {
   return (spread_bits_10(x) << 2) | (spread_bits_10(y) << 1) | spread_bits_10(z);
 }
 
+/// 63-bit Morton code of cell coordinates in [0, 2^21).
+inline uint64_t morton63(uint64_t x, uint64_t y, uint64_t z) {
+  return (spread_bits_21(x) << 2) | (spread_bits_21(y) << 1) | spread_bits_21(z);
+}
+
 /// Bounds of the doubled centroids (lo + hi) of the refs: what Morton codes quantise.
 /// Reduced over fixed chunks, in parallel (the same result for any thread count).
 Bounds3 centroid_bounds(std::span<const PrimRef> refs);
+
+/// The Morton code of a ref's centroid: 2^10 (uint32_t keys, 30 bits) or 2^21 (uint64_t keys,
+/// 63 bits) cells per axis over the centroid bounds (centroid_bounds). Both LBVH builds sort
+/// by it.
+template <class Key>
+struct MortonQuantizer {
+  static constexpr int bits_per_axis = sizeof(Key) == 4 ? 10 : 21;
+  Vec3 lo, scale;
+  float last_cell;
+  explicit MortonQuantizer(const Bounds3& centroids) : lo(centroids.lo) {
+    const float cells = float(1u << bits_per_axis);
+    const Vec3 ext = extent(centroids);
+    scale = {ext.x > 0 ? cells / ext.x : 0.0f, ext.y > 0 ? cells / ext.y : 0.0f,
+             ext.z > 0 ? cells / ext.z : 0.0f};
+    last_cell = cells - 1.0f;
+  }
+  // v > 0 ? v : 0, not a clamp: a NaN maps to cell 0 (refs are finite; this keeps the
+  // conversion to an integer defined whatever comes in).
+  float cell(float v) const {
+    v = v > 0.0f ? v : 0.0f;
+    return v < last_cell ? v : last_cell;
+  }
+  Key operator()(const PrimRef& r) const {
+    const Vec3 q = (r.lo + r.hi - lo) * scale;
+    if constexpr (sizeof(Key) == 4)
+      return morton30(uint32_t(cell(q.x)), uint32_t(cell(q.y)), uint32_t(cell(q.z)));
+    else
+      return morton63(uint64_t(cell(q.x)), uint64_t(cell(q.y)), uint64_t(cell(q.z)));
+  }
+};
 
 /// Where a node over sorted keys [b, e) (e - b >= 2) splits (Karras 2012): the first index
 /// whose key has the highest bit in which keys[b] and keys[e - 1] differ set; the middle when

@@ -13,6 +13,7 @@
 #include "core/vec.h"
 #include "geometry/prim_ref.h"
 #include "kestrel/error.h"
+#include "traverse/wide_bvh.h"
 
 namespace kestrel {
 
@@ -23,28 +24,8 @@ constexpr uint32_t task_size = 4096;
 constexpr uint32_t leaf_size = 4;              // one TriangleBlock
 constexpr uint32_t top_pending = 0x7FFFFFFFu;  // a top node's slot whose task is not yet built
 
-template <class Key>
-Key morton_code(float x, float y, float z);
-template <>
-uint32_t morton_code<uint32_t>(float x, float y, float z) {
-  return morton30(uint32_t(x), uint32_t(y), uint32_t(z));
-}
-template <>
-uint64_t morton_code<uint64_t>(float x, float y, float z) {
-  return (spread_bits_21(uint64_t(x)) << 2) | (spread_bits_21(uint64_t(y)) << 1) |
-         spread_bits_21(uint64_t(z));
-}
-
 Bounds3 empty_box() {
   return {{INFINITY, INFINITY, INFINITY}, {-INFINITY, -INFINITY, -INFINITY}};
-}
-
-template <class Node>
-void set_slot(Node& node, int j, const Bounds3& b, uint32_t ref) {
-  node.bounds[0][j] = b.lo.x, node.bounds[1][j] = b.hi.x;
-  node.bounds[2][j] = b.lo.y, node.bounds[3][j] = b.hi.y;
-  node.bounds[4][j] = b.lo.z, node.bounds[5][j] = b.hi.z;
-  node.child[j] = ref;
 }
 
 // Splits [b, e) into at most W parts: a part above the leaf size is split again (the one of
@@ -96,43 +77,36 @@ void count_subtree(const Key* keys, uint32_t b, uint32_t e, size_t& nodes, size_
   }
 }
 
-// Writes nodes and blocks at consecutive indices from next_node / next_block (absolute:
-// the arrays are sized in advance, or grown for the top).
-template <int W, class Node, class Key>
+// One block over sorted positions [b, e) (1 to 4 triangles; unused lanes repeat the last);
+// returns its box.
+Bounds3 write_leaf(const Triangle* tris, const uint32_t* ids, uint32_t b, uint32_t e,
+                   TriangleBlock& blk) {
+  Vec3 lo{INFINITY, INFINITY, INFINITY}, hi{-INFINITY, -INFINITY, -INFINITY};
+  for (uint32_t lane = 0; lane < 4; ++lane) {
+    const uint32_t k = std::min(b + lane, e - 1);
+    const Triangle& t = tris[k];
+    write_block_lane(blk, int(lane), t, ids[k]);
+    lo = min(lo, min(t.v0, min(t.v1, t.v2)));
+    hi = max(hi, max(t.v0, max(t.v1, t.v2)));
+  }
+  blk.prim_id[0] |= block_last_bit;
+  return {lo, hi};
+}
+
+// Builds a task's subtree by replaying count_subtree's record of its splits, writing nodes
+// and blocks at consecutive indices from next_node / next_block (the arrays are sized in
+// advance).
+template <int W, class Node>
 struct Builder {
-  const Key* keys;       // sorted
   const Triangle* tris;  // in key order
   const uint32_t* ids;   // prim ids in key order
   Node* nodes;
   TriangleBlock* blocks;
   uint32_t next_node, next_block;
-  const uint32_t* plan = nullptr;  // count_subtree's record of the splits, read in order
+  const uint32_t* plan;  // count_subtree's record, read in order
 
-  // One block over [b, e) (1 to 4 triangles; unused lanes repeat the last); its box.
-  uint32_t leaf(uint32_t b, uint32_t e, Bounds3& box) {
-    const uint32_t index = next_block++;
-    TriangleBlock& blk = blocks[index];
-    Vec3 lo{INFINITY, INFINITY, INFINITY}, hi{-INFINITY, -INFINITY, -INFINITY};
-    for (uint32_t lane = 0; lane < 4; ++lane) {
-      const uint32_t k = std::min(b + lane, e - 1);
-      const Triangle& t = tris[k];
-      const Vec3* v[3] = {&t.v0, &t.v1, &t.v2};
-      for (int c = 0; c < 3; ++c) {
-        blk.v[c][0][lane] = v[c]->x;
-        blk.v[c][1][lane] = v[c]->y;
-        blk.v[c][2][lane] = v[c]->z;
-      }
-      blk.prim_id[lane] = ids[k];
-      lo = min(lo, min(t.v0, min(t.v1, t.v2)));
-      hi = max(hi, max(t.v0, max(t.v1, t.v2)));
-    }
-    blk.prim_id[0] |= block_last_bit;
-    box = {lo, hi};
-    return wide_leaf_bit | index;
-  }
-
-  // Fills node `index` over [b, e) (e - b > leaf_size) and returns its box.
-  Bounds3 build(uint32_t index, uint32_t, uint32_t) {
+  // Fills node `index` (the plan's next node) and returns its box.
+  Bounds3 build(uint32_t index) {
     uint32_t lo[W], hi[W];
     const int parts = int(*plan++);
     for (int j = 0; j < parts; ++j) lo[j] = *plan++, hi[j] = *plan++;
@@ -140,18 +114,19 @@ struct Builder {
     Bounds3 total = empty_box();
     for (int j = 0; j < W; ++j) {
       if (j >= parts) {
-        set_slot(node, j, empty_box(), wide_empty);
+        set_wide_slot(node, j, empty_box(), wide_empty);
         continue;
       }
       Bounds3 box;
       uint32_t ref;
       if (hi[j] - lo[j] <= leaf_size) {
-        ref = leaf(lo[j], hi[j], box);
+        ref = wide_leaf_bit | next_block;
+        box = write_leaf(tris, ids, lo[j], hi[j], blocks[next_block++]);
       } else {
         ref = next_node++;
-        box = build(ref, lo[j], hi[j]);
+        box = build(ref);
       }
-      set_slot(node, j, box, ref);
+      set_wide_slot(node, j, box, ref);
       extend(total, box);
     }
     nodes[index] = node;
@@ -180,24 +155,20 @@ struct Top {
     std::vector<std::pair<int, uint32_t>> inner;  // (slot, node) of top children
     for (int j = 0; j < W; ++j) {
       if (j >= parts) {
-        set_slot(node, j, empty_box(), wide_empty);
+        set_wide_slot(node, j, empty_box(), wide_empty);
         continue;
       }
       const uint32_t n = hi[j] - lo[j];
       if (n <= leaf_size) {
-        blocks.emplace_back();
-        Builder<W, Node, Key> leaf_writer{
-            keys, tris, ids, nullptr, blocks.data(), 0, uint32_t(blocks.size() - 1)};
-        Bounds3 box;
-        const uint32_t ref = leaf_writer.leaf(lo[j], hi[j], box);
-        set_slot(node, j, box, ref);
+        const uint32_t ref = wide_leaf_bit | uint32_t(blocks.size());
+        set_wide_slot(node, j, write_leaf(tris, ids, lo[j], hi[j], blocks.emplace_back()), ref);
       } else if (n <= task_size) {
         tasks.push_back({index, uint32_t(j), lo[j], hi[j]});
-        set_slot(node, j, empty_box(), top_pending);
+        set_wide_slot(node, j, empty_box(), top_pending);
       } else {
         const uint32_t child = uint32_t(nodes.size());
         nodes.emplace_back();
-        set_slot(node, j, empty_box(), child);
+        set_wide_slot(node, j, empty_box(), child);
         inner.push_back({j, child});
       }
     }
@@ -217,47 +188,34 @@ Bounds3 node_box(const Node& node, int width) {
 }
 
 template <int W, class Node, class Wide, class Key>
-Wide build_wide(const Scene& scene, std::span<const PrimRef> refs, int bits_per_axis) {
+Wide build_wide(const Scene& scene, std::span<const PrimRef> refs) {
   Wide out;
   const size_t n = refs.size();
   if (n == 0) return out;
   if (n >= size_t(block_last_bit))
     throw Error(ErrorCode::invalid_argument, "wide BVH: more than 2^31 primitives");
-  const Bounds3 cb = centroid_bounds(refs);
-  const float cells = float(1u << bits_per_axis), last_cell = cells - 1.0f;
-  const Vec3 ext = extent(cb);
-  const Vec3 scale{ext.x > 0 ? cells / ext.x : 0.0f, ext.y > 0 ? cells / ext.y : 0.0f,
-                   ext.z > 0 ? cells / ext.z : 0.0f};
-  // v > 0 ? v : 0, not clamp: a NaN maps to 0 (refs are finite; this keeps it defined).
-  auto cell = [last_cell](float v) {
-    v = v > 0.0f ? v : 0.0f;
-    return v < last_cell ? v : last_cell;
-  };
+  const MortonQuantizer<Key> code(centroid_bounds(refs));
   RawArray<Key> keys(n);
   // The prim ids ride along the sort as its values (the sort is stable and the refs are in
   // id order, so ties keep id order): no gather through the refs afterwards.
   RawArray<uint32_t> ids(n);
   parallel_for(0, n, 16384, [&](size_t b, size_t e) {
     for (size_t i = b; i < e; ++i) {
-      const Vec3 q = (refs[i].lo + refs[i].hi - cb.lo) * scale;
-      keys[i] = morton_code<Key>(cell(q.x), cell(q.y), cell(q.z));
+      keys[i] = code(refs[i]);
       ids[i] = refs[i].prim_id;
     }
   });
-  radix_sort(keys, ids, 3 * bits_per_axis);
+  radix_sort(keys, ids, 3 * code.bits_per_axis);
   const Buffer<Triangle> tris = gather_triangles(scene, {ids.data(), n});
 
   // The top, serially; then the tasks, in parallel: counted, placed after the top in task
   // order, and built in place.
   Top<W, Node, Key> top{keys.data(), tris.data(), ids.data(), {Node{}}, {}, {}};
   if (n <= leaf_size) {  // the root (always an inner node) with one leaf
-    top.blocks.emplace_back();
-    Builder<W, Node, Key> leaf_writer{keys.data(),       tris.data(), ids.data(), nullptr,
-                                      top.blocks.data(), 0,           0};
-    Bounds3 box;
-    const uint32_t ref = leaf_writer.leaf(0, uint32_t(n), box);
-    set_slot(top.nodes[0], 0, box, ref);
-    for (int j = 1; j < W; ++j) set_slot(top.nodes[0], j, empty_box(), wide_empty);
+    set_wide_slot(top.nodes[0], 0,
+                  write_leaf(tris.data(), ids.data(), 0, uint32_t(n), top.blocks.emplace_back()),
+                  wide_leaf_bit);
+    for (int j = 1; j < W; ++j) set_wide_slot(top.nodes[0], j, empty_box(), wide_empty);
   } else {
     top.build(0, 0, uint32_t(n));
   }
@@ -285,15 +243,15 @@ Wide build_wide(const Scene& scene, std::span<const PrimRef> refs, int bits_per_
     for (size_t t = t0; t < t1; ++t) {
       const auto& task = top.tasks[t];
       const uint32_t root = uint32_t(node_at[t]);
-      Builder<W, Node, Key> b{keys.data(),           tris.data(),       ids.data(),
-                              out.nodes.data(),      out.blocks.data(), root + 1,
-                              uint32_t(block_at[t]), plans[t].data()};
-      const Bounds3 box = b.build(root, task.b, task.e);
+      Builder<W, Node> b{tris.data(),       ids.data(), out.nodes.data(),
+                         out.blocks.data(), root + 1,   uint32_t(block_at[t]),
+                         plans[t].data()};
+      const Bounds3 box = b.build(root);
       KESTREL_CHECK(b.next_node == node_at[t + 1] && b.next_block == block_at[t + 1] &&
                         b.plan == plans[t].data() + plans[t].size(),
                     "morton wide build: a task wrote other counts than it counted");
       // Tasks of one parent fill different slots of it: different floats, no race.
-      set_slot(out.nodes[task.node], int(task.slot), box, root);
+      set_wide_slot(out.nodes[task.node], int(task.slot), box, root);
     }
   });
   // The top's boxes, bottom-up: its children follow their parents in the array.
@@ -302,7 +260,7 @@ Wide build_wide(const Scene& scene, std::span<const PrimRef> refs, int bits_per_
     Node& node = out.nodes[i];
     for (int j = 0; j < W; ++j) {
       const uint32_t ref = node.child[j];
-      if (ref < top_nodes) set_slot(node, j, node_box(out.nodes[ref], W), ref);
+      if (ref < top_nodes) set_wide_slot(node, j, node_box(out.nodes[ref], W), ref);
     }
   }
   return out;
@@ -312,14 +270,14 @@ Wide build_wide(const Scene& scene, std::span<const PrimRef> refs, int bits_per_
 
 Bvh4 build_morton_bvh4(const Scene& scene, std::span<const PrimRef> refs,
                        const BuildConfig& config) {
-  return config.morton_bits == 63 ? build_wide<4, Bvh4Node, Bvh4, uint64_t>(scene, refs, 21)
-                                  : build_wide<4, Bvh4Node, Bvh4, uint32_t>(scene, refs, 10);
+  return config.morton_bits == 63 ? build_wide<4, Bvh4Node, Bvh4, uint64_t>(scene, refs)
+                                  : build_wide<4, Bvh4Node, Bvh4, uint32_t>(scene, refs);
 }
 
 Bvh8 build_morton_bvh8(const Scene& scene, std::span<const PrimRef> refs,
                        const BuildConfig& config) {
-  return config.morton_bits == 63 ? build_wide<8, Bvh8Node, Bvh8, uint64_t>(scene, refs, 21)
-                                  : build_wide<8, Bvh8Node, Bvh8, uint32_t>(scene, refs, 10);
+  return config.morton_bits == 63 ? build_wide<8, Bvh8Node, Bvh8, uint64_t>(scene, refs)
+                                  : build_wide<8, Bvh8Node, Bvh8, uint32_t>(scene, refs);
 }
 
 }  // namespace kestrel

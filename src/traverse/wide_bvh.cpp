@@ -20,27 +20,6 @@ float half_area(const Bvh2Node& n) {
   return dx * dy + dy * dz + dz * dx;
 }
 
-void write_lane(TriangleBlock& b, int lane, const Triangle& t, uint32_t id) {
-  const Vec3* v[3] = {&t.v0, &t.v1, &t.v2};
-  for (int k = 0; k < 3; ++k) {
-    b.v[k][0][lane] = v[k]->x;
-    b.v[k][1][lane] = v[k]->y;
-    b.v[k][2][lane] = v[k]->z;
-  }
-  b.prim_id[lane] = id;
-}
-
-template <int W, class Node>
-void set_slot(Node& node, int j, const Bounds3& b, uint32_t ref) {
-  node.bounds[0][j] = b.lo.x;
-  node.bounds[1][j] = b.hi.x;
-  node.bounds[2][j] = b.lo.y;
-  node.bounds[3][j] = b.hi.y;
-  node.bounds[4][j] = b.lo.z;
-  node.bounds[5][j] = b.hi.z;
-  node.child[j] = ref;
-}
-
 // Which binary subtrees become one wide leaf. A SIMD leaf test costs about the same for one
 // triangle as for four, so leaf cost counts blocks of four: C(leaf) = A * ceil(n / 4) and
 // C(inner) = A + C(left) + C(right) (one SIMD box test, then the children). A subtree of at
@@ -161,18 +140,18 @@ void build_wide_nodes(const Bvh2& bvh, std::span<const uint8_t> flat, Buffer<Nod
     for (int j = 0; j < W; ++j) {
       if (j >= n) {
         const float inf = INFINITY;
-        set_slot<W>(node, j, Bounds3{{inf, inf, inf}, {-inf, -inf, -inf}}, wide_empty);
+        set_wide_slot(node, j, Bounds3{{inf, inf, inf}, {-inf, -inf, -inf}}, wide_empty);
         continue;
       }
       const Bvh2Node& k = bvh.nodes[kids[j]];
       const Bounds3 box{k.lo, k.hi};
       if (flat[kids[j]]) {
-        set_slot<W>(node, j, box, emit_leaf(kids[j]));
+        set_wide_slot(node, j, box, emit_leaf(kids[j]));
       } else {
         const uint32_t dst = uint32_t(nodes.size());
         nodes.emplace_back();
         todo.push_back({kids[j], dst});
-        set_slot<W>(node, j, box, dst);
+        set_wide_slot(node, j, box, dst);
       }
     }
     std::reverse(todo.begin() + first_new, todo.end());  // first child is built next
@@ -215,7 +194,7 @@ Wide collapse(const Bvh2& bvh, std::span<const Triangle> tris, uint32_t max_leaf
       TriangleBlock& blk = out.blocks[next_block++];
       for (uint32_t lane = 0; lane < 4; ++lane) {
         const uint32_t k = prims[std::min(4 * b + lane, count - 1)];  // pad with the last one
-        write_lane(blk, int(lane), tris[k], bvh.prim_ids[k]);
+        write_block_lane(blk, int(lane), tris[k], bvh.prim_ids[k]);
       }
       if (b + 1 == nb) blk.prim_id[0] |= block_last_bit;
     }
@@ -339,7 +318,7 @@ double refit_nodes(Wide& bvh, BlockRewrite rewrite) {
             hi[a] = std::max(hi[a], b->hi[a]);
           }
         }
-      set_slot<W>(node, j, Bounds3{{lo[0], lo[1], lo[2]}, {hi[0], hi[1], hi[2]}}, ref);
+      set_wide_slot(node, j, Bounds3{{lo[0], lo[1], lo[2]}, {hi[0], hi[1], hi[2]}}, ref);
       cost += weight * slot_area(hi[0] - lo[0], hi[1] - lo[1], hi[2] - lo[2]);
       for (int a = 0; a < 3; ++a) {
         nlo[a] = std::min(nlo[a], lo[a]);
@@ -355,11 +334,6 @@ double refit_nodes(Wide& bvh, BlockRewrite rewrite) {
 }
 
 }  // namespace
-
-void write_block_lane(TriangleBlock& b, int lane, const Triangle& t) {
-  const uint32_t id = b.prim_id[lane];
-  write_lane(b, lane, t, id);
-}
 
 Bvh4 collapse_to_bvh4(const Bvh2& bvh, std::span<const Triangle> t, uint32_t max_leaf) {
   return collapse<4, Bvh4Node, Bvh4>(bvh, t, max_leaf);

@@ -18,8 +18,25 @@ namespace kestrel {
 Bvh4 collapse_to_bvh4(const Bvh2& bvh, std::span<const Triangle> leaf_triangles, uint32_t max_leaf);
 Bvh8 collapse_to_bvh8(const Bvh2& bvh, std::span<const Triangle> leaf_triangles, uint32_t max_leaf);
 
-/// Writes a triangle's vertices into one lane of a block (its prim id and flags are kept).
-void write_block_lane(TriangleBlock& block, int lane, const Triangle& triangle);
+/// Writes child slot j of a wide node: its box into the six bound rows, and its reference.
+template <class Node>
+inline void set_wide_slot(Node& node, int j, const Bounds3& b, uint32_t ref) {
+  node.bounds[0][j] = b.lo.x, node.bounds[1][j] = b.hi.x;
+  node.bounds[2][j] = b.lo.y, node.bounds[3][j] = b.hi.y;
+  node.bounds[4][j] = b.lo.z, node.bounds[5][j] = b.hi.z;
+  node.child[j] = ref;
+}
+
+/// Writes a triangle's vertices and prim id into one lane of a block.
+inline void write_block_lane(TriangleBlock& block, int lane, const Triangle& t, uint32_t id) {
+  const Vec3* v[3] = {&t.v0, &t.v1, &t.v2};
+  for (int k = 0; k < 3; ++k) {
+    block.v[k][0][lane] = v[k]->x;
+    block.v[k][1][lane] = v[k]->y;
+    block.v[k][2][lane] = v[k]->z;
+  }
+  block.prim_id[lane] = id;
+}
 /// Writes new vertices into a run of leaf blocks (a contiguous part of bvh.blocks; runs are
 /// disjoint and may be rewritten in parallel). Returns the smallest prim id whose triangle can
 /// no longer be traced (NaN/Inf vertex, bad index), or ~0u.
