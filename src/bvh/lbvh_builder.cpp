@@ -157,16 +157,9 @@ BinaryTree build_tree(std::span<const PrimRef> refs, const BuildConfig& config, 
   const size_t n = refs.size();
   BinaryTree tree;
   tree.allocate(n);
-  const MortonQuantizer<Key> code(centroid_bounds(refs));
-  RawArray<Key> keys(n);
-  RawArray<uint32_t> order(n);
-  parallel_for(0, n, 16384, [&](size_t b, size_t e) {
-    for (size_t i = b; i < e; ++i) {
-      keys[i] = code(refs[i]);
-      order[i] = uint32_t(i);
-    }
-  });
-  radix_sort(keys, order, 3 * code.bits_per_axis);
+  RawArray<Key> keys;
+  RawArray<uint32_t> order;
+  morton_sort(refs, MortonValue::index, keys, order);
   parallel_for(0, n, 16384, [&](size_t b, size_t e) {
     for (size_t i = b; i < e; ++i) tree.leaves[i] = refs[order[i]];
   });
@@ -203,6 +196,26 @@ Bounds3 centroid_bounds(std::span<const PrimRef> refs) {
   for (const Bounds3& p : partial) extend(b, p);
   return b;
 }
+
+template <class Key>
+void morton_sort(std::span<const PrimRef> refs, MortonValue value, RawArray<Key>& keys,
+                 RawArray<uint32_t>& values) {
+  const size_t n = refs.size();
+  const MortonQuantizer<Key> code(centroid_bounds(refs));
+  keys.resize(n);
+  values.resize(n);
+  parallel_for(0, n, 16384, [&](size_t b, size_t e) {
+    for (size_t i = b; i < e; ++i) {
+      keys[i] = code(refs[i]);
+      values[i] = value == MortonValue::index ? uint32_t(i) : refs[i].prim_id;
+    }
+  });
+  radix_sort(keys, values, 3 * code.bits_per_axis);
+}
+template void morton_sort<uint32_t>(std::span<const PrimRef>, MortonValue, RawArray<uint32_t>&,
+                                    RawArray<uint32_t>&);
+template void morton_sort<uint64_t>(std::span<const PrimRef>, MortonValue, RawArray<uint64_t>&,
+                                    RawArray<uint32_t>&);
 
 BinaryTree build_lbvh_tree(std::span<const PrimRef> refs, const BuildConfig& config) {
   return build_any(refs, config, /* top_down = */ false);

@@ -4,6 +4,7 @@
 #include <cstdint>
 #include <span>
 
+#include "core/raw_array.h"
 #include "core/vec.h"
 #include "kestrel/bvh.h"
 
@@ -73,6 +74,15 @@ struct MortonQuantizer {
       return morton63(uint64_t(cell(q.x)), uint64_t(cell(q.y)), uint64_t(cell(q.z)));
   }
 };
+
+/// What rides along the Morton sort: each ref's position in `refs`, or its prim id.
+enum class MortonValue { index, prim_id };
+/// The refs' Morton codes (MortonQuantizer over their centroid bounds), sorted ascending into
+/// `keys`, with `values` permuted alongside (a stable parallel radix sort: equal codes keep
+/// the refs' order). Key: uint32_t (30 bits) or uint64_t (63 bits).
+template <class Key>
+void morton_sort(std::span<const PrimRef> refs, MortonValue value, RawArray<Key>& keys,
+                 RawArray<uint32_t>& values);
 
 /// Where a node over sorted keys [b, e) (e - b >= 2) splits (Karras 2012): the first index
 /// whose key has the highest bit in which keys[b] and keys[e - 1] differ set; the middle when

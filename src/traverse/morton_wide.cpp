@@ -6,7 +6,6 @@
 #include <vector>
 
 #include "bvh/morton.h"
-#include "bvh/radix_sort.h"
 #include "core/check.h"
 #include "core/parallel.h"
 #include "core/raw_array.h"
@@ -194,18 +193,11 @@ Wide build_wide(const Scene& scene, std::span<const PrimRef> refs) {
   if (n == 0) return out;
   if (n >= size_t(block_last_bit))
     throw Error(ErrorCode::invalid_argument, "wide BVH: more than 2^31 primitives");
-  const MortonQuantizer<Key> code(centroid_bounds(refs));
-  RawArray<Key> keys(n);
-  // The prim ids ride along the sort as its values (the sort is stable and the refs are in
-  // id order, so ties keep id order): no gather through the refs afterwards.
-  RawArray<uint32_t> ids(n);
-  parallel_for(0, n, 16384, [&](size_t b, size_t e) {
-    for (size_t i = b; i < e; ++i) {
-      keys[i] = code(refs[i]);
-      ids[i] = refs[i].prim_id;
-    }
-  });
-  radix_sort(keys, ids, 3 * code.bits_per_axis);
+  // The prim ids ride along the sort as its values (the refs are in id order, so ties keep
+  // id order): no gather through the refs afterwards.
+  RawArray<Key> keys;
+  RawArray<uint32_t> ids;
+  morton_sort(refs, MortonValue::prim_id, keys, ids);
   const Buffer<Triangle> tris = gather_triangles(scene, {ids.data(), n});
 
   // The top, serially; then the tasks, in parallel: counted, placed after the top in task
