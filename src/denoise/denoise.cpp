@@ -109,8 +109,9 @@ void copy_clean(const float* src, float* dst, int n, int stride, bool colour) {
 
 // The inputs as padded planes (multiple of `align`, edge replicated): colour 0-2, albedo
 // 3-5, normal 6-8, depth 9, roughness 10, motion 11-12; NaN/Inf to 0, negative colour to 0;
-// absent images: albedo 1, normal 0, depth 1, roughness 0, motion 0. `p` is reused.
-void gather(const DenoiseInput& in, int align, Planes& p) {
+// absent images: albedo 1, normal 0, depth 1, roughness 0, motion 0. `p` is reused. Without
+// `roughness` (SVGF-like does not read it) plane 10 is left as it is.
+void gather(const DenoiseInput& in, int align, Planes& p, bool roughness = true) {
   if (!in.color) throw Error(ErrorCode::invalid_argument, "denoise: no colour image");
   const FloatImage& c = *in.color;
   if (c.width <= 0 || c.height <= 0 ||
@@ -153,7 +154,7 @@ void gather(const DenoiseInput& in, int align, Planes& p) {
     for (int y = r0; y < r1; ++y) {
       const size_t row = size_t(y) * size_t(W);
       for (const Source& s : sources)
-        for (int k = 0; k < s.count; ++k) {
+        for (int k = 0; k < s.count && (roughness || s.first != 10); ++k) {
           float* dst = p.ch(s.first + k) + row;
           if (!s.img) {
             std::fill(dst, dst + cw, s.fallback);
@@ -268,10 +269,10 @@ void Denoiser::denoise(const DenoiseInput& input, FloatImage& out) {
       return;
     }
     case DenoiseMethod::svgf: {
-      gather(input, 1, impl_->inputs);
+      gather(input, 1, impl_->inputs, /*roughness=*/false);
       denoise::SvgfTimes times;
-      to_image(impl_->svgf.run(impl_->inputs, impl_->profile ? &times : nullptr), width, height,
-               out);
+      to_image(impl_->svgf.run_taking(impl_->inputs, impl_->profile ? &times : nullptr), width,
+               height, out);
       if (impl_->profile)
         fmt::print(stderr,
                    "svgf stages (ms): temporal {:.1f}  variance {:.1f}  passes {:.1f}  output "

@@ -163,6 +163,11 @@ void depth_gradient(const Planes& g, float* gx, float* gy) {
 }
 
 const Planes& Svgf::run(const Planes& g, SvgfTimes* times) {
+  copy_ = g;
+  return run_taking(copy_, times);
+}
+
+const Planes& Svgf::run_taking(Planes& g, SvgfTimes* times) {
   Timer timer;
   double last = 0;
   auto lap = [&](double SvgfTimes::*slot) {
@@ -171,11 +176,12 @@ const Planes& Svgf::run(const Planes& g, SvgfTimes* times) {
     last = now;
   };
   const int W = g.width, H = g.height;
-  ensure(next_, W, H, 11);
+  ensure(next_, W, H, 6);
   ensure(tmp_, W, H, 3);
-  ensure(aux_, W, H, 7);  // planes, not separate vectors: see Planes on cache sets
+  ensure(aux_, W, H, 6);  // planes, not separate vectors: see Planes on cache sets
+  ensure(black_, W, H, 1);
   float *var = aux_.ch(0), *lum = aux_.ch(1), *var2 = aux_.ch(2), *lum2 = aux_.ch(3);
-  float *gx = aux_.ch(4), *gy = aux_.ch(5), *black = aux_.ch(6);
+  float *gx = aux_.ch(4), *gy = aux_.ch(5), *black = black_.ch(0);
   black_rows_.resize(size_t(H));
   const SvgfKernels& k = svgf_kernels();
   ensure(x_, W, H, 3);
@@ -186,11 +192,15 @@ const Planes& Svgf::run(const Planes& g, SvgfTimes* times) {
   de.black = black, de.black_rows = black_rows_.data(), de.width = W;
   rows(H, [&](int r0, int r1) { k.demodulate(de, r0, r1); });
   if (history_.width != W || history_.height != H) {  // the first frame
-    svgf_temporal(g, x_, history_, acc_, next_.ch(3), next_.ch(4), next_.ch(5), var);
+    svgf_temporal(g, x_, Planes(), acc_, next_.ch(3), next_.ch(4), next_.ch(5), var);
   } else {
     ensure(acc_, W, H, 3);
-    const float* hist[11];
-    for (int c = 0; c < 11; ++c) hist[c] = history_.ch(c);
+    // The history as SvgfTemporal reads it: irradiance, moments and length from the last
+    // frame's pass, depth, normals and black flags from its inputs.
+    const float* hist[11] = {history_.ch(0),  history_.ch(1),       history_.ch(2),
+                             history_.ch(3),  history_.ch(4),       history_.ch(5),
+                             previous_.ch(9), previous_.ch(6),      previous_.ch(7),
+                             previous_.ch(8), previous_black_.ch(0)};
     SvgfTemporal te;
     for (int c = 0; c < 3; ++c) te.x[c] = x_.ch(c), te.n[c] = g.ch(6 + c), te.acc[c] = acc_.ch(c);
     te.z = g.ch(9), te.mx = g.ch(11), te.my = g.ch(12), te.black = black, te.hist = hist;
@@ -230,15 +240,11 @@ const Planes& Svgf::run(const Planes& g, SvgfTimes* times) {
     in = &out;
   }
   lap(&SvgfTimes::passes);
-  // The next history's depth, normals and black flags, by rows on every thread.
-  rows(H, [&](int r0, int r1) {
-    const size_t b = size_t(r0) * size_t(W), n = sizeof(float) * size_t(r1 - r0) * size_t(W);
-    std::memcpy(next_.ch(6) + b, g.ch(9) + b, n);
-    for (int c = 0; c < 3; ++c) std::memcpy(next_.ch(7 + c) + b, g.ch(6 + c) + b, n);
-    std::memcpy(next_.ch(10) + b, black + b, n);
-  });
-  std::swap(history_, next_);
   remodulate(*in, demod_, out_);
+  // The next frame's history: this frame's inputs and black flags are kept, not copied.
+  std::swap(history_, next_);
+  std::swap(previous_, g);
+  std::swap(previous_black_, black_);
   lap(&SvgfTimes::output);
   return out_;
 }

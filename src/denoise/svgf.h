@@ -99,14 +99,23 @@ struct SvgfTimes {
 
 class Svgf {
  public:
-  /// Denoises one frame `g`; returns the colour (3 planes, owned by this object).
+  /// Denoises one frame `g` (the inputs' 13 planes); returns the colour (3 planes, owned by
+  /// this object).
   const Planes& run(const Planes& g, SvgfTimes* times = nullptr);
+  /// The same, but takes g's planes: the next frame's history test reads this frame's depth
+  /// and normals where they are instead of a copy. g gets back the frame before's planes (the
+  /// same size from the second frame on, so a loop that gathers into g allocates nothing; its
+  /// contents are unspecified).
+  const Planes& run_taking(Planes& g, SvgfTimes* times = nullptr);
   void reset() { history_ = Planes(); }
 
  private:
-  Planes history_, next_;  // irradiance 0-2, moments 3-4, length 5, depth 6, normal 7-9, black 10
+  Planes history_, next_;          // irradiance 0-2, moments 3-4, length 5
+  Planes previous_;                // the previous frame's inputs (its depth 9 and normals 6-8)
+  Planes black_, previous_black_;  // 1 where not demodulated, this frame's and the previous
+  Planes copy_;                    // run()'s copy of its input
   Planes x_, acc_, tmp_, demod_, out_;
-  Planes aux_;  // variance, luminance, their next pass's, depth gradient x, y, black
+  Planes aux_;  // variance, luminance, their next pass's, depth gradient x, y
   std::vector<uint8_t> black_rows_;
 };
 

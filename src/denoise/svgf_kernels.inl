@@ -18,7 +18,7 @@ static constexpr float kSigmaN2 = 128.0f * kLog2e;
 
 struct SvgfTaps {
   long off[9];      // index offsets from the pixel (row-major 3x3, the centre at 4)
-  float lh[9];      // log2 of the tap's weight: 0 (the box), -inf for a tap outside the image
+  float lh[9];      // log2 of the tap's weight (0, the box; -inf outside the image) - kSigmaN2
   long boff[9];     // the variance blur's offsets (+-1 pixel)
   float bw[9];      // its weights, 0 outside the image
   float bnorm = 1;  // 1 / sum of bw
@@ -55,7 +55,7 @@ static inline void svgf_pixels(const SvgfPass& a, size_t p, const SvgfTaps& taps
     const T wz = vabs(z - ld<T>(a.z + q)) * rden[kSvgfSlope[t]];
     const T c =
         vmax(n0 * ld<T>(a.n[0] + q) + n1 * ld<T>(a.n[1] + q) + n2 * ld<T>(a.n[2] + q), floor);
-    T w = vexp2((kSigmaN2 * c - kSigmaN2) + taps.lh[t] - wl - wz);
+    T w = vexp2(kSigmaN2 * c + taps.lh[t] - wl - wz);  // lh holds the normal stop's -kSigmaN2
     if constexpr (kClass) w = kp == ld<T>(a.black + q) ? w : zero;  // radiance, irradiance
     a0 += w * ld<T>(a.x[0] + q);
     a1 += w * ld<T>(a.x[1] + q);
@@ -98,7 +98,7 @@ static void svgf_pass_rows(const SvgfPass& a, int y0, int y1) {
       cls |= in && a.black_rows[qy] != 0;
       for (int i = -1; i <= 1; ++i, ++t) {
         taps.off[t] = in ? long(j * d) * long(W) + long(i * d) : long(i * d);
-        taps.lh[t] = in ? 0.0f : -INFINITY;
+        taps.lh[t] = in ? -kSigmaN2 : -INFINITY;
         taps.boff[t] = bin ? long(j) * long(W) + long(i) : long(i);
         taps.bw[t] = bin ? kSvgfB1[j + 1] * kSvgfB1[i + 1] : 0.0f;
         bsum += taps.bw[t];
@@ -256,6 +256,33 @@ static void svgf_temporal_rows(const SvgfTemporal& a, int y0, int y1) {
                                  [&](const float* h, int t) { return ld<vfloat>(h + q[t]); });
         continue;
       }
+#if defined(__AVX512F__)
+      // A moving camera: the lanes' taps differ but lie in one or two rows and within 32
+      // columns (every tap inside the image). Each tap is then picked from two loaded vectors
+      // of its row by a permute (and the row by a blend) instead of a gather: the same values.
+      const int xmin = vmin_lane(xi), xmax = vmax_lane(xi), ymin = vmin_lane(yi),
+                ymax = vmax_lane(yi);
+      if (xmin >= 0 && xmax - xmin <= 30 && xmin + 32 <= W && ymin >= 0 && ymax - ymin <= 1 &&
+          ymax + 1 < H) {
+        const size_t s = size_t(ymin) * size_t(W) + size_t(xmin);
+        const __m512i ix[2] = {(__m512i)(xi - xmin), (__m512i)(xi + 1 - xmin)};
+        const __mmask16 lower = _mm512_cmpgt_epi32_mask((__m512i)yi, _mm512_set1_epi32(ymin));
+        auto pick = [&](const float* r, __m512i i) {
+          return _mm512_permutex2var_ps(_mm512_loadu_ps(r), i, _mm512_loadu_ps(r + 16));
+        };
+        if (ymax == ymin) {
+          svgf_temporal_px<vfloat>(a, p, wb, [&](const float* h, int t) {
+            return (vfloat)pick(h + s + size_t(t >> 1) * size_t(W), ix[t & 1]);
+          });
+        } else {
+          svgf_temporal_px<vfloat>(a, p, wb, [&](const float* h, int t) {
+            const float* r = h + s + size_t(t >> 1) * size_t(W);
+            return (vfloat)_mm512_mask_blend_ps(lower, pick(r, ix[t & 1]), pick(r + W, ix[t & 1]));
+          });
+        }
+        continue;
+      }
+#endif
       vint idx[4];
       const vint own = vtrunc(column) + y * W;  // the pixels themselves
       for (int t = 0; t < 4; ++t) {

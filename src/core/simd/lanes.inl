@@ -101,6 +101,24 @@ static inline vfloat vgather(const float* base, vint idx) {
   return v;
 #endif
 }
+#if defined(__AVX512F__)
+// The smallest and the largest lane (GCC 12's _mm512_reduce_* and casts to 256 bits warn of an
+// undefined register).
+static inline int vmin_lane(vint v) {
+  typedef int v8i __attribute__((vector_size(32)));
+  v8i lo, hi;
+  std::memcpy(&lo, &v, sizeof lo);
+  std::memcpy(&hi, reinterpret_cast<const char*>(&v) + sizeof lo, sizeof hi);
+  __m256i m = _mm256_min_epi32((__m256i)lo, (__m256i)hi);
+  m = _mm256_min_epi32(m, _mm256_permute2x128_si256(m, m, 1));
+  m = _mm256_min_epi32(m, _mm256_shuffle_epi32(m, 0x4E));
+  m = _mm256_min_epi32(m, _mm256_shuffle_epi32(m, 0xB1));
+  return _mm256_cvtsi256_si32(m);
+}
+static inline int vmax_lane(vint v) {
+  return -vmin_lane(-v);
+}
+#endif
 // Float <-> int lane by lane (truncation), int stores, and the lanes' column indices.
 static inline int vtrunc(float x) {
   return int(x);
@@ -164,6 +182,19 @@ static inline float vexp2(float y) {
   return tiny ? 0.0f : p * __builtin_bit_cast(float, (n + 127) << 23);
 }
 static inline vfloat vexp2(vfloat y) {
+#if defined(__AVX512F__)
+  // The same n, f and polynomial, so the same bits: 2^n applied by vscalefps (exact), the lanes
+  // below -115 (and NaN) zeroed by its mask: 9 instructions instead of 15.
+  const __mmask16 ok = _mm512_cmp_ps_mask((__m512)y, _mm512_set1_ps(-115.0f), _CMP_GE_OQ);
+  const vfloat n = (vfloat)_mm512_mask_roundscale_ps(  // no undefined source (as vsqrt)
+      (__m512)y, 0xFFFF, (__m512)y, _MM_FROUND_TO_NEAREST_INT | _MM_FROUND_NO_EXC);
+  const vfloat f = y - n;
+  const vfloat p =
+      1.0000001f +
+      f * (0.69314694f +
+           f * (0.2402212f + f * (0.05550715f + f * (0.009675536f + f * 0.0013275768f))));
+  return (vfloat)_mm512_maskz_scalef_ps(ok, (__m512)p, (__m512)n);
+#else
   const vint tiny = !(y >= -115.0f);
   y = tiny ? vfloat{} - 115.0f : y;
   const vfloat shifted = y + 12582912.0f, f = y - (shifted - 12582912.0f);
@@ -173,6 +204,7 @@ static inline vfloat vexp2(vfloat y) {
            f * (0.2402212f + f * (0.05550715f + f * (0.009675536f + f * 0.0013275768f))));
   const vint n = (vint)shifted - 0x4B400000;
   return tiny ? vfloat{} : p * (vfloat)((n + 127) << 23);
+#endif
 }
 static inline float vlog1p_pos(float v) {
   return log1p_pos(v);
