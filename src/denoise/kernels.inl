@@ -49,6 +49,55 @@ static void ensure(Planes& p, int w, int h, int c) {
   if (p.width != w || p.height != h || p.channels != c) p = Planes(w, h, c);
 }
 
+#if defined(__AVX512F__)
+// A group of kLanes pixels whose bilinear taps (i00, i00 + 1, and a row below) are not
+// consecutive but lie within two spans of 32 pixels (a moving camera: within one row, or
+// across two): the spans' starts, the lanes of the second, and each lane's offsets in its span.
+struct WarpPick {
+  int base[2];
+  __mmask16 second;
+  vint off[2];
+};
+
+// Whether the group's taps fit WarpPick (every lane's right and lower taps inside the image,
+// both rows' loads inside the N-pixel plane); fills `pick` if so.
+static inline bool warp_pick(const int* i00, const int* dx, const int* dy, int W, size_t N,
+                             WarpPick& pick) {
+  vint v, ddx, ddy;
+  std::memcpy(&v, i00, sizeof v), std::memcpy(&ddx, dx, sizeof v), std::memcpy(&ddy, dy, sizeof v);
+  if (!all_of((ddx == 1) & (ddy == W))) return false;
+  const int b0 = vmin_lane(v);
+  const vint second = v > b0 + 30;
+  const int b1 = vmin_lane(second ? v : vint{} + b0 + 31 + W);
+  const int top = vmax_lane(v);
+  if (top - (any_of(second) ? b1 : b0) > 30) return false;
+  if (size_t(std::max(b0, b1)) + size_t(W) + 32 > N) return false;
+  pick.base[0] = b0, pick.base[1] = any_of(second) ? b1 : b0;
+  pick.second = _mm512_cmpgt_epi32_mask((__m512i)v, _mm512_set1_epi32(b0 + 30));
+  pick.off[0] = v - pick.base[0], pick.off[1] = v - pick.base[1];
+  return true;
+}
+
+// The bilinear warp of plane s over a WarpPick group (the same operations as the lanes'
+// loads: the same values).
+static inline vfloat warp_bilinear(const float* s, const WarpPick& pk, int W, vfloat x1,
+                                   vfloat y1) {
+  // Tap (row 0 or W, column 0 or 1) of every lane: from its span, blended where two.
+  auto tap = [&](int row, int col) {
+    auto pick = [&](int k) {
+      const float* r = s + pk.base[k] + row;
+      return _mm512_permutex2var_ps(_mm512_loadu_ps(r), (__m512i)(pk.off[k] + col),
+                                    _mm512_loadu_ps(r + 16));
+    };
+    const __m512 a = pick(0);
+    return pk.second ? (vfloat)_mm512_mask_blend_ps(pk.second, a, pick(1)) : (vfloat)a;
+  };
+  const vfloat top = tap(0, 0) * (1.0f - x1) + tap(0, 1) * x1;
+  const vfloat bot = tap(W, 0) * (1.0f - x1) + tap(W, 1) * x1;
+  return top * (1.0f - y1) + bot * y1;
+}
+#endif
+
 // model.py's demodulation(): albedo + EPS, or 1 where every channel is below kBlackAlbedo.
 template <class T>
 static inline T demodulation(T a0, T a1, T a2, T a) {
@@ -132,11 +181,17 @@ static const Planes& network(const NeuralWeights& nw, const Planes& in, Planes& 
       std::vector<int> dy;
       std::vector<float> fx, fy;
       std::vector<uint8_t> run;
+#if defined(__AVX512F__)
+      std::vector<WarpPick> pick;
+#endif
     } scratch;
     if (have_state) {
       scratch.idx.resize(size_t(W)), scratch.dx.resize(size_t(W)), scratch.dy.resize(size_t(W));
       scratch.fx.resize(size_t(W)), scratch.fy.resize(size_t(W));
       scratch.run.resize(size_t(W / kLanes) + 1);
+#if defined(__AVX512F__)
+      scratch.pick.resize(size_t(W / kLanes) + 1);
+#endif
     }
     for (int y = r0; y < r1; ++y) {
       const size_t row = size_t(y) * size_t(W);
@@ -196,6 +251,11 @@ static const Planes& network(const NeuralWeights& nw, const Planes& in, Planes& 
         for (int l = 0; l < kLanes; ++l)
           same &= (i00[g + l] == i00[g] + l) & (dx[g + l] == 1) & (dy[g + l] == dy[g]);
         run[g / kLanes] = same;
+#if defined(__AVX512F__)
+        if (!same)
+          run[g / kLanes] =
+              warp_pick(i00 + g, dx + g, dy + g, W, N, scratch.pick[g / kLanes]) ? 2 : 0;
+#endif
       }
       auto gather4 = [&](const float* s, float* out) {
         auto lanes = [&](auto tag, int i) {
@@ -208,8 +268,13 @@ static const Planes& network(const NeuralWeights& nw, const Planes& in, Planes& 
         };
         int i = 0;
         for (; i + kLanes <= W; i += kLanes)
-          if (run[i / kLanes])
+          if (run[i / kLanes] == 1)
             lanes(vfloat{}, i);
+#if defined(__AVX512F__)
+          else if (run[i / kLanes] == 2)
+            st(out + i, warp_bilinear(s, scratch.pick[i / kLanes], W, ld<vfloat>(fx + i),
+                                      ld<vfloat>(fy + i)));
+#endif
           else
             for (int l = 0; l < kLanes; ++l) lanes(0.0f, i + l);
         for (; i < W; ++i) lanes(0.0f, i);
