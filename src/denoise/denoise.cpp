@@ -271,8 +271,7 @@ void Denoiser::denoise(const DenoiseInput& input, FloatImage& out) {
     case DenoiseMethod::svgf: {
       gather(input, 1, impl_->inputs, /*roughness=*/false);
       denoise::SvgfTimes times;
-      to_image(impl_->svgf.run_taking(impl_->inputs, impl_->profile ? &times : nullptr), width,
-               height, out);
+      impl_->svgf.run_taking(impl_->inputs, out, impl_->profile ? &times : nullptr);
       if (impl_->profile)
         fmt::print(stderr,
                    "svgf stages (ms): temporal {:.1f}  variance {:.1f}  passes {:.1f}  output "

@@ -164,10 +164,37 @@ void depth_gradient(const Planes& g, float* gx, float* gy) {
 
 const Planes& Svgf::run(const Planes& g, SvgfTimes* times) {
   copy_ = g;
-  return run_taking(copy_, times);
+  Timer timer;
+  const Planes& x = filter(copy_, times);
+  remodulate(x, demod_, out_);
+  if (times) times->output = timer.ms() - times->temporal - times->variance - times->passes;
+  return out_;
 }
 
-const Planes& Svgf::run_taking(Planes& g, SvgfTimes* times) {
+void Svgf::run_taking(Planes& g, FloatImage& out, SvgfTimes* times) {
+  Timer timer;
+  const int w = g.image_width > 0 ? g.image_width : g.width,
+            h = g.image_height > 0 ? g.image_height : g.height;
+  const Planes& x = filter(g, times);  // g is the frame before's afterwards
+  if (out.width != w || out.height != h || out.channels != 3) out = FloatImage(w, h, 3);
+  const size_t W = size_t(x.width);
+  rows(h, [&](int r0, int r1) {
+    for (int y = r0; y < r1; ++y) {
+      const size_t b = size_t(y) * W;
+      const float *x0 = x.ch(0) + b, *x1 = x.ch(1) + b, *x2 = x.ch(2) + b;
+      const float *d0 = demod_.ch(0) + b, *d1 = demod_.ch(1) + b, *d2 = demod_.ch(2) + b;
+      float* o = out.at(0, y);
+      for (int i = 0; i < w; ++i) {
+        o[3 * i] = std::max(x0[i], 0.0f) * d0[i];
+        o[3 * i + 1] = std::max(x1[i], 0.0f) * d1[i];
+        o[3 * i + 2] = std::max(x2[i], 0.0f) * d2[i];
+      }
+    }
+  });
+  if (times) times->output = timer.ms() - times->temporal - times->variance - times->passes;
+}
+
+const Planes& Svgf::filter(Planes& g, SvgfTimes* times) {
   Timer timer;
   double last = 0;
   auto lap = [&](double SvgfTimes::*slot) {
@@ -240,13 +267,12 @@ const Planes& Svgf::run_taking(Planes& g, SvgfTimes* times) {
     in = &out;
   }
   lap(&SvgfTimes::passes);
-  remodulate(*in, demod_, out_);
   // The next frame's history: this frame's inputs and black flags are kept, not copied.
   std::swap(history_, next_);
   std::swap(previous_, g);
   std::swap(previous_black_, black_);
   lap(&SvgfTimes::output);
-  return out_;
+  return in == &next_ ? history_ : *in;  // (a single pass's output is the history)
 }
 
 }  // namespace kestrel::denoise

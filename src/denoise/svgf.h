@@ -6,6 +6,7 @@
 #include <vector>
 
 #include "denoise/neural.h"
+#include "kestrel/image.h"
 
 namespace kestrel::denoise {
 
@@ -105,11 +106,15 @@ class Svgf {
   /// The same, but takes g's planes: the next frame's history test reads this frame's depth
   /// and normals where they are instead of a copy. g gets back the frame before's planes (the
   /// same size from the second frame on, so a loop that gathers into g allocates nothing; its
-  /// contents are unspecified).
-  const Planes& run_taking(Planes& g, SvgfTimes* times = nullptr);
+  /// contents are unspecified). The colour goes straight into `out` (RGB, g's image size),
+  /// remodulated and interleaved in one sweep.
+  void run_taking(Planes& g, FloatImage& out, SvgfTimes* times = nullptr);
   void reset() { history_ = Planes(); }
 
  private:
+  /// The frame up to the filtered irradiance (returned: one of this object's Planes).
+  const Planes& filter(Planes& g, SvgfTimes* times);
+
   Planes history_, next_;          // irradiance 0-2, moments 3-4, length 5
   Planes previous_;                // the previous frame's inputs (its depth 9 and normals 6-8)
   Planes black_, previous_black_;  // 1 where not demodulated, this frame's and the previous
