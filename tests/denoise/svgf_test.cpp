@@ -127,35 +127,57 @@ TEST(Svgf, Avx512ReprojectionMatchesAvx2) {
   set_default_isa(before);
 }
 
-TEST(Svgf, DenoiserMethodIsTheRealTimeForm) {
-  const int W = 40, H = 24;
-  std::mt19937 rng(3);
-  const Planes g = frame(W, H, 0, rng);
-  // The same frame as images for the public API.
-  FloatImage color(W, H, 3), albedo(W, H, 3), normal(W, H, 3), depth(W, H, 1), rough(W, H, 1),
-      motion(W, H, 2);
-  for (int y = 0; y < H; ++y)
-    for (int x = 0; x < W; ++x) {
-      const size_t p = size_t(y) * size_t(W) + size_t(x);
-      for (int c = 0; c < 3; ++c) {
-        color.at(x, y)[c] = g.ch(c)[p];
-        albedo.at(x, y)[c] = g.ch(3 + c)[p];
-        normal.at(x, y)[c] = g.ch(6 + c)[p];
+// A frame's planes as the public API's images.
+struct Images {
+  FloatImage color, albedo, normal, depth, rough, motion;
+  explicit Images(const Planes& g)
+      : color(g.width, g.height, 3),
+        albedo(g.width, g.height, 3),
+        normal(g.width, g.height, 3),
+        depth(g.width, g.height, 1),
+        rough(g.width, g.height, 1),
+        motion(g.width, g.height, 2) {
+    for (int y = 0; y < g.height; ++y)
+      for (int x = 0; x < g.width; ++x) {
+        const size_t p = size_t(y) * size_t(g.width) + size_t(x);
+        for (int c = 0; c < 3; ++c) {
+          color.at(x, y)[c] = g.ch(c)[p];
+          albedo.at(x, y)[c] = g.ch(3 + c)[p];
+          normal.at(x, y)[c] = g.ch(6 + c)[p];
+        }
+        depth.at(x, y)[0] = g.ch(9)[p];
+        rough.at(x, y)[0] = g.ch(10)[p];
+        motion.at(x, y)[0] = g.ch(11)[p], motion.at(x, y)[1] = g.ch(12)[p];
       }
-      depth.at(x, y)[0] = g.ch(9)[p];
-      rough.at(x, y)[0] = g.ch(10)[p];
-      motion.at(x, y)[0] = g.ch(11)[p], motion.at(x, y)[1] = g.ch(12)[p];
-    }
+  }
+  DenoiseInput input() const { return {&color, &albedo, &normal, &depth, &rough, &motion}; }
+};
+
+// The Denoiser's svgf method is Svgf::run frame by frame, bit for bit: over a sequence (its
+// history kept as the previous frame's own input planes) and across size changes, which
+// restart it.
+TEST(Svgf, DenoiserMethodIsTheRealTimeForm) {
+  std::mt19937 rng(3);
   DenoiserOptions o;
   o.method = DenoiseMethod::svgf;
   Denoiser d(o);
-  const FloatImage out = d.denoise({&color, &albedo, &normal, &depth, &rough, &motion});
   Svgf fast;
-  const Planes& a = fast.run(g);
-  for (int y = 0; y < H; ++y)
-    for (int x = 0; x < W; ++x)
-      for (int c = 0; c < 3; ++c)
-        ASSERT_EQ(out.at(x, y)[c], a.ch(c)[size_t(y) * size_t(W) + size_t(x)]);
+  FloatImage out;  // reused, as a frame loop does
+  const std::pair<int, int> sizes[] = {{40, 24}, {40, 24}, {40, 24}, {33, 20},
+                                       {33, 20}, {40, 24}, {40, 24}};
+  for (int t = 0; t < 7; ++t) {
+    SCOPED_TRACE(t);
+    const auto [W, H] = sizes[t];
+    const Planes g = frame(W, H, t, rng);
+    d.denoise(Images(g).input(), out);
+    const Planes& a = fast.run(g);
+    ASSERT_EQ(out.width, W);
+    ASSERT_EQ(out.height, H);
+    for (int y = 0; y < H; ++y)
+      for (int x = 0; x < W; ++x)
+        for (int c = 0; c < 3; ++c)
+          ASSERT_EQ(out.at(x, y)[c], a.ch(c)[size_t(y) * size_t(W) + size_t(x)]);
+  }
 }
 
 // The layout the filters' speed depends on (Planes in neural.h): at 1280 x 720 a plane is
