@@ -51,11 +51,13 @@ static void ensure(Planes& p, int w, int h, int c) {
 
 #if defined(__AVX512F__)
 // A group of kLanes pixels whose bilinear taps (i00, i00 + 1, and a row below) are not
-// consecutive but lie within two spans of 32 pixels (a moving camera: within one row, or
-// across two): the spans' starts, the lanes of the second, and each lane's offsets in its span.
+// consecutive but lie within two spans of 2 kLanes pixels (a moving camera: within one row,
+// or across two): the spans' starts, the lanes of the second, and each lane's offsets in its
+// span.
 struct WarpPick {
   int base[2];
-  __mmask16 second;
+  bool two;     // whether there is a second span
+  vint second;  // all ones in its lanes
   vint off[2];
 };
 
@@ -66,15 +68,14 @@ static inline bool warp_pick(const int* i00, const int* dx, const int* dy, int W
   vint v, ddx, ddy;
   std::memcpy(&v, i00, sizeof v), std::memcpy(&ddx, dx, sizeof v), std::memcpy(&ddy, dy, sizeof v);
   if (!all_of((ddx == 1) & (ddy == W))) return false;
-  const int b0 = vmin_lane(v);
-  const vint second = v > b0 + 30;
-  const int b1 = vmin_lane(second ? v : vint{} + b0 + 31 + W);
-  const int top = vmax_lane(v);
-  if (top - (any_of(second) ? b1 : b0) > 30) return false;
-  if (size_t(std::max(b0, b1)) + size_t(W) + 32 > N) return false;
-  pick.base[0] = b0, pick.base[1] = any_of(second) ? b1 : b0;
-  pick.second = _mm512_cmpgt_epi32_mask((__m512i)v, _mm512_set1_epi32(b0 + 30));
-  pick.off[0] = v - pick.base[0], pick.off[1] = v - pick.base[1];
+  const int span = 2 * kLanes - 2;  // the largest offset whose right tap is in the span
+  const int b0 = lane_min(v);
+  const vint second = v > b0 + span;
+  const bool two = any_of(second);
+  const int b1 = two ? lane_min(second ? v : vint{} + lane_max(v)) : b0;
+  if (lane_max(v) - b1 > span || size_t(b1) + size_t(W) + 2 * kLanes > N) return false;
+  pick.base[0] = b0, pick.base[1] = b1, pick.two = two, pick.second = second;
+  pick.off[0] = v - b0, pick.off[1] = v - b1;
   return true;
 }
 
@@ -82,15 +83,14 @@ static inline bool warp_pick(const int* i00, const int* dx, const int* dy, int W
 // loads: the same values).
 static inline vfloat warp_bilinear(const float* s, const WarpPick& pk, int W, vfloat x1,
                                    vfloat y1) {
-  // Tap (row 0 or W, column 0 or 1) of every lane: from its span, blended where two.
+  // Tap (row 0 or W, column 0 or 1) of every lane: from its span.
   auto tap = [&](int row, int col) {
     auto pick = [&](int k) {
       const float* r = s + pk.base[k] + row;
-      return _mm512_permutex2var_ps(_mm512_loadu_ps(r), (__m512i)(pk.off[k] + col),
-                                    _mm512_loadu_ps(r + 16));
+      return perm2(ld<vfloat>(r), ld<vfloat>(r + kLanes), pk.off[k] + col);
     };
-    const __m512 a = pick(0);
-    return pk.second ? (vfloat)_mm512_mask_blend_ps(pk.second, a, pick(1)) : (vfloat)a;
+    const vfloat a = pick(0);
+    return pk.two ? (pk.second ? pick(1) : a) : a;
   };
   const vfloat top = tap(0, 0) * (1.0f - x1) + tap(0, 1) * x1;
   const vfloat bot = tap(W, 0) * (1.0f - x1) + tap(W, 1) * x1;

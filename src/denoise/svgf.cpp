@@ -271,7 +271,6 @@ const Planes& Svgf::filter(Planes& g, SvgfTimes* times) {
   std::swap(history_, next_);
   std::swap(previous_, g);
   std::swap(previous_black_, black_);
-  lap(&SvgfTimes::output);
   return in == &next_ ? history_ : *in;  // (a single pass's output is the history)
 }
 

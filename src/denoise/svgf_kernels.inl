@@ -260,24 +260,23 @@ static void svgf_temporal_rows(const SvgfTemporal& a, int y0, int y1) {
       // A moving camera: the lanes' taps differ but lie in one or two rows and within 32
       // columns (every tap inside the image). Each tap is then picked from two loaded vectors
       // of its row by a permute (and the row by a blend) instead of a gather: the same values.
-      const int xmin = vmin_lane(xi), xmax = vmax_lane(xi), ymin = vmin_lane(yi),
-                ymax = vmax_lane(yi);
+      const int xmin = lane_min(xi), xmax = lane_max(xi), ymin = lane_min(yi), ymax = lane_max(yi);
       if (xmin >= 0 && xmax - xmin <= 30 && xmin + 32 <= W && ymin >= 0 && ymax - ymin <= 1 &&
           ymax + 1 < H) {
         const size_t s = size_t(ymin) * size_t(W) + size_t(xmin);
-        const __m512i ix[2] = {(__m512i)(xi - xmin), (__m512i)(xi + 1 - xmin)};
-        const __mmask16 lower = _mm512_cmpgt_epi32_mask((__m512i)yi, _mm512_set1_epi32(ymin));
-        auto pick = [&](const float* r, __m512i i) {
-          return _mm512_permutex2var_ps(_mm512_loadu_ps(r), i, _mm512_loadu_ps(r + 16));
+        const vint ix[2] = {xi - xmin, xi + 1 - xmin};
+        const vint lower = yi != ymin;  // the lanes whose taps start a row further down
+        auto pick = [&](const float* r, vint i) {
+          return perm2(ld<vfloat>(r), ld<vfloat>(r + kLanes), i);
         };
         if (ymax == ymin) {
           svgf_temporal_px<vfloat>(a, p, wb, [&](const float* h, int t) {
-            return (vfloat)pick(h + s + size_t(t >> 1) * size_t(W), ix[t & 1]);
+            return pick(h + s + size_t(t >> 1) * size_t(W), ix[t & 1]);
           });
         } else {
           svgf_temporal_px<vfloat>(a, p, wb, [&](const float* h, int t) {
             const float* r = h + s + size_t(t >> 1) * size_t(W);
-            return (vfloat)_mm512_mask_blend_ps(lower, pick(r, ix[t & 1]), pick(r + W, ix[t & 1]));
+            return lower ? pick(r + W, ix[t & 1]) : pick(r, ix[t & 1]);
           });
         }
         continue;

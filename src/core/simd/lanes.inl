@@ -101,24 +101,6 @@ static inline vfloat vgather(const float* base, vint idx) {
   return v;
 #endif
 }
-#if defined(__AVX512F__)
-// The smallest and the largest lane (GCC 12's _mm512_reduce_* and casts to 256 bits warn of an
-// undefined register).
-static inline int vmin_lane(vint v) {
-  typedef int v8i __attribute__((vector_size(32)));
-  v8i lo, hi;
-  std::memcpy(&lo, &v, sizeof lo);
-  std::memcpy(&hi, reinterpret_cast<const char*>(&v) + sizeof lo, sizeof hi);
-  __m256i m = _mm256_min_epi32((__m256i)lo, (__m256i)hi);
-  m = _mm256_min_epi32(m, _mm256_permute2x128_si256(m, m, 1));
-  m = _mm256_min_epi32(m, _mm256_shuffle_epi32(m, 0x4E));
-  m = _mm256_min_epi32(m, _mm256_shuffle_epi32(m, 0xB1));
-  return _mm256_cvtsi256_si32(m);
-}
-static inline int vmax_lane(vint v) {
-  return -vmin_lane(-v);
-}
-#endif
 // Float <-> int lane by lane (truncation), int stores, and the lanes' column indices.
 static inline int vtrunc(float x) {
   return int(x);
@@ -392,27 +374,40 @@ static inline int lane_min(int v) {
 static inline int lane_max(int v) {
   return v;
 }
-static inline int lane_min(vint v) {
-#if defined(__AVX2__) && !defined(__AVX512F__)
-  __m256i m = _mm256_min_epi32((__m256i)v, _mm256_permute2x128_si256((__m256i)v, (__m256i)v, 1));
-  m = _mm256_min_epi32(m, _mm256_shuffle_epi32(m, 0x4E));
-  m = _mm256_min_epi32(m, _mm256_shuffle_epi32(m, 0xB1));
+#if defined(__AVX2__)
+// min or max of the 8 lanes of m (AVX2).
+template <bool kMax>
+static inline int lane_reduce8(__m256i m) {
+  auto op = [](__m256i x, __m256i y) {
+    return kMax ? _mm256_max_epi32(x, y) : _mm256_min_epi32(x, y);
+  };
+  m = op(m, _mm256_permute2x128_si256(m, m, 1));
+  m = op(m, _mm256_shuffle_epi32(m, 0x4E));
+  m = op(m, _mm256_shuffle_epi32(m, 0xB1));
   return _mm256_cvtsi256_si32(m);
+}
+#endif
+template <bool kMax>
+static inline int lane_reduce(vint v) {
+#if defined(__AVX512F__)
+  // The two halves first (as 8-lane vectors: GCC 12's _mm512_reduce_* and 512-to-256 casts
+  // warn of an undefined register).
+  typedef int v8i __attribute__((vector_size(32)));
+  v8i lo, hi;
+  std::memcpy(&lo, &v, sizeof lo);
+  std::memcpy(&hi, reinterpret_cast<const char*>(&v) + sizeof lo, sizeof hi);
+  return lane_reduce8<kMax>((__m256i)(kMax ? (lo > hi ? lo : hi) : (lo < hi ? lo : hi)));
+#elif defined(__AVX2__)
+  return lane_reduce8<kMax>((__m256i)v);
 #else
   int m = v[0];
-  for (int l = 1; l < kLanes; ++l) m = v[l] < m ? v[l] : m;
+  for (int l = 1; l < kLanes; ++l) m = kMax ? (v[l] > m ? v[l] : m) : (v[l] < m ? v[l] : m);
   return m;
 #endif
 }
+static inline int lane_min(vint v) {
+  return lane_reduce<false>(v);
+}
 static inline int lane_max(vint v) {
-#if defined(__AVX2__) && !defined(__AVX512F__)
-  __m256i m = _mm256_max_epi32((__m256i)v, _mm256_permute2x128_si256((__m256i)v, (__m256i)v, 1));
-  m = _mm256_max_epi32(m, _mm256_shuffle_epi32(m, 0x4E));
-  m = _mm256_max_epi32(m, _mm256_shuffle_epi32(m, 0xB1));
-  return _mm256_cvtsi256_si32(m);
-#else
-  int m = v[0];
-  for (int l = 1; l < kLanes; ++l) m = v[l] > m ? v[l] : m;
-  return m;
-#endif
+  return lane_reduce<true>(v);
 }
