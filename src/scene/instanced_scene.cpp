@@ -2,6 +2,7 @@
 // the instances rebuilt at every commit(), and traversal through both in the SIMD kernels.
 #include <fmt/format.h>
 
+#include <chrono>
 #include <cmath>
 
 #include "core/parallel.h"
@@ -55,6 +56,9 @@ struct InstancedScene::Impl {
   // As of the last commit().
   Buffer<Bvh4Node> tlas4;
   Buffer<Bvh8Node> tlas8;
+  // Coherent batches as packets or single rays, timed as they run (closest hit, any hit):
+  // what is measured holds until the meshes change.
+  mutable PacketChoice closest_choice, any_choice;
   std::vector<kernels::InstanceData> data;
   Buffer<PrimRef> refs;  // kept between commits: no fresh pages every frame
   Bounds3 world;         // of the instances' world boxes, as of the last commit()
@@ -278,6 +282,7 @@ CommitStats InstancedScene::commit() {
     }
   }
   ++s.generation;
+  if (stats.blas_builds > 0) s.closest_choice.reset(), s.any_choice.reset();
   stats.total_ms = total.ms();
   return stats;
 }
@@ -286,7 +291,28 @@ namespace {
 // The kernel and tree a query runs on, or fn == nullptr when nothing can be hit.
 struct TlasQuery {
   kernels::TlasFn fn = nullptr;
+  kernels::TlasFn packet_fn = nullptr;  // coherent rays as lane packets (Bvh8 layout), or null
   const void* tlas = nullptr;
+  // Traces a run of rays (fn(rays, kernel)) as packets where asked or, unsaid, where the run
+  // looks coherent and `choice` finds packets faster so far (timing some runs each way).
+  template <class Fn>
+  void run(std::span<const Ray> rays, const TraceOptions& options, PacketChoice& choice,
+           Fn&& traced) const {
+    if (!packet_fn || options.packets.has_value() || !looks_coherent(rays)) {
+      traced(packet_fn && options.packets.value_or(false) ? packet_fn : fn);
+      return;
+    }
+    bool trial;
+    const bool packets = choice.next(trial);
+    if (!trial) return traced(packets ? packet_fn : fn);
+    const auto start = std::chrono::steady_clock::now();
+    traced(packets ? packet_fn : fn);
+    choice.done(packets,
+                uint64_t(std::chrono::duration_cast<std::chrono::nanoseconds>(
+                             std::chrono::steady_clock::now() - start)
+                             .count()),
+                rays.size());
+  }
 };
 
 // Checks a query's sizes and ISA and picks its two-level kernel.
@@ -303,6 +329,9 @@ TlasQuery prepare_query(const char* what, size_t rays, size_t results, const Tra
   const kernels::Table& k = kernels::table_for(isa);
   const bool four = layout == Layout::bvh4;
   return {any_hit ? (four ? k.tlas_any4 : k.tlas_any8) : (four ? k.tlas_closest4 : k.tlas_closest8),
+          four      ? nullptr
+          : any_hit ? k.tlas_any_packet8
+                    : k.tlas_packet8,
           tlas};
 }
 }  // namespace
@@ -327,22 +356,28 @@ void InstancedScene::trace(std::span<const Ray> rays, std::span<InstanceHit> hit
     }
     return;
   }
-  const auto run = [&](std::span<const Ray> r, InstanceHit* h) {
+  const auto run = [&](std::span<const Ray> r, InstanceHit* h, kernels::TlasFn fn) {
     kernels::for_each_traceable_run(r, h, [&](const Ray* rr, InstanceHit* hh, size_t n) {
-      q.fn(q.tlas, s.data.data(), rr, hh, n, ray_mask);
+      fn(q.tlas, s.data.data(), rr, hh, n, ray_mask);
     });
   };
   const size_t bytes = rays.size() >= stream_min_rays ? memory_bytes() : 0;  // walks the meshes
   if (stream_by_default(rays, s.world, bytes, false, options)) {             // traverse/stream.h
     for_each_stream_chunk(rays, s.world, [&](const Ray* r, const uint32_t* callers, size_t n) {
       InstanceHit local[stream_chunk];
-      run(std::span<const Ray>(r, n), local);
+      // Sorted chunks as single rays unless packets were asked for (sorted bounces between
+      // instances part too soon for packets to pay).
+      run(std::span<const Ray>(r, n), local,
+          q.packet_fn && options.packets.value_or(false) ? q.packet_fn : q.fn);
       for (size_t j = 0; j < n; ++j) hits[callers[j]] = local[j];
     });
     return;
   }
-  parallel_for(0, rays.size(), 1024,
-               [&](size_t b, size_t e) { run(rays.subspan(b, e - b), hits.data() + b); });
+  parallel_for(0, rays.size(), 1024, [&](size_t b, size_t e) {
+    const auto chunk = rays.subspan(b, e - b);
+    q.run(chunk, options, s.closest_choice,
+          [&](kernels::TlasFn fn) { run(chunk, hits.data() + b, fn); });
+  });
 }
 
 void InstancedScene::occluded(std::span<const Ray> rays, std::span<uint8_t> out, uint32_t ray_mask,
@@ -360,9 +395,15 @@ void InstancedScene::occluded(std::span<const Ray> rays, std::span<uint8_t> out,
   }
   const auto run = [&](std::span<const Ray> r, const uint32_t* callers, size_t first) {
     InstanceHit local[stream_chunk];
-    kernels::for_each_traceable_run(r, local, [&](const Ray* rr, InstanceHit* h, size_t m) {
-      q.fn(q.tlas, s.data.data(), rr, h, m, ray_mask);
-    });
+    const auto traced = [&](kernels::TlasFn fn) {
+      kernels::for_each_traceable_run(r, local, [&](const Ray* rr, InstanceHit* h, size_t m) {
+        fn(q.tlas, s.data.data(), rr, h, m, ray_mask);
+      });
+    };
+    if (callers)  // sorted chunks: single rays unless packets were asked for
+      traced(q.packet_fn && options.packets.value_or(false) ? q.packet_fn : q.fn);
+    else
+      q.run(r, options, s.any_choice, traced);
     for (size_t j = 0; j < r.size(); ++j) out[callers ? callers[j] : first + j] = local[j].hit();
   };
   if (stream_by_default(rays, s.world, 0, true, options)) {  // any hit: only when asked

@@ -39,6 +39,9 @@ struct Table {
   TlasFn tlas_closest4, tlas_any4, tlas_closest8, tlas_any8;
   Bvh4Fn any_packet4;
   Bvh8Fn any_packet8;  ///< any hit, coherent rays in packets (any n)
+  /// Two levels (Bvh8 TLAS and BLASes), coherent rays in packets (any n): the same hits as
+  /// tlas_closest8 / tlas_any8.
+  TlasFn tlas_packet8, tlas_any_packet8;
 };
 
 const Table& table_sse2();

@@ -99,47 +99,13 @@ void trace_range(const Accel& accel, std::span<const Ray> rays, std::span<Hit> h
   for (Hit& h : hits) h = Hit{};  // empty wide BVH
 }
 
-// Stream mode: the hits of each sorted chunk written back to the caller's slots.
-// Packets or single rays for the sorted chunks: where the caller did not say, two chunks in
-// every 32, next to each other in the sorted order, are traced one each way and timed, and
-// the rest go the way that has been faster per ray so far (the hits are the same either way).
-// Sorted bounces inside a room (short, between near walls) trace faster as packets, those of
-// an open scene (long rays that part) as single rays: measured with either fixed, one thread,
-// Sponza's shuffled diffuse rays 3.4-3.8 (packets) against 2.8-3.2 Mrays/s, the sphere
-// field's 3.3 against 4.0, the bunny grid's at 3840x2160 2.5 against 3.3.
-class StreamPacketChoice {
- public:
-  explicit StreamPacketChoice(std::optional<bool> fixed) : fixed_(fixed) {}
-
-  // Whether the next chunk goes as packets; `trial`: time it and report to done().
-  bool next(bool& trial) {
-    trial = false;
-    if (fixed_) return *fixed_;
-    const uint32_t t = started_.fetch_add(1, std::memory_order_relaxed);
-    if (t % period < 2) return trial = true, (t & 1) != 0;
-    const uint64_t s0 = ns_[0].load(std::memory_order_relaxed),
-                   s1 = ns_[1].load(std::memory_order_relaxed);
-    const uint64_t n0 = rays_[0].load(std::memory_order_relaxed),
-                   n1 = rays_[1].load(std::memory_order_relaxed);
-    return n0 == 0 || n1 == 0 || s1 * n0 <= s0 * n1;  // packets' ns per ray <= singles'
-  }
-  void done(bool packets, uint64_t ns, size_t rays) {
-    ns_[packets].fetch_add(ns, std::memory_order_relaxed);
-    rays_[packets].fetch_add(rays, std::memory_order_relaxed);
-  }
-
- private:
-  static constexpr uint32_t period = 32;
-  std::optional<bool> fixed_;
-  std::atomic<uint32_t> started_{0};
-  std::atomic<uint64_t> ns_[2] = {0, 0}, rays_[2] = {0, 0};  // [0] single rays, [1] packets
-};
-
+// Stream mode: the hits of each sorted chunk written back to the caller's slots, each chunk
+// as packets or single rays by PacketChoice (stream.h).
 void trace_stream(const Accel& accel, std::span<const Ray> rays, bool any_hit,
                   const kernels::Table& k, std::optional<bool> packets,
                   FunctionRef<void(size_t caller, const Hit& hit)> put,
                   FunctionRef<void(size_t caller)> prefetch_put) {
-  StreamPacketChoice choice(packets);
+  PacketChoice choice(packets);
   for_each_stream_chunk(rays, accel.bounds, [&](const Ray* r, const uint32_t* callers, size_t n) {
     Hit local[stream_chunk];
     bool trial;

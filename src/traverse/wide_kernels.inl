@@ -42,6 +42,7 @@ namespace {
 #include "traverse/wide_traversal.inl"
 #include "traverse/wide_packet_lanes.inl"
 #include "traverse/wide_packets.inl"
+#include "traverse/wide_tlas_packets.inl"
 // clang-format on
 
 const Table table = {
@@ -51,6 +52,7 @@ const Table table = {
     &trace_tlas<4, false, Bvh4Node>,  &trace_tlas<4, true, Bvh4Node>,
     &trace_tlas<8, false, Bvh8Node>,  &trace_tlas<8, true, Bvh8Node>,
     &occlusion_packets<4, Bvh4Node>,  &occlusion_packets<8, Bvh8Node>,
+    &trace_tlas_packets<false>,       &trace_tlas_packets<true>,
 };
 
 }  // namespace

@@ -57,6 +57,87 @@ TEST(Instances, StreamModeGivesTheSameHitsInTheCallersOrder) {
   }
 }
 
+// Coherent rays as lane packets through the TLAS and into each BLAS: the single rays' hits,
+// bit for bit, for camera rays (packets that straddle the image's centre lines split) and
+// shadow rays towards one point, through rotated, scaled, mirrored and duplicated instances
+// (a duplicate ties at every t: the smaller instance id must win).
+TEST(Instances, PacketsGiveTheSingleRaysHits) {
+  Fixture f = make_fixture();
+  const MeshId a = f.scene.add_mesh(f.meshes[0]);
+  const Affine3 mirrored = Affine3::translation({0.8f, 0.9f, 1.2f}) * Affine3::rotation_y(-20.0f) *
+                           Affine3::scaling({-1.1f, 0.9f, 1.3f});
+  f.ids.push_back(f.scene.add_instance(a, mirrored));
+  f.ids.push_back(f.scene.add_instance(a, mirrored));  // the same triangles again
+  f.scene.commit();
+  const Bounds3 b = bounds_of(f.scene.flatten());
+  const Vec3 c = (b.lo + b.hi) * 0.5f, e = b.hi - b.lo;
+  std::vector<Ray> rays;
+  const int w = 96, h = 64;
+  for (const Vec3 eye :
+       {c + Vec3{0.3f, 0.4f, 1.6f} * length(e), c - Vec3{1.2f, -0.5f, 0.7f} * length(e)}) {
+    const Vec3 fwd = normalize(c - eye), right = normalize(cross(fwd, Vec3{0, 1, 0})),
+               up = cross(right, fwd);
+    for (int y = 0; y < h; ++y)
+      for (int x = 0; x < w; ++x) {
+        const float sx = (2.0f * (float(x) + 0.5f) / float(w) - 1.0f) * 0.3f,
+                    sy = (1.0f - 2.0f * (float(y) + 0.5f) / float(h)) * 0.2f;
+        rays.push_back({eye, fwd + right * sx + up * sy});
+      }
+  }
+  const size_t camera = rays.size();
+  std::vector<InstanceHit> first(camera);
+  f.scene.trace(std::span<const Ray>(rays.data(), camera), first);
+  const Vec3 light = b.hi + e * 0.5f;
+  for (size_t i = 0; i < camera; ++i)
+    if (first[i].hit()) {
+      const Vec3 p = rays[i].org + rays[i].dir * (first[i].t * 0.999f);
+      rays.push_back({p, light - p, 0.0f, 1.0f});
+    }
+  ASSERT_GT(rays.size() - camera, camera / 5);
+  TraceOptions single, packets;
+  single.packets = false;
+  packets.packets = true;
+  for (Isa isa : test::supported_isas()) {
+    single.isa = packets.isa = isa;
+    std::vector<InstanceHit> want(rays.size()), got(rays.size());
+    std::vector<uint8_t> want_occ(rays.size()), occ(rays.size());
+    f.scene.trace(rays, want, 0xFFFFFFFFu, single);
+    f.scene.trace(rays, got, 0xFFFFFFFFu, packets);
+    f.scene.occluded(rays, want_occ, 0xFFFFFFFFu, single);
+    f.scene.occluded(rays, occ, 0xFFFFFFFFu, packets);
+    // Unsaid: coherent runs go whichever way has been faster so far (both are timed).
+    std::vector<InstanceHit> chosen(rays.size());
+    std::vector<uint8_t> chosen_occ(rays.size());
+    TraceOptions unsaid;
+    unsaid.isa = isa;
+    for (int round = 0; round < 3; ++round) {
+      f.scene.trace(rays, chosen, 0xFFFFFFFFu, unsaid);
+      f.scene.occluded(rays, chosen_occ, 0xFFFFFFFFu, unsaid);
+      for (size_t i = 0; i < rays.size(); ++i) {
+        ASSERT_EQ(chosen[i].instance_id, want[i].instance_id) << isa_name(isa) << " ray " << i;
+        ASSERT_EQ(chosen[i].prim_id, want[i].prim_id) << isa_name(isa) << " ray " << i;
+        ASSERT_EQ(chosen[i].t, want[i].t) << isa_name(isa) << " ray " << i;
+        ASSERT_EQ(chosen_occ[i], want_occ[i]) << isa_name(isa) << " ray " << i;
+      }
+    }
+    size_t hits = 0, duplicates = 0, blocked = 0;
+    for (size_t i = 0; i < rays.size(); ++i) {
+      hits += want[i].hit(), blocked += i >= camera && want_occ[i];
+      duplicates += want[i].instance_id == f.ids[6];
+      ASSERT_EQ(got[i].instance_id, want[i].instance_id) << isa_name(isa) << " ray " << i;
+      ASSERT_EQ(got[i].prim_id, want[i].prim_id) << isa_name(isa) << " ray " << i;
+      ASSERT_EQ(got[i].t, want[i].t) << isa_name(isa) << " ray " << i;
+      ASSERT_EQ(got[i].u, want[i].u) << isa_name(isa) << " ray " << i;
+      ASSERT_EQ(got[i].v, want[i].v) << isa_name(isa) << " ray " << i;
+      ASSERT_EQ(occ[i], want_occ[i]) << isa_name(isa) << " ray " << i;
+    }
+    EXPECT_GT(hits, camera / 5) << isa_name(isa);
+    EXPECT_GT(duplicates, 20u) << isa_name(isa);  // the tie is exercised
+    EXPECT_GT(blocked, (rays.size() - camera) / 20) << isa_name(isa);
+    EXPECT_LT(blocked, rays.size() - camera) << isa_name(isa);
+  }
+}
+
 TEST(Instances, UpdatingATransformMovesTheHits) {
   Fixture f = make_fixture();
   f.scene.commit();
