@@ -26,6 +26,24 @@ void Renderer::Impl::setup_environment() {
   env_cosine = env.image.pixels.empty() || env.cosine_sampled;
   env_rows = Distribution1D();
   env_cols.clear();
+  env_small.clear();
+  env_small_w = env_small_h = 0;
+  if (env_cosine && !env.image.pixels.empty()) {
+    // Whole source texels per small texel, and the equator on a row boundary of both.
+    const int w = env.image.width, h = env.image.height;
+    const int fx = std::max(1, w / 128), fy = std::max(1, h / 64);
+    if (w % fx == 0 && h % (2 * fy) == 0) {
+      env_small_w = w / fx, env_small_h = h / fy;
+      env_small.assign(size_t(env_small_w) * size_t(env_small_h) * 3, 0.0f);
+      const float inv = 1.0f / float(fx * fy);
+      for (int y = 0; y < h; ++y)
+        for (int x = 0; x < w; ++x) {
+          const float* p = env.image.at(x, y);
+          float* q = &env_small[(size_t(y / fy) * size_t(env_small_w) + size_t(x / fx)) * 3];
+          for (int c = 0; c < 3; ++c) q[c] += p[c] * inv;
+        }
+    }
+  }
   if (!env_cosine) {
     const int w = env.image.width, h = env.image.height;
     std::vector<float> row_weights(static_cast<size_t>(h), 0.0f);
@@ -106,6 +124,27 @@ void Renderer::Impl::choose_strategies() {
 // cosine-weighted about n (every sample above the surface), other images by their luminance.
 // (The physical sky by luminance: 10-15 % of a frame inside Sponza went to the CDF searches
 // and their cache misses, and ~60 % of its samples fell below the surface.)
+Vec3 Renderer::Impl::env_smooth_radiance(float u, float v, bool upper) const {
+  const int w = env_small_w, h = env_small_h, half = h / 2;
+  const float fx = u * float(w) - 0.5f;
+  const float fy = std::clamp(v * float(h) - 0.5f, upper ? 0.0f : float(half),
+                              upper ? float(half - 1) : float(h - 1));
+  const float x0f = std::floor(fx), y0f = std::floor(fy);
+  const float tx = fx - x0f, ty = fy - y0f;
+  int x0 = int(x0f) % w;
+  if (x0 < 0) x0 += w;
+  const int x1 = x0 + 1 == w ? 0 : x0 + 1;
+  const int y0 = int(y0f), y1 = std::min(y0 + 1, upper ? half - 1 : h - 1);
+  const float* r0 = &env_small[size_t(y0) * size_t(w) * 3];
+  const float* r1 = &env_small[size_t(y1) * size_t(w) * 3];
+  const auto channel = [&](int c) {
+    const float top = r0[3 * x0 + c] + tx * (r0[3 * x1 + c] - r0[3 * x0 + c]);
+    const float bottom = r1[3 * x0 + c] + tx * (r1[3 * x1 + c] - r1[3 * x0 + c]);
+    return top + ty * (bottom - top);
+  };
+  return {channel(0), channel(1), channel(2)};
+}
+
 float Renderer::Impl::env_pdf(Vec3 d, Vec3 n) const {
   if (env_cosine) return std::max(0.0f, dot(d, n)) / pi;
   const float u = 0.5f + std::atan2(d.x, -d.z) / (2 * pi);

@@ -206,6 +206,11 @@ struct Renderer::Impl {
   bool env_cosine = true;  // env_sample cosine-weighted (constant, overcast, smooth sky)
   Distribution1D env_rows;
   std::vector<Distribution1D> env_cols;
+  // A smooth sky's image box-filtered to at most 128 x 64 texels (RGB, rows of env_small_w),
+  // looked up bilinearly without blending the hemispheres (env_smooth_radiance): it stays in
+  // the caches where the full image's texel was a miss per light sample. Empty otherwise.
+  std::vector<float> env_small;
+  int env_small_w = 0, env_small_h = 0;
   float p_env = 0;  // probability NEE samples the environment
   // The sun (env.sun): a cone of directions sampled uniformly, radiance irradiance / solid angle.
   bool sun_on = false;
@@ -262,6 +267,7 @@ struct Renderer::Impl {
     }
     const float u = 0.5f + std::atan2(d.x, -d.z) / (2 * pi);
     const float v = std::acos(std::clamp(d.y, -1.0f, 1.0f)) / pi;
+    if (!env_small.empty()) return env_smooth_radiance(u, v, d.y >= 0.0f) * env.scale;
     const int x = std::clamp(int(u * float(env.image.width)), 0, env.image.width - 1);
     const int y = std::clamp(int(v * float(env.image.height)), 0, env.image.height - 1);
     const float* p = env.image.at(x, y);
@@ -314,6 +320,9 @@ struct Renderer::Impl {
   void setup_environment();
   void choose_strategies();  // p_env, p_sun from what there is to sample
   float env_pdf(Vec3 d, Vec3 n) const;
+  // env_small at (u, v) of the equirectangular map, bilinear (u wraps), rows of the upper
+  // hemisphere only when `upper`, else of the lower one.
+  Vec3 env_smooth_radiance(float u, float v, bool upper) const;
   Vec3 env_sample(float u1, float u2, Vec3 n, float& pdf) const;
   // lights.cpp
   void check_materials(const std::string& source);

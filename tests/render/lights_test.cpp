@@ -147,6 +147,46 @@ TEST(Lights, PhysicalSkyIrradianceIsTheSameSampledEitherWay) {
   EXPECT_NEAR(by_luminance, expected, 0.02 * expected);
 }
 
+// What a camera ray that escapes sees of the physical sky (its sun removed): the image's value
+// in that direction, within the smoothness of the sky, and no blend of sky and ground at the
+// horizon: just above it, the sky's lowest row; just below, the ground's 0.1 x.
+TEST(Lights, SkySeenDirectlyIsTheImageAndTheHorizonStaysSharp) {
+  Environment sky = Environment::physical_sky(Sun::parse("90,35"));
+  sky.sun.reset();
+  const Asset asset = Asset::from_scene(plane());  // behind the camera: every ray escapes
+  Renderer r(asset.scene(), sky);
+  RenderSettings s;
+  s.width = s.height = 1, s.spp = 1, s.max_depth = 1, s.jitter = false;
+  const FloatImage& img = sky.image;
+  // The direction at azimuth a (degrees from -Z towards +X) and elevation e.
+  auto dir = [](float a, float e) {
+    const float ar = a * kPi / 180, er = e * kPi / 180;
+    return Vec3{std::cos(er) * std::sin(ar), std::sin(er), -std::cos(er) * std::cos(ar)};
+  };
+  auto seen = [&](Vec3 d) {
+    return r.render(Camera{{0, 0, 0}, d, 10}, s)[Aov::color].pixels[1];  // green
+  };
+  auto texel = [&](Vec3 d) {  // the image's nearest texel (Environment's mapping)
+    const float u = 0.5f + std::atan2(d.x, -d.z) / (2 * kPi), v = std::acos(d.y) / kPi;
+    return img.at(std::min(int(u * float(img.width)), img.width - 1),
+                  std::min(int(v * float(img.height)), img.height - 1))[1];
+  };
+  int checked = 0;
+  for (float a = 100; a <= 260; a += 20)
+    for (float e = 3; e <= 85; e += 7) {
+      const Vec3 d = dir(a, e);
+      EXPECT_NEAR(seen(d), texel(d), 0.03f * texel(d)) << "azimuth " << a << " elevation " << e;
+      ++checked;
+    }
+  EXPECT_GT(checked, 50);
+  for (float a : {120.0f, 180.0f, 240.0f}) {
+    const float above = seen(dir(a, 0.3f)), below = seen(dir(a, -0.3f));
+    const float lowest = texel(dir(a, 0.3f));
+    EXPECT_NEAR(above, lowest, 0.03f * lowest) << "azimuth " << a;
+    EXPECT_NEAR(below, 0.1f * lowest, 0.01f * lowest) << "azimuth " << a;
+  }
+}
+
 TEST(Lights, LightingFlags) {
   EXPECT_FALSE(make_lighting("", "", false).has_value());
   EXPECT_FALSE(make_lighting("none", "", false)->sun.has_value());
