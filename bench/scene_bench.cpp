@@ -279,18 +279,34 @@ int main(int argc, char** argv) {
         trace_ms.push_back(tt.ms());
       }
       const double mr = rays.size() / (median(trace_ms) * 1e3);
+      // The same rays with the kernel fixed, alternating: lane packets through the TLAS or
+      // single rays (the default above chooses by timing).
+      std::vector<double> packet_ms, single_ms;
+      for (int r = 0; r < std::max(3, frames); ++r)
+        for (bool packets : {true, false}) {
+          TraceOptions opt;
+          opt.packets = packets;
+          Timer t;
+          scene.trace(rays, hits, 0xFFFFFFFFu, opt);
+          (packets ? packet_ms : single_ms).push_back(t.ms());
+        }
+      const double mr_packets = rays.size() / (median(packet_ms) * 1e3),
+                   mr_single = rays.size() / (median(single_ms) * 1e3);
       const std::string name = std::filesystem::path(path).stem().string();
       fmt::print(
           "animated {:<18} {:3} meshes {:4} instances: pose {:6.3f} ms, TLAS {:6.3f} ms, BLAS "
           "refits {:3} ({:6.3f} ms), "
-          "rebuilds {:3} ({:6.2f} ms), trace {:6.2f} Mrays/s\n",
+          "rebuilds {:3} ({:6.2f} ms), trace {:6.2f} Mrays/s (packets {:6.2f}, single rays "
+          "{:6.2f})\n",
           name, anim.mesh_count(), anim.instance_count(), median(pose_ms), median(tlas_ms), refits,
-          median(refit_ms), builds, median(build_ms), mr);
+          median(refit_ms), builds, median(build_ms), mr, mr_packets, mr_single);
       json.add(fmt::format(
           "{{\"scene\": \"{}\", \"instances\": {}, \"tlas_ms\": {:.4f}, \"refit_ms\": {:.4f}, "
           "\"refits\": {}, "
-          "\"rebuilds\": {}, \"trace_mrays\": {:.3f}}}",
-          name, anim.instance_count(), median(tlas_ms), median(refit_ms), refits, builds, mr));
+          "\"rebuilds\": {}, \"trace_mrays\": {:.3f}, \"packets_mrays\": {:.3f}, "
+          "\"single_mrays\": {:.3f}}}",
+          name, anim.instance_count(), median(tlas_ms), median(refit_ms), refits, builds, mr,
+          mr_packets, mr_single));
     }
 
     // 4. Deforming mesh: refit per frame.
