@@ -293,12 +293,13 @@ struct TlasQuery {
   kernels::TlasFn fn = nullptr;
   kernels::TlasFn packet_fn = nullptr;  // coherent rays as lane packets (Bvh8 layout), or null
   const void* tlas = nullptr;
-  // Traces a run of rays (fn(rays, kernel)) as packets where asked or, unsaid, where the run
-  // looks coherent and `choice` finds packets faster so far (timing some runs each way).
+  // Traces a run of rays (traced(kernel)) as packets where asked or, unsaid, where the run
+  // looks coherent (or is a stream's sorted chunk) and `choice` finds packets faster so far
+  // (timing some runs each way).
   template <class Fn>
   void run(std::span<const Ray> rays, const TraceOptions& options, PacketChoice& choice,
-           Fn&& traced) const {
-    if (!packet_fn || options.packets.has_value() || !looks_coherent(rays)) {
+           bool sorted, Fn&& traced) const {
+    if (!packet_fn || options.packets.has_value() || (!sorted && !looks_coherent(rays))) {
       traced(packet_fn && options.packets.value_or(false) ? packet_fn : fn);
       return;
     }
@@ -363,19 +364,18 @@ void InstancedScene::trace(std::span<const Ray> rays, std::span<InstanceHit> hit
   };
   const size_t bytes = rays.size() >= stream_min_rays ? memory_bytes() : 0;  // walks the meshes
   if (stream_by_default(rays, s.world, bytes, false, options)) {             // traverse/stream.h
+    PacketChoice choice;  // for this batch's sorted chunks, as the flat stream (trace.cpp)
     for_each_stream_chunk(rays, s.world, [&](const Ray* r, const uint32_t* callers, size_t n) {
       InstanceHit local[stream_chunk];
-      // Sorted chunks as single rays unless packets were asked for (sorted bounces between
-      // instances part too soon for packets to pay).
-      run(std::span<const Ray>(r, n), local,
-          q.packet_fn && options.packets.value_or(false) ? q.packet_fn : q.fn);
+      const std::span<const Ray> chunk(r, n);
+      q.run(chunk, options, choice, true, [&](kernels::TlasFn fn) { run(chunk, local, fn); });
       for (size_t j = 0; j < n; ++j) hits[callers[j]] = local[j];
     });
     return;
   }
   parallel_for(0, rays.size(), 1024, [&](size_t b, size_t e) {
     const auto chunk = rays.subspan(b, e - b);
-    q.run(chunk, options, s.closest_choice,
+    q.run(chunk, options, s.closest_choice, false,
           [&](kernels::TlasFn fn) { run(chunk, hits.data() + b, fn); });
   });
 }
@@ -393,17 +393,15 @@ void InstancedScene::occluded(std::span<const Ray> rays, std::span<uint8_t> out,
     kestrel::occluded(*direct, rays, out, options);
     return;
   }
+  PacketChoice stream_choice;  // for a stream's sorted chunks, as the flat stream (trace.cpp)
   const auto run = [&](std::span<const Ray> r, const uint32_t* callers, size_t first) {
     InstanceHit local[stream_chunk];
-    const auto traced = [&](kernels::TlasFn fn) {
-      kernels::for_each_traceable_run(r, local, [&](const Ray* rr, InstanceHit* h, size_t m) {
-        fn(q.tlas, s.data.data(), rr, h, m, ray_mask);
-      });
-    };
-    if (callers)  // sorted chunks: single rays unless packets were asked for
-      traced(q.packet_fn && options.packets.value_or(false) ? q.packet_fn : q.fn);
-    else
-      q.run(r, options, s.any_choice, traced);
+    q.run(r, options, callers ? stream_choice : s.any_choice, callers != nullptr,
+          [&](kernels::TlasFn fn) {
+            kernels::for_each_traceable_run(r, local, [&](const Ray* rr, InstanceHit* h, size_t m) {
+              fn(q.tlas, s.data.data(), rr, h, m, ray_mask);
+            });
+          });
     for (size_t j = 0; j < r.size(); ++j) out[callers ? callers[j] : first + j] = local[j].hit();
   };
   if (stream_by_default(rays, s.world, 0, true, options)) {  // any hit: only when asked
