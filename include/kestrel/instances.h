@@ -108,6 +108,9 @@ class InstancedScene {
   ValidationReport validation() const;
 
   /// Closest hits of a batch (threads, chunks; instance masks AND ray_mask must be non-zero).
+  /// Coherent runs may go as lane packets through the TLAS and each BLAS (Bvh8 layout): where
+  /// options.packets is unset, the scene times runs each way and takes the faster until a BLAS
+  /// is rebuilt. The hits are the same either way.
   void trace(std::span<const Ray> rays, std::span<InstanceHit> hits,
              uint32_t ray_mask = 0xFFFFFFFFu, const TraceOptions& options = {}) const;
   /// Occlusion of a batch: 1 when the ray hits anything in (tmin, tmax).
