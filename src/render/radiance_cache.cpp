@@ -1,6 +1,7 @@
 #include "render/radiance_cache.h"
 
 #include <algorithm>
+#include <bit>
 #include <cmath>
 
 #include "render/sampling.h"
@@ -9,25 +10,37 @@ namespace kestrel::render {
 
 namespace {
 
-// The exponent e of the power-of-two cell edge 2^e in (x, 2x] (x > 0), within the float range.
+// The exponent e of the power-of-two cell edge 2^e in (x, 2x] (x > 0), within the float range:
+// frexp's (x = m * 2^e, m in [0.5, 1)) read off the bits of a normal x. (frexp and ldexp were
+// libm calls in cell(), which runs once per first-bounce hit.)
 int cell_exponent(float x) {
   if (!(x > 0x1p-120f)) return -120;
   if (!(x < 0x1p120f)) return 120;
-  int e = 0;
-  std::frexp(x, &e);  // x = m * 2^e, m in [0.5, 1)
-  return e;
+  return int((std::bit_cast<uint32_t>(x) >> 23) & 0xFFu) - 126;
 }
 
+// 2^e for |e| <= 120, exactly.
+double pow2(int e) {
+  return std::bit_cast<double>(uint64_t(1023 + e) << 52);
+}
+float pow2f(int e) {
+  return std::bit_cast<float>(uint32_t(127 + e) << 23);
+}
+
+// floor(p * inv_cell) clamped to +-2^62: clamped first (the bounds are integers, so the same
+// value), then floored through the integer conversion (no rounding instruction in baseline
+// x86-64).
 int64_t cell_coordinate(float p, double inv_cell) {
-  const double c = std::floor(double(p) * inv_cell);
-  return int64_t(std::clamp(c, -0x1p62, 0x1p62));
+  const double c = std::clamp(double(p) * inv_cell, -0x1p62, 0x1p62);
+  const int64_t i = int64_t(c);
+  return double(i) > c ? i - 1 : i;
 }
 
 }  // namespace
 
 RadianceCache::Cell RadianceCache::cell(Vec3 p, Vec3 ng) const {
   const int e = cell_exponent(length(p - eye_) * pixel_angle_ * cell_pixels);
-  const double inv = std::ldexp(1.0, -e);
+  const double inv = pow2(-e);
   const float ax = std::fabs(ng.x), ay = std::fabs(ng.y), az = std::fabs(ng.z);
   const int axis = ax >= ay ? (ax >= az ? 0 : 2) : (ay >= az ? 1 : 2);
   const uint64_t face = uint64_t(2 * axis + (ng[axis] < 0 ? 1 : 0));
@@ -35,7 +48,7 @@ RadianceCache::Cell RadianceCache::cell(Vec3 p, Vec3 ng) const {
   h = mix64(h ^ uint64_t(cell_coordinate(p.x, inv)));
   h = mix64(h ^ uint64_t(cell_coordinate(p.y, inv)) * 0x9E3779B97F4A7C15ull);
   h = mix64(h ^ uint64_t(cell_coordinate(p.z, inv)) * 0xC2B2AE3D27D4EB4Full);
-  return {h | 1, std::ldexp(1.0f, e)};  // never the empty key
+  return {h | 1, pow2f(e)};  // never the empty key
 }
 
 size_t RadianceCache::find(uint64_t key) const {
