@@ -165,6 +165,28 @@ int main(int argc, char** argv) {
                         "{:.3f}, \"flat_mrays\": {:.3f}, "
                         "\"penalty\": {:.3f}}}",
                         kind, two_mr, flat_mr, flat_mr / two_mr));
+        if (rays != &primary) continue;
+        // The camera rays with packets forced on, both ways, and as single rays through the
+        // TLAS, alternating (the two-level default above chooses by timing).
+        std::vector<double> tp_ms, fp_ms, ts_ms;
+        TraceOptions packets, single;
+        packets.packets = true, single.packets = false;
+        for (int r = 0; r < std::max(5, frames); ++r) {
+          Timer ta;
+          two.trace(*rays, ih, 0xFFFFFFFFu, packets);
+          tp_ms.push_back(ta.ms());
+          Timer tb;
+          trace(flat, *rays, fh, packets);
+          fp_ms.push_back(tb.ms());
+          Timer tc;
+          two.trace(*rays, ih, 0xFFFFFFFFu, single);
+          ts_ms.push_back(tc.ms());
+        }
+        fmt::print(
+            "  primary as packets: two-level {:6.2f} Mrays/s, flattened {:6.2f}; two-level as "
+            "single rays {:6.2f}\n",
+            rays->size() / (median(tp_ms) * 1e3), rays->size() / (median(fp_ms) * 1e3),
+            rays->size() / (median(ts_ms) * 1e3));
       }
       // The diffuse rays shuffled (a renderer's bounces after compaction), through the TLAS:
       // stream mode on against off, alternating.

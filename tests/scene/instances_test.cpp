@@ -68,6 +68,11 @@ TEST(Instances, PacketsGiveTheSingleRaysHits) {
                            Affine3::scaling({-1.1f, 0.9f, 1.3f});
   f.ids.push_back(f.scene.add_instance(a, mirrored));
   f.ids.push_back(f.scene.add_instance(a, mirrored));  // the same triangles again
+  Affine3 oblique;  // every entry non-zero: the object-space rays' rounding shows
+  oblique.m[0] = 0.9f, oblique.m[1] = 0.31f, oblique.m[2] = -0.22f, oblique.m[3] = 2.1f;
+  oblique.m[4] = -0.27f, oblique.m[5] = 0.93f, oblique.m[6] = 0.17f, oblique.m[7] = 0.6f;
+  oblique.m[8] = 0.23f, oblique.m[9] = -0.13f, oblique.m[10] = 1.07f, oblique.m[11] = 1.9f;
+  f.ids.push_back(f.scene.add_instance(a, oblique));
   f.scene.commit();
   const Bounds3 b = bounds_of(f.scene.flatten());
   const Vec3 c = (b.lo + b.hi) * 0.5f, e = b.hi - b.lo;
