@@ -14,6 +14,7 @@
 #include "geometry/prim_ref.h"
 #include "kestrel/error.h"
 #include "traverse/morton_wide.h"
+#include "traverse/stream.h"
 #include "traverse/traverse_bvh2.h"
 #include "traverse/wide_bvh.h"
 
@@ -47,6 +48,9 @@ Layout resolve_layout(Layout layout) {
   if (layout != Layout::automatic) return layout;
   return default_isa() == Isa::sse2 ? Layout::bvh4 : Layout::bvh8;
 }
+
+detail::AccelNodes::AccelNodes() : choices(std::make_unique<PacketChoices>()) {}
+detail::AccelNodes::~AccelNodes() = default;
 
 Accel::Accel() : nodes(std::make_unique<detail::AccelNodes>()) {}
 Accel::~Accel() = default;

@@ -2,6 +2,7 @@
 // nodes and triangle blocks (bvh4 / bvh8), with their byte layouts (docs/bvh_layout.md).
 #pragma once
 #include <cstdint>
+#include <memory>
 
 #include "kestrel/bvh.h"
 #include "kestrel/trace.h"
@@ -53,11 +54,16 @@ struct Bvh8 {
 };
 
 namespace detail {
+struct PacketChoices;  // traverse/stream.h
 struct AccelNodes {
   Bvh2 bvh;                    ///< bvh2 layout
   Buffer<Triangle> triangles;  ///< bvh2: triangles[i] is primitive bvh.prim_ids[i]
   Bvh4 bvh4;                   ///< bvh4 layout (the binary tree is released)
   Bvh8 bvh8;                   ///< bvh8 layout
+  /// Coherent batches as packets or single rays, timed as they run (trace.cpp).
+  std::unique_ptr<PacketChoices> choices;
+  AccelNodes();
+  ~AccelNodes();
 };
 }  // namespace detail
 

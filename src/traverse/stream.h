@@ -52,29 +52,48 @@ class PacketChoice {
     trial = false;
     if (fixed_) return *fixed_;
     const uint32_t t = started_.fetch_add(1, std::memory_order_relaxed);
-    if (t % period < 2) return trial = true, (t & 1) != 0;
     const uint64_t s0 = ns_[0].load(std::memory_order_relaxed),
                    s1 = ns_[1].load(std::memory_order_relaxed);
     const uint64_t n0 = rays_[0].load(std::memory_order_relaxed),
                    n1 = rays_[1].load(std::memory_order_relaxed);
+    // Trials of the slower way cost the most where it is much slower (Sponza's camera rays as
+    // single rays: 4x): the clearer the difference, the rarer they are.
+    // (Only once each way has been timed a few times: a first chunk that runs on cold caches
+    // must not settle it.)
+    uint32_t period = 32;
+    if (trials_[0].load(std::memory_order_relaxed) >= 8 &&
+        trials_[1].load(std::memory_order_relaxed) >= 8 && s0 > 0 && s1 > 0) {
+      const double ratio = double(s1) * double(n0) / (double(s0) * double(n1));  // p / s
+      const double slower = ratio > 1 ? ratio : 1 / ratio;
+      period = slower > 2.0 ? 1024 : slower > 1.3 ? 256 : 32;
+    }
+    if (t % period < 2) return trial = true, (t & 1) != 0;
     return n0 == 0 || n1 == 0 || s1 * n0 <= s0 * n1;  // packets' ns per ray <= singles'
   }
   void done(bool packets, uint64_t ns, size_t rays) {
     ns_[packets].fetch_add(ns, std::memory_order_relaxed);
     rays_[packets].fetch_add(rays, std::memory_order_relaxed);
+    trials_[packets].fetch_add(1, std::memory_order_relaxed);
   }
   /// Forgets what was measured (the scene changed).
   void reset() {
     started_ = 0;
-    for (int k = 0; k < 2; ++k) ns_[k] = 0, rays_[k] = 0;
+    for (int k = 0; k < 2; ++k) ns_[k] = 0, rays_[k] = 0, trials_[k] = 0;
   }
 
  private:
-  static constexpr uint32_t period = 32;
   std::optional<bool> fixed_;
   std::atomic<uint32_t> started_{0};
   std::atomic<uint64_t> ns_[2] = {0, 0}, rays_[2] = {0, 0};  // [0] single rays, [1] packets
+  std::atomic<uint32_t> trials_[2] = {0, 0};                 // chunks timed each way
 };
+
+namespace detail {
+/// What an Accel has learnt of its coherent batches (AccelNodes::choices).
+struct PacketChoices {
+  PacketChoice closest, any;
+};
+}  // namespace detail
 
 /// Whether a batch looks coherent (camera rays, shadow rays towards one light): groups of 8
 /// consecutive rays whose directions share signs and dominant axis, in 3 of 4 sampled groups.
