@@ -74,7 +74,9 @@ struct TraceOptions {
   std::optional<Isa> isa;
   /// Coherent-ray packets (wide layouts; closest and any hit). Default: used for chunks of
   /// rays that look coherent (groups of 8 whose directions share signs and dominant axis:
-  /// camera rays, shadow rays towards one light).
+  /// camera rays, shadow rays towards one light) where packets have been faster than single
+  /// rays so far: the Accel times some chunks each way (packets lose where triangles are small
+  /// in the image). The hits are the same either way.
   std::optional<bool> packets;
   /// Stream mode (wide layouts): the batch is traced in an order that groups rays by
   /// direction octant, origin and direction (groups of up to 2^20 rays sorted by a 40-bit
