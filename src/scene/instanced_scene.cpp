@@ -2,7 +2,6 @@
 // the instances rebuilt at every commit(), and traversal through both in the SIMD kernels.
 #include <fmt/format.h>
 
-#include <chrono>
 #include <cmath>
 
 #include "core/parallel.h"
@@ -303,16 +302,7 @@ struct TlasQuery {
       traced(packet_fn && options.packets.value_or(false) ? packet_fn : fn);
       return;
     }
-    bool trial;
-    const bool packets = choice.next(trial);
-    if (!trial) return traced(packets ? packet_fn : fn);
-    const auto start = std::chrono::steady_clock::now();
-    traced(packets ? packet_fn : fn);
-    choice.done(packets,
-                uint64_t(std::chrono::duration_cast<std::chrono::nanoseconds>(
-                             std::chrono::steady_clock::now() - start)
-                             .count()),
-                rays.size());
+    choice.run(rays.size(), [&](bool packets) { traced(packets ? packet_fn : fn); });
   }
 };
 

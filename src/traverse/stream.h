@@ -14,6 +14,7 @@
 // chunks go as packets or single rays is timed as the stream runs (trace.cpp: trace_stream).
 #pragma once
 #include <atomic>
+#include <chrono>
 #include <cstdint>
 #include <optional>
 #include <span>
@@ -74,6 +75,21 @@ class PacketChoice {
     ns_[packets].fetch_add(ns, std::memory_order_relaxed);
     rays_[packets].fetch_add(rays, std::memory_order_relaxed);
     trials_[packets].fetch_add(1, std::memory_order_relaxed);
+  }
+  /// Runs traced(packets) for the next chunk of `rays` rays the way next() says, timing it
+  /// for done() when it is a trial.
+  template <class Fn>
+  void run(size_t rays, Fn&& traced) {
+    bool trial;
+    const bool packets = next(trial);
+    if (!trial) return traced(packets);
+    const auto start = std::chrono::steady_clock::now();
+    traced(packets);
+    done(packets,
+         uint64_t(std::chrono::duration_cast<std::chrono::nanoseconds>(
+                      std::chrono::steady_clock::now() - start)
+                      .count()),
+         rays);
   }
   /// Forgets what was measured (the scene changed).
   void reset() {

@@ -3,7 +3,6 @@
 #include <fmt/format.h>
 
 #include <atomic>
-#include <chrono>
 #include <cmath>
 #include <cstdlib>
 #include <optional>
@@ -108,17 +107,9 @@ void trace_stream(const Accel& accel, std::span<const Ray> rays, bool any_hit,
   PacketChoice choice(packets);
   for_each_stream_chunk(rays, accel.bounds, [&](const Ray* r, const uint32_t* callers, size_t n) {
     Hit local[stream_chunk];
-    bool trial;
-    const bool as_packets = choice.next(trial);
-    const auto start =
-        trial ? std::chrono::steady_clock::now() : std::chrono::steady_clock::time_point{};
-    trace_range(accel, std::span<const Ray>(r, n), std::span(local, n), any_hit, k, as_packets);
-    if (trial)
-      choice.done(as_packets,
-                  uint64_t(std::chrono::duration_cast<std::chrono::nanoseconds>(
-                               std::chrono::steady_clock::now() - start)
-                               .count()),
-                  n);
+    choice.run(n, [&](bool packets) {
+      trace_range(accel, std::span<const Ray>(r, n), std::span(local, n), any_hit, k, packets);
+    });
     for (size_t j = 0; j < n; ++j) {
       if (j + 16 < n) prefetch_put(callers[j + 16]);
       put(callers[j], local[j]);
@@ -142,17 +133,7 @@ void traced_as(const Accel& accel, std::span<const Ray> rays, const TraceOptions
   if (options.packets) return traced(*options.packets);
   const bool coherent = looks_coherent(rays);
   if (!coherent || accel.layout == Layout::bvh2) return traced(coherent);
-  PacketChoice& choice = any_hit ? accel.nodes->choices->any : accel.nodes->choices->closest;
-  bool trial;
-  const bool packets = choice.next(trial);
-  if (!trial) return traced(packets);
-  const auto start = std::chrono::steady_clock::now();
-  traced(packets);
-  choice.done(packets,
-              uint64_t(std::chrono::duration_cast<std::chrono::nanoseconds>(
-                           std::chrono::steady_clock::now() - start)
-                           .count()),
-              rays.size());
+  (any_hit ? accel.nodes->choices->any : accel.nodes->choices->closest).run(rays.size(), traced);
 }
 
 void check_sizes(size_t rays, size_t out) {
