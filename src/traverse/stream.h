@@ -35,14 +35,15 @@ inline constexpr size_t stream_min_accel_bytes = size_t(4) << 20;
 /// Rays per chunk the stream driver hands to its caller (a stack buffer of hits fits).
 inline constexpr size_t stream_chunk = 256;
 
-/// Packets or single rays for chunks of a batch (or of many batches: an InstancedScene keeps one
-/// per query kind between commits): where the caller did not say, two chunks in every 32 are
-/// traced one each way and timed, and the rest go the way that has been faster per ray so far
-/// (the hits are the same either way). Sorted bounces inside a room (short, between near walls)
-/// trace faster as packets, those of an open scene (long rays that part) as single rays:
-/// measured with either fixed, one thread, Sponza's shuffled diffuse rays 3.4-3.8 (packets)
-/// against 2.8-3.2 Mrays/s, the sphere field's 3.3 against 4.0, the bunny grid's at 3840x2160
-/// 2.5 against 3.3. Camera rays through instances: the glTF samples' 1.7-1.9x faster as
+/// Packets or single rays for chunks of a batch (or of many batches: an Accel keeps one per
+/// query kind, an InstancedScene too between BLAS rebuilds): where the caller did not say, two
+/// chunks in every 32 are traced one each way and timed (in every 256 or 1 024 once each way
+/// was timed 8 times and one is 1.3x or 2x faster), and the rest go the way that has been
+/// faster per ray so far (the hits are the same either way). Sorted bounces inside a room (short,
+/// between near walls) trace faster as packets, those of an open scene (long rays that part) as
+/// single rays: measured with either fixed, one thread, Sponza's shuffled diffuse rays 3.4-3.8
+/// (packets) against 2.8-3.2 Mrays/s, the sphere field's 3.3 against 4.0, the bunny grid's at
+/// 3840x2160 2.5 against 3.3. Camera rays through instances: the glTF samples' 1.7-1.9x faster as
 /// packets, the bunny grid's (16 instances of 69 k small triangles) 0.8x.
 class PacketChoice {
  public:
