@@ -69,11 +69,11 @@ static inline bool warp_pick(const int* i00, const int* dx, const int* dy, int W
   std::memcpy(&v, i00, sizeof v), std::memcpy(&ddx, dx, sizeof v), std::memcpy(&ddy, dy, sizeof v);
   if (!all_of((ddx == 1) & (ddy == W))) return false;
   const int span = 2 * kLanes - 2;  // the largest offset whose right tap is in the span
-  const int b0 = lane_min(v);
+  const int b0 = lane_min(v), top = lane_max(v);
   const vint second = v > b0 + span;
   const bool two = any_of(second);
-  const int b1 = two ? lane_min(second ? v : vint{} + lane_max(v)) : b0;
-  if (lane_max(v) - b1 > span || size_t(b1) + size_t(W) + 2 * kLanes > N) return false;
+  const int b1 = two ? lane_min(second ? v : vint{} + top) : b0;
+  if (top - b1 > span || size_t(b1) + size_t(W) + 2 * kLanes > N) return false;
   pick.base[0] = b0, pick.base[1] = b1, pick.two = two, pick.second = second;
   pick.off[0] = v - b0, pick.off[1] = v - b1;
   return true;

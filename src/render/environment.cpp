@@ -119,11 +119,6 @@ void Renderer::Impl::choose_strategies() {
   p_env = pair - p_sun;
 }
 
-// Solid-angle pdf of sampling direction d from the environment (given it was chosen), at a
-// point with shading normal n: a constant environment or a smooth sky is sampled
-// cosine-weighted about n (every sample above the surface), other images by their luminance.
-// (The physical sky by luminance: 10-15 % of a frame inside Sponza went to the CDF searches
-// and their cache misses, and ~60 % of its samples fell below the surface.)
 Vec3 Renderer::Impl::env_smooth_radiance(float u, float v, bool upper) const {
   const int w = env_small_w, h = env_small_h, half = h / 2;
   const float fx = u * float(w) - 0.5f;
@@ -145,6 +140,11 @@ Vec3 Renderer::Impl::env_smooth_radiance(float u, float v, bool upper) const {
   return {channel(0), channel(1), channel(2)};
 }
 
+// Solid-angle pdf of sampling direction d from the environment (given it was chosen), at a
+// point with shading normal n: a constant environment or a smooth sky is sampled
+// cosine-weighted about n (every sample above the surface), other images by their luminance.
+// (The physical sky by luminance: 10-15 % of a frame inside Sponza went to the CDF searches
+// and their cache misses, and ~60 % of its samples fell below the surface.)
 float Renderer::Impl::env_pdf(Vec3 d, Vec3 n) const {
   if (env_cosine) return std::max(0.0f, dot(d, n)) / pi;
   const float u = 0.5f + std::atan2(d.x, -d.z) / (2 * pi);

@@ -298,11 +298,9 @@ struct TlasQuery {
   template <class Fn>
   void run(std::span<const Ray> rays, const TraceOptions& options, PacketChoice& choice,
            bool sorted, Fn&& traced) const {
-    if (!packet_fn || options.packets.has_value() || (!sorted && !looks_coherent(rays))) {
-      traced(packet_fn && options.packets.value_or(false) ? packet_fn : fn);
-      return;
-    }
-    choice.run(rays.size(), [&](bool packets) { traced(packets ? packet_fn : fn); });
+    if (!packet_fn) return traced(fn);
+    choice.run(options.packets, sorted || looks_coherent(rays), rays.size(),
+               [&](bool packets) { traced(packets ? packet_fn : fn); });
   }
 };
 

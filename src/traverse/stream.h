@@ -92,6 +92,14 @@ class PacketChoice {
                       .count()),
          rays);
   }
+  /// The same for a caller's chunk: as `fixed` says when set (TraceOptions::packets), single
+  /// rays where the chunk is no candidate for packets, else as above.
+  template <class Fn>
+  void run(std::optional<bool> fixed, bool candidate, size_t rays, Fn&& traced) {
+    if (fixed) return traced(*fixed);
+    if (!candidate) return traced(false);
+    run(rays, traced);
+  }
   /// Forgets what was measured (the scene changed).
   void reset() {
     started_ = 0;

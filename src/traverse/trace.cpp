@@ -130,10 +130,9 @@ bool use_stream(const Accel& accel, std::span<const Ray> rays, bool any_hit,
 template <class Fn>
 void traced_as(const Accel& accel, std::span<const Ray> rays, const TraceOptions& options,
                bool any_hit, Fn&& traced) {
-  if (options.packets) return traced(*options.packets);
-  const bool coherent = looks_coherent(rays);
-  if (!coherent || accel.layout == Layout::bvh2) return traced(coherent);
-  (any_hit ? accel.nodes->choices->any : accel.nodes->choices->closest).run(rays.size(), traced);
+  (any_hit ? accel.nodes->choices->any : accel.nodes->choices->closest)
+      .run(options.packets, accel.layout != Layout::bvh2 && looks_coherent(rays), rays.size(),
+           traced);
 }
 
 void check_sizes(size_t rays, size_t out) {

@@ -148,12 +148,15 @@ constexpr int packet_lanes = 8;
 // A lane packet's rays must agree on their direction signs and the watertight test's axis
 // permutation: where they do not (a packet across the image's centre lines or the diagonals
 // where the dominant axis changes), each group of agreeing rays becomes a packet of its own.
-inline unsigned lane_class(const Ray& r) {
-  const TriRay t(r);
+// The direction's sign bits (x, y, z): lane_class's first three bits.
+inline unsigned direction_signs(const Ray& r) {
   return unsigned(__builtin_signbit(r.dir.x) != 0) |
          unsigned(__builtin_signbit(r.dir.y) != 0) << 1 |
-         unsigned(__builtin_signbit(r.dir.z) != 0) << 2 | unsigned(t.kz) << 3 |
-         unsigned(t.dir[t.kz] < 0.0f) << 5;
+         unsigned(__builtin_signbit(r.dir.z) != 0) << 2;
+}
+inline unsigned lane_class(const Ray& r) {
+  const TriRay t(r);
+  return direction_signs(r) | unsigned(t.kz) << 3 | unsigned(t.dir[t.kz] < 0.0f) << 5;
 }
 
 template <bool AnyHit>

@@ -11,8 +11,8 @@
 // Instances a packet enters with fewer rays than this trace them one by one.
 constexpr unsigned tlas_packet_min_rays = 4;
 
-// Up to packet_lanes rays that agree on their direction signs (lane_class's first three
-// bits); split otherwise.
+// Up to packet_lanes rays that agree on their direction signs (direction_signs); split
+// otherwise.
 template <bool AnyHit>
 PacketOutcome trace_tlas_lanes(const Bvh8Node* tlas, const InstanceData* instances, const Ray* rays,
                                InstanceHit* hits, unsigned n, uint32_t ray_mask) {
@@ -21,8 +21,9 @@ PacketOutcome trace_tlas_lanes(const Bvh8Node* tlas, const InstanceData* instanc
   using VF = typename S::F;
   using VI = typename S::I;
   const auto bcast = [](float x) { return S::splat(x); };
+  const unsigned signs = direction_signs(rays[0]);
   for (unsigned r = 1; r < n; ++r)
-    if ((lane_class(rays[r]) ^ lane_class(rays[0])) & 7u) return PacketOutcome::split;
+    if (direction_signs(rays[r]) != signs) return PacketOutcome::split;
   VI lane_index;
   for (int l = 0; l < L; ++l) lane_index[l] = l;
   const VI last = VI{} + int(n - 1);
