@@ -52,8 +52,16 @@ struct Scores {
   double psnr = 0, ssim = 0, relmse = 0, terr = 0;
   double psnr0 = 0;   // the first frame alone (no history yet): the single-frame score
   double bright = 0;  // brightest output pixel / brightest reference pixel (max over clips)
+  double level = 0;   // the output's mean brightness over the reference's (1: no bias)
   int frames = 0;
 };
+
+// The mean of an image's values (its brightness).
+double mean_value(const FloatImage& img) {
+  double s = 0;
+  for (float v : img.pixels) s += double(v);
+  return img.pixels.empty() ? 0.0 : s / double(img.pixels.size());
+}
 
 float brightest(const FloatImage& img) {
   float m = 0;
@@ -200,6 +208,7 @@ int main(int argc, char** argv) {
           std::vector<float> prev_o, prev_r;
           FloatImage out;
           double bright = 0;  // the largest over frames of brightest output / brightest ref
+          int level_frames = 0;
           for (int t = 0; t < frames; ++t) {
             out = m.identity ? inputs[size_t(t)].color : d->denoise(inputs[size_t(t)].input());
             const std::vector<float> to = tonemapped(out), tr = tonemapped(refs[size_t(t)]);
@@ -209,6 +218,8 @@ int main(int argc, char** argv) {
             s.psnr += psnr(to, tr);
             s.ssim += ssim(to, tr, out.width, out.height);
             s.relmse += relmse(out, refs[size_t(t)]);
+            const double ref_level = mean_value(refs[size_t(t)]);
+            if (ref_level > 0) s.level += mean_value(out) / ref_level, ++level_frames;
             if (t > 0) {
               double e = 0;
               for (size_t i = 0; i < to.size(); ++i)
@@ -218,19 +229,21 @@ int main(int argc, char** argv) {
             prev_o = to, prev_r = tr;
           }
           s.psnr /= frames, s.ssim /= frames, s.relmse /= frames;
+          s.level = level_frames > 0 ? s.level / level_frames : 1.0;
           s.terr /= std::max(frames - 1, 1);
           s.frames = frames;
           s.bright = bright;
           per_clip += fmt::format(
-              "| {} | {} | {} | {:.2f} | {:.2f} | {:.4f} | {:.4f} | {:.5f} | {:.2f} |\n", clip, spp,
-              m.name, s.psnr0, s.psnr, s.ssim, s.relmse, s.terr, s.bright);
+              "| {} | {} | {} | {:.2f} | {:.2f} | {:.4f} | {:.4f} | {:.5f} | {:.2f} | {:.3f} |\n",
+              clip, spp, m.name, s.psnr0, s.psnr, s.ssim, s.relmse, s.terr, s.bright, s.level);
           fmt::print(
               "{:20s} {} spp  {:26s} PSNR {:6.2f} (frame 0 {:6.2f})  SSIM {:.4f}  relMSE {:.4f}  "
-              "tErr {:.5f}  max/ref {:.2f}\n",
-              clip, spp, m.name, s.psnr, s.psnr0, s.ssim, s.relmse, s.terr, s.bright);
+              "tErr {:.5f}  max/ref {:.2f}  mean/ref {:.3f}\n",
+              clip, spp, m.name, s.psnr, s.psnr0, s.ssim, s.relmse, s.terr, s.bright, s.level);
           auto add = [&](Scores& t) {
             t.psnr += s.psnr, t.ssim += s.ssim, t.relmse += s.relmse, t.terr += s.terr;
             t.psnr0 += s.psnr0, t.bright = std::max(t.bright, s.bright), t.frames += 1;
+            t.level += s.level;
           };
           add(total[m.name][spp]);
           if (spp == 1) add(by_family[family_of(clip)][m.name]);
@@ -294,9 +307,11 @@ int main(int argc, char** argv) {
         "PSNR₀ is the first frame alone (no history: the single-frame score); max/ref the "
         "brightest output pixel of a frame over the brightest pixel of that frame's reference "
         "after a 3x3 median (the reference's own fireflies do not count; the largest over "
-        "frames and clips; frames whose reference is black, below 1e-3, are left out).\n\n"
-        "| method | spp | PSNR₀ dB | PSNR dB | SSIM | relMSE | tErr | max/ref | ms @1280x720 "
-        "|\n|---|---:|---:|---:|---:|---:|---:|---:|---:|\n",
+        "frames and clips; frames whose reference is black, below 1e-3, are left out); mean/ref "
+        "the output's mean brightness over the reference's (1: no bias), averaged over frames "
+        "and clips.\n\n"
+        "| method | spp | PSNR₀ dB | PSNR dB | SSIM | relMSE | tErr | max/ref | mean/ref | "
+        "ms @1280x720 |\n|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n",
         fs::path(dataset).filename().string(), fmt::join(clips, ", "), threads, repeat, params);
     std::string json = "{\n  \"clips\": [";
     for (size_t i = 0; i < clips.size(); ++i)
@@ -312,34 +327,37 @@ int main(int argc, char** argv) {
         const double n = s.frames;
         const std::string t = ms.count(m.name) ? fmt::format("{:.1f}", ms[m.name]) : "";
         md += fmt::format(
-            "| {} | {} | {:.2f} | {:.2f} | {:.4f} | {:.4f} | {:.5f} | {:.2f} | {} |\n", m.name, spp,
-            s.psnr0 / n, s.psnr / n, s.ssim / n, s.relmse / n, s.terr / n, s.bright, t);
+            "| {} | {} | {:.2f} | {:.2f} | {:.4f} | {:.4f} | {:.5f} | {:.2f} | {:.3f} | {} |\n",
+            m.name, spp, s.psnr0 / n, s.psnr / n, s.ssim / n, s.relmse / n, s.terr / n, s.bright,
+            s.level / n, t);
         json += fmt::format(
             "{}    {{\"method\": \"{}\", \"spp\": {}, \"psnr0\": {:.3f}, \"psnr\": {:.3f}, "
             "\"ssim\": {:.4f}, \"relmse\": {:.5f}, \"terr\": {:.5f}, \"max_over_ref\": {:.3f}, "
-            "\"ms\": {}}}",
+            "\"mean_over_ref\": {:.4f}, \"ms\": {}}}",
             first ? "" : ",\n", m.name, spp, s.psnr0 / n, s.psnr / n, s.ssim / n, s.relmse / n,
-            s.terr / n, s.bright, ms.count(m.name) ? fmt::format("{:.2f}", ms[m.name]) : "null");
+            s.terr / n, s.bright, s.level / n,
+            ms.count(m.name) ? fmt::format("{:.2f}", ms[m.name]) : "null");
         first = false;
       }
     json += "\n  ]\n}\n";
     md +=
         "\nPer family (1 spp, means over the family's clips; max/ref the largest):\n\n"
-        "| family | method | PSNR₀ dB | PSNR dB | SSIM | relMSE | tErr | max/ref "
-        "|\n|---|---|---:|---:|---:|---:|---:|---:|\n";
+        "| family | method | PSNR₀ dB | PSNR dB | SSIM | relMSE | tErr | max/ref | mean/ref "
+        "|\n|---|---|---:|---:|---:|---:|---:|---:|---:|\n";
     for (const auto& [family, per_method] : by_family)
       for (const Method& m : methods) {
         auto it = per_method.find(m.name);
         if (it == per_method.end()) continue;
         const Scores& s = it->second;
         const double n = s.frames;
-        md += fmt::format("| {} | {} | {:.2f} | {:.2f} | {:.4f} | {:.4f} | {:.5f} | {:.2f} |\n",
-                          family, m.name, s.psnr0 / n, s.psnr / n, s.ssim / n, s.relmse / n,
-                          s.terr / n, s.bright);
+        md += fmt::format(
+            "| {} | {} | {:.2f} | {:.2f} | {:.4f} | {:.4f} | {:.5f} | {:.2f} | {:.3f} |\n", family,
+            m.name, s.psnr0 / n, s.psnr / n, s.ssim / n, s.relmse / n, s.terr / n, s.bright,
+            s.level / n);
       }
     md +=
         "\nPer clip:\n\n| clip | spp | method | PSNR₀ dB | PSNR dB | SSIM | relMSE | tErr | "
-        "max/ref |\n|---|---:|---|---:|---:|---:|---:|---:|---:|\n" +
+        "max/ref | mean/ref |\n|---|---:|---|---:|---:|---:|---:|---:|---:|---:|\n" +
         per_clip;
     std::string panels;
     for (const Method& m : methods) panels += m.name + "; ";

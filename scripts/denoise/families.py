@@ -34,6 +34,8 @@ from procedural import Mesh, texture  # noqa: E402
 
 TRAIN = ["sunlit_interior", "night_interior", "corridor", "outdoor", "product"]
 HELDOUT = ["mirror_room", "stairwell", "gallery"]
+CAMERA_MARGIN = 0.25  # metres between a walking camera and the first room's walls, floor and ceiling
+OBJECT_MARGIN = 0.1  # and between it and an object's bounding box
 
 
 class Scene:
@@ -41,6 +43,7 @@ class Scene:
         self.rng, self.out = rng, out
         self.mesh, self.mats, self.textures, self.lights = Mesh(), {}, [], []
         self.flags = []
+        self.bounds = None  # the first room's (W, H, D): the camera stays inside it
         os.makedirs(out, exist_ok=True)
 
     # Materials: MTL text per name.
@@ -78,6 +81,8 @@ class Scene:
         """An inward-facing box room; window = (x0, x1, y0, y1) cut into the z = D wall."""
         floor, wall, ceil = (self.mat(f"{prefix}_floor"), self.mat(f"{prefix}_wall"), self.mat(f"{prefix}_ceiling", "diffuse"))
         self.mesh.room_shell(floor, wall, wall, ceil, W, H, D, window)
+        if self.bounds is None:
+            self.bounds = (W, H, D)
 
     def clutter(self, W, D, n, kinds=("box", "box", "sphere", "cylinder"), mats=None, margin=0.6):
         rng, m = self.rng, self.mesh
@@ -109,6 +114,36 @@ class Scene:
                  "target": [look[i] + turn[i] * k for i in range(3)], "vfov": vfov} for k in range(4)]
         self.path = {"keyframes": keys}
 
+    def keep_camera_free(self):
+        """A walk must not leave the room nor pass through an object (its frames came out
+        black: 7 of a stairwell clip's 16 behind a wall, 4 of a mirror room's inside a box).
+        The keyframes' eyes are kept inside the first room; a path that still meets an
+        object (OBJECT_MARGIN around its bounding box) is shortened towards its first eye."""
+        keys = self.path["keyframes"]
+        if self.bounds is not None:
+            for key in keys:
+                key["eye"] = [min(max(v, CAMERA_MARGIN), b - CAMERA_MARGIN) for v, b in zip(key["eye"], self.bounds)]
+
+        def blocked(eyes):
+            for a, b in zip(eyes, eyes[1:]):
+                for k in range(17):
+                    p = [a[i] + (b[i] - a[i]) * k / 16 for i in range(3)]
+                    for lo, hi in self.mesh.solids:
+                        if all(lo[i] - OBJECT_MARGIN < p[i] < hi[i] + OBJECT_MARGIN for i in range(3)):
+                            return True
+            return False
+        start = keys[0]["eye"]
+        if not blocked([key["eye"] for key in keys]):
+            return
+        for f in (0.75, 0.5, 0.25, 0.0):
+            eyes = [[s + (e - s) * f for s, e in zip(start, key["eye"])] for key in keys]
+            if not blocked(eyes):
+                for key, eye in zip(keys, eyes):
+                    key["eye"] = eye
+                return
+        if any(all(lo[i] < start[i] < hi[i] for i in range(3)) for lo, hi in self.mesh.solids):
+            print(f"families.py: {self.out}: the camera starts inside an object", file=sys.stderr)
+
     def write(self, family, seed, exposure):
         obj, mtl = os.path.join(self.out, "scene.obj"), os.path.join(self.out, "scene.mtl")
         with open(mtl, "w") as f:
@@ -129,6 +164,7 @@ class Scene:
                 L["intensity"] = round(L["intensity"] * exposure, 5)
             json.dump({"lights": self.lights}, open(os.path.join(self.out, "lights.json"), "w"), indent=1)
             flags += ["--lights", os.path.join(self.out, "lights.json"), "--light-sampling", "tree"]
+        self.keep_camera_free()
         self.path["scene"] = f"{family} {seed}"
         json.dump(self.path, open(os.path.join(self.out, "path.json"), "w"), indent=1)
         info = {"family": family, "seed": seed, "exposure": exposure, "flags": flags,

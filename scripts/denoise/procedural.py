@@ -48,6 +48,7 @@ def texture(rng, path):
 class Mesh:
     def __init__(self):
         self.v, self.vt, self.groups = [], [], []  # groups: (material, faces[(vi, ti) x3])
+        self.solids = []  # bounding boxes (lo, hi) of the boxes, spheres and cylinders
 
     def quad(self, mat, p0, p1, p2, p3, uv_scale=1.0):
         base, tbase = len(self.v), len(self.vt)
@@ -67,6 +68,9 @@ class Mesh:
              ((-1, 1, 1), (1, 1, 1), (1, 1, -1), (-1, 1, -1)), ((-1, -1, -1), (1, -1, -1), (1, -1, 1), (-1, -1, 1))]
         for q in f:
             self.quad(mat, *[p(*v) for v in q], uv_scale=uv_scale)
+        corners = [p(x, y, z) for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)]
+        self.solids.append((tuple(min(q[i] for q in corners) for i in range(3)),
+                            tuple(max(q[i] for q in corners) for i in range(3))))
 
     def room_shell(self, floor, side, back, ceiling, W, H, D, window=None):
         """An inward-facing box [0, W] x [0, H] x [0, D]: floor, ceiling, side walls (x = 0, W),
@@ -86,6 +90,8 @@ class Mesh:
 
     def surface(self, mat, c, r, kind, seg=24, height=1.0):
         rows, cols = seg // 2, seg
+        y0, y1 = (c[1] - r, c[1] + r) if kind == "sphere" else (c[1], c[1] + height)
+        self.solids.append(((c[0] - r, y0, c[2] - r), (c[0] + r, y1, c[2] + r)))
         base, tbase = len(self.v), len(self.vt)
         for i in range(rows + 1):
             t = i / rows
