@@ -439,12 +439,14 @@ static const Planes& network(const NeuralWeights& nw, const Planes& in, Planes& 
   ensure(ws.xi, W, H, 3);
   ensure(ws.xo, W, H, 3);
   ensure(ws.lg, W, H, 3);
-  // This frame's fireflies cut (ws.xo), then the temporal blend: r0 = xc + a (yw - xc),
+  // This frame's fireflies cut (ws.xo) and their cut energy spread over their windows, then
+  // the temporal blend: r0 = xc + a (yw - xc),
   // a = alpha nw / (1 + nw), into the filter's input (ws.xi) with log(1 + r0) its first
   // guide (ws.lg); the new history length n = min(1 / (1 - a), kMaxHistory) into the state
   // (whose irradiance is the first filter level's output, copied below).
   firefly_clamp(ws, W, H, in.image_width > 0 ? in.image_width : W,
                 in.image_height > 0 ? in.image_height : H);
+  redistribute(ws, W, H);
   parallel_rows(H, 8, [&](int r0, int r1) {
     std::vector<float> a(static_cast<size_t>(W));
     for (int y = r0; y < r1; ++y) {

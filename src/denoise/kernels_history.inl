@@ -205,3 +205,67 @@ static void firefly_clamp(Workspace& ws, int W, int H, int image_w, int image_h)
     }
   });
 }
+
+// model.py's redistribute: the energy the firefly cut took (ws.xlin - ws.xo) spread over its
+// 12x12 window, ws.xo += min(mean(r - rc), kRedistributeCap mean(rc)), at most the window's
+// brightest sample; the means and maximum on the cells of firefly_clamp's mu (3x3 over
+// quarter-res cells of 4x4 blocks, edge cells replicated).
+static void redistribute(Workspace& ws, int W, int H) {
+  const int Wq = W / 4, Hq = H / 4;
+  const size_t Nq = size_t(Wq) * size_t(Hq);
+  ws.spread.resize(9 * Nq);   // per channel: excess, cut, maximum of each cell
+  ws.spread3.resize(6 * Nq);  // per channel: the excess its window takes, its maximum
+  parallel_rows(Hq, 8, [&](int r0, int r1) {
+    for (int c = 0; c < 3; ++c)
+      for (int qy = r0; qy < r1; ++qy)
+        for (int qx = 0; qx < Wq; ++qx) {
+          const size_t at = size_t(qy * 4) * size_t(W) + size_t(qx * 4);
+          const float *r0p = ws.xlin.ch(c) + at, *c0p = ws.xo.ch(c) + at;
+          float ex = 0.0f, cut = 0.0f, hi = r0p[0];
+          for (int sy = 0; sy < 4; ++sy) {
+            const float *r = r0p + size_t(sy) * size_t(W), *rc = c0p + size_t(sy) * size_t(W);
+            for (int sx = 0; sx < 4; ++sx) {
+              ex += r[sx] - rc[sx];
+              cut += rc[sx];
+              hi = r[sx] > hi ? r[sx] : hi;
+            }
+          }
+          const size_t q = size_t(qy) * size_t(Wq) + size_t(qx);
+          ws.spread[size_t(3 * c) * Nq + q] = ex * (1.0f / 16.0f);
+          ws.spread[size_t(3 * c + 1) * Nq + q] = cut * (1.0f / 16.0f);
+          ws.spread[size_t(3 * c + 2) * Nq + q] = hi;
+        }
+  });
+  parallel_rows(Hq, 8, [&](int r0, int r1) {
+    for (int c = 0; c < 3; ++c)
+      for (int qy = r0; qy < r1; ++qy)
+        for (int qx = 0; qx < Wq; ++qx) {
+          const float* ex = ws.spread.data() + size_t(3 * c) * Nq;
+          const float *cut = ex + Nq, *mx = ex + 2 * Nq;
+          float se = 0.0f, sc = 0.0f, hi = mx[size_t(qy) * size_t(Wq) + size_t(qx)];
+          for (int dy = -1; dy <= 1; ++dy)
+            for (int dx = -1; dx <= 1; ++dx) {
+              const int y = std::clamp(qy + dy, 0, Hq - 1), x = std::clamp(qx + dx, 0, Wq - 1);
+              const size_t k = size_t(y) * size_t(Wq) + size_t(x);
+              se += ex[k], sc += cut[k];
+              hi = mx[k] > hi ? mx[k] : hi;
+            }
+          const float cap = kRedistributeCap * (sc * (1.0f / 9.0f)), e = se * (1.0f / 9.0f);
+          const size_t q = size_t(qy) * size_t(Wq) + size_t(qx);
+          ws.spread3[size_t(2 * c) * Nq + q] = e < cap ? e : cap;
+          ws.spread3[size_t(2 * c + 1) * Nq + q] = hi;
+        }
+  });
+  parallel_rows(H, 8, [&](int r0, int r1) {
+    for (int c = 0; c < 3; ++c)
+      for (int y = r0; y < r1; ++y) {
+        const float* ex = ws.spread3.data() + size_t(2 * c) * Nq + size_t(y / 4) * size_t(Wq);
+        const float* hi = ex + Nq;
+        float* rc = ws.xo.ch(c) + size_t(y) * size_t(W);
+        for (int i = 0; i < W; ++i) {
+          const float v = rc[i] + ex[i / 4];
+          rc[i] = v < hi[i / 4] ? v : hi[i / 4];
+        }
+      }
+  });
+}

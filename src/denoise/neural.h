@@ -67,6 +67,9 @@ constexpr float kMaxHistory = 32.0f;    ///< the longest history (frames) the st
 constexpr float kMinNormalStop = 2.0f;  ///< sn >= 2, sz >= 3: geometry edges always hold
 constexpr float kMinDepthStop = 3.0f;
 constexpr float kHistoryAllowance = 4.0f;  ///< never cut as a firefly: up to 4x the history
+/// The fireflies' cut energy spread over their window raises its mean at most this much (x the
+/// window's cut mean).
+constexpr float kRedistributeCap = 1.0f;
 constexpr float kAlbedoEps = 0.01f;
 constexpr float kBlackAlbedo = 0.02f;  ///< below this in every channel: no demodulation
 /// Whether an albedo is (nearly) black: left undemodulated by every denoiser.
@@ -79,7 +82,7 @@ constexpr float kMinDepth = 1e-3f;
 /// Buffers reused from frame to frame (no allocation or page faults once warm).
 struct Workspace {
   Planes x, xlin, demod, yw, xi, xo, lg, lg2, out, next_state;
-  std::vector<float> bound, bound3, mu, mu3;
+  std::vector<float> bound, bound3, mu, mu3, spread, spread3;
   std::vector<uint8_t> black_rows;  ///< per row: any pixel with black flag 1
   std::vector<float> zw, nw, kw, valid, zc, feat, e1, pooled, e2, e3, cat, d1, o, act, padded,
       hrows;
