@@ -43,8 +43,8 @@ SZ_MIN = 3) and a mix weight beta, and a firefly allowance kappa.
        pixels by the next warp, where no neighbourhood test finds it
   rc += min(mean12(r - rc), REDISTRIBUTE_CAP mean12(rc)), then at most max12(r)
                                                    the cut energy spread over the 12x12
-       window (redistribute; since 2026-12-05): the cut alone dropped it (outputs 3-5 %
-       dark on held-out clips, 23 % on sunlit interiors)
+       window (redistribute; since 2026-12-05): the cut alone dropped it (outputs 5-8 %
+       dark on held-out clips, 19-23 % on sunlit interiors)
   a  = alpha * nw / (1 + nw)                       the history's weight: at most a running
                                                    mean over the frames it holds
   r0 = rc + a * (yw - rc),  n = min(1 / (1 - a), NMAX)
@@ -162,6 +162,20 @@ def own_share(mu, size=None):
     return (oy[:, None] * ox[None, :]) * (1.0 / 144.0)
 
 
+def window_mean(t):
+    """The 12x12 window mean: a 3x3 box (edge cells replicated) over quarter-res cells of 4x4
+    block means, nearest upsampled (every pixel of a cell has its cell's window)."""
+    mu = F.avg_pool2d(t, 4)
+    mu = F.avg_pool2d(F.pad(mu, (1, 1, 1, 1), mode="replicate"), 3, stride=1)
+    return F.interpolate(mu, scale_factor=4, mode="nearest")
+
+
+def window_max(t):
+    """The 12x12 window maximum on the same cells (3x3 max over 4x4 block maxima)."""
+    hi = F.max_pool2d(F.max_pool2d(t, 4), 3, stride=1, padding=1)
+    return F.interpolate(hi, scale_factor=4, mode="nearest")
+
+
 def firefly_clamp(r, kappa, size=None, history=None):
     """min(r, max(m + kappa * max(mu - (r + m1) s, 0), HISTORY_ALLOWANCE * history)) (s =
     own_share, 1/144 away from the border; m1 the largest neighbour): m the second largest of the 8 neighbours inside the image (size
@@ -183,9 +197,7 @@ def firefly_clamp(r, kappa, size=None, history=None):
                 q = shift0(inside, dy, dx)
                 top2 = torch.maximum(top2, torch.minimum(top1, q))
                 top1 = torch.maximum(top1, q)
-    mu = F.avg_pool2d(r, 4)
-    mu = F.avg_pool2d(F.pad(mu, (1, 1, 1, 1), mode="replicate"), 3, stride=1)
-    mu = F.interpolate(mu, scale_factor=4, mode="nearest")
+    mu = window_mean(r)
     # mu without r's own share, nor its brightest neighbour's (at r's weight): a pair of
     # adjacent fireflies does not raise each other's allowance
     bound = top2 + kappa * (mu - (r + top1) * own_share(mu, size)).clamp(min=0)
@@ -194,24 +206,10 @@ def firefly_clamp(r, kappa, size=None, history=None):
     return torch.minimum(r, bound)
 
 
-def window_mean(t):
-    """The 12x12 window mean: a 3x3 box (edge cells replicated) over quarter-res cells of 4x4
-    block means, nearest upsampled (every pixel of a cell has its cell's window)."""
-    mu = F.avg_pool2d(t, 4)
-    mu = F.avg_pool2d(F.pad(mu, (1, 1, 1, 1), mode="replicate"), 3, stride=1)
-    return F.interpolate(mu, scale_factor=4, mode="nearest")
-
-
-def window_max(t):
-    """The 12x12 window maximum on the same cells (3x3 max over 4x4 block maxima)."""
-    hi = F.max_pool2d(F.max_pool2d(t, 4), 3, stride=1, padding=1)
-    return F.interpolate(hi, scale_factor=4, mode="nearest")
-
-
 def redistribute(r, rc):
     """The energy the firefly cut took, r - rc, spread over its window: rc + min(window_mean(r -
     rc), REDISTRIBUTE_CAP * window_mean(rc)), at most the window's brightest sample. The cut
-    alone is biased dark (its excess is dropped: 3-5 % on held-out clips, 23 % on sunlit
+    alone is biased dark (its excess is dropped: 5-8 % on held-out clips, 19-23 % on sunlit
     interiors, whose light arrives as sparse bright samples); spread over the window, the
     excess keeps the window's mean, as Zirr et al. 2018 re-weight firefly samples into coarser
     estimates. The cap bounds what one rare huge sample adds (a sample 3e4 times its
@@ -271,10 +269,8 @@ class Denoiser(nn.Module):
             kw, _ = warp(state[3], motion)
             valid = valid * ((zw - z).abs() <= DISOCCLUDED * zc).to(z.dtype) * ((kw - bk).abs() < 1e-3).to(z.dtype)
             nw = nw * valid
-            hi = F.max_pool2d(F.max_pool2d(x_lin, 4), 3, stride=1, padding=1)
-            lo = -F.max_pool2d(F.max_pool2d(-x_lin, 4), 3, stride=1, padding=1)
-            yw_lin = torch.minimum(yw_lin, F.interpolate(hi, scale_factor=4, mode="nearest"))
-            yw_lin = torch.maximum(yw_lin, F.interpolate(lo, scale_factor=4, mode="nearest"))
+            yw_lin = torch.minimum(yw_lin, window_max(x_lin))
+            yw_lin = torch.maximum(yw_lin, -window_max(-x_lin))
         yw = torch.log1p(yw_lin.clamp(min=0))
         dz = ((zw - z).abs() / zc).clamp(max=1.0) * valid
         zg = (((shift(z, 0, 1) - z).abs() + (shift(z, 1, 0) - z).abs()) / zc).clamp(max=1.0)
