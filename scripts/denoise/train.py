@@ -106,13 +106,14 @@ def load_weights(model, path, architecture=ARCHITECTURE):
 
 
 def write_fixture(model, clip, out_dir):
-    """Two frames of a 44 x 30 crop (not a multiple of 8: exercises the padding) from the
-    middle of a clip (it must show content), the second 4x brighter (both history clamps act),
-    their inputs as PFMs and the model's outputs."""
+    """Three frames of a 44 x 30 crop (not a multiple of 8: exercises the padding) from the
+    middle of a clip (it must show content), the second 4x brighter and the third 4x darker
+    than the clip (both history clamps act), their inputs as PFMs and the model's outputs."""
     T, H, W, _ = clip.shape
     y0, x0 = H // 2 - 15, W // 2 - 22
-    ins = clip[:2, y0:y0 + 30, x0:x0 + 44].copy()  # T,H,W,13
+    ins = clip[:3, y0:y0 + 30, x0:x0 + 44].copy()  # T,H,W,13
     ins[1, :, :, 0:3] *= 4  # a light comes on: the history's lower clamp acts where all is lit
+    ins[2, :, :, 0:3] /= 4  # and dims: the upper clamp acts (its 20x20 window, not 12x12)
     write_fixture_frames(model, ins, out_dir)
 
 
@@ -255,7 +256,7 @@ def main():
         load_weights(model, os.path.join(args.out, "denoiser.kdw"))
         manifest = json.load(open(os.path.join(args.data, "manifest.json")))
         name = sorted(n for n, c in manifest["clips"].items() if c["split"] == "train")[0]
-        write_fixture(model, load_clip(args.data, name, 2)[0], args.fixture)
+        write_fixture(model, load_clip(args.data, name, 3)[0], args.fixture)
         print("wrote", args.fixture)
         return
     manifest = json.load(open(os.path.join(args.data, "manifest.json")))

@@ -1,9 +1,10 @@
 // Included by kernels.inl (inside namespace kestrel::denoise::KESTREL_ISA_NS): the two bounds
 // of the neural denoiser's recurrence, the history clamp and the firefly clamp (model.py).
 
-// The history clamp (model.py): yw = clamp(yw, A, B), A and B per channel the 3x3 minimum
-// and maximum over quarter-res cells of the 4x4 block minima and maxima of the current
-// irradiance (a 12x12 window).
+// The history clamp (model.py): yw = clamp(yw, A, B), A per channel the 3x3 minimum over
+// quarter-res cells of the 4x4 block minima of the current irradiance (a 12x12 window), B the
+// 5x5 maximum of their maxima (a 20x20 window: sparse bright light keeps its history where a
+// 12x12 window holds no bright sample this frame).
 static void clamp_history(Workspace& ws, int W, int H) {
   const int Wq = W / 4, Hq = H / 4;
   const size_t Nq = size_t(Wq) * size_t(Hq);
@@ -35,13 +36,13 @@ static void clamp_history(Workspace& ws, int W, int H) {
           const float* bh = ws.bound.data() + size_t(2 * c) * Nq;
           const float* bl = bh + Nq;
           float hi = bh[q], lo = bl[q];
-          for (int dy = -1; dy <= 1; ++dy)
-            for (int dx = -1; dx <= 1; ++dx) {
+          for (int dy = -kHistoryMaxReach; dy <= kHistoryMaxReach; ++dy)
+            for (int dx = -kHistoryMaxReach; dx <= kHistoryMaxReach; ++dx) {
               const int y = qy + dy, x = qx + dx;
               if (y < 0 || y >= Hq || x < 0 || x >= Wq) continue;
               const size_t k = size_t(y) * size_t(Wq) + size_t(x);
               hi = bh[k] > hi ? bh[k] : hi;
-              lo = bl[k] < lo ? bl[k] : lo;
+              if (dy >= -1 && dy <= 1 && dx >= -1 && dx <= 1) lo = bl[k] < lo ? bl[k] : lo;
             }
           ws.bound3[size_t(2 * c) * Nq + q] = hi;
           ws.bound3[size_t(2 * c + 1) * Nq + q] = lo;
