@@ -3,7 +3,7 @@
   weights/denoiser.kdw           the weights (format: docs/denoiser.md)
   weights/denoiser.json          provenance: dataset, command, steps, seed, final losses
   weights/denoiser_loss.png      the loss curve
-  tests/data/denoise/            a parity fixture: two small frames and this model's output
+  tests/data/denoise/            a parity fixture: three small frames and this model's output
 
     train.py [--data out/denoise_dataset] [--steps 2500] [--seed 1] [--threads 2]
 """
