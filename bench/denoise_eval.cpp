@@ -189,10 +189,12 @@ int main(int argc, char** argv) {
       if (quick) frames = std::min(frames, 3);
       std::vector<FloatImage> refs;
       std::vector<float> ref_bright;
+      std::vector<double> ref_level;  // each reference frame's mean brightness
       for (int t = 0; t < frames; ++t) {
         refs.push_back(read_pfm(
             (root / "ref" / "pfm" / fmt::format("frame_{:04d}", t) / "color.pfm").string()));
         ref_bright.push_back(brightest_robust(refs.back()));
+        ref_level.push_back(mean_value(refs.back()));
       }
       for (int spp : spps) {
         if (!fs::exists(root / fmt::format("spp{}", spp))) continue;
@@ -218,8 +220,8 @@ int main(int argc, char** argv) {
             s.psnr += psnr(to, tr);
             s.ssim += ssim(to, tr, out.width, out.height);
             s.relmse += relmse(out, refs[size_t(t)]);
-            const double ref_level = mean_value(refs[size_t(t)]);
-            if (ref_level > 0) s.level += mean_value(out) / ref_level, ++level_frames;
+            if (ref_level[size_t(t)] > 0)
+              s.level += mean_value(out) / ref_level[size_t(t)], ++level_frames;
             if (t > 0) {
               double e = 0;
               for (size_t i = 0; i < to.size(); ++i)

@@ -122,27 +122,23 @@ static std::vector<float> own_counts(int n, int inside) {
   return counts;
 }
 
-// model.py's firefly_clamp on this frame's irradiance (ws.xlin) into ws.xo:
-// min(r, max(m + kappa max(mu - (r + m1) s, 0), 4 yw valid)) (s: own_counts / 144), m1 and m the
-// largest and second largest of the 8 neighbours inside the image_w x image_h image (outside ones
-// count as 0: a firefly on the border is not its own neighbour), mu the 3x3 box (edge replicated)
-// over quarter-res cells of 4x4 block means, kappa the activation map 17 upsampled as alpha is
-// (ws.hrows).
-static void firefly_clamp(Workspace& ws, int W, int H, int image_w, int image_h) {
+// model.py's window_mean of each of src's 3 channels, per quarter-res cell: the 3x3 box (edge
+// cells replicated) over the cells' 4x4 block means (into `cells`), into `means`.
+static void window_means(const Planes& src, int W, int H, std::vector<float>& cells,
+                         std::vector<float>& means) {
   const int Wq = W / 4, Hq = H / 4;
   const size_t Nq = size_t(Wq) * size_t(Hq);
-  ws.mu.resize(3 * Nq), ws.mu3.resize(3 * Nq);
-  const Planes& r = ws.xlin;
+  cells.resize(3 * Nq), means.resize(3 * Nq);
   parallel_rows(Hq, 8, [&](int r0, int r1) {
     for (int c = 0; c < 3; ++c)
       for (int qy = r0; qy < r1; ++qy)
         for (int qx = 0; qx < Wq; ++qx) {
           float s = 0.0f;
           for (int sy = 0; sy < 4; ++sy) {
-            const float* x = r.ch(c) + size_t(qy * 4 + sy) * size_t(W) + size_t(qx * 4);
+            const float* x = src.ch(c) + size_t(qy * 4 + sy) * size_t(W) + size_t(qx * 4);
             s += x[0] + x[1] + x[2] + x[3];
           }
-          ws.mu[size_t(c) * Nq + size_t(qy) * size_t(Wq) + size_t(qx)] = s * (1.0f / 16.0f);
+          cells[size_t(c) * Nq + size_t(qy) * size_t(Wq) + size_t(qx)] = s * (1.0f / 16.0f);
         }
   });
   parallel_rows(Hq, 8, [&](int r0, int r1) {
@@ -153,11 +149,24 @@ static void firefly_clamp(Workspace& ws, int W, int H, int image_w, int image_h)
           for (int dy = -1; dy <= 1; ++dy)
             for (int dx = -1; dx <= 1; ++dx) {
               const int y = std::clamp(qy + dy, 0, Hq - 1), x = std::clamp(qx + dx, 0, Wq - 1);
-              s += ws.mu[size_t(c) * Nq + size_t(y) * size_t(Wq) + size_t(x)];
+              s += cells[size_t(c) * Nq + size_t(y) * size_t(Wq) + size_t(x)];
             }
-          ws.mu3[size_t(c) * Nq + size_t(qy) * size_t(Wq) + size_t(qx)] = s * (1.0f / 9.0f);
+          means[size_t(c) * Nq + size_t(qy) * size_t(Wq) + size_t(qx)] = s * (1.0f / 9.0f);
         }
   });
+}
+
+// model.py's firefly_clamp on this frame's irradiance (ws.xlin) into ws.xo:
+// min(r, max(m + kappa max(mu - (r + m1) s, 0), 4 yw valid)) (s: own_counts / 144), m1 and m the
+// largest and second largest of the 8 neighbours inside the image_w x image_h image (outside ones
+// count as 0: a firefly on the border is not its own neighbour), mu the 3x3 box (edge replicated)
+// over quarter-res cells of 4x4 block means, kappa the activation map 17 upsampled as alpha is
+// (ws.hrows).
+static void firefly_clamp(Workspace& ws, int W, int H, int image_w, int image_h) {
+  const int Wq = W / 4, Hq = H / 4;
+  const size_t Nq = size_t(Wq) * size_t(Hq);
+  const Planes& r = ws.xlin;
+  window_means(r, W, H, ws.mu, ws.mu3);
   const size_t hplane = size_t(Hq) * size_t(W);
   const std::vector<float> ox = own_counts(W, image_w), oy = own_counts(H, image_h);
   parallel_rows(H, 8, [&](int r0, int r1) {
@@ -209,62 +218,53 @@ static void firefly_clamp(Workspace& ws, int W, int H, int image_w, int image_h)
 
 // model.py's redistribute: the energy the firefly cut took (ws.xlin - ws.xo) spread over its
 // 12x12 window, ws.xo += min(mean(r - rc), kRedistributeCap mean(rc)), at most the window's
-// brightest sample; the means and maximum on the cells of firefly_clamp's mu (3x3 over
-// quarter-res cells of 4x4 blocks, edge cells replicated).
+// brightest sample. mean(r - rc) is firefly_clamp's window mean of r (ws.mu3) less that of rc,
+// both summed in the same order (rc <= r, so the difference is never negative); the maximum
+// on the same cells.
 static void redistribute(Workspace& ws, int W, int H) {
   const int Wq = W / 4, Hq = H / 4;
   const size_t Nq = size_t(Wq) * size_t(Hq);
-  ws.spread.resize(9 * Nq);   // per channel: excess, cut, maximum of each cell
-  ws.spread3.resize(6 * Nq);  // per channel: the excess its window takes, its maximum
-  parallel_rows(Hq, 8, [&](int r0, int r1) {
+  window_means(ws.xo, W, H, ws.cells, ws.cut3);
+  ws.top3.resize(3 * Nq);  // per channel and cell: the window's brightest sample of r
+  parallel_rows(Hq, 8, [&](int r0, int r1) {  // block maxima into ws.cells
     for (int c = 0; c < 3; ++c)
       for (int qy = r0; qy < r1; ++qy)
         for (int qx = 0; qx < Wq; ++qx) {
-          const size_t at = size_t(qy * 4) * size_t(W) + size_t(qx * 4);
-          const float *r0p = ws.xlin.ch(c) + at, *c0p = ws.xo.ch(c) + at;
-          float ex = 0.0f, cut = 0.0f, hi = r0p[0];
-          for (int sy = 0; sy < 4; ++sy) {
-            const float *r = r0p + size_t(sy) * size_t(W), *rc = c0p + size_t(sy) * size_t(W);
+          const float* x0 = ws.xlin.ch(c) + size_t(qy * 4) * size_t(W) + size_t(qx * 4);
+          float hi = x0[0];
+          for (int sy = 0; sy < 4; ++sy)
             for (int sx = 0; sx < 4; ++sx) {
-              ex += r[sx] - rc[sx];
-              cut += rc[sx];
-              hi = r[sx] > hi ? r[sx] : hi;
+              const float v = x0[size_t(sy) * size_t(W) + size_t(sx)];
+              hi = v > hi ? v : hi;
             }
-          }
-          const size_t q = size_t(qy) * size_t(Wq) + size_t(qx);
-          ws.spread[size_t(3 * c) * Nq + q] = ex * (1.0f / 16.0f);
-          ws.spread[size_t(3 * c + 1) * Nq + q] = cut * (1.0f / 16.0f);
-          ws.spread[size_t(3 * c + 2) * Nq + q] = hi;
+          ws.cells[size_t(c) * Nq + size_t(qy) * size_t(Wq) + size_t(qx)] = hi;
         }
   });
   parallel_rows(Hq, 8, [&](int r0, int r1) {
     for (int c = 0; c < 3; ++c)
       for (int qy = r0; qy < r1; ++qy)
         for (int qx = 0; qx < Wq; ++qx) {
-          const float* ex = ws.spread.data() + size_t(3 * c) * Nq;
-          const float *cut = ex + Nq, *mx = ex + 2 * Nq;
-          float se = 0.0f, sc = 0.0f, hi = mx[size_t(qy) * size_t(Wq) + size_t(qx)];
+          const float* mx = ws.cells.data() + size_t(c) * Nq;
+          float hi = mx[size_t(qy) * size_t(Wq) + size_t(qx)];
           for (int dy = -1; dy <= 1; ++dy)
             for (int dx = -1; dx <= 1; ++dx) {
               const int y = std::clamp(qy + dy, 0, Hq - 1), x = std::clamp(qx + dx, 0, Wq - 1);
-              const size_t k = size_t(y) * size_t(Wq) + size_t(x);
-              se += ex[k], sc += cut[k];
-              hi = mx[k] > hi ? mx[k] : hi;
+              const float v = mx[size_t(y) * size_t(Wq) + size_t(x)];
+              hi = v > hi ? v : hi;
             }
-          const float cap = kRedistributeCap * (sc * (1.0f / 9.0f)), e = se * (1.0f / 9.0f);
-          const size_t q = size_t(qy) * size_t(Wq) + size_t(qx);
-          ws.spread3[size_t(2 * c) * Nq + q] = e < cap ? e : cap;
-          ws.spread3[size_t(2 * c + 1) * Nq + q] = hi;
+          ws.top3[size_t(c) * Nq + size_t(qy) * size_t(Wq) + size_t(qx)] = hi;
         }
   });
   parallel_rows(H, 8, [&](int r0, int r1) {
     for (int c = 0; c < 3; ++c)
       for (int y = r0; y < r1; ++y) {
-        const float* ex = ws.spread3.data() + size_t(2 * c) * Nq + size_t(y / 4) * size_t(Wq);
-        const float* hi = ex + Nq;
+        const size_t cells = size_t(c) * Nq + size_t(y / 4) * size_t(Wq);
+        const float *mu = ws.mu3.data() + cells, *cut = ws.cut3.data() + cells,
+                    *hi = ws.top3.data() + cells;
         float* rc = ws.xo.ch(c) + size_t(y) * size_t(W);
         for (int i = 0; i < W; ++i) {
-          const float v = rc[i] + ex[i / 4];
+          const float e = mu[i / 4] - cut[i / 4], cap = kRedistributeCap * cut[i / 4];
+          const float v = rc[i] + (e < cap ? e : cap);
           rc[i] = v < hi[i / 4] ? v : hi[i / 4];
         }
       }

@@ -85,7 +85,7 @@ constexpr float kMinDepth = 1e-3f;
 /// Buffers reused from frame to frame (no allocation or page faults once warm).
 struct Workspace {
   Planes x, xlin, demod, yw, xi, xo, lg, lg2, out, next_state;
-  std::vector<float> bound, bound3, mu, mu3, spread, spread3;
+  std::vector<float> bound, bound3, mu, mu3, cells, cut3, top3;
   std::vector<uint8_t> black_rows;  ///< per row: any pixel with black flag 1
   std::vector<float> zw, nw, kw, valid, zc, feat, e1, pooled, e2, e3, cat, d1, o, act, padded,
       hrows;
