@@ -120,29 +120,61 @@ struct BlockHits {
   vf4 t, v, w, det;
 };
 
-// The watertight test (watertight_hit) on four triangles at once.
-inline BlockHits intersect_block(const TriRay& r, const TriangleBlock& blk) {
+// The sheared, permuted vertices of a block relative to the ray's origin: the first step of
+// the watertight test.
+struct Sheared {
+  vf4 akx, aky, akz, bkx, bky, bkz, ckx, cky, ckz;
+  vf4 ax, ay, bx, by, cx, cy;
+};
+
+inline void shear(const TriRay& r, const TriangleBlock& blk, Sheared& s) {
   using S = Simd<4>;
-  BlockHits out;
   const float* V0 = &blk.v[0][0][0];
   const float* V1 = &blk.v[1][0][0];
   const float* V2 = &blk.v[2][0][0];
   const int kx = r.kx * 4, ky = r.ky * 4, kz = r.kz * 4;
   const vf4 okx = S::splat(r.org[r.kx]), oky = S::splat(r.org[r.ky]), okz = S::splat(r.org[r.kz]);
   const vf4 sx = S::splat(r.sx), sy = S::splat(r.sy);
-  // Vertices relative to the origin, in the permuted axes, then sheared.
-  const vf4 akx = S::load(V0 + kx) - okx, aky = S::load(V0 + ky) - oky,
-            akz = S::load(V0 + kz) - okz;
-  const vf4 bkx = S::load(V1 + kx) - okx, bky = S::load(V1 + ky) - oky,
-            bkz = S::load(V1 + kz) - okz;
-  const vf4 ckx = S::load(V2 + kx) - okx, cky = S::load(V2 + ky) - oky,
-            ckz = S::load(V2 + kz) - okz;
-  const vf4 ax = akx - sx * akz, ay = aky - sy * akz;
-  const vf4 bx = bkx - sx * bkz, by = bky - sy * bkz;
-  const vf4 cx = ckx - sx * ckz, cy = cky - sy * ckz;
-  vf4 u = cx * by - cy * bx;
-  vf4 v = ax * cy - ay * cx;
-  vf4 w = bx * ay - by * ax;
+  s.akx = S::load(V0 + kx) - okx, s.aky = S::load(V0 + ky) - oky, s.akz = S::load(V0 + kz) - okz;
+  s.bkx = S::load(V1 + kx) - okx, s.bky = S::load(V1 + ky) - oky, s.bkz = S::load(V1 + kz) - okz;
+  s.ckx = S::load(V2 + kx) - okx, s.cky = S::load(V2 + ky) - oky, s.ckz = S::load(V2 + kz) - okz;
+  s.ax = s.akx - sx * s.akz, s.ay = s.aky - sy * s.akz;
+  s.bx = s.bkx - sx * s.bkz, s.by = s.bky - sy * s.bkz;
+  s.cx = s.ckx - sx * s.ckz, s.cy = s.cky - sy * s.ckz;
+}
+
+// The rare lanes (an edge function exactly 0, or NaN from overflowing products): the shear
+// recomputed (same operations, same values) and the zero edge functions redone in double.
+// Out of line, so the common path keeps nothing of the shear alive for it.
+[[gnu::noinline]] unsigned edges_slow(const TriRay& r, const TriangleBlock& blk, vf4& u, vf4& v,
+                                      vf4& w, vf4& det) {
+  using S = Simd<4>;
+  Sheared s;
+  shear(r, blk, s);
+  const vf4 zero = {};
+  unsigned retry = S::mask((u == zero) | (v == zero) | (w == zero));
+  while (retry) {
+    const unsigned i = ctz(retry);
+    retry &= retry - 1;
+    u[i] = float(double(s.cx[i]) * s.by[i] - double(s.cy[i]) * s.bx[i]);
+    v[i] = float(double(s.ax[i]) * s.cy[i] - double(s.ay[i]) * s.cx[i]);
+    w[i] = float(double(s.bx[i]) * s.ay[i] - double(s.by[i]) * s.ax[i]);
+  }
+  const vi4 neg = (u < zero) | (v < zero) | (w < zero);
+  const vi4 pos = (u > zero) | (v > zero) | (w > zero);
+  det = u + v + w;
+  return S::mask(~(neg & pos));
+}
+
+// The watertight test (watertight_hit) on four triangles at once.
+inline BlockHits intersect_block(const TriRay& r, const TriangleBlock& blk) {
+  using S = Simd<4>;
+  BlockHits out;
+  Sheared s;
+  shear(r, blk, s);
+  vf4 u = s.cx * s.by - s.cy * s.bx;
+  vf4 v = s.ax * s.cy - s.ay * s.cx;
+  vf4 w = s.bx * s.ay - s.by * s.ax;
   const vf4 zero = {};
   vf4 det = u + v + w;
   // Exact zeros (the double retry) and NaN (from overflowing products) take the slow path.
@@ -154,31 +186,22 @@ inline BlockHits intersect_block(const TriRay& r, const TriangleBlock& blk) {
               wi = reinterpret_cast<vi4>(w);
     ok = ((ui ^ vi) | (ui ^ wi)) >= vi4{};
   } else {
-    unsigned retry = S::mask((u == zero) | (v == zero) | (w == zero));
-    while (retry) {  // rare: an edge function is exactly 0; redo this lane in double
-      const unsigned i = ctz(retry);
-      retry &= retry - 1;
-      u[i] = float(double(cx[i]) * by[i] - double(cy[i]) * bx[i]);
-      v[i] = float(double(ax[i]) * cy[i] - double(ay[i]) * cx[i]);
-      w[i] = float(double(bx[i]) * ay[i] - double(by[i]) * ax[i]);
-    }
-    const vi4 neg = (u < zero) | (v < zero) | (w < zero);
-    const vi4 pos = (u > zero) | (v > zero) | (w > zero);
-    ok = ~(neg & pos);
-    det = u + v + w;
+    const unsigned inside = edges_slow(r, blk, u, v, w, det);
+    ok =
+        vi4{int(inside & 1), int(inside >> 1 & 1), int(inside >> 2 & 1), int(inside >> 3 & 1)} != 0;
   }
   ok &= det != zero;
   out.mask = S::mask(ok);
   if (!out.mask) return out;
   // Distance from the plane equation in the permuted axes (as watertight_hit).
-  const vf4 e10 = bkx - akx, e11 = bky - aky, e12 = bkz - akz;
-  const vf4 e20 = ckx - akx, e21 = cky - aky, e22 = ckz - akz;
+  const vf4 e10 = s.bkx - s.akx, e11 = s.bky - s.aky, e12 = s.bkz - s.akz;
+  const vf4 e20 = s.ckx - s.akx, e21 = s.cky - s.aky, e22 = s.ckz - s.akz;
   const vf4 n0 = e11 * e22 - e12 * e21;
   const vf4 n1 = e12 * e20 - e10 * e22;
   const vf4 n2 = e10 * e21 - e11 * e20;
   const vf4 ndd =
       n0 * S::splat(r.dir[r.kx]) + n1 * S::splat(r.dir[r.ky]) + n2 * S::splat(r.dir[r.kz]);
-  const vf4 t = (n0 * akx + n1 * aky + n2 * akz) / ndd;
+  const vf4 t = (n0 * s.akx + n1 * s.aky + n2 * s.akz) / ndd;
   ok &= (ndd != zero) & (t > S::splat(r.tmin));
   out.mask = S::mask(ok);
   out.t = t;
