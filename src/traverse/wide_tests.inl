@@ -167,6 +167,7 @@ inline void shear(const TriRay& r, const TriangleBlock& blk, Sheared& s) {
 }
 
 // The watertight test (watertight_hit) on four triangles at once.
+template <bool Reread = false>
 inline BlockHits intersect_block(const TriRay& r, const TriangleBlock& blk) {
   using S = Simd<4>;
   BlockHits out;
@@ -194,6 +195,14 @@ inline BlockHits intersect_block(const TriRay& r, const TriangleBlock& blk) {
   out.mask = S::mask(ok);
   if (!out.mask) return out;
   // Distance from the plane equation in the permuted axes (as watertight_hit).
+  if constexpr (Reread) {
+    // The vertices read again (same values): keeping the first reads alive through the edge
+    // tests costs registers the traversal needs (any hit: 7-9 % faster on Sponza's diffuse rays;
+    // closest hit: 3 % slower).
+    const TriangleBlock* again = &blk;
+    asm("" : "+r"(again));
+    shear(r, *again, s);
+  }
   const vf4 e10 = s.bkx - s.akx, e11 = s.bky - s.aky, e12 = s.bkz - s.akz;
   const vf4 e20 = s.ckx - s.akx, e21 = s.cky - s.aky, e22 = s.ckz - s.akz;
   const vf4 n0 = e11 * e22 - e12 * e21;

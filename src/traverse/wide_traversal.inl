@@ -105,6 +105,24 @@ template <int W, bool AnyHit, class Node, class LeafFn>
         // The first hit slot now, the others pushed last first so they pop in slot order.
         cur = node.child[ctz(m)];
         m &= m - 1;
+#ifdef __AVX512F__
+        if constexpr (W == 8) {
+          // The others in one store: compressed in slot order, then reversed.
+          if (m) {
+            const int n = __builtin_popcount(m);
+            const __m512i refs = _mm512_cvtepu32_epi64(
+                _mm256_loadu_si256(reinterpret_cast<const __m256i*>(node.child)));  // dist 0
+            const __m512i packed = _mm512_maskz_compress_epi64(__mmask8(m), refs);
+            const __m512i rev =
+                _mm512_and_si512(_mm512_sub_epi64(_mm512_set1_epi64(n - 1),
+                                                  _mm512_setr_epi64(0, 1, 2, 3, 4, 5, 6, 7)),
+                                 _mm512_set1_epi64(7));
+            _mm512_storeu_si512(sp, _mm512_permutexvar_epi64(rev, packed));
+            sp += n;
+          }
+          continue;
+        }
+#endif
         while (m) {
           const unsigned q = 31u - unsigned(__builtin_clz(m));
           m &= ~(1u << q);
@@ -188,7 +206,7 @@ inline void trace_ray(const Node* nodes, const TriangleBlock* blocks, const Ray&
   traverse<W, AnyHit>(nodes, box, ray.tmin, best_t, [&](uint32_t ref) {
     // A leaf: its blocks until the one flagged last.
     for (const TriangleBlock* blk = blocks + (ref & ~wide_leaf_bit);; ++blk) {
-      const BlockHits h = intersect_block(tri, *blk);
+      const BlockHits h = intersect_block<AnyHit>(tri, *blk);
       KSTAT(++stat_blocks);
       unsigned m = h.mask;
       while (m) {
