@@ -294,6 +294,8 @@ PacketOutcome trace_packet_lanes(const Bvh8Node* nodes, const TriangleBlock* blo
       const VI active = ((VI{} + int(cur_rays)) >> lane_index & 1) != 0;
       for (const TriangleBlock* blk = blocks + (cur & ~wide_leaf_bit);; ++blk) {
         for (int i = 0; i < 4; ++i) {
+          // A block's unused lanes repeat the triangle before them (same id): tested already.
+          if (i > 0 && ((blk->prim_id[i] ^ blk->prim_id[i - 1]) & ~block_last_bit) == 0) continue;
           const VF akz = bcast(blk->v[0][kz][i]) - okz, bkz = bcast(blk->v[1][kz][i]) - okz,
                    ckz = bcast(blk->v[2][kz][i]) - okz;
           const VF akx = bcast(blk->v[0][kx][i]) - okx, aky = bcast(blk->v[0][ky][i]) - oky;
