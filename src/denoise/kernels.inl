@@ -300,6 +300,7 @@ static const Planes& network(const NeuralWeights& nw, const Planes& in, Planes& 
       });
     }
   });
+  block_bounds(ws, W, H);
   if (have_state) clamp_history(ws, W, H);
   lap(&stage.prepare);
   // Features, 4x4 average pooled to quarter resolution (channels last). Per quarter row:

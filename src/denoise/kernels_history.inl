@@ -1,15 +1,13 @@
 // Included by kernels.inl (inside namespace kestrel::denoise::KESTREL_ISA_NS): the two bounds
 // of the neural denoiser's recurrence, the history clamp and the firefly clamp (model.py).
 
-// The history clamp (model.py): yw = clamp(yw, A, B), A per channel the 3x3 minimum over
-// quarter-res cells of the 4x4 block minima of the current irradiance (a 12x12 window), B the
-// 5x5 maximum of their maxima (a 20x20 window: sparse bright light keeps its history where a
-// 12x12 window holds no bright sample this frame).
-static void clamp_history(Workspace& ws, int W, int H) {
+// The 4x4 block maxima and minima of this frame's irradiance (ws.xlin) per quarter-res cell,
+// into ws.bound (per channel: maxima, then minima): the history clamp's bounds and the
+// firefly spreading's brightest samples.
+static void block_bounds(Workspace& ws, int W, int H) {
   const int Wq = W / 4, Hq = H / 4;
   const size_t Nq = size_t(Wq) * size_t(Hq);
-  ws.bound.resize(6 * Nq);  // per channel: block maxima, then block minima
-  ws.bound3.resize(ws.bound.size());
+  ws.bound.resize(6 * Nq);
   parallel_rows(Hq, 8, [&](int r0, int r1) {
     for (int c = 0; c < 3; ++c)
       for (int qy = r0; qy < r1; ++qy)
@@ -28,6 +26,16 @@ static void clamp_history(Workspace& ws, int W, int H) {
           ws.bound[size_t(2 * c + 1) * Nq + q] = lo;
         }
   });
+}
+
+// The history clamp (model.py): yw = clamp(yw, A, B), A per channel the 3x3 minimum over
+// quarter-res cells of the 4x4 block minima of the current irradiance (a 12x12 window), B the
+// 5x5 maximum of their maxima (a 20x20 window: sparse bright light keeps its history where a
+// 12x12 window holds no bright sample this frame). Needs block_bounds of this frame.
+static void clamp_history(Workspace& ws, int W, int H) {
+  const int Wq = W / 4, Hq = H / 4;
+  const size_t Nq = size_t(Wq) * size_t(Hq);
+  ws.bound3.resize(ws.bound.size());
   parallel_rows(Hq, 8, [&](int r0, int r1) {
     for (int c = 0; c < 3; ++c)
       for (int qy = r0; qy < r1; ++qy)
@@ -220,31 +228,17 @@ static void firefly_clamp(Workspace& ws, int W, int H, int image_w, int image_h)
 // 12x12 window, ws.xo += min(mean(r - rc), kRedistributeCap mean(rc)), at most the window's
 // brightest sample. mean(r - rc) is firefly_clamp's window mean of r (ws.mu3) less that of rc,
 // both summed in the same order (rc <= r, so the difference is never negative); the maximum
-// on the same cells.
+// over the same cells, from block_bounds of this frame.
 static void redistribute(Workspace& ws, int W, int H) {
   const int Wq = W / 4, Hq = H / 4;
   const size_t Nq = size_t(Wq) * size_t(Hq);
   window_means(ws.xo, W, H, ws.cells, ws.cut3);
   ws.top3.resize(3 * Nq);  // per channel and cell: the window's brightest sample of r
-  parallel_rows(Hq, 8, [&](int r0, int r1) {  // block maxima into ws.cells
-    for (int c = 0; c < 3; ++c)
-      for (int qy = r0; qy < r1; ++qy)
-        for (int qx = 0; qx < Wq; ++qx) {
-          const float* x0 = ws.xlin.ch(c) + size_t(qy * 4) * size_t(W) + size_t(qx * 4);
-          float hi = x0[0];
-          for (int sy = 0; sy < 4; ++sy)
-            for (int sx = 0; sx < 4; ++sx) {
-              const float v = x0[size_t(sy) * size_t(W) + size_t(sx)];
-              hi = v > hi ? v : hi;
-            }
-          ws.cells[size_t(c) * Nq + size_t(qy) * size_t(Wq) + size_t(qx)] = hi;
-        }
-  });
   parallel_rows(Hq, 8, [&](int r0, int r1) {
     for (int c = 0; c < 3; ++c)
       for (int qy = r0; qy < r1; ++qy)
         for (int qx = 0; qx < Wq; ++qx) {
-          const float* mx = ws.cells.data() + size_t(c) * Nq;
+          const float* mx = ws.bound.data() + size_t(2 * c) * Nq;  // block maxima
           float hi = mx[size_t(qy) * size_t(Wq) + size_t(qx)];
           for (int dy = -1; dy <= 1; ++dy)
             for (int dx = -1; dx <= 1; ++dx) {

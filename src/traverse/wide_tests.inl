@@ -145,9 +145,10 @@ inline void shear(const TriRay& r, const TriangleBlock& blk, Sheared& s) {
 
 // The rare lanes (an edge function exactly 0, or NaN from overflowing products): the shear
 // recomputed (same operations, same values) and the zero edge functions redone in double.
-// Out of line, so the common path keeps nothing of the shear alive for it.
-[[gnu::noinline]] unsigned edges_slow(const TriRay& r, const TriangleBlock& blk, vf4& u, vf4& v,
-                                      vf4& w, vf4& det) {
+// Out of line, so the common path keeps nothing of the shear alive for it. Returns the lanes
+// inside (all ones).
+[[gnu::noinline]] vi4 edges_slow(const TriRay& r, const TriangleBlock& blk, vf4& u, vf4& v, vf4& w,
+                                 vf4& det) {
   using S = Simd<4>;
   Sheared s;
   shear(r, blk, s);
@@ -163,7 +164,7 @@ inline void shear(const TriRay& r, const TriangleBlock& blk, Sheared& s) {
   const vi4 neg = (u < zero) | (v < zero) | (w < zero);
   const vi4 pos = (u > zero) | (v > zero) | (w > zero);
   det = u + v + w;
-  return S::mask(~(neg & pos));
+  return ~(neg & pos);
 }
 
 // The watertight test (watertight_hit) on four triangles at once.
@@ -187,9 +188,7 @@ inline BlockHits intersect_block(const TriRay& r, const TriangleBlock& blk) {
               wi = reinterpret_cast<vi4>(w);
     ok = ((ui ^ vi) | (ui ^ wi)) >= vi4{};
   } else {
-    const unsigned inside = edges_slow(r, blk, u, v, w, det);
-    ok =
-        vi4{int(inside & 1), int(inside >> 1 & 1), int(inside >> 2 & 1), int(inside >> 3 & 1)} != 0;
+    ok = edges_slow(r, blk, u, v, w, det);
   }
   ok &= det != zero;
   out.mask = S::mask(ok);
