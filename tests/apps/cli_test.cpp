@@ -343,6 +343,28 @@ TEST(Cli, RunWritesFramesAndAStageTable) {
                             "frames per second"})
     EXPECT_NE(table.find(stage), std::string::npos) << stage << "\n" << table;
   EXPECT_NE(table.find("16x12 internal (x4)"), std::string::npos) << table;
+  // Where the render's time goes: one camera ray per internal pixel and sample, the other
+  // kinds counted, the trace share a fraction.
+  EXPECT_NE(table.find("Rays per frame (median): 192 camera"), std::string::npos) << table;
+  {
+    std::ifstream csv(dir / "timings.csv");
+    std::string header, row;
+    std::getline(csv, header), std::getline(csv, row);
+    EXPECT_NE(header.find(",camera_rays,bounce_rays,shadow_rays,trace_share"), std::string::npos)
+        << header;
+    std::vector<std::string> cells;
+    for (size_t at = 0, next; at <= row.size(); at = next + 1) {
+      next = row.find(',', at);
+      if (next == std::string::npos) next = row.size();
+      cells.push_back(row.substr(at, next - at));
+    }
+    ASSERT_EQ(cells.size(), 13u) << row;
+    EXPECT_EQ(cells[9], "192") << row;
+    EXPECT_GT(std::stoull(cells[10]) + std::stoull(cells[11]), 0u) << row;
+    const double share = std::stod(cells[12]);
+    EXPECT_GT(share, 0.0) << row;
+    EXPECT_LT(share, 1.0) << row;
+  }
   EXPECT_EQ(read_exr((dir / "frame_0002.exr").string())[0].image.width, 64);
   // Same path, same settings: the same frames (deterministic pipeline).
   const auto again = dir / "again";
