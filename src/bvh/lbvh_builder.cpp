@@ -199,23 +199,37 @@ Bounds3 centroid_bounds(std::span<const PrimRef> refs) {
 
 template <class Key>
 void morton_sort(std::span<const PrimRef> refs, MortonValue value, RawArray<Key>& keys,
-                 RawArray<uint32_t>& values) {
+                 RawArray<uint32_t>& values, const Bounds3* centroids) {
   const size_t n = refs.size();
-  const MortonQuantizer<Key> code(centroid_bounds(refs));
+  const MortonQuantizer<Key> code(centroids ? *centroids : centroid_bounds(refs));
   keys.resize(n);
   values.resize(n);
-  parallel_for(0, n, 16384, [&](size_t b, size_t e) {
-    for (size_t i = b; i < e; ++i) {
-      keys[i] = code(refs[i]);
-      values[i] = value == MortonValue::index ? uint32_t(i) : refs[i].prim_id;
-    }
-  });
-  radix_sort(keys, values, 3 * code.bits_per_axis);
+  auto value_of = [&](size_t i) {
+    return value == MortonValue::index ? uint32_t(i) : refs[i].prim_id;
+  };
+  if constexpr (sizeof(Key) == 4) {
+    // The codes go straight into the sort's packed records (code << 32 | value): no keys and
+    // values written first and packed in another pass.
+    RawArray<uint64_t> records(n);
+    parallel_for(0, n, 16384, [&](size_t b, size_t e) {
+      for (size_t i = b; i < e; ++i) records[i] = uint64_t(code(refs[i])) << 32 | value_of(i);
+    });
+    radix_sort_packed_pairs(records, 3 * code.bits_per_axis);
+    parallel_for(0, n, 16384, [&](size_t b, size_t e) {
+      for (size_t i = b; i < e; ++i)
+        keys[i] = Key(records[i] >> 32), values[i] = uint32_t(records[i]);
+    });
+  } else {
+    parallel_for(0, n, 16384, [&](size_t b, size_t e) {
+      for (size_t i = b; i < e; ++i) keys[i] = code(refs[i]), values[i] = value_of(i);
+    });
+    radix_sort(keys, values, 3 * code.bits_per_axis);
+  }
 }
 template void morton_sort<uint32_t>(std::span<const PrimRef>, MortonValue, RawArray<uint32_t>&,
-                                    RawArray<uint32_t>&);
+                                    RawArray<uint32_t>&, const Bounds3*);
 template void morton_sort<uint64_t>(std::span<const PrimRef>, MortonValue, RawArray<uint64_t>&,
-                                    RawArray<uint32_t>&);
+                                    RawArray<uint32_t>&, const Bounds3*);
 
 BinaryTree build_lbvh_tree(std::span<const PrimRef> refs, const BuildConfig& config) {
   return build_any(refs, config, /* top_down = */ false);

@@ -80,9 +80,11 @@ enum class MortonValue { index, prim_id };
 /// The refs' Morton codes (MortonQuantizer over their centroid bounds), sorted ascending into
 /// `keys`, with `values` permuted alongside (a stable parallel radix sort: equal codes keep
 /// the refs' order). Key: uint32_t (30 bits) or uint64_t (63 bits).
+/// `centroids`: the refs' centroid bounds when the caller has them (validate_and_make_prim_refs
+/// computes them in its pass), else computed here.
 template <class Key>
 void morton_sort(std::span<const PrimRef> refs, MortonValue value, RawArray<Key>& keys,
-                 RawArray<uint32_t>& values);
+                 RawArray<uint32_t>& values, const Bounds3* centroids = nullptr);
 
 /// Where a node over sorted keys [b, e) (e - b >= 2) splits (Karras 2012): the first index
 /// whose key has the highest bit in which keys[b] and keys[e - 1] differ set; the middle when

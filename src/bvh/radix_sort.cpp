@@ -120,6 +120,10 @@ void radix_sort(RawArray<uint32_t>& keys, RawArray<uint32_t>& values, int key_bi
       [](const uint64_t& r) { return r; });
 }
 
+void radix_sort_packed_pairs(RawArray<uint64_t>& records, int key_bits) {
+  lsd_sort(records, 32, key_bits, [](const uint64_t& r) { return r; });
+}
+
 void radix_sort(RawArray<uint64_t>& keys, RawArray<uint32_t>& values, int key_bits) {
   sort_pairs<KeyValue64, uint64_t>(
       keys, values, 0, key_bits,

@@ -10,6 +10,9 @@ namespace kestrel {
 void radix_sort(RawArray<uint32_t>& keys, RawArray<uint32_t>& values, int key_bits);
 /// 64-bit keys (e.g. 63-bit Morton codes).
 void radix_sort(RawArray<uint64_t>& keys, RawArray<uint32_t>& values, int key_bits);
+/// Records packed as (key << 32 | value), sorted by the key's low `key_bits` bits: what the
+/// pairs' sort does after packing, for callers that write the records directly.
+void radix_sort_packed_pairs(RawArray<uint64_t>& records, int key_bits);
 
 /// Serial stable LSD sort of n packed records (key and payload in one uint64_t) by bits
 /// [first_bit, first_bit + key_bits), 8-bit digits: 256 scatter streams stay within the TLB

@@ -1,6 +1,7 @@
 #include "geometry/prim_ref.h"
 
 #include <algorithm>
+#include <mutex>
 
 #include "core/parallel.h"
 #include "core/vec.h"
@@ -70,7 +71,8 @@ Buffer<PrimRef> make_prim_refs(const Scene& scene, const SceneValidation& valida
   return refs;
 }
 
-Buffer<PrimRef> validate_and_make_prim_refs(const Scene& scene, SceneValidation& validation) {
+Buffer<PrimRef> validate_and_make_prim_refs(const Scene& scene, SceneValidation& validation,
+                                            Bounds3* centroids) {
   const size_t total = scene.triangle_count();
   std::vector<uint8_t> kind(total);
   // Every triangle's ref at its global id, then the valid ones compacted forward in place
@@ -78,10 +80,29 @@ Buffer<PrimRef> validate_and_make_prim_refs(const Scene& scene, SceneValidation&
   Buffer<PrimRef> refs(total);
   for (const TriangleMesh& mesh : scene.meshes)
     if (mesh.triangle_count() == 0) ++validation.report.empty_mesh_count;
-  for_each_triangle(scene, [&](size_t gid, const TriangleMesh& mesh, size_t t) {
-    kind[gid] = classify_triangle(mesh, t);
-    if (kind[gid] == tri_valid) refs[gid] = triangle_ref(mesh, t, uint32_t(gid));
-  });
+  // The valid refs' centroid bounds, per chunk and then merged (min and max: the same result
+  // in any order, so for any thread count).
+  Bounds3 cb;
+  std::mutex cb_mutex;
+  size_t offset = 0;
+  for (const TriangleMesh& mesh : scene.meshes) {
+    const size_t n = mesh.triangle_count();
+    parallel_for(0, n, 16384, [&](size_t b, size_t e) {
+      Bounds3 local;
+      for (size_t i = b; i < e; ++i) {
+        if (i + prefetch_distance < e) prefetch_vertices(mesh, i + prefetch_distance);
+        const size_t gid = offset + i;
+        kind[gid] = classify_triangle(mesh, i);
+        if (kind[gid] != tri_valid) continue;
+        refs[gid] = triangle_ref(mesh, i, uint32_t(gid));
+        extend(local, refs[gid].lo + refs[gid].hi);
+      }
+      const std::lock_guard<std::mutex> lock(cb_mutex);
+      extend(cb, local);
+    });
+    offset += n;
+  }
+  if (centroids) *centroids = cb;
   tally(kind, validation);
   if (validation.report.valid_triangle_count == total) return refs;  // the common case
   size_t valid = 0;

@@ -13,8 +13,10 @@ namespace kestrel {
 Buffer<PrimRef> make_prim_refs(const Scene& scene, const SceneValidation& validation);
 
 /// Validation and PrimRefs in one pass over the vertices (each triangle's vertices are read
-/// once): what build_accel uses.
-Buffer<PrimRef> validate_and_make_prim_refs(const Scene& scene, SceneValidation& validation);
+/// once): what build_accel uses. `centroids`, when given: the bounds of the valid refs'
+/// doubled centroids (lo + hi, as centroid_bounds), from the same pass.
+Buffer<PrimRef> validate_and_make_prim_refs(const Scene& scene, SceneValidation& validation,
+                                            Bounds3* centroids = nullptr);
 
 /// All triangles of the scene by global id (invalid ones are zero triangles: never hit).
 Buffer<Triangle> gather_triangles(const Scene& scene, const SceneValidation& validation);

@@ -75,7 +75,8 @@ Accel build_accel(const Scene& scene, const BuildConfig& config) {
   Accel accel;
   accel.layout = resolve_layout(config.layout);
   SceneValidation validation;
-  Buffer<PrimRef> refs = validate_and_make_prim_refs(scene, validation);
+  Bounds3 centroids;  // the valid refs' centroid bounds, from the same pass (the LBVH's box)
+  Buffer<PrimRef> refs = validate_and_make_prim_refs(scene, validation, &centroids);
   // Wide layouts: the build that knows its leaves become 4-triangle blocks.
   const bool blocks = accel.layout == Layout::bvh4 || accel.layout == Layout::bvh8;
   const Builder builder = resolve_builder(config, refs.size());
@@ -85,10 +86,10 @@ Accel build_accel(const Scene& scene, const BuildConfig& config) {
     accel.builder = builder;
     accel.prim_count = refs.size();
     if (accel.layout == Layout::bvh4) {
-      accel.nodes->bvh4 = build_morton_bvh4(scene, refs, config);
+      accel.nodes->bvh4 = build_morton_bvh4(scene, refs, config, &centroids);
       if (!accel.nodes->bvh4.empty()) accel.bounds = wide_bounds(accel.nodes->bvh4);
     } else {
-      accel.nodes->bvh8 = build_morton_bvh8(scene, refs, config);
+      accel.nodes->bvh8 = build_morton_bvh8(scene, refs, config, &centroids);
       if (!accel.nodes->bvh8.empty()) accel.bounds = wide_bounds(accel.nodes->bvh8);
     }
     accel.validation = std::move(validation);

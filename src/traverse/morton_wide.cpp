@@ -187,7 +187,7 @@ Bounds3 node_box(const Node& node, int width) {
 }
 
 template <int W, class Node, class Wide, class Key>
-Wide build_wide(const Scene& scene, std::span<const PrimRef> refs) {
+Wide build_wide(const Scene& scene, std::span<const PrimRef> refs, const Bounds3* centroids) {
   Wide out;
   const size_t n = refs.size();
   if (n == 0) return out;
@@ -197,7 +197,7 @@ Wide build_wide(const Scene& scene, std::span<const PrimRef> refs) {
   // id order): no gather through the refs afterwards.
   RawArray<Key> keys;
   RawArray<uint32_t> ids;
-  morton_sort(refs, MortonValue::prim_id, keys, ids);
+  morton_sort(refs, MortonValue::prim_id, keys, ids, centroids);
   const Buffer<Triangle> tris = gather_triangles(scene, {ids.data(), n});
 
   // The top, serially; then the tasks, in parallel: counted, placed after the top in task
@@ -260,16 +260,16 @@ Wide build_wide(const Scene& scene, std::span<const PrimRef> refs) {
 
 }  // namespace
 
-Bvh4 build_morton_bvh4(const Scene& scene, std::span<const PrimRef> refs,
-                       const BuildConfig& config) {
-  return config.morton_bits == 63 ? build_wide<4, Bvh4Node, Bvh4, uint64_t>(scene, refs)
-                                  : build_wide<4, Bvh4Node, Bvh4, uint32_t>(scene, refs);
+Bvh4 build_morton_bvh4(const Scene& scene, std::span<const PrimRef> refs, const BuildConfig& config,
+                       const Bounds3* centroids) {
+  return config.morton_bits == 63 ? build_wide<4, Bvh4Node, Bvh4, uint64_t>(scene, refs, centroids)
+                                  : build_wide<4, Bvh4Node, Bvh4, uint32_t>(scene, refs, centroids);
 }
 
-Bvh8 build_morton_bvh8(const Scene& scene, std::span<const PrimRef> refs,
-                       const BuildConfig& config) {
-  return config.morton_bits == 63 ? build_wide<8, Bvh8Node, Bvh8, uint64_t>(scene, refs)
-                                  : build_wide<8, Bvh8Node, Bvh8, uint32_t>(scene, refs);
+Bvh8 build_morton_bvh8(const Scene& scene, std::span<const PrimRef> refs, const BuildConfig& config,
+                       const Bounds3* centroids) {
+  return config.morton_bits == 63 ? build_wide<8, Bvh8Node, Bvh8, uint64_t>(scene, refs, centroids)
+                                  : build_wide<8, Bvh8Node, Bvh8, uint32_t>(scene, refs, centroids);
 }
 
 }  // namespace kestrel

@@ -18,9 +18,11 @@ namespace kestrel {
 /// come from the blocks' own vertices, bottom-up. Ranges of at most 4 096 triangles are
 /// parallel tasks: each is counted first, given its place after the top nodes in task order
 /// and built there, so the result does not depend on the thread count.
+/// `centroids`: the refs' centroid bounds when known (validate_and_make_prim_refs), else
+/// computed.
 Bvh4 build_morton_bvh4(const Scene& scene, std::span<const PrimRef> refs,
-                       const BuildConfig& config);
+                       const BuildConfig& config, const Bounds3* centroids = nullptr);
 Bvh8 build_morton_bvh8(const Scene& scene, std::span<const PrimRef> refs,
-                       const BuildConfig& config);
+                       const BuildConfig& config, const Bounds3* centroids = nullptr);
 
 }  // namespace kestrel
