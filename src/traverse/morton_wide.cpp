@@ -76,14 +76,46 @@ void count_subtree(const Key* keys, uint32_t b, uint32_t e, size_t& nodes, size_
   }
 }
 
+// The triangles in key order, read from the meshes as the blocks are written (no gathered
+// copy written first and read back): `ids` are global prim ids; the vertices of the triangle
+// `ahead` positions on are prefetched (blocks are written in ascending key order).
+struct SortedTriangles {
+  static constexpr uint32_t ahead = 16;
+  const Scene& scene;
+  const uint32_t* ids;
+  uint32_t n;
+  std::vector<size_t> first;  // first global id of each mesh
+  SortedTriangles(const Scene& s, const uint32_t* i, uint32_t count) : scene(s), ids(i), n(count) {
+    size_t offset = 0;
+    for (const TriangleMesh& mesh : scene.meshes)
+      first.push_back(offset), offset += mesh.triangle_count();
+  }
+  std::pair<const TriangleMesh*, size_t> locate(uint32_t gid) const {
+    if (first.size() == 1) return {&scene.meshes[0], gid};
+    const size_t m =
+        size_t(std::upper_bound(first.begin(), first.end(), size_t(gid)) - first.begin()) - 1;
+    return {&scene.meshes[m], gid - first[m]};
+  }
+  Triangle at(uint32_t k) const {
+    if (k + ahead < n) {
+      const auto [mesh, t] = locate(ids[k + ahead]);
+      const uint32_t* idx = &mesh->indices[3 * t];
+      for (int c = 0; c < 3; ++c) __builtin_prefetch(&mesh->positions[idx[c]]);
+    }
+    const auto [mesh, t] = locate(ids[k]);
+    const uint32_t* idx = &mesh->indices[3 * t];
+    return {mesh->positions[idx[0]], mesh->positions[idx[1]], mesh->positions[idx[2]]};
+  }
+};
+
 // One block over sorted positions [b, e) (1 to 4 triangles; unused lanes repeat the last);
 // returns its box.
-Bounds3 write_leaf(const Triangle* tris, const uint32_t* ids, uint32_t b, uint32_t e,
+Bounds3 write_leaf(const SortedTriangles& tris, const uint32_t* ids, uint32_t b, uint32_t e,
                    TriangleBlock& blk) {
   Vec3 lo{INFINITY, INFINITY, INFINITY}, hi{-INFINITY, -INFINITY, -INFINITY};
   for (uint32_t lane = 0; lane < 4; ++lane) {
     const uint32_t k = std::min(b + lane, e - 1);
-    const Triangle& t = tris[k];
+    const Triangle t = tris.at(k);
     write_block_lane(blk, int(lane), t, ids[k]);
     lo = min(lo, min(t.v0, min(t.v1, t.v2)));
     hi = max(hi, max(t.v0, max(t.v1, t.v2)));
@@ -97,8 +129,8 @@ Bounds3 write_leaf(const Triangle* tris, const uint32_t* ids, uint32_t b, uint32
 // advance).
 template <int W, class Node>
 struct Builder {
-  const Triangle* tris;  // in key order
-  const uint32_t* ids;   // prim ids in key order
+  const SortedTriangles& tris;  // in key order
+  const uint32_t* ids;          // prim ids in key order
   Node* nodes;
   TriangleBlock* blocks;
   uint32_t next_node, next_block;
@@ -138,7 +170,7 @@ struct Builder {
 template <int W, class Node, class Key>
 struct Top {
   const Key* keys;
-  const Triangle* tris;
+  const SortedTriangles& tris;
   const uint32_t* ids;
   std::vector<Node> nodes;
   std::vector<TriangleBlock> blocks;
@@ -198,14 +230,14 @@ Wide build_wide(const Scene& scene, std::span<const PrimRef> refs, const Bounds3
   RawArray<Key> keys;
   RawArray<uint32_t> ids;
   morton_sort(refs, MortonValue::prim_id, keys, ids, centroids);
-  const Buffer<Triangle> tris = gather_triangles(scene, {ids.data(), n});
+  const SortedTriangles tris(scene, ids.data(), uint32_t(n));
 
   // The top, serially; then the tasks, in parallel: counted, placed after the top in task
   // order, and built in place.
-  Top<W, Node, Key> top{keys.data(), tris.data(), ids.data(), {Node{}}, {}, {}};
+  Top<W, Node, Key> top{keys.data(), tris, ids.data(), {Node{}}, {}, {}};
   if (n <= leaf_size) {  // the root (always an inner node) with one leaf
     set_wide_slot(top.nodes[0], 0,
-                  write_leaf(tris.data(), ids.data(), 0, uint32_t(n), top.blocks.emplace_back()),
+                  write_leaf(tris, ids.data(), 0, uint32_t(n), top.blocks.emplace_back()),
                   wide_leaf_bit);
     for (int j = 1; j < W; ++j) set_wide_slot(top.nodes[0], j, empty_box(), wide_empty);
   } else {
@@ -235,8 +267,12 @@ Wide build_wide(const Scene& scene, std::span<const PrimRef> refs, const Bounds3
     for (size_t t = t0; t < t1; ++t) {
       const auto& task = top.tasks[t];
       const uint32_t root = uint32_t(node_at[t]);
-      Builder<W, Node> b{tris.data(),       ids.data(), out.nodes.data(),
-                         out.blocks.data(), root + 1,   uint32_t(block_at[t]),
+      Builder<W, Node> b{tris,
+                         ids.data(),
+                         out.nodes.data(),
+                         out.blocks.data(),
+                         root + 1,
+                         uint32_t(block_at[t]),
                          plans[t].data()};
       const Bounds3 box = b.build(root);
       KESTREL_CHECK(b.next_node == node_at[t + 1] && b.next_block == block_at[t + 1] &&

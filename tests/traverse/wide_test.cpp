@@ -368,6 +368,22 @@ TEST(WideBuild, DirectMortonBuildIsExactAndThreadIndependent) {
     if (n >= 5)
       expect_same_as_reference(scene, test::random_rays(3000, n), Builder::lbvh, "direct");
   }
+  // Several meshes (the blocks read each triangle from its own mesh by global id), one of them
+  // empty, and invalid triangles left out.
+  const Scene soup = test::random_soup(20000, 0.03f, 7);
+  const TriangleMesh& all = soup.meshes[0];
+  Scene split;
+  const size_t ranges[4][2] = {{0, 2000}, {2000, 2000}, {2000, 11000}, {11000, 20000}};
+  for (const auto& [b, e] : ranges) {
+    TriangleMesh m;
+    m.positions = all.positions;
+    m.indices.assign(all.indices.begin() + std::ptrdiff_t(3 * b),
+                     all.indices.begin() + std::ptrdiff_t(3 * e));
+    split.meshes.push_back(std::move(m));
+  }
+  split.meshes[2].indices[3] = split.meshes[2].indices[4] =
+      split.meshes[2].indices[5];  // zero area
+  expect_same_as_reference(split, test::random_rays(3000, 8), Builder::lbvh, "direct, 4 meshes");
 }
 
 TEST(Refit, MatchesFreshBuildOnEveryLayout) {
