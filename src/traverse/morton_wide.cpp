@@ -77,8 +77,9 @@ void count_subtree(const Key* keys, uint32_t b, uint32_t e, size_t& nodes, size_
 }
 
 // The triangles in key order, read from the meshes as the blocks are written (no gathered
-// copy written first and read back): `ids` are global prim ids; the vertices of the triangle
-// `ahead` positions on are prefetched (blocks are written in ascending key order).
+// copy written first and read back): `ids` are global prim ids; the index triple of the
+// triangle 2 x `ahead` positions on and the vertices of the one `ahead` on are prefetched
+// (blocks are written in ascending key order).
 struct SortedTriangles {
   static constexpr uint32_t ahead = 16;
   const Scene& scene;
@@ -97,6 +98,11 @@ struct SortedTriangles {
     return {&scene.meshes[m], gid - first[m]};
   }
   Triangle at(uint32_t k) const {
+    // Two stages ahead: the index triple far ahead, the vertices of a nearer triangle.
+    if (k + 2 * ahead < n) {
+      const auto [mesh, t] = locate(ids[k + 2 * ahead]);
+      __builtin_prefetch(&mesh->indices[3 * t]);
+    }
     if (k + ahead < n) {
       const auto [mesh, t] = locate(ids[k + ahead]);
       const uint32_t* idx = &mesh->indices[3 * t];
