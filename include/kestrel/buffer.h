@@ -16,8 +16,9 @@ void* allocate_large_block(size_t bytes);
 void free_large_block(void* p, size_t bytes) noexcept;
 }  // namespace detail
 
-/// Unmaps the large blocks kestrel keeps for reuse after a build (up to 512 MiB, see
-/// src/core/memory.h). For applications that are done building BVHs for a while.
+/// Unmaps the large blocks kestrel keeps for reuse after a build (up to an eighth of the
+/// machine's memory, within 512 MiB .. 4 GiB; see src/core/memory.cpp). For applications
+/// that are done building BVHs for a while.
 void release_cached_memory() noexcept;
 
 /// std::allocator that leaves elements uninitialised on resize(n) (it skips the value

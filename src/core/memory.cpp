@@ -2,7 +2,9 @@
 
 #include <sys/mman.h>
 #include <tbb/scalable_allocator.h>
+#include <unistd.h>
 
+#include <algorithm>
 #include <cstdint>
 #include <mutex>
 #include <new>
@@ -21,10 +23,20 @@ namespace kestrel {
 namespace {
 
 constexpr size_t huge_page = size_t(2) << 20;
-// Freed large blocks kept mapped, at most: enough for every buffer of a build of a few
-// million triangles (references, slots, nodes, triangles), so a scene rebuilt every frame
-// reuses its own memory; the oldest blocks are unmapped first beyond it.
-constexpr size_t cache_cap = size_t(512) << 20;
+// Freed large blocks kept mapped, at most: an eighth of the machine's memory, within
+// [512 MiB, 4 GiB] -- enough for the buffers of several builds of a million triangles or more
+// (references, slots, nodes, triangles), so scenes rebuilt every frame, or two builders
+// taking turns, reuse their own memory; the oldest blocks are unmapped first beyond it. (A
+// fixed 512 MiB made the binned and LBVH builds of the bunny grid, 1.1 M triangles, evict each
+// other's blocks: every LBVH build faulted its memory in again, 2.5x its time.)
+size_t cache_cap() {
+  static const size_t cap = [] {
+    const long pages = sysconf(_SC_PHYS_PAGES), page = sysconf(_SC_PAGE_SIZE);
+    const size_t ram = pages > 0 && page > 0 ? size_t(pages) * size_t(page) : 0;
+    return std::clamp(ram / 8, size_t(512) << 20, size_t(4) << 30);
+  }();
+  return cap;
+}
 
 size_t mapped_size(size_t bytes) {
   return (bytes + huge_page - 1) / huge_page * huge_page;
@@ -92,7 +104,7 @@ class LargeBlockPool {
     } catch (...) {  // no memory for the list entry: unmapped instead of kept
       unmap_block(p, bytes);
     }
-    while (cached_ > cache_cap) {
+    while (cached_ > cache_cap()) {
       cached_ -= free_.front().bytes;
       unmap_block(free_.front().p, free_.front().bytes);
       free_.erase(free_.begin());
@@ -145,6 +157,10 @@ void release_cached_memory() noexcept {
 
 size_t cached_large_bytes() {
   return pool().cached();
+}
+
+size_t large_block_cache_cap() {
+  return cache_cap();
 }
 
 void* allocate_buffer(size_t bytes, size_t alignment) {

@@ -22,5 +22,7 @@ void free_buffer(void* p, size_t bytes);
 
 /// Bytes of freed large blocks the pool keeps mapped for reuse (for tests and benchmarks).
 size_t cached_large_bytes();
+/// The most the pool keeps: an eighth of the machine's memory, within [512 MiB, 4 GiB].
+size_t large_block_cache_cap();
 
 }  // namespace kestrel
