@@ -11,6 +11,7 @@
 #include <cmath>
 
 #include "core/vec.h"
+#include "render/fast_math.h"
 
 namespace kestrel::render {
 
@@ -54,9 +55,11 @@ inline Vec3 sample_ggx_vndf(float alpha, Vec3 wo, float u1, float u2) {
   const float lensq = vh.x * vh.x + vh.y * vh.y;
   const Vec3 t1 = lensq > 0 ? Vec3{-vh.y, vh.x, 0} * (1.0f / std::sqrt(lensq)) : Vec3{1, 0, 0};
   const Vec3 t2 = cross(vh, t1);
-  const float r = std::sqrt(u1), phi = 2.0f * pi * u2;
-  const float p1 = r * std::cos(phi);
-  float p2 = r * std::sin(phi);
+  const float r = std::sqrt(u1);
+  float sin_phi, cos_phi;  // of phi = 2 pi u2
+  sincos_2pi(u2, sin_phi, cos_phi);
+  const float p1 = r * cos_phi;
+  float p2 = r * sin_phi;
   const float s = 0.5f * (1.0f + vh.z);
   p2 = (1.0f - s) * std::sqrt(std::max(0.0f, 1.0f - p1 * p1)) + s * p2;
   const Vec3 nh = t1 * p1 + t2 * p2 + vh * std::sqrt(std::max(0.0f, 1.0f - p1 * p1 - p2 * p2));
@@ -122,8 +125,10 @@ inline bool bsdf_sample(const BsdfParams& p, Vec3 wo, float u0, float u1, float 
     const Vec3 h = sample_ggx_vndf(p.alpha, wo, u1, u2);
     s.wi = h * (2.0f * dot(wo, h)) - wo;
   } else {
-    const float r = std::sqrt(u1), phi = 2.0f * pi * u2;
-    s.wi = Vec3{r * std::cos(phi), r * std::sin(phi), std::sqrt(std::max(0.0f, 1.0f - u1))};
+    const float r = std::sqrt(u1);
+    float sin_phi, cos_phi;  // of phi = 2 pi u2
+    sincos_2pi(u2, sin_phi, cos_phi);
+    s.wi = Vec3{r * cos_phi, r * sin_phi, std::sqrt(std::max(0.0f, 1.0f - u1))};
   }
   if (s.wi.z <= 0) return false;
   s.pdf = bsdf_pdf(p, wo, s.wi);

@@ -147,8 +147,9 @@ Vec3 Renderer::Impl::env_smooth_radiance(float u, float v, bool upper) const {
 // and their cache misses, and ~60 % of its samples fell below the surface.)
 float Renderer::Impl::env_pdf(Vec3 d, Vec3 n) const {
   if (env_cosine) return std::max(0.0f, dot(d, n)) / pi;
-  const float u = 0.5f + std::atan2(d.x, -d.z) / (2 * pi);
-  const float theta = std::acos(std::clamp(d.y, -1.0f, 1.0f));
+  // The same texel as env_radiance (render/fast_math.h).
+  const float u = 0.5f + atan2_fast(d.x, -d.z) * (1 / (2 * pi));
+  const float theta = acos_fast(std::clamp(d.y, -1.0f, 1.0f));
   const int w = env.image.width, h = env.image.height;
   const int x = std::clamp(int(u * float(w)), 0, w - 1);
   const int y = std::clamp(int(theta / pi * float(h)), 0, h - 1);
@@ -161,8 +162,10 @@ float Renderer::Impl::env_pdf(Vec3 d, Vec3 n) const {
 
 Vec3 Renderer::Impl::env_sample(float u1, float u2, Vec3 n, float& pdf) const {
   if (env_cosine) {
-    const float r = std::sqrt(u1), phi = 2 * pi * u2;
-    const Vec3 local{r * std::cos(phi), r * std::sin(phi), std::sqrt(std::max(0.0f, 1.0f - u1))};
+    const float r = std::sqrt(u1);
+    float sin_phi, cos_phi;  // of phi = 2 pi u2
+    sincos_2pi(u2, sin_phi, cos_phi);
+    const Vec3 local{r * cos_phi, r * sin_phi, std::sqrt(std::max(0.0f, 1.0f - u1))};
     const Vec3 d = Basis(n).to_world(local);
     pdf = env_pdf(d, n);
     return d;

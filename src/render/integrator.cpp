@@ -157,8 +157,9 @@ bool Renderer::Impl::punctual_light(const Punctual& q, Vec3 origin, Vec3& wi, Ve
 Vec3 Renderer::Impl::sun_sample(float u1, float u2) const {
   const float cos_t = 1 - u1 * (1 - sun_cos_max),
               sin_t = std::sqrt(std::max(0.0f, 1 - cos_t * cos_t));
-  const float phi = 2 * pi * u2;
-  return Basis(sun_dir).to_world({sin_t * std::cos(phi), sin_t * std::sin(phi), cos_t});
+  float sin_phi, cos_phi;  // of phi = 2 pi u2
+  sincos_2pi(u2, sin_phi, cos_phi);
+  return Basis(sun_dir).to_world({sin_t * cos_phi, sin_t * sin_phi, cos_t});
 }
 
 // One light sample at a surface: the environment, the sun, or a local light (an emissive

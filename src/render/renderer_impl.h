@@ -265,8 +265,8 @@ struct Renderer::Impl {
       return env.color *
              (env.scale * (cos_theta > 0 ? (1.0f + 2.0f * cos_theta) * (1.0f / 3.0f) : 0.1f));
     }
-    const float u = 0.5f + std::atan2(d.x, -d.z) / (2 * pi);
-    const float v = std::acos(std::clamp(d.y, -1.0f, 1.0f)) / pi;
+    const float u = 0.5f + atan2_fast(d.x, -d.z) * (1 / (2 * pi));
+    const float v = acos_fast(std::clamp(d.y, -1.0f, 1.0f)) * (1 / pi);
     if (!env_small.empty()) return env_smooth_radiance(u, v, d.y >= 0.0f) * env.scale;
     const int x = std::clamp(int(u * float(env.image.width)), 0, env.image.width - 1);
     const int y = std::clamp(int(v * float(env.image.height)), 0, env.image.height - 1);

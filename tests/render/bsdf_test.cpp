@@ -3,11 +3,13 @@
 // reciprocity, the GGX "weak white furnace" (D and G1 normalised) and energy bounds.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <random>
 #include <vector>
 
 #include "render/bsdf.h"
+#include "render/fast_math.h"
 
 namespace kestrel::render {
 namespace {
@@ -175,6 +177,53 @@ TEST(Bsdf, GgxWeakWhiteFurnace) {
       }
       EXPECT_NEAR(sum, 1.0, 0.005) << "alpha " << alpha << " cos_o " << cos_o;
     }
+}
+
+// The shading loop's trigonometry (render/fast_math.h) against double precision: every
+// quadrant boundary and a dense sweep, including u outside [0, 1) and negative zero.
+TEST(FastMath, SinCosOfTurnsMatchDoublePrecision) {
+  double worst = 0;
+  for (int i = -40000; i <= 40000; ++i) {
+    const float u = float(i) / 16384.0f;  // quarter turns land exactly on the grid
+    float s, c;
+    sincos_2pi(u, s, c);
+    const double a = 2 * 3.14159265358979323846 * double(u);
+    worst = std::max({worst, std::fabs(s - std::sin(a)), std::fabs(c - std::cos(a))});
+  }
+  EXPECT_LT(worst, 3e-7);
+  for (float u : {0.0f, -0.0f, 0.25f, 0.5f, 0.75f, 1.0f, -0.25f}) {
+    float s, c;
+    sincos_2pi(u, s, c);
+    EXPECT_NEAR(s * s + c * c, 1.0f, 1e-6f) << u;
+  }
+  float s, c;
+  sincos_2pi(0.25f, s, c);
+  EXPECT_EQ(s, 1.0f);
+  EXPECT_EQ(c, 0.0f);
+}
+
+TEST(FastMath, Atan2AndAcosMatchDoublePrecision) {
+  double worst_atan = 0, worst_acos = 0;
+  std::mt19937 rng(3);
+  std::uniform_real_distribution<float> d(-1.0f, 1.0f);
+  for (int i = 0; i < 200000; ++i) {
+    const float y = d(rng), x = d(rng);
+    worst_atan =
+        std::max(worst_atan, std::fabs(atan2_fast(y, x) - std::atan2(double(y), double(x))));
+    worst_acos = std::max(worst_acos, std::fabs(acos_fast(y) - std::acos(double(y))));
+  }
+  for (int i = 0; i <= 4096; ++i) {  // the axes, the diagonals and both ends of acos
+    const float t = float(i) / 4096.0f;
+    for (auto [y, x] : {std::pair{t, 1.0f}, {1.0f, t}, {-t, -1.0f}, {t, -1.0f}, {-1.0f, t}})
+      worst_atan =
+          std::max(worst_atan, std::fabs(atan2_fast(y, x) - std::atan2(double(y), double(x))));
+    for (float x : {t, -t})
+      worst_acos = std::max(worst_acos, std::fabs(acos_fast(x) - std::acos(double(x))));
+  }
+  EXPECT_LT(worst_atan, 4e-7);  // 1.2e-7 of the fit, and float rounding near pi (ulp 2.4e-7)
+  EXPECT_LT(worst_acos, 5e-7);
+  EXPECT_EQ(atan2_fast(0.0f, 0.0f), 0.0f);
+  EXPECT_EQ(acos_fast(1.0f), 0.0f);
 }
 
 }  // namespace
