@@ -9,6 +9,14 @@
 
 namespace kestrel::render {
 
+/// c[0] + c[1] x + ... + c[N-1] x^(N-1), by Horner's rule.
+template <int N>
+inline float polynomial(float x, const float (&c)[N]) {
+  float p = c[N - 1];
+  for (int k = N - 2; k >= 0; --k) p = p * x + c[k];
+  return p;
+}
+
 /// sin and cos of 2 pi u, for any finite u: reduced to a quarter turn around 0 and evaluated
 /// by the Taylor series to the 9th (sin) and 10th (cos) power, whose remainder is below 2e-9
 /// there; the quadrant's swap and signs are then exact.
@@ -35,14 +43,10 @@ inline float atan2_fast(float y, float x) {
   const float ax = std::fabs(x), ay = std::fabs(y);
   const float hi = ax > ay ? ax : ay, lo = ax > ay ? ay : ax;
   const float z = hi > 0 ? lo / hi : 0.0f, z2 = z * z;
-  float p = -0.004054560326039791f;
-  p = p * z2 + 0.021862952038645744f;
-  p = p * z2 - 0.055912356823682785f;
-  p = p * z2 + 0.09642203897237778f;
-  p = p * z2 - 0.13908633589744568f;
-  p = p * z2 + 0.19946567714214325f;
-  p = p * z2 - 0.33329862356185913f;
-  p = p * z2 + 0.9999993443489075f;
+  constexpr float c[] = {0.9999993443489075f,   -0.33329862356185913f, 0.19946567714214325f,
+                         -0.13908633589744568f, 0.09642203897237778f,  -0.055912356823682785f,
+                         0.021862952038645744f, -0.004054560326039791f};
+  const float p = polynomial(z2, c);
   float a = p * z;
   if (ay > ax) a = 1.57079633f - a;
   if (x < 0) a = 3.14159265f - a;
@@ -53,14 +57,10 @@ inline float atan2_fast(float y, float x) {
 /// Abramowitz & Stegun 4.4.45), error 2.4e-7; pi - acos(-x) below 0.
 inline float acos_fast(float x) {
   const float ax = std::fabs(x);
-  float p = -0.0014421025989577174f;
-  p = p * ax + 0.007247313391417265f;
-  p = p * ax - 0.01781114749610424f;
-  p = p * ax + 0.03133669123053551f;
-  p = p * ax - 0.050313130021095276f;
-  p = p * ax + 0.08899930864572525f;
-  p = p * ax - 0.21459989249706268f;
-  p = p * ax + 1.5707963705062866f;
+  constexpr float c[] = {1.5707963705062866f,    -0.21459989249706268f,  0.08899930864572525f,
+                         -0.050313130021095276f, 0.03133669123053551f,   -0.01781114749610424f,
+                         0.007247313391417265f,  -0.0014421025989577174f};
+  const float p = polynomial(ax, c);
   const float a = std::sqrt(1.0f - ax) * p;
   return x < 0 ? 3.14159265f - a : a;
 }
