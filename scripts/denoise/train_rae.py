@@ -47,6 +47,14 @@ def write_fixture(model, clip, out_dir):
         T.write_frame_pfms(os.path.join(out_dir, f"frame_{t}"), ins[t], out[0, t].permute(1, 2, 0).numpy())
 
 
+def init_provenance(path):
+    """What a warm start began from: the weights' own provenance (the .json beside them), nested."""
+    if not path:
+        return None
+    prov = os.path.splitext(path)[0] + ".json"
+    return dict(file=os.path.basename(path), provenance=json.load(open(prov)) if os.path.exists(prov) else None)
+
+
 def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("--data", default=os.path.join(ROOT, "out", "denoise_families"))
@@ -62,6 +70,8 @@ def main():
     T.add_loss_arguments(ap)
     ap.add_argument("--checkpoint", default=os.path.join(ROOT, "out", "denoise_rae_train.ckpt"))
     ap.add_argument("--resume", action="store_true")
+    ap.add_argument("--init", help="start from these weights (a denoiser_rae.kdw): a warm restart of the "
+                                   "schedule, for training longer than one run")
     args = ap.parse_args()
     torch.set_num_threads(args.threads)
     torch.set_flush_denormal(True)
@@ -77,6 +87,9 @@ def main():
         write_fixture(model, T.load_clip(args.data, names[0], 3)[0], args.fixture)
         print("wrote", args.fixture)
         return
+    if args.init and not (args.resume and os.path.exists(args.checkpoint)):
+        kestrel_nn.load_kdw(model, args.init, MAGIC, ARCHITECTURE)
+        print("initialised from", args.init, flush=True)
     clips = [T.load_clip(args.data, n, manifest["clips"][n]["frames"]) for n in names]
     print(f"{len(clips)} train clips, {R.parameter_count(model)} parameters", flush=True)
     t0 = time.time()
@@ -91,6 +104,7 @@ def main():
                 dataset=dict(command=manifest.get("commands", {}).get("train"), clips=names,
                              targets=manifest.get("targets", {}).get("train", "references")),
                 command="python3 scripts/denoise/train_rae.py " + " ".join(sys.argv[1:]), steps=args.steps,
+                init=init_provenance(args.init),
                 batch=args.batch, crop=args.crop, seed=args.seed, lr=args.lr, threads=args.threads,
                 loss=T.loss_summary(history, args), seconds=round(time.time() - t0), git=commit)
     json.dump(prov, open(os.path.join(args.out, "denoiser_rae.json"), "w"), indent=1)
