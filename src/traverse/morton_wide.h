@@ -20,9 +20,9 @@ namespace kestrel {
 /// and built there, so the result does not depend on the thread count.
 /// `centroids`: the refs' centroid bounds when known (validate_and_make_prim_refs), else
 /// computed.
-Bvh4 build_morton_bvh4(const Scene& scene, std::span<const PrimRef> refs,
-                       const BuildConfig& config, const Bounds3* centroids = nullptr);
-Bvh8 build_morton_bvh8(const Scene& scene, std::span<const PrimRef> refs,
-                       const BuildConfig& config, const Bounds3* centroids = nullptr);
+Bvh4 build_morton_bvh4(const Scene& scene, std::span<const PrimRef> refs, const BuildConfig& config,
+                       const Bounds3* centroids = nullptr);
+Bvh8 build_morton_bvh8(const Scene& scene, std::span<const PrimRef> refs, const BuildConfig& config,
+                       const Bounds3* centroids = nullptr);
 
 }  // namespace kestrel
