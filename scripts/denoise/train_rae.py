@@ -7,6 +7,7 @@ targets and loss as the fast denoiser (train.py) and writes
   tests/data/denoise_rae/        a parity fixture: three small frames and this model's output
 
     train_rae.py [--data out/denoise_families] [--steps 3000] [--seed 1] [--threads 2]
+                 [--init weights/denoiser_rae.kdw]   (a warm restart from earlier weights)
 
 Resumable: a checkpoint every 50 steps, --resume continues from it (train.fit, the fast
 denoiser's training loop).
