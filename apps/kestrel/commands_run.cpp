@@ -59,8 +59,12 @@ void run(RunArgs& a) {
       settings.max_depth, lighting);
   const double t0 = path.start(), t1 = path.end();
   std::vector<PipelineTimes> times;
-  std::vector<double> mrays, trace_share;
+  std::vector<double> mrays;
   std::vector<RenderStats> stats;
+  // The share of the render's thread time spent inside trace / occluded (the rest: shading).
+  auto trace_share = [](const RenderStats& s) {
+    return s.total_thread_ms > 0 ? s.trace_ms / s.total_thread_ms : 0.0;
+  };
   std::string csv =
       "frame,factor,update_ms,render_ms,denoise_ms,upscale_ms,tonemap_ms,total_ms,mrays_per_s,"
       "camera_rays,bounce_rays,shadow_rays,trace_share\n";
@@ -68,15 +72,11 @@ void run(RunArgs& a) {
     const double t = a.frames > 1 ? t0 + (t1 - t0) * double(i) / double(a.frames - 1) : t0;
     const PipelineFrame& f = pipeline.frame(path.at(t), t);
     const double mr = double(f.stats.rays()) / (f.times.render * 1e3);
-    // The share of the render's thread time spent inside trace / occluded (the rest: shading).
-    const double share =
-        f.stats.total_thread_ms > 0 ? f.stats.trace_ms / f.stats.total_thread_ms : 0.0;
-    times.push_back(f.times), mrays.push_back(mr), trace_share.push_back(share);
-    stats.push_back(f.stats);
+    times.push_back(f.times), mrays.push_back(mr), stats.push_back(f.stats);
     csv += fmt::format("{},{},{:.3f},{:.3f},{:.3f},{:.3f},{:.3f},{:.3f},{:.2f},{},{},{},{:.3f}\n",
                        i, f.factor, f.times.update, f.times.render, f.times.denoise,
                        f.times.upscale, f.times.tonemap, f.times.total, mr, f.stats.camera_rays,
-                       f.stats.bounce_rays, f.stats.shadow_rays, share);
+                       f.stats.bounce_rays, f.stats.shadow_rays, trace_share(f.stats));
     const std::string stem =
         (std::filesystem::path(a.out) / fmt::format("frame_{:04d}", i)).string();
     if (!a.no_png) write_png(stem + ".png", f.width, f.height, f.rgb8);
@@ -120,17 +120,19 @@ void run(RunArgs& a) {
   // Where the render's time goes: rays per frame by kind, and the share of its thread time
   // inside the traversal kernels (the rest is shading: hit data, texels, light and BSDF
   // samples, the accumulation).
-  auto rays = [&](uint64_t RenderStats::*m) {
+  auto median_of = [&](auto&& value) {
     std::vector<double> v;
-    for (size_t i = skip; i < stats.size(); ++i) v.push_back(double(stats[i].*m));
+    for (size_t i = skip; i < stats.size(); ++i) v.push_back(double(value(stats[i])));
     return percentile(v, 0.5);
   };
-  std::vector<double> ts(trace_share.begin() + std::ptrdiff_t(skip), trace_share.end());
+  auto rays = [&](uint64_t RenderStats::*m) {
+    return median_of([m](const RenderStats& s) { return s.*m; });
+  };
   md += fmt::format(
       "Rays per frame (median): {:.0f} camera, {:.0f} bounce, {:.0f} shadow; {:.0f} % of the "
       "render's thread time inside trace / occluded (median), the rest shading.\n",
       rays(&RenderStats::camera_rays), rays(&RenderStats::bounce_rays),
-      rays(&RenderStats::shadow_rays), 100.0 * percentile(ts, 0.5));
+      rays(&RenderStats::shadow_rays), 100.0 * median_of(trace_share));
   write_text_file((std::filesystem::path(a.out) / "timings.csv").string(), csv);
   write_text_file((std::filesystem::path(a.out) / "timings.md").string(), md);
   fmt::print("\n{}", md);

@@ -109,17 +109,6 @@ struct KeyValue64 {
 
 }  // namespace
 
-void radix_sort(RawArray<uint32_t>& keys, RawArray<uint32_t>& values, int key_bits) {
-  // Packed as (key << 32 | value): one 8-byte record per element, sorted on the high half.
-  sort_pairs<uint64_t, uint32_t>(
-      keys, values, 32, key_bits, [](uint32_t k, uint32_t v) { return uint64_t(k) << 32 | v; },
-      [](const uint64_t& r, uint32_t& k, uint32_t& v) {
-        k = uint32_t(r >> 32);
-        v = uint32_t(r);
-      },
-      [](const uint64_t& r) { return r; });
-}
-
 void radix_sort_packed_pairs(RawArray<uint64_t>& records, int key_bits) {
   lsd_sort(records, 32, key_bits, [](const uint64_t& r) { return r; });
 }

@@ -6,12 +6,11 @@
 
 namespace kestrel {
 
-/// Sorts keys ascending (low `key_bits` bits significant), permuting values alongside.
-void radix_sort(RawArray<uint32_t>& keys, RawArray<uint32_t>& values, int key_bits);
-/// 64-bit keys (e.g. 63-bit Morton codes).
+/// Sorts 64-bit keys ascending (low `key_bits` bits significant, e.g. 63-bit Morton codes),
+/// permuting values alongside.
 void radix_sort(RawArray<uint64_t>& keys, RawArray<uint32_t>& values, int key_bits);
-/// Records packed as (key << 32 | value), sorted by the key's low `key_bits` bits: what the
-/// pairs' sort does after packing, for callers that write the records directly.
+/// 32-bit keys with their values, packed by the caller as (key << 32 | value) records (one
+/// 8-byte record per element, as it writes them), sorted by the key's low `key_bits` bits.
 void radix_sort_packed_pairs(RawArray<uint64_t>& records, int key_bits);
 
 /// Serial stable LSD sort of n packed records (key and payload in one uint64_t) by bits

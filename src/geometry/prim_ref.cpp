@@ -23,20 +23,30 @@ inline void prefetch_vertices(const TriangleMesh& mesh, size_t t) {
     if (idx[k] < vertex_count) __builtin_prefetch(&mesh.positions[idx[k]]);
 }
 
-// Visits (global id, mesh, local triangle) in parallel chunks, mesh by mesh.
-template <class F>
-void for_each_triangle(const Scene& scene, F&& f) {
+// Visits the triangles in parallel chunks, mesh by mesh: chunk(f) runs on a chunk's thread
+// with visit(f), which calls f(global id, mesh, local triangle) for each of its triangles
+// (the vertices of the triangle `prefetch_distance` on prefetched).
+template <class Chunk>
+void for_each_triangle_chunk(const Scene& scene, Chunk&& chunk) {
   size_t offset = 0;
   for (const TriangleMesh& mesh : scene.meshes) {
     const size_t n = mesh.triangle_count();
     parallel_for(0, n, 16384, [&](size_t b, size_t e) {
-      for (size_t i = b; i < e; ++i) {
-        if (i + prefetch_distance < e) prefetch_vertices(mesh, i + prefetch_distance);
-        f(offset + i, mesh, i);
-      }
+      chunk([&](auto&& f) {
+        for (size_t i = b; i < e; ++i) {
+          if (i + prefetch_distance < e) prefetch_vertices(mesh, i + prefetch_distance);
+          f(offset + i, mesh, i);
+        }
+      });
     });
     offset += n;
   }
+}
+
+// Visits (global id, mesh, local triangle) in parallel chunks, mesh by mesh.
+template <class F>
+void for_each_triangle(const Scene& scene, F&& f) {
+  for_each_triangle_chunk(scene, [&](auto&& visit) { visit(f); });
 }
 
 PrimRef triangle_ref(const TriangleMesh& mesh, size_t t, uint32_t gid) {
@@ -84,24 +94,17 @@ Buffer<PrimRef> validate_and_make_prim_refs(const Scene& scene, SceneValidation&
   // in any order, so for any thread count).
   Bounds3 cb;
   std::mutex cb_mutex;
-  size_t offset = 0;
-  for (const TriangleMesh& mesh : scene.meshes) {
-    const size_t n = mesh.triangle_count();
-    parallel_for(0, n, 16384, [&](size_t b, size_t e) {
-      Bounds3 local;
-      for (size_t i = b; i < e; ++i) {
-        if (i + prefetch_distance < e) prefetch_vertices(mesh, i + prefetch_distance);
-        const size_t gid = offset + i;
-        kind[gid] = classify_triangle(mesh, i);
-        if (kind[gid] != tri_valid) continue;
-        refs[gid] = triangle_ref(mesh, i, uint32_t(gid));
-        extend(local, refs[gid].lo + refs[gid].hi);
-      }
-      const std::lock_guard<std::mutex> lock(cb_mutex);
-      extend(cb, local);
+  for_each_triangle_chunk(scene, [&](auto&& visit) {
+    Bounds3 local;
+    visit([&](size_t gid, const TriangleMesh& mesh, size_t t) {
+      kind[gid] = classify_triangle(mesh, t);
+      if (kind[gid] != tri_valid) return;
+      refs[gid] = triangle_ref(mesh, t, uint32_t(gid));
+      extend(local, refs[gid].lo + refs[gid].hi);
     });
-    offset += n;
-  }
+    const std::lock_guard<std::mutex> lock(cb_mutex);
+    extend(cb, local);
+  });
   if (centroids) *centroids = cb;
   tally(kind, validation);
   if (validation.report.valid_triangle_count == total) return refs;  // the common case
@@ -126,34 +129,10 @@ Buffer<Triangle> gather_triangles(const Scene& scene, const SceneValidation& val
 }
 
 Buffer<Triangle> gather_triangles(const Scene& scene, std::span<const uint32_t> prim_ids) {
-  // First global id of each mesh, to map a global id back to (mesh, local triangle).
-  std::vector<size_t> first;
-  size_t offset = 0;
-  for (const TriangleMesh& mesh : scene.meshes) {
-    first.push_back(offset);
-    offset += mesh.triangle_count();
-  }
-  auto locate = [&](uint32_t gid) -> std::pair<const TriangleMesh*, size_t> {
-    const size_t m =
-        size_t(std::upper_bound(first.begin(), first.end(), size_t(gid)) - first.begin()) - 1;
-    return {&scene.meshes[m], gid - first[m]};
-  };
+  const TrianglesById source(scene, prim_ids);
   Buffer<Triangle> tris(prim_ids.size());
   parallel_for(0, prim_ids.size(), 16384, [&](size_t b, size_t e) {
-    for (size_t i = b; i < e; ++i) {
-      // Two stages ahead: the index triple far ahead, the vertices of a nearer triangle.
-      if (i + 2 * prefetch_distance < e) {
-        auto [mesh, t] = locate(prim_ids[i + 2 * prefetch_distance]);
-        __builtin_prefetch(&mesh->indices[3 * t]);
-      }
-      if (i + prefetch_distance < e) {
-        auto [mesh, t] = locate(prim_ids[i + prefetch_distance]);
-        prefetch_vertices(*mesh, t);
-      }
-      auto [mesh, t] = locate(prim_ids[i]);
-      const uint32_t* idx = &mesh->indices[3 * t];
-      tris[i] = {mesh->positions[idx[0]], mesh->positions[idx[1]], mesh->positions[idx[2]]};
-    }
+    for (size_t i = b; i < e; ++i) tris[i] = source.at(i);
   });
   return tris;
 }

@@ -1,5 +1,6 @@
 // Turning scene triangles into builder input (PrimRefs) and intersection input (Triangles).
 #pragma once
+#include <algorithm>
 #include <span>
 #include <vector>
 
@@ -28,5 +29,45 @@ Buffer<Triangle> triangles_for_builder(const Scene& scene, const SceneValidation
 
 /// The triangles of the given global prim ids, in that order (e.g. a BVH's leaf order).
 Buffer<Triangle> gather_triangles(const Scene& scene, std::span<const uint32_t> prim_ids);
+
+/// The triangles of global prim ids read straight from the meshes: at(k) is the triangle of
+/// ids[k]. Read in ascending k, it prefetches in two stages -- the index triple 2 x `ahead`
+/// positions on, the vertices of the triangle `ahead` on -- since scrambled meshes make the
+/// vertex reads miss the caches (gather_triangles and the direct wide LBVH's blocks).
+class TrianglesById {
+ public:
+  static constexpr size_t ahead = 16;
+  TrianglesById(const Scene& scene, std::span<const uint32_t> ids) : scene_(scene), ids_(ids) {
+    size_t offset = 0;
+    for (const TriangleMesh& mesh : scene.meshes)
+      first_.push_back(offset), offset += mesh.triangle_count();
+  }
+  Triangle at(size_t k) const {
+    if (k + 2 * ahead < ids_.size()) {
+      const auto [mesh, t] = locate(ids_[k + 2 * ahead]);
+      __builtin_prefetch(&mesh->indices[3 * t]);
+    }
+    if (k + ahead < ids_.size()) {
+      const auto [mesh, t] = locate(ids_[k + ahead]);
+      const uint32_t* idx = &mesh->indices[3 * t];
+      for (int c = 0; c < 3; ++c) __builtin_prefetch(&mesh->positions[idx[c]]);
+    }
+    const auto [mesh, t] = locate(ids_[k]);
+    const uint32_t* idx = &mesh->indices[3 * t];
+    return {mesh->positions[idx[0]], mesh->positions[idx[1]], mesh->positions[idx[2]]};
+  }
+
+ private:
+  // (mesh, local triangle) of a global id.
+  std::pair<const TriangleMesh*, size_t> locate(uint32_t gid) const {
+    if (first_.size() == 1) return {&scene_.meshes[0], gid};
+    const size_t m =
+        size_t(std::upper_bound(first_.begin(), first_.end(), size_t(gid)) - first_.begin()) - 1;
+    return {&scene_.meshes[m], gid - first_[m]};
+  }
+  const Scene& scene_;
+  std::span<const uint32_t> ids_;
+  std::vector<size_t> first_;  // first global id of each mesh
+};
 
 }  // namespace kestrel

@@ -76,47 +76,12 @@ void count_subtree(const Key* keys, uint32_t b, uint32_t e, size_t& nodes, size_
   }
 }
 
-// The triangles in key order, read from the meshes as the blocks are written (no gathered
-// copy written first and read back): `ids` are global prim ids; the index triple of the
-// triangle 2 x `ahead` positions on and the vertices of the one `ahead` on are prefetched
-// (blocks are written in ascending key order).
-struct SortedTriangles {
-  static constexpr uint32_t ahead = 16;
-  const Scene& scene;
-  const uint32_t* ids;
-  uint32_t n;
-  std::vector<size_t> first;  // first global id of each mesh
-  SortedTriangles(const Scene& s, const uint32_t* i, uint32_t count) : scene(s), ids(i), n(count) {
-    size_t offset = 0;
-    for (const TriangleMesh& mesh : scene.meshes)
-      first.push_back(offset), offset += mesh.triangle_count();
-  }
-  std::pair<const TriangleMesh*, size_t> locate(uint32_t gid) const {
-    if (first.size() == 1) return {&scene.meshes[0], gid};
-    const size_t m =
-        size_t(std::upper_bound(first.begin(), first.end(), size_t(gid)) - first.begin()) - 1;
-    return {&scene.meshes[m], gid - first[m]};
-  }
-  Triangle at(uint32_t k) const {
-    // Two stages ahead: the index triple far ahead, the vertices of a nearer triangle.
-    if (k + 2 * ahead < n) {
-      const auto [mesh, t] = locate(ids[k + 2 * ahead]);
-      __builtin_prefetch(&mesh->indices[3 * t]);
-    }
-    if (k + ahead < n) {
-      const auto [mesh, t] = locate(ids[k + ahead]);
-      const uint32_t* idx = &mesh->indices[3 * t];
-      for (int c = 0; c < 3; ++c) __builtin_prefetch(&mesh->positions[idx[c]]);
-    }
-    const auto [mesh, t] = locate(ids[k]);
-    const uint32_t* idx = &mesh->indices[3 * t];
-    return {mesh->positions[idx[0]], mesh->positions[idx[1]], mesh->positions[idx[2]]};
-  }
-};
+// The blocks read their triangles from the meshes in key order (TrianglesById, prefetched)
+// instead of from a gathered copy written first and read back.
 
 // One block over sorted positions [b, e) (1 to 4 triangles; unused lanes repeat the last);
 // returns its box.
-Bounds3 write_leaf(const SortedTriangles& tris, const uint32_t* ids, uint32_t b, uint32_t e,
+Bounds3 write_leaf(const TrianglesById& tris, const uint32_t* ids, uint32_t b, uint32_t e,
                    TriangleBlock& blk) {
   Vec3 lo{INFINITY, INFINITY, INFINITY}, hi{-INFINITY, -INFINITY, -INFINITY};
   for (uint32_t lane = 0; lane < 4; ++lane) {
@@ -135,8 +100,8 @@ Bounds3 write_leaf(const SortedTriangles& tris, const uint32_t* ids, uint32_t b,
 // advance).
 template <int W, class Node>
 struct Builder {
-  const SortedTriangles& tris;  // in key order
-  const uint32_t* ids;          // prim ids in key order
+  const TrianglesById& tris;  // in key order
+  const uint32_t* ids;        // prim ids in key order
   Node* nodes;
   TriangleBlock* blocks;
   uint32_t next_node, next_block;
@@ -176,7 +141,7 @@ struct Builder {
 template <int W, class Node, class Key>
 struct Top {
   const Key* keys;
-  const SortedTriangles& tris;
+  const TrianglesById& tris;
   const uint32_t* ids;
   std::vector<Node> nodes;
   std::vector<TriangleBlock> blocks;
@@ -236,7 +201,7 @@ Wide build_wide(const Scene& scene, std::span<const PrimRef> refs, const Bounds3
   RawArray<Key> keys;
   RawArray<uint32_t> ids;
   morton_sort(refs, MortonValue::prim_id, keys, ids, centroids);
-  const SortedTriangles tris(scene, ids.data(), uint32_t(n));
+  const TrianglesById tris(scene, {ids.data(), n});
 
   // The top, serially; then the tasks, in parallel: counted, placed after the top in task
   // order, and built in place.
