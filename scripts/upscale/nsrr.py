@@ -18,14 +18,20 @@ where the surface was in the previous frame"), output f h x f w, f in {2, 4}:
   W_k    = Z_k at floor(P_k) (0 off screen or where frame t-k does not exist), k = 1..N
   w      = 5 (1 + tanh R([Z_0[:4], W_1[:4], ..., W_N[:4]]))   R: 3 convolutions 3x3
            (4 (N+1) -> 32 -> 32 -> N, ReLU between): the feature reweighting, w_k in [0, 10]
-  out    = from_y(B + U([Z_0, w_1 W_1, ..., w_N W_N, f / 4]))   U: the U-Net below; B the
-           current frame's y bilinearly upsampled (bilinear_base): U predicts a correction
+  l      = U([Z_0, w_1 W_1, ..., w_N W_N, f / 4])   U: the U-Net below, 1 + 9 (N + 1) logits
+  out    = from_y(blend(l, B, [Z_0, W_1, ..., W_N]))   the kernel-predicting reconstruction:
+           a softmax over the candidates present of B (the current frame's y bilinearly
+           upsampled, bilinear_base) and the y of every frame's sample in the 3 x 3 output
+           pixels around X, weighted by the logits: a convex combination of what was sampled
 
-U (as Xiao et al.'s, channels 64, 32 | 64, 64 | 128, 128 | 64, 64 | 32, 3): two 3x3
+U (as Xiao et al.'s, channels 64, 32 | 64, 64 | 128, 128 | 64, 64 | 32, 37 logits): two 3x3
 convolutions per level, ReLU, 2x2 max pooling down, bilinear 2x upsampling up (edges
 clamped), skip connections by concatenation; the input is padded with zeros to multiples of
-4 (the output cropped back); B + its output is y, clamped to [0, 0.999]. Its last layer
-starts at a tenth of PyTorch's initialisation and bias 0 (close to B before training).
+4 (the output cropped back); blend's y is clamped to [0, 0.999]. Its last layer starts at a
+tenth of PyTorch's initialisation and bias 0: before training every candidate present weighs
+alike. (Architecture 4 added a correction to B instead: trained, the correction stayed about
+zero; on a synthetic static sequence whose samples hold the exact answer it had learned a
+fifth of it after 600 steps, the blend nine tenths after 200.)
 """
 import torch
 import torch.nn as nn
@@ -34,6 +40,7 @@ import torch.nn.functional as F
 import model as M
 
 FRAMES = 3  # previous frames (N); the current frame makes N + 1
+KERNEL_RADIUS = 1  # the blend's candidates: every frame's samples in the 3 x 3 output pixels
 FEATURE_CHANNELS = 12
 REWEIGHT_MAX = 10.0
 Y_MAX = 0.999
@@ -112,28 +119,49 @@ def align(frames, n, f, scale=None, extract=None):
     """The align step both members share. frames as NSRR.forward; n previous frames are used.
     Each frame's x = [y, d(z)] (through `extract` if given) is zero-upsampled at its jitter,
     and the previous ones are warped to the current frame by the accumulated motion.
-    -> the current frame's cleaned colour, Z_0 and [W_1 .. W_n] (zeros for a missing frame)."""
+    -> the current frame's cleaned colour, Z_0, [W_1 .. W_n] (zeros for a missing frame) and
+    the presence masks [M_0 .. M_n] (B,1,H,W): 1 where Z_0 / W_k holds a sample."""
     color, depth, motion = clean(*frames[0][:3])
     h, w = color.shape[2:]
     H, W = f * h, f * w
     s = depth_scale(depth) if scale is None else scale
-    zs = []
+    zs, ms = [], []
     for k in range(n + 1):
         fr = frames[k] if k < len(frames) else None
         if fr is None:
-            zs.append(None)
+            zs.append(None), ms.append(None)
             continue
         c, z, _ = clean(*fr[:3])
         x = torch.cat([M.to_y(c), torch.where(z > 0, z / (z + s), torch.ones_like(z))], 1)
-        zs.append(zero_upsample(extract(x) if extract is not None else x,
-                                fr[3][:, 0].float(), fr[3][:, 1].float(), f))
+        jx, jy = fr[3][:, 0].float(), fr[3][:, 1].float()
+        zs.append(zero_upsample(extract(x) if extract is not None else x, jx, jy, f))
+        ms.append(zero_upsample(torch.ones_like(z), jx, jy, f))
     # Motion of frame t-k+1 moves P_{k-1} (in frame t-k+1) to P_k (in frame t-k).
     motions = [clean(*frames[k - 1][:3])[2] if k - 1 < len(frames) and frames[k - 1] is not None
                else torch.zeros_like(motion) for k in range(1, n + 1)]
     pos = warp_positions(motions, f, H, W)
     warped = [gather_nearest(zs[k], pos[k - 1]) if zs[k] is not None else torch.zeros_like(zs[0])
               for k in range(1, n + 1)]
-    return color, zs[0], warped
+    masks = [ms[0]] + [gather_nearest(ms[k], pos[k - 1]) if ms[k] is not None else torch.zeros_like(ms[0])
+                       for k in range(1, n + 1)]
+    return color, zs[0], warped, masks
+
+
+def blend(logits, base, feats, masks, radius=KERNEL_RADIUS):
+    """The kernel-predicting reconstruction both members end with. logits (B,K,H,W), K = 1 +
+    (2 r + 1)^2 len(feats): channel 0 weighs base (B,3,H,W); channel 1 + k (2 r + 1)^2 + o
+    the y (channels 0..2) of feats[k] at the output pixel X + (dx, dy), o = (dy + r)(2 r + 1) +
+    dx + r, where masks[k] there is 1 (off the image or no sample: not a candidate).
+    -> sum of softmax(logits over the candidates) times their y (B,3,H,W)."""
+    d = 2 * radius + 1
+    B, _, H, W = base.shape
+    vals, present = [base.unsqueeze(2)], [torch.ones_like(masks[0]) > 0]
+    for z, m in zip(feats, masks):
+        vals.append(F.unfold(z[:, :3], d, padding=radius).view(B, 3, d * d, H, W))
+        present.append(F.unfold(m, d, padding=radius).view(B, d * d, H, W) > 0)
+    v, p = torch.cat(vals, 2), torch.cat(present, 1)
+    wts = torch.softmax(logits.float().masked_fill(~p, float("-inf")), 1)
+    return (wts.unsqueeze(1) * v).sum(2)
 
 
 def upsample2(x):
@@ -156,10 +184,10 @@ class NSRR(nn.Module):
         self.u2a, self.u2b = conv(a2, b1), conv(b1, b2)
         self.u3a, self.u3b = conv(b2, c1), conv(c1, c2)
         self.u4a, self.u4b = conv(c2 + b2, d1), conv(d1, d2)
-        self.u5a, self.u5b = conv(d2 + a2, o1), conv(o1, 3)
-        with torch.no_grad():  # start near a mid-grey y rather than at the clamp
-            # The correction of the bilinear base starts small (not 0: with a zero last layer
-            # no gradient reaches the ones before it, and their ReLUs died in training).
+        self.u5a, self.u5b = conv(d2 + a2, o1), conv(o1, 1 + (2 * KERNEL_RADIUS + 1) ** 2 * (frames + 1))
+        with torch.no_grad():
+            # The blend starts near uniform (not exactly: with a zero last layer no gradient
+            # reaches the ones before it).
             self.u5b.weight.mul_(0.1)
             self.u5b.bias.zero_()
 
@@ -191,15 +219,17 @@ class NSRR(nn.Module):
         (B,1,h,w), motion (B,2,h,w), jitter (B,2)); a frame that does not exist is None.
         scale: the depth scale s (B,1,1,1), else depth_scale of the current frame.
         -> the linear output (B,3,f h,f w) and its y."""
-        color, z0, warped = align(frames, self.frames, f, scale, self.extract)
+        color, z0, warped, masks = align(frames, self.frames, f, scale, self.extract)
         wts = self.reweight(z0, warped)
         x = torch.cat([z0] + [wts[:, k:k + 1] * warped[k] for k in range(self.frames)] +
                       [torch.full_like(z0[:, :1], f / 4.0)], 1)
-        y = torch.clamp(bilinear_base(color, frames[0][3], f) + self.reconstruct(x), 0.0, Y_MAX)
+        base = bilinear_base(color, frames[0][3], f)
+        y = torch.clamp(blend(self.reconstruct(x), base, [z0] + warped, masks), 0.0, Y_MAX)
         return M.from_y(y), y
 
 
 RT_FRAMES = 2  # previous frames of the real-time member
+RT_KERNEL_RADIUS = 1  # its blend's candidates: 3 x 3 output pixels, as NSRR's
 GRID = 4  # its networks run on cells of 4 x 4 output pixels
 RT_CELLS = GRID * GRID
 
@@ -217,28 +247,29 @@ class NSRRRealTime(nn.Module):
                     w[16 (k-1) + s] weighs W_k at cell pixel s (all 4 channels)
       a           = c2(c1(G'))             G' = G with the W_k weighed; c1 1x1 -> 32, c2 3x3 -> 24
       b           = c3(maxpool2(a))        3x3 24 -> 24 at half the grid
-      out         = from_y(B + shuffle(c5(c4([upsample2(b), a]))))   c4 1x1 48 -> 24, c5 1x1 24 -> 48,
-                    shuffle: F.pixel_shuffle(., 4) (channel 16 c + s), cropped, y clamped to
-                    [0, 0.999]; B the current frame's y bilinearly upsampled (model.bilinear_at
-                    at (X + 1/2) / f - j + 1/2): the networks predict a correction of it
+      l           = shuffle(c5(c4([upsample2(b), a])))   c4 1x1 48 -> 24, c5 1x1 24 -> 16 K,
+                    shuffle: F.pixel_shuffle(., 4) (channel 16 c + s), cropped: K logits per
+                    output pixel, K = 1 + (2 r + 1)^2 (N + 1), r = RT_KERNEL_RADIUS
+      out         = from_y(blend(l, B, [Z_0, W_1, ..., W_N]))   as NSRR's, y clamped to [0, 0.999]
 
     ReLU after every convolution but R's last and c5."""
 
-    def __init__(self, frames=RT_FRAMES):
+    def __init__(self, frames=RT_FRAMES, radius=RT_KERNEL_RADIUS):
         super().__init__()
-        self.frames = frames
+        self.frames, self.radius = frames, radius
+        kernel = 1 + (2 * radius + 1) ** 2 * (frames + 1)
         cin = 4 * RT_CELLS * (frames + 1) + 1
         self.r1, self.r2 = nn.Conv2d(cin, 16, 1), nn.Conv2d(16, RT_CELLS * frames, 1)
         self.c1, self.c2 = nn.Conv2d(cin, 32, 1), conv(32, 24)
         self.c3 = conv(24, 24)
-        self.c4, self.c5 = nn.Conv2d(48, 24, 1), nn.Conv2d(24, 3 * RT_CELLS, 1)
-        with torch.no_grad():  # the correction of the bilinear base starts small (see NSRR)
+        self.c4, self.c5 = nn.Conv2d(48, 24, 1), nn.Conv2d(24, kernel * RT_CELLS, 1)
+        with torch.no_grad():  # the blend starts near uniform (see NSRR)
             self.c5.weight.mul_(0.1)
             self.c5.bias.zero_()
 
     def forward(self, frames, f, scale=None):
         """As NSRR.forward (frames beyond the first N + 1 are ignored)."""
-        color, z0, warped = align(frames, self.frames, f, scale)
+        color, z0, warped, masks = align(frames, self.frames, f, scale)
         H, W = z0.shape[2:]
         feats = [z0] + warped
         pad = (0, -W % (2 * GRID), 0, -H % (2 * GRID))
@@ -251,5 +282,6 @@ class NSRRRealTime(nn.Module):
         a = F.relu(self.c2(F.relu(self.c1(x))))
         b = F.relu(self.c3(F.max_pool2d(a, 2)))
         o = self.c5(F.relu(self.c4(torch.cat([upsample2(b), a], 1))))
-        y = torch.clamp(bilinear_base(color, frames[0][3], f) + F.pixel_shuffle(o, GRID)[:, :, :H, :W], 0.0, Y_MAX)
+        base = bilinear_base(color, frames[0][3], f)
+        y = torch.clamp(blend(F.pixel_shuffle(o, GRID)[:, :, :H, :W], base, feats, masks, self.radius), 0.0, Y_MAX)
         return M.from_y(y), y

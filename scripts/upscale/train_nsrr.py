@@ -4,7 +4,7 @@ its real-time member `nsrr-rt` (nsrr.NSRRRealTime) on the train clips of make_da
 --families, one network for both factors (f / 4 is an input channel), and writes (NAME:
 upscaler_nsrr, or upscaler_nsrr_rt with --arch rt)
   weights/NAME.kdw              the weights (format v1 of docs/denoiser.md, magic KSTRLNSR,
-                                architecture 4 (nsrr) or 3 (nsrr-rt))
+                                architecture 5 (nsrr) or 6 (nsrr-rt))
   weights/NAME.json             provenance: dataset, command, steps, seed, losses, git revision
   weights/NAME_loss.png
   tests/data/NAME/              a parity fixture: four frames of a held-out clip, both factors,
@@ -43,7 +43,7 @@ from kestrel_nn import write_pfm  # noqa: E402
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 ROOT = os.path.normpath(os.path.join(HERE, "..", ".."))
-ARCHITECTURES = {"full": 4, "rt": 3}  # 1, 2: before the bilinear base
+ARCHITECTURES = {"full": 5, "rt": 6}  # 1, 2: before the bilinear base; 4, 3: a correction of it
 NAMES = {"full": "upscaler_nsrr", "rt": "upscaler_nsrr_rt"}
 MAGIC = b"KSTRLNSR"
 FIXTURE_CLIP = "test_gallery_1000"

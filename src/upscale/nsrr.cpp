@@ -26,7 +26,10 @@ using dt = memory::data_type;
 
 constexpr int kPrevious = 3, kFeatures = 12, kExtractIn = 4;
 constexpr int kUnetIn = kFeatures * (kPrevious + 1) + 1, kReweightIn = 4 * (kPrevious + 1);
-constexpr uint32_t kArchitecture = 4;  // 1: before the bilinear base
+constexpr int kRadius = 1, kKernel = 1 + (2 * kRadius + 1) * (2 * kRadius + 1) * (kPrevious + 1);
+// 1: before the bilinear base; 4: a correction of the bilinear base instead of the blend.
+constexpr uint32_t kArchitecture = 5;
+static_assert(kPrevious + 1 <= kBlendMaxFrames);
 
 // The tensors of weights/upscaler_nsrr.kdw, in order (nsrr.NSRR's named_parameters).
 enum Layer { e1, e2, e3, r1, r2, r3, u1a, u1b, u2a, u2b, u3a, u3b, u4a, u4b, u5a, u5b };
@@ -36,7 +39,7 @@ const std::vector<nn::LayerSpec> kSpecs = {
     {"u1a", 64, kUnetIn, 3},    {"u1b", 32, 64, 3},  {"u2a", 64, 32, 3},
     {"u2b", 64, 64, 3},         {"u3a", 128, 64, 3}, {"u3b", 128, 128, 3},
     {"u4a", 64, 192, 3},        {"u4b", 64, 64, 3},  {"u5a", 32, 96, 3},
-    {"u5b", 3, 32, 3}};
+    {"u5b", kKernel, 32, 3}};
 
 class Full final : public Member {
  public:
@@ -182,10 +185,11 @@ void Full::run(const UpscaleInput& in, FloatImage& out, Upscaler::Times& times) 
   Timer out_timer;
   const float* uo = static_cast<const float*>(unet_out.get_data_handle());
   const size_t Np = size_t(Wp) * size_t(Hp);
-  // The U-Net's correction (its output padded to Wp x Hp) of the base.
+  // The blend of the candidates by the U-Net's logits (its output padded to Wp x Hp).
   base.build(window[0], f, W);
-  write_output(base, W, H, out, [&](size_t X, size_t Y, float y[3]) {
-    for (size_t c = 0; c < 3; ++c) y[c] = uo[c * Np + Y * size_t(Wp) + X];
+  blend.run(base, window, src, kPrevious, kRadius, W, H, out, [&](size_t Y, float* l) {
+    for (size_t c = 0; c < size_t(kKernel); ++c)
+      std::copy_n(uo + c * Np + Y * size_t(Wp), size_t(W), l + c * size_t(W));
   });
   times.reconstruct = out_timer.ms();
 }

@@ -26,7 +26,9 @@ float Window::push(const UpscaleInput& in, int f, int previous) {
   Frame fr = frames_.size() > size_t(previous) ? std::move(frames_.back()) : Frame{};
   if (frames_.size() > size_t(previous)) frames_.pop_back();
   fr.w = w, fr.h = h, fr.jx = in.jitter_x, fr.jy = in.jitter_y;
-  fr.y.resize(3 * n), fr.depth.resize(n), fr.motion.resize(2 * n), fr.sample_at.assign(N, -1);
+  // y padded: a vector load at any of its pixels stays inside (reconstruct.h: kMaxLanes).
+  fr.y.resize(3 * n + kMaxLanes), fr.depth.resize(n), fr.motion.resize(2 * n),
+      fr.sample_at.assign(N, -1);
   const int mc = in.motion ? in.motion->channels : 0;
   // Per row: the depth sum and count (summed in row order after: the same at any thread count).
   std::vector<double> row_sum(static_cast<size_t>(h));

@@ -19,13 +19,14 @@
 #include "nn/weights.h"
 #include "upscale/nsrr.h"
 #include "upscale/nsrr_warp.h"
+#include "upscale/reconstruct.h"
 
 namespace kestrel::upscale::nsrr {
 
 using nn::Dnn;
 using nn::Net;
 
-constexpr float kReweightMax = 10.0f, kYMax = 0.999f;
+constexpr float kReweightMax = 10.0f, kYMax = kBlendYMax;
 constexpr char kMagic[9] = "KSTRLNSR";
 
 // Inline: they run per output pixel.
@@ -66,8 +67,8 @@ class Window {
 };
 
 /// The current frame's y bilinearly upsampled (nsrr.bilinear_base: model.bilinear_at at
-/// (X + 1/2) / f - j + 1/2, pixel centres at i + 1/2, edges clamped): what both networks predict
-/// a correction of. The column taps are the same on every row: tabled once per frame.
+/// (X + 1/2) / f - j + 1/2, pixel centres at i + 1/2, edges clamped): the first of the blend's
+/// candidates. The column taps are the same on every row: tabled once per frame.
 class BilinearBase {
  public:
   struct Row {
@@ -81,7 +82,7 @@ class BilinearBase {
       const float xf = (float(X) + 0.5f) / f_ - cur.jx;
       const int x0 = floor_int(xf);
       tx_[X] = xf - float(x0);
-      i0_[X] = uint32_t(clampi(x0, 0, cur.w - 1)), i1_[X] = uint32_t(clampi(x0 + 1, 0, cur.w - 1));
+      i0_[X] = clampi(x0, 0, cur.w - 1), i1_[X] = clampi(x0 + 1, 0, cur.w - 1);
     }
   }
   Row row(size_t Y) const {
@@ -90,51 +91,80 @@ class BilinearBase {
     return {size_t(clampi(y0, 0, fr_->h - 1)) * size_t(fr_->w),
             size_t(clampi(y0 + 1, 0, fr_->h - 1)) * size_t(fr_->w), yf - float(y0)};
   }
-  /// y[c] += the base at output pixel (X, r's row).
-  void add(const Row& r, size_t X, float y[3]) const {
-    const float tx = tx_[X], ty = r.ty;
-    const size_t i0 = i0_[X], i1 = i1_[X], n = size_t(fr_->w) * size_t(fr_->h);
-    for (size_t c = 0; c < 3; ++c) {
-      const float* p = fr_->y.data() + c * n;
-      y[c] += (1 - ty) * (1 - tx) * p[r.j0 + i0] + (1 - ty) * tx * p[r.j0 + i1] +
-              ty * (1 - tx) * p[r.j1 + i0] + ty * tx * p[r.j1 + i1];
-    }
+  /// The blend's view of the base at output row Y (reconstruct.h: BlendArgs).
+  void set(BlendArgs& a, size_t Y) const {
+    const Row r = row(Y);
+    a.y = fr_->y.data(), a.n = size_t(fr_->w) * size_t(fr_->h);
+    a.j0 = r.j0, a.j1 = r.j1, a.ty = r.ty;
+    a.i0 = i0_.data(), a.i1 = i1_.data(), a.tx = tx_.data();
   }
 
  private:
   const Frame* fr_ = nullptr;
   float f_ = 2;
-  std::vector<uint32_t> i0_, i1_;
+  std::vector<int> i0_, i1_;
   std::vector<float> tx_;
 };
 
-/// y (clamped to [0, kYMax]) back to linear colour, as model.from_y.
-inline void from_y(const float y_in[3], float* out) {
-  float y[3];
-  for (size_t c = 0; c < 3; ++c) y[c] = std::clamp(y_in[c], 0.0f, kYMax);
-  const float d = std::max(1.0f - luma(y), 1e-3f);
-  for (size_t c = 0; c < 3; ++c) out[c] = y[c] / d;
-}
-
-/// The output frame (W x H, linear RGB): at each pixel a network's correction (correction(X,
-/// Y, y) writes it) plus `base`, back from y. `base` must be built for this frame.
-template <class Correction>
-void write_output(const BilinearBase& base, int W, int H, FloatImage& out,
-                  Correction&& correction) {
-  out.width = W, out.height = H, out.channels = 3;
-  out.pixels.resize(3 * size_t(W) * size_t(H));
-  parallel_for(0, size_t(H), 8, [&](size_t r0, size_t r1) {
-    for (size_t Y = r0; Y < r1; ++Y) {
-      const BilinearBase::Row row = base.row(Y);
-      for (size_t X = 0; X < size_t(W); ++X) {
-        float y[3];
-        correction(X, Y, y);
-        base.add(row, X, y);
-        from_y(y, &out.pixels[3 * (Y * size_t(W) + X)]);
-      }
+/// The kernel-predicting reconstruction both members end with (nsrr.blend), into the output
+/// frame (W x H, linear RGB). row_logits(Y, l) writes output row Y's K = 1 + (2 r + 1)^2
+/// (previous + 1) logits, planar (logit c of pixel X at l[c W + X]): c = 0 weighs `base`,
+/// c = 1 + k (2 r + 1)^2 + (dy + r)(2 r + 1) + dx + r the y of frame t-k's sample at output
+/// pixel (X + dx, Y + dy) (frame 0's sample_at, then the warp's src), a candidate where that
+/// pixel is on the image and holds a sample. The output is the softmax over the candidates of
+/// their y, a convex combination, back from y. `base` must be built for this frame; `planes`
+/// holds the frames' zero-upsampled samples (reconstruct.h: ZeroUpArgs), kept between frames.
+/// The per-pixel loops are reconstruct.h's kernels of default_isa().
+class Blend {
+ public:
+  template <class RowLogits>
+  void run(const BilinearBase& base, const Window& window, const std::vector<int32_t>& src,
+           int previous, int r, int W, int H, FloatImage& out, RowLogits&& row_logits) {
+    const int frames = std::min(int(window.size()), previous + 1), d = 2 * r + 1;
+    const size_t N = size_t(W) * size_t(H), n = size_t(window[0].w) * size_t(window[0].h);
+    const size_t plane = (size_t(W) + 2 * size_t(r)) * (size_t(H) + 2 * size_t(r));
+    if (W != W_ || H != H_ || r != r_ || planes_.size() < 4 * plane * size_t(previous + 1)) {
+      // The border is never written: zeros, no samples.
+      planes_.assign(4 * plane * size_t(previous + 1), 0.0f);
+      W_ = W, H_ = H, r_ = r;
     }
-  });
-}
+    const UpscaleKernels& kern = upscale_kernels(default_isa());
+    BlendArgs b{};
+    for (int k = 0; k < frames; ++k) {
+      const ZeroUpArgs z{k == 0 ? window[0].sample_at.data() : src.data() + size_t(k - 1) * N,
+                         window[size_t(k)].y.data(),
+                         n,
+                         planes_.data() + 4 * plane * size_t(k),
+                         W,
+                         H,
+                         r};
+      parallel_for(0, size_t(H), 8,
+                   [&](size_t r0, size_t r1) { kern.zero_upsample(z, int(r0), int(r1)); });
+      b.z[k] = z.z;
+    }
+    b.W = W, b.H = H, b.r = r, b.frames = previous + 1;
+    const size_t K = 1 + size_t(d * d) * size_t(previous + 1);
+    out.width = W, out.height = H, out.channels = 3;
+    out.pixels.resize(3 * N);
+    parallel_for(0, size_t(H), 8, [&](size_t r0, size_t r1) {
+      // Per thread, kept between calls (a fresh block of this size is a fresh mapping to fault in).
+      static thread_local std::vector<float> l;
+      l.resize(K * size_t(W));
+      BlendArgs a = b;
+      a.logits = l.data();
+      for (size_t Y = r0; Y < r1; ++Y) {
+        row_logits(Y, l.data());
+        base.set(a, Y);
+        a.Y = int(Y), a.out = &out.pixels[3 * Y * size_t(W)];
+        kern.blend_row(a);
+      }
+    });
+  }
+
+ private:
+  std::vector<float> planes_;
+  int W_ = 0, H_ = 0, r_ = -1;
+};
 
 /// What both members hold: their layers (loaded and checked from the weights file), the oneDNN
 /// engine, the window of frames and the bilinear base.
@@ -159,6 +189,7 @@ class Member : public NsrrNetwork {
   Dnn dnn;
   Window window;  // [current, previous, ...]
   BilinearBase base;
+  Blend blend;
 
  private:
   size_t parameters_ = 0;

@@ -4,11 +4,13 @@
 // nsrr does, with N = 2 previous frames and a frame's x = [y, d(z)] as its features; the
 // reweighting and reconstruction networks run on cells of 4 x 4 output pixels (the cell's
 // pixels folded into channels, pixel_unshuffle / pixel_shuffle order), a quarter of the
-// output resolution at either factor; their output corrects the current frame's bilinear
-// upsampling. The per-output-pixel loops (warp, grid) are nsrr_warp.h's, scalar or AVX-512.
+// output resolution at either factor; their output is the logits of the blend of the current
+// frame's bilinear upsampling and the aligned samples around each output pixel (nsrr_parts.h:
+// Blend). The warp and grid loops are nsrr_warp.h's, scalar or AVX-512.
 #include <fmt/format.h>
 
 #include <algorithm>
+#include <cstring>
 #include <vector>
 
 #include "core/parallel.h"
@@ -28,17 +30,22 @@ using dt = memory::data_type;
 
 constexpr int kPrevious = 2, kCell = 4, kCells = kCell * kCell, kX = 4;
 constexpr int kIn = kX * kCells * (kPrevious + 1) + 1;
-constexpr uint32_t kArchitecture = 3;  // 2: before the bilinear base
+constexpr int kRadius = 1, kKernel = 1 + (2 * kRadius + 1) * (2 * kRadius + 1) * (kPrevious + 1);
+// 2: before the bilinear base; 3: a correction of the bilinear base instead of the blend.
+constexpr uint32_t kArchitecture = 6;
+static_assert(kPrevious + 1 <= kBlendMaxFrames);
 static_assert(kIn == GridFill::kChannels && kPrevious + 1 == GridFill::kFrames &&
               kX == GridFill::kX);
 
 // The tensors of weights/upscaler_nsrr_rt.kdw, in order (nsrr.NSRRRealTime's named_parameters).
 enum Layer { r1, r2, c1, c2, c3, c4, c5 };
-const std::vector<nn::LayerSpec> kSpecs = {
-    {"r1", 16, kIn, 1},       {"r2", kCells* kPrevious, 16, 1},
-    {"c1", 32, kIn, 1},       {"c2", 24, 32, 3},
-    {"c3", 24, 24, 3},        {"c4", 24, 48, 1},
-    {"c5", 3 * kCells, 24, 1}};
+const std::vector<nn::LayerSpec> kSpecs = {{"r1", 16, kIn, 1},
+                                           {"r2", kCells* kPrevious, 16, 1},
+                                           {"c1", 32, kIn, 1},
+                                           {"c2", 24, 32, 3},
+                                           {"c3", 24, 24, 3},
+                                           {"c4", 24, 48, 1},
+                                           {"c5", kKernel* kCells, 24, 1}};
 
 class RealTime final : public Member {
  public:
@@ -158,12 +165,23 @@ void RealTime::run(const UpscaleInput& in, FloatImage& out, Upscaler::Times& tim
   times.network = net_timer.ms();
   Timer out_timer;
   const float* o = static_cast<const float*>(out_grid.get_data_handle());
-  // The networks' correction (cell (X / 4, Y / 4), pixel_shuffle order) of the base.
+  // The blend of the candidates by the networks' logits (cell (X / 4, Y / 4), pixel_shuffle
+  // order).
   base.build(window[0], f, W);
-  write_output(base, W, H, out, [&](size_t X, size_t Y, float y[3]) {
-    const float* oc = o + ((Y / kCell) * size_t(Gw) + X / kCell) * size_t(3 * kCells);
-    const size_t sub = (Y % kCell) * kCell + X % kCell;
-    for (size_t c = 0; c < 3; ++c) y[c] = oc[c * kCells + sub];
+  blend.run(base, window, src, kPrevious, kRadius, W, H, out, [&](size_t Y, float* l) {
+    // A cell's 4 pixels on row Y are 4 consecutive channels of each logit's 16.
+    const float* row =
+        o + (Y / kCell) * size_t(Gw) * size_t(kKernel * kCells) + (Y % kCell) * kCell;
+    for (size_t X = 0; X < size_t(W); X += kCell) {
+      const float* oc = row + (X / kCell) * size_t(kKernel * kCells);
+      if (X + kCell <= size_t(W)) {
+        for (size_t c = 0; c < size_t(kKernel); ++c)
+          std::memcpy(l + c * size_t(W) + X, oc + c * kCells, kCell * sizeof(float));
+      } else {
+        for (size_t c = 0; c < size_t(kKernel); ++c)
+          for (size_t j = 0; X + j < size_t(W); ++j) l[c * size_t(W) + X + j] = oc[c * kCells + j];
+      }
+    }
   });
   times.reconstruct = out_timer.ms();
 }

@@ -83,6 +83,37 @@ struct Recon {
   bool history;
 };
 
+// The nsrr family's blend (scripts/upscale/nsrr.py: blend; nsrr_parts.h: Blend).
+// A frame's samples at the output resolution W x H are four planes (y, and 1 where the pixel
+// holds a sample, else 0) of (W + 2 r) x (H + 2 r), the image at offset (r, r) in a border of
+// no samples; zero_upsample writes rows [r0, r1) of the image from the frame's sample map.
+constexpr float kBlendYMax = 0.999f;
+constexpr int kBlendMaxFrames = 4;
+struct ZeroUpArgs {
+  const int32_t* at;  // W x H: the low-resolution pixel whose sample an output pixel holds, -1
+  const float* y;     // the frame's y, 3 planes of n
+  size_t n;
+  float* z;  // the four planes, each (W + 2 r) (H + 2 r)
+  int W, H, r;
+};
+// One output row Y: K = 1 + (2 r + 1)^2 frames logits per pixel, planar (logit c of pixel X
+// at logits[c W + X]): c = 0 weighs the base, c = 1 + k (2 r + 1)^2 + (dy + r)(2 r + 1) + dx + r
+// frame k's sample at (X + dx, Y + dy).
+// The base (nsrr.bilinear_base) is the current frame's y (3 planes of n, padded by kMaxLanes)
+// at rows j0, j1 (offsets, weight ty of j1) and columns i0[X], i1[X] (non-decreasing, weight
+// tx[X] of i1).
+struct BlendArgs {
+  const float* z[kBlendMaxFrames];  // per frame of the window (ZeroUpArgs::z), null: none
+  const float* logits;
+  const float* y;  // the base's frame
+  size_t n, j0, j1;
+  float ty;
+  const int *i0, *i1;
+  const float* tx;
+  float* out;  // W x 3: the row's linear colour
+  int W, H, r, frames, Y;
+};
+
 // The upsampler's per-pixel stages for one instruction set, each over rows [r0, r1).
 struct UpscaleKernels {
   void (*input)(const InputArgs& a, int r0, int r1);
@@ -90,6 +121,8 @@ struct UpscaleKernels {
   void (*disocclusion)(const HistoryArgs& a, int r0, int r1);  // keep
   void (*features)(const HistoryArgs& a, int r0, int r1);      // feat
   void (*reconstruct)(const Recon& a, int r0, int r1);
+  void (*zero_upsample)(const ZeroUpArgs& a, int r0, int r1);  // nsrr, nsrr-rt
+  void (*blend_row)(const BlendArgs& a);
 };
 const UpscaleKernels& upscale_kernels_sse2();
 const UpscaleKernels& upscale_kernels_avx2();

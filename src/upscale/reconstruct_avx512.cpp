@@ -16,13 +16,15 @@ constexpr float kLuma[3] = {0.2126f, 0.7152f, 0.0722f};
 #include "upscale/sampling.inl"  // clampi
 #include "upscale/prepare.inl"
 #include "upscale/reconstruct.inl"
+#include "upscale/nsrr_blend.inl"
 // clang-format on
 }  // namespace avx512_ns
 
 const UpscaleKernels& upscale_kernels_avx512() {
-  static const UpscaleKernels table{avx512_ns::input_rows, avx512_ns::stats_rows,
+  static const UpscaleKernels table{avx512_ns::input_rows,        avx512_ns::stats_rows,
                                     avx512_ns::disocclusion_rows, avx512_ns::features_rows,
-                                    avx512_ns::reconstruct_rows};
+                                    avx512_ns::reconstruct_rows,  avx512_ns::zero_upsample_rows,
+                                    avx512_ns::blend_row};
   return table;
 }
 

@@ -148,6 +148,49 @@ TEST_P(Nsrr, BadInputIsAnError) {
   EXPECT_EQ(up.upscale({&c2, &d2, &m2}).width, 40);
 }
 
+// The reconstruction is a softmax blend of the bilinear base and the window's samples, so
+// whatever the trained weights predict, every output pixel's y = c / (1 + L(c)) lies within
+// the range of the y of the samples of the frames in its window (grey samples here, so no
+// channel reaches the y clamp): no member can brighten or darken beyond what was sampled.
+TEST_P(Nsrr, OutputStaysWithinTheWindowsSamples) {
+  for (int f : {2, 4}) {
+    Upscaler up(nsrr(GetParam(), f));
+    std::mt19937 rng(7 + f);
+    std::uniform_real_distribution<float> u(0.0f, 1.0f);
+    const int w = 24, h = 16, window = GetParam() == UpscaleMethod::nsrr ? 4 : 3;
+    std::vector<std::pair<float, float>> range;  // per frame: min and max y of its samples
+    for (int t = 0; t < 8; ++t) {
+      FloatImage color(w, h, 3), depth(w, h, 1), motion(w, h, 2);
+      // A bright frame every third one: a window holding it may reach its y, one without it
+      // may not.
+      const float scale = t % 3 == 1 ? 40.0f : 2.0f;
+      float lo = INFINITY, hi = 0.0f;
+      for (size_t p = 0; p < size_t(w) * size_t(h); ++p) {
+        const float v = u(rng) < 0.1f ? 0.0f : scale * u(rng);
+        for (size_t c = 0; c < 3; ++c) color.pixels[3 * p + c] = v;
+        lo = std::min(lo, v / (1 + v)), hi = std::max(hi, v / (1 + v));
+        depth.pixels[p] = u(rng) < 0.05f ? 0.0f : 1.0f + 4.0f * u(rng);
+        motion.pixels[2 * p] = 3.0f * (u(rng) - 0.5f), motion.pixels[2 * p + 1] = u(rng) - 0.5f;
+      }
+      range.emplace_back(lo, hi);
+      const auto [jx, jy] = std::pair{u(rng), u(rng)};
+      const FloatImage out = up.upscale({&color, &depth, &motion, jx, jy});
+      float wlo = INFINITY, whi = 0.0f;
+      for (int k = std::max(0, t - window + 1); k <= t; ++k)
+        wlo = std::min(wlo, range[size_t(k)].first), whi = std::max(whi, range[size_t(k)].second);
+      for (size_t q = 0; q < out.pixels.size(); q += 3) {
+        const float* c = &out.pixels[q];
+        const float L = 0.2126f * c[0] + 0.7152f * c[1] + 0.0722f * c[2];
+        for (size_t ch = 0; ch < 3; ++ch) {
+          const float y = c[ch] / (1 + L);
+          ASSERT_GE(y, wlo - 1e-4f) << "factor " << f << " frame " << t;
+          ASSERT_LE(y, whi + 1e-4f) << "factor " << f << " frame " << t;
+        }
+      }
+    }
+  }
+}
+
 // The warp's AVX-512 row against the scalar row it must reproduce bit for bit: rows whose
 // length is no multiple of 16, motion that sends positions off every edge, both factors.
 TEST(NsrrWarp, Avx512RowIsTheScalarRow) {
@@ -217,10 +260,17 @@ TEST(NsrrWarp, Avx512GridIsTheScalarGrid) {
 }
 
 TEST(NsrrWarp, EveryIsaGivesTheFixtureResult) {
-  // The fp32 fixture comparison with the scalar warp (what a CPU without AVX-512 runs).
+  // The fp32 fixture comparison on every ISA this CPU has: the scalar warp and grid (what a CPU
+  // without AVX-512 runs) and each ISA's zero-upsampling and blend (reconstruct_*.cpp).
   const Isa before = default_isa();
-  set_default_isa(Isa::sse2);
-  compare(UpscaleMethod::nsrr_rt, false, 2e-3, 60.0);
+  for (Isa isa : {Isa::sse2, Isa::avx2, Isa::avx512}) {
+    if (!isa_supported(isa)) continue;
+    set_default_isa(isa);
+    for (UpscaleMethod m : {UpscaleMethod::nsrr_rt, UpscaleMethod::nsrr}) {
+      SCOPED_TRACE(isa_name(isa));
+      compare(m, false, 2e-3, 60.0);
+    }
+  }
   set_default_isa(before);
 }
 

@@ -1,0 +1,92 @@
+// The nsrr family's kernel-predicting blend (scripts/upscale/nsrr.py: blend; nsrr_parts.h:
+// Blend), compiled per instruction set with the upsampler's other per-pixel stages
+// (reconstruct_*.cpp) and written once for T = float and T = vfloat (core/simd/lanes.inl).
+
+// A frame's samples at the output resolution (nsrr.zero_upsample of y and of the presence):
+// rows [r0, r1) of the four planes, the image at offset (r, r).
+static void zero_upsample_rows(const ZeroUpArgs& a, int r0, int r1) {
+  const size_t Wz = size_t(a.W) + 2 * size_t(a.r), plane = Wz * (size_t(a.H) + 2 * size_t(a.r));
+  for (int Y = r0; Y < r1; ++Y) {
+    const int* at = a.at + size_t(Y) * size_t(a.W);
+    float* z = a.z + size_t(Y + a.r) * Wz + size_t(a.r);
+    for_lanes(a.W, [&](auto t, int X) {
+      using T = decltype(t);
+      using I = lanes_int<T>;
+      const I i = ldi<I>(at + X);
+      const auto ok = i >= 0;
+      const I ic = ok ? i : I{};
+      for (size_t c = 0; c < 3; ++c) {
+        const T v = vgather(a.y + c * a.n, ic);
+        st(z + c * plane + size_t(X), ok ? v : T{});
+      }
+      st(z + 3 * plane + size_t(X), ok ? T{} + 1.0f : T{});
+    });
+  }
+}
+
+// One output row of the blend: the softmax of the logits over the candidates present (the
+// base, and every frame's samples in the (2 r + 1)^2 pixels around each output pixel), their
+// y so weighted, clamped to [0, kBlendYMax] and back to linear colour (nsrr_parts.h: from_y).
+static void blend_row(const BlendArgs& a) {
+  const int d = 2 * a.r + 1;
+  const size_t W = size_t(a.W), Wz = W + 2 * size_t(a.r);
+  const size_t plane = Wz * (size_t(a.H) + 2 * size_t(a.r));
+  for_lanes(a.W, [&](auto t, int X) {
+    using T = decltype(t);
+    // The largest logit present (the base always is).
+    T m = ld<T>(a.logits + X);
+    size_t c = 1;
+    for (int k = 0; k < a.frames; ++k) {
+      if (!a.z[k]) {
+        c += size_t(d * d);
+        continue;
+      }
+      for (int dy = -a.r; dy <= a.r; ++dy) {
+        const float* p = a.z[k] + 3 * plane + size_t(a.Y + a.r + dy) * Wz + size_t(a.r + X);
+        for (int dx = -a.r; dx <= a.r; ++dx, ++c) {
+          const T l = ld<T>(a.logits + c * W + size_t(X));
+          m = ld<T>(p + dx) > 0.0f ? vmax(m, l) : m;
+        }
+      }
+    }
+    // The base, bilinear: the columns' indices span a few samples (one load and a permute).
+    using I = lanes_int<T>;
+    const I i0 = ldi<I>(a.i0 + X), i1 = ldi<I>(a.i1 + X);
+    const int lo = a.i0[X], hi = a.i1[X + lanes_of<T> - 1];
+    const T tx = ld<T>(a.tx + X);
+    T base[3];
+    for (size_t ch = 0; ch < 3; ++ch) {
+      const float* p0 = a.y + ch * a.n + a.j0;
+      const float* p1 = a.y + ch * a.n + a.j1;
+      const T top = lookup(p0, i0, lo, hi) + tx * (lookup(p0, i1, lo, hi) - lookup(p0, i0, lo, hi));
+      const T bot = lookup(p1, i0, lo, hi) + tx * (lookup(p1, i1, lo, hi) - lookup(p1, i0, lo, hi));
+      base[ch] = top + a.ty * (bot - top);
+    }
+    const T e0 = vexp2((ld<T>(a.logits + X) - m) * kLog2e);
+    T s = e0, y0 = e0 * base[0], y1 = e0 * base[1], y2 = e0 * base[2];
+    c = 1;
+    for (int k = 0; k < a.frames; ++k) {
+      if (!a.z[k]) {
+        c += size_t(d * d);
+        continue;
+      }
+      for (int dy = -a.r; dy <= a.r; ++dy) {
+        const float* p = a.z[k] + size_t(a.Y + a.r + dy) * Wz + size_t(a.r + X);
+        for (int dx = -a.r; dx <= a.r; ++dx, ++c) {
+          const T l = ld<T>(a.logits + c * W + size_t(X));
+          T e = vexp2((l - m) * kLog2e);
+          e = ld<T>(p + 3 * plane + dx) > 0.0f ? e : T{};
+          s += e;
+          y0 += e * ld<T>(p + dx), y1 += e * ld<T>(p + plane + dx),
+              y2 += e * ld<T>(p + 2 * plane + dx);
+        }
+      }
+    }
+    const T inv = 1.0f / s;
+    y0 = vmin(vmax(y0 * inv, T{}), T{} + kBlendYMax);
+    y1 = vmin(vmax(y1 * inv, T{}), T{} + kBlendYMax);
+    y2 = vmin(vmax(y2 * inv, T{}), T{} + kBlendYMax);
+    const T den = 1.0f / vmax(1.0f - (kLuma[0] * y0 + kLuma[1] * y1 + kLuma[2] * y2), T{} + 1e-3f);
+    st_rgb(a.out + 3 * size_t(X), y0 * den, y1 * den, y2 * den);
+  });
+}
