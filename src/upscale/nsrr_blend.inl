@@ -26,7 +26,7 @@ static void zero_upsample_rows(const ZeroUpArgs& a, int r0, int r1) {
 
 // One output row of the blend: the softmax of the logits over the candidates present (the
 // base, and every frame's samples in the (2 r + 1)^2 pixels around each output pixel), their
-// y so weighted, clamped to [0, kBlendYMax] and back to linear colour (nsrr_parts.h: from_y).
+// y so weighted, clamped to [0, kBlendYMax] and back to linear colour (as model.from_y).
 static void blend_row(const BlendArgs& a) {
   const int d = 2 * a.r + 1;
   const size_t W = size_t(a.W), Wz = W + 2 * size_t(a.r);

@@ -112,7 +112,7 @@ class BilinearBase {
 /// c = 1 + k (2 r + 1)^2 + (dy + r)(2 r + 1) + dx + r the y of frame t-k's sample at output
 /// pixel (X + dx, Y + dy) (frame 0's sample_at, then the warp's src), a candidate where that
 /// pixel is on the image and holds a sample. The output is the softmax over the candidates of
-/// their y, a convex combination, back from y. `base` must be built for this frame; `planes`
+/// their y, a convex combination, back from y. `base` must be built for this frame; its planes
 /// holds the frames' zero-upsampled samples (reconstruct.h: ZeroUpArgs), kept between frames.
 /// The per-pixel loops are reconstruct.h's kernels of default_isa().
 class Blend {
