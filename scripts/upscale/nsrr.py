@@ -229,7 +229,6 @@ class NSRR(nn.Module):
 
 
 RT_FRAMES = 2  # previous frames of the real-time member
-RT_KERNEL_RADIUS = 1  # its blend's candidates: 3 x 3 output pixels, as NSRR's
 GRID = 4  # its networks run on cells of 4 x 4 output pixels
 RT_CELLS = GRID * GRID
 
@@ -249,12 +248,12 @@ class NSRRRealTime(nn.Module):
       b           = c3(maxpool2(a))        3x3 24 -> 24 at half the grid
       l           = shuffle(c5(c4([upsample2(b), a])))   c4 1x1 48 -> 24, c5 1x1 24 -> 16 K,
                     shuffle: F.pixel_shuffle(., 4) (channel 16 c + s), cropped: K logits per
-                    output pixel, K = 1 + (2 r + 1)^2 (N + 1), r = RT_KERNEL_RADIUS
+                    output pixel, K = 1 + (2 r + 1)^2 (N + 1), r = KERNEL_RADIUS
       out         = from_y(blend(l, B, [Z_0, W_1, ..., W_N]))   as NSRR's, y clamped to [0, 0.999]
 
     ReLU after every convolution but R's last and c5."""
 
-    def __init__(self, frames=RT_FRAMES, radius=RT_KERNEL_RADIUS):
+    def __init__(self, frames=RT_FRAMES, radius=KERNEL_RADIUS):
         super().__init__()
         self.frames, self.radius = frames, radius
         kernel = 1 + (2 * radius + 1) ** 2 * (frames + 1)

@@ -26,7 +26,7 @@ using dt = memory::data_type;
 
 constexpr int kPrevious = 3, kFeatures = 12, kExtractIn = 4;
 constexpr int kUnetIn = kFeatures * (kPrevious + 1) + 1, kReweightIn = 4 * (kPrevious + 1);
-constexpr int kRadius = 1, kKernel = 1 + (2 * kRadius + 1) * (2 * kRadius + 1) * (kPrevious + 1);
+constexpr int kKernel = blend_logits(kPrevious);
 // 1: before the bilinear base; 4: a correction of the bilinear base instead of the blend.
 constexpr uint32_t kArchitecture = 5;
 static_assert(kPrevious + 1 <= kBlendMaxFrames);
@@ -187,7 +187,7 @@ void Full::run(const UpscaleInput& in, FloatImage& out, Upscaler::Times& times) 
   const size_t Np = size_t(Wp) * size_t(Hp);
   // The blend of the candidates by the U-Net's logits (its output padded to Wp x Hp).
   base.build(window[0], f, W);
-  blend.run(base, window, src, kPrevious, kRadius, W, H, out, [&](size_t Y, float* l) {
+  blend.run(base, window, src, kPrevious, W, H, out, [&](size_t Y, float* l) {
     for (size_t c = 0; c < size_t(kKernel); ++c)
       std::copy_n(uo + c * Np + Y * size_t(Wp), size_t(W), l + c * size_t(W));
   });

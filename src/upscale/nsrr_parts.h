@@ -26,7 +26,13 @@ namespace kestrel::upscale::nsrr {
 using nn::Dnn;
 using nn::Net;
 
-constexpr float kReweightMax = 10.0f, kYMax = kBlendYMax;
+constexpr float kReweightMax = 10.0f;
+/// The blend's candidates (nsrr.KERNEL_RADIUS): every frame's samples in the (2 r + 1)^2 output
+/// pixels around a pixel; a member of `previous` frames predicts blend_logits(previous) per pixel.
+constexpr int kBlendRadius = 1;
+constexpr int blend_logits(int previous) {
+  return 1 + (2 * kBlendRadius + 1) * (2 * kBlendRadius + 1) * (previous + 1);
+}
 constexpr char kMagic[9] = "KSTRLNSR";
 
 // Inline: they run per output pixel.
@@ -71,10 +77,6 @@ class Window {
 /// candidates. The column taps are the same on every row: tabled once per frame.
 class BilinearBase {
  public:
-  struct Row {
-    size_t j0, j1;
-    float ty;
-  };
   void build(const Frame& cur, int f, int W) {
     fr_ = &cur, f_ = float(f);
     i0_.resize(size_t(W)), i1_.resize(size_t(W)), tx_.resize(size_t(W));
@@ -85,17 +87,13 @@ class BilinearBase {
       i0_[X] = clampi(x0, 0, cur.w - 1), i1_[X] = clampi(x0 + 1, 0, cur.w - 1);
     }
   }
-  Row row(size_t Y) const {
-    const float yf = (float(Y) + 0.5f) / f_ - fr_->jy;
-    const int y0 = floor_int(yf);
-    return {size_t(clampi(y0, 0, fr_->h - 1)) * size_t(fr_->w),
-            size_t(clampi(y0 + 1, 0, fr_->h - 1)) * size_t(fr_->w), yf - float(y0)};
-  }
   /// The blend's view of the base at output row Y (reconstruct.h: BlendArgs).
   void set(BlendArgs& a, size_t Y) const {
-    const Row r = row(Y);
+    const float yf = (float(Y) + 0.5f) / f_ - fr_->jy;
+    const int y0 = floor_int(yf);
     a.y = fr_->y.data(), a.n = size_t(fr_->w) * size_t(fr_->h);
-    a.j0 = r.j0, a.j1 = r.j1, a.ty = r.ty;
+    a.j0 = size_t(clampi(y0, 0, fr_->h - 1)) * size_t(fr_->w);
+    a.j1 = size_t(clampi(y0 + 1, 0, fr_->h - 1)) * size_t(fr_->w), a.ty = yf - float(y0);
     a.i0 = i0_.data(), a.i1 = i1_.data(), a.tx = tx_.data();
   }
 
@@ -107,26 +105,27 @@ class BilinearBase {
 };
 
 /// The kernel-predicting reconstruction both members end with (nsrr.blend), into the output
-/// frame (W x H, linear RGB). row_logits(Y, l) writes output row Y's K = 1 + (2 r + 1)^2
-/// (previous + 1) logits, planar (logit c of pixel X at l[c W + X]): c = 0 weighs `base`,
-/// c = 1 + k (2 r + 1)^2 + (dy + r)(2 r + 1) + dx + r the y of frame t-k's sample at output
-/// pixel (X + dx, Y + dy) (frame 0's sample_at, then the warp's src), a candidate where that
-/// pixel is on the image and holds a sample. The output is the softmax over the candidates of
-/// their y, a convex combination, back from y. `base` must be built for this frame; its planes
-/// holds the frames' zero-upsampled samples (reconstruct.h: ZeroUpArgs), kept between frames.
-/// The per-pixel loops are reconstruct.h's kernels of default_isa().
+/// frame (W x H, linear RGB). row_logits(Y, l) writes output row Y's K = blend_logits(previous)
+/// = 1 + (2 r + 1)^2 (previous + 1) logits (r = kBlendRadius), planar (logit c of pixel X at l[c W
+/// + X]): c = 0 weighs `base`, c = 1 + k (2 r + 1)^2 + (dy + r)(2 r + 1) + dx + r the y of frame
+/// t-k's sample at output pixel (X + dx, Y + dy) (frame 0's sample_at, then the warp's src), a
+/// candidate where that pixel is on the image and holds a sample. The output is the softmax over
+/// the candidates of their y, a convex combination, back from y. `base` must be built for this
+/// frame; its planes holds the frames' zero-upsampled samples (reconstruct.h: ZeroUpArgs), kept
+/// between frames. The per-pixel loops are reconstruct.h's kernels of default_isa().
 class Blend {
  public:
   template <class RowLogits>
   void run(const BilinearBase& base, const Window& window, const std::vector<int32_t>& src,
-           int previous, int r, int W, int H, FloatImage& out, RowLogits&& row_logits) {
-    const int frames = std::min(int(window.size()), previous + 1), d = 2 * r + 1;
+           int previous, int W, int H, FloatImage& out, RowLogits&& row_logits) {
+    constexpr int r = kBlendRadius;
+    const int frames = std::min(int(window.size()), previous + 1);
     const size_t N = size_t(W) * size_t(H), n = size_t(window[0].w) * size_t(window[0].h);
     const size_t plane = (size_t(W) + 2 * size_t(r)) * (size_t(H) + 2 * size_t(r));
-    if (W != W_ || H != H_ || r != r_ || planes_.size() < 4 * plane * size_t(previous + 1)) {
+    if (W != W_ || H != H_ || planes_.size() < 4 * plane * size_t(previous + 1)) {
       // The border is never written: zeros, no samples.
       planes_.assign(4 * plane * size_t(previous + 1), 0.0f);
-      W_ = W, H_ = H, r_ = r;
+      W_ = W, H_ = H;
     }
     const UpscaleKernels& kern = upscale_kernels(default_isa());
     BlendArgs b{};
@@ -143,13 +142,11 @@ class Blend {
       b.z[k] = z.z;
     }
     b.W = W, b.H = H, b.r = r, b.frames = previous + 1;
-    const size_t K = 1 + size_t(d * d) * size_t(previous + 1);
+    const size_t K = size_t(blend_logits(previous));
     out.width = W, out.height = H, out.channels = 3;
     out.pixels.resize(3 * N);
     parallel_for(0, size_t(H), 8, [&](size_t r0, size_t r1) {
-      // Per thread, kept between calls (a fresh block of this size is a fresh mapping to fault in).
-      static thread_local std::vector<float> l;
-      l.resize(K * size_t(W));
+      std::vector<float> l(K * size_t(W));
       BlendArgs a = b;
       a.logits = l.data();
       for (size_t Y = r0; Y < r1; ++Y) {
@@ -163,7 +160,7 @@ class Blend {
 
  private:
   std::vector<float> planes_;
-  int W_ = 0, H_ = 0, r_ = -1;
+  int W_ = 0, H_ = 0;
 };
 
 /// What both members hold: their layers (loaded and checked from the weights file), the oneDNN

@@ -30,7 +30,7 @@ using dt = memory::data_type;
 
 constexpr int kPrevious = 2, kCell = 4, kCells = kCell * kCell, kX = 4;
 constexpr int kIn = kX * kCells * (kPrevious + 1) + 1;
-constexpr int kRadius = 1, kKernel = 1 + (2 * kRadius + 1) * (2 * kRadius + 1) * (kPrevious + 1);
+constexpr int kKernel = blend_logits(kPrevious);
 // 2: before the bilinear base; 3: a correction of the bilinear base instead of the blend.
 constexpr uint32_t kArchitecture = 6;
 static_assert(kPrevious + 1 <= kBlendMaxFrames);
@@ -168,7 +168,7 @@ void RealTime::run(const UpscaleInput& in, FloatImage& out, Upscaler::Times& tim
   // The blend of the candidates by the networks' logits (cell (X / 4, Y / 4), pixel_shuffle
   // order).
   base.build(window[0], f, W);
-  blend.run(base, window, src, kPrevious, kRadius, W, H, out, [&](size_t Y, float* l) {
+  blend.run(base, window, src, kPrevious, W, H, out, [&](size_t Y, float* l) {
     // A cell's 4 pixels on row Y are 4 consecutive channels of each logit's 16.
     const float* row =
         o + (Y / kCell) * size_t(Gw) * size_t(kKernel * kCells) + (Y % kCell) * kCell;
