@@ -86,7 +86,7 @@ const Variant kVariants[] = {{"clean", ""}, {"denoised 1 spp", "_dn"}};
 int main(int argc, char** argv) {
   std::string dataset = std::string(KESTREL_SOURCE_DIR) + "/out/upscale_families";
   std::string out_dir = std::string(KESTREL_SOURCE_DIR) + "/docs/upscaler";
-  std::string weights;
+  std::string weights, rt_weights, nsrr_weights, only;
   int threads = int(std::thread::hardware_concurrency()), repeat = 9;
   bool quick = false;
   CLI::App app{"kestrel_upscale_eval: the upsamplers on the held-out clips"};
@@ -95,6 +95,12 @@ int main(int argc, char** argv) {
   app.add_option("--out", out_dir, "Where eval.md, eval.json and the crops go")
       ->capture_default_str();
   app.add_option("--weights", weights, "Learned TAAU weights (default: weights/upscaler.kdw)");
+  app.add_option("--nsrr-weights", nsrr_weights,
+                 "nsrr weights (default: weights/upscaler_nsrr.kdw)");
+  app.add_option("--nsrr-rt-weights", rt_weights,
+                 "nsrr-rt weights (default: weights/upscaler_nsrr_rt.kdw)");
+  app.add_option("--methods", only,
+                 fmt::format("Only these methods, comma-separated (of {})", upscale_method_list()));
   app.add_option("--threads", threads, "Worker threads")->capture_default_str();
   app.add_option("--repeat", repeat, "Timed frames (median)")->capture_default_str();
   app.add_flag("--quick", quick, "Three frames per clip (smoke test)");
@@ -124,12 +130,29 @@ int main(int argc, char** argv) {
       UpscalerOptions o;
       o.method = m, o.factor = f;
       if (m == UpscaleMethod::neural) o.weights = weights;
+      if (m == UpscaleMethod::nsrr) o.weights = nsrr_weights;
+      if (m == UpscaleMethod::nsrr_rt) o.weights = rt_weights;
       return o;
     };
+    std::vector<UpscaleMethod> wanted(std::begin(kMethods), std::end(kMethods));
+    if (!only.empty()) {
+      wanted.clear();
+      for (size_t at = 0; at <= only.size();) {
+        const size_t end = std::min(only.find(',', at), only.size());
+        const std::string name = only.substr(at, end - at);
+        const auto m = upscale_method_from_name(name);
+        if (!m)
+          throw Error(
+              ErrorCode::invalid_argument,
+              fmt::format("--methods: no method '{}' (methods: {})", name, upscale_method_list()));
+        wanted.push_back(*m);
+        at = end + 1;
+      }
+    }
     // The methods whose weights load (a missing network is reported, not fatal).
     std::vector<UpscaleMethod> methods;
     std::map<UpscaleMethod, size_t> params;
-    for (UpscaleMethod m : kMethods) try {
+    for (UpscaleMethod m : wanted) try {
         params[m] = Upscaler(options(m, 2)).parameter_count();
         methods.push_back(m);
       } catch (const Error& e) {

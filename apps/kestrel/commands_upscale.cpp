@@ -158,11 +158,11 @@ Action add_upscale_command(CLI::App& cmd) {
          "--method", a->method,
          upscale_method_list(" | ") +
              " (nsrr: Xiao et al. 2020's neural supersampling, far from real time; nsrr-rt: its "
-             "real-time member)")
+             "real-time member; both blend in the output of neural, run beside them)")
       ->capture_default_str();
   cmd.add_option("--weights", a->weights,
                  "Weights file (default: weights/upscaler.kdw, upscaler_nsrr.kdw, "
-                 "upscaler_nsrr_rt.kdw)");
+                 "upscaler_nsrr_rt.kdw; nsrr's history runs weights/upscaler.kdw)");
   cmd.add_option("--jitter", a->jitter,
                  "Sample position in each input pixel: halton (kestrel's 1-spp sequence by frame "
                  "number), center, or X,Y")

@@ -6,7 +6,8 @@
 // bilinear of the current frame; and `nsrr`, neural supersampling after Xiao et al. 2020 (the
 // current and three previous frames' features zero-upsampled, warped by the accumulated motion,
 // reweighted and reconstructed by a U-Net at the output resolution: a quality mode, far from
-// real time). See docs/upscaler.md.
+// real time) and its real-time member `nsrr-rt`; both blend those samples with the output of the
+// learned TAAU, which runs beside them (default_upscaler_weights(neural)). See docs/upscaler.md.
 #pragma once
 #include <memory>
 #include <optional>
@@ -69,7 +70,8 @@ class Upscaler {
   int factor() const;
   size_t parameter_count() const;  ///< 0 for the baselines
   bool uses_bf16() const;          ///< nsrr / nsrr-rt running its convolutions in bf16
-  /// Milliseconds of the last frame's stages: features, network, reconstruction.
+  /// Milliseconds of the last frame's stages: features, network, reconstruction (nsrr,
+  /// nsrr-rt: the learned TAAU run beside them counts as features).
   struct Times {
     double features = 0, network = 0, reconstruct = 0;
   };

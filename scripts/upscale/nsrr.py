@@ -18,20 +18,25 @@ where the surface was in the previous frame"), output f h x f w, f in {2, 4}:
   W_k    = Z_k at floor(P_k) (0 off screen or where frame t-k does not exist), k = 1..N
   w      = 5 (1 + tanh R([Z_0[:4], W_1[:4], ..., W_N[:4]]))   R: 3 convolutions 3x3
            (4 (N+1) -> 32 -> 32 -> N, ReLU between): the feature reweighting, w_k in [0, 10]
-  l      = U([Z_0, w_1 W_1, ..., w_N W_N, f / 4])   U: the U-Net below, 1 + 9 (N + 1) logits
-  out    = from_y(blend(l, B, [Z_0, W_1, ..., W_N]))   the kernel-predicting reconstruction:
-           a softmax over the candidates present of B (the current frame's y bilinearly
-           upsampled, bilinear_base) and the y of every frame's sample in the 3 x 3 output
-           pixels around X, weighted by the logits: a convex combination of what was sampled
+  Hy     = y of the learned TAAU's output for frame t (model.step with weights/upscaler.kdw,
+           run over the whole sequence: its reprojected, clamped, disocclusion-rejected
+           history is the long memory the window of N + 1 frames lacks)
+  l      = U([Z_0, w_1 W_1, ..., w_N W_N, f / 4, Hy])   U: the U-Net below, 2 + 9 (N + 1) logits
+  out    = from_y(blend(l, B, Hy, [Z_0, W_1, ..., W_N]))   the kernel-predicting
+           reconstruction: a softmax over the candidates present of B (the current frame's y
+           bilinearly upsampled, bilinear_base), the y of every frame's sample in the 3 x 3
+           output pixels around X, and Hy, weighted by the logits: a convex combination of what
+           was sampled and what the history holds
 
-U (as Xiao et al.'s, channels 64, 32 | 64, 64 | 128, 128 | 64, 64 | 32, 37 logits): two 3x3
+U (as Xiao et al.'s, channels 64, 32 | 64, 64 | 128, 128 | 64, 64 | 32, 38 logits): two 3x3
 convolutions per level, ReLU, 2x2 max pooling down, bilinear 2x upsampling up (edges
 clamped), skip connections by concatenation; the input is padded with zeros to multiples of
 4 (the output cropped back); blend's y is clamped to [0, 0.999]. Its last layer starts at a
 tenth of PyTorch's initialisation and bias 0: before training every candidate present weighs
 alike. (Architecture 4 added a correction to B instead: trained, the correction stayed about
 zero; on a synthetic static sequence whose samples hold the exact answer it had learned a
-fifth of it after 600 steps, the blend nine tenths after 200.)
+fifth of it after 600 steps, the blend nine tenths after 200. Architectures 5 and 6 had no Hy:
+the window alone stayed below TAAU-like on most held-out families.)
 """
 import torch
 import torch.nn as nn
@@ -147,18 +152,27 @@ def align(frames, n, f, scale=None, extract=None):
     return color, zs[0], warped, masks
 
 
-def blend(logits, base, feats, masks, radius=KERNEL_RADIUS):
-    """The kernel-predicting reconstruction both members end with. logits (B,K,H,W), K = 1 +
-    (2 r + 1)^2 len(feats): channel 0 weighs base (B,3,H,W); channel 1 + k (2 r + 1)^2 + o
-    the y (channels 0..2) of feats[k] at the output pixel X + (dx, dy), o = (dy + r)(2 r + 1) +
-    dx + r, where masks[k] there is 1 (off the image or no sample: not a candidate).
+def blend_logits(radii):
+    """The blend's candidates for a window whose frame k offers its samples in the (2 r_k +
+    1)^2 output pixels around a pixel (radii: [r_0, r_1, ...]): the base, those, and the history."""
+    return 2 + sum((2 * r + 1) ** 2 for r in radii)
+
+
+def blend(logits, base, history, feats, masks, radii):
+    """The kernel-predicting reconstruction both members end with. logits (B,K,H,W), K =
+    blend_logits(radii): channel 0 weighs base (B,3,H,W); then per frame k, in order,
+    (2 r_k + 1)^2 channels: channel o = (dy + r_k)(2 r_k + 1) + dx + r_k of frame k's weighs the
+    y (channels 0..2) of feats[k] at the output pixel X + (dx, dy), where masks[k] there is 1
+    (off the image or no sample: not a candidate); the last channel weighs history (B,3,H,W, y).
     -> sum of softmax(logits over the candidates) times their y (B,3,H,W)."""
-    d = 2 * radius + 1
     B, _, H, W = base.shape
-    vals, present = [base.unsqueeze(2)], [torch.ones_like(masks[0]) > 0]
-    for z, m in zip(feats, masks):
-        vals.append(F.unfold(z[:, :3], d, padding=radius).view(B, 3, d * d, H, W))
-        present.append(F.unfold(m, d, padding=radius).view(B, d * d, H, W) > 0)
+    one = torch.ones_like(masks[0]) > 0
+    vals, present = [base.unsqueeze(2)], [one]
+    for z, m, r in zip(feats, masks, radii):
+        d = 2 * r + 1
+        vals.append(F.unfold(z[:, :3], d, padding=r).view(B, 3, d * d, H, W))
+        present.append(F.unfold(m, d, padding=r).view(B, d * d, H, W) > 0)
+    vals.append(history.unsqueeze(2)), present.append(one)
     v, p = torch.cat(vals, 2), torch.cat(present, 1)
     wts = torch.softmax(logits.float().masked_fill(~p, float("-inf")), 1)
     return (wts.unsqueeze(1) * v).sum(2)
@@ -179,12 +193,12 @@ class NSRR(nn.Module):
         r1, r2 = reweight
         self.r1, self.r2, self.r3 = conv(4 * (frames + 1), r1), conv(r1, r2), conv(r2, frames)
         a1, a2, b1, b2, c1, c2, d1, d2, o1 = unet
-        cin = FEATURE_CHANNELS * (frames + 1) + 1
+        cin = FEATURE_CHANNELS * (frames + 1) + 1 + 3
         self.u1a, self.u1b = conv(cin, a1), conv(a1, a2)
         self.u2a, self.u2b = conv(a2, b1), conv(b1, b2)
         self.u3a, self.u3b = conv(b2, c1), conv(c1, c2)
         self.u4a, self.u4b = conv(c2 + b2, d1), conv(d1, d2)
-        self.u5a, self.u5b = conv(d2 + a2, o1), conv(o1, 1 + (2 * KERNEL_RADIUS + 1) ** 2 * (frames + 1))
+        self.u5a, self.u5b = conv(d2 + a2, o1), conv(o1, blend_logits([KERNEL_RADIUS] * (frames + 1)))
         with torch.no_grad():
             # The blend starts near uniform (not exactly: with a zero last layer no gradient
             # reaches the ones before it).
@@ -214,21 +228,24 @@ class NSRR(nn.Module):
         d = F.relu(self.u4b(F.relu(self.u4a(torch.cat([upsample2(c), b], 1)))))
         return self.u5b(F.relu(self.u5a(torch.cat([upsample2(d), a], 1))))[:, :, :H, :W]
 
-    def forward(self, frames, f, scale=None):
+    def forward(self, frames, f, history, scale=None):
         """frames: [current, previous, ...] (at most N + 1), each (color (B,3,h,w), depth
         (B,1,h,w), motion (B,2,h,w), jitter (B,2)); a frame that does not exist is None.
+        history: Hy (B,3,f h,f w), history_sequence's frame t.
         scale: the depth scale s (B,1,1,1), else depth_scale of the current frame.
         -> the linear output (B,3,f h,f w) and its y."""
         color, z0, warped, masks = align(frames, self.frames, f, scale, self.extract)
         wts = self.reweight(z0, warped)
         x = torch.cat([z0] + [wts[:, k:k + 1] * warped[k] for k in range(self.frames)] +
-                      [torch.full_like(z0[:, :1], f / 4.0)], 1)
+                      [torch.full_like(z0[:, :1], f / 4.0), history], 1)
         base = bilinear_base(color, frames[0][3], f)
-        y = torch.clamp(blend(self.reconstruct(x), base, [z0] + warped, masks), 0.0, Y_MAX)
+        radii = [KERNEL_RADIUS] * (self.frames + 1)
+        y = torch.clamp(blend(self.reconstruct(x), base, history, [z0] + warped, masks, radii), 0.0, Y_MAX)
         return M.from_y(y), y
 
 
 RT_FRAMES = 2  # previous frames of the real-time member
+RT_PREVIOUS_RADIUS = 0  # its blend takes the previous frames' samples at the pixel only
 GRID = 4  # its networks run on cells of 4 x 4 output pixels
 RT_CELLS = GRID * GRID
 
@@ -240,24 +257,27 @@ class NSRRRealTime(nn.Module):
     output resolution at either factor), the output pixels of a cell folded into channels:
 
       Z_k, W_k    as NSRR's, 4 channels, at the output resolution padded to multiples of 8
-      G           = [unshuffle([Z_0, W_1, ..., W_N]), f / 4]   unshuffle: F.pixel_unshuffle(., 4),
-                    channel (4 k + c) 16 + s for frame k, channel c, cell pixel s = 4 dy + dx
-      w           = 5 (1 + tanh R(G))      R: 1x1 convolutions 4 16 (N+1) + 1 -> 16 -> 16 N;
+      G           = [unshuffle([Z_0, W_1, ..., W_N, Hy]), f / 4]   unshuffle: F.pixel_unshuffle(.,
+                    4), channel (4 k + c) 16 + s for frame k, channel c, cell pixel s = 4 dy +
+                    dx; then Hy's (3 channels: 4 (N + 1) 16 + 16 c + s); Hy as NSRR's
+      w           = 5 (1 + tanh R(G))      R: 1x1 convolutions 4 16 (N+1) + 49 -> 16 -> 16 N;
                     w[16 (k-1) + s] weighs W_k at cell pixel s (all 4 channels)
       a           = c2(c1(G'))             G' = G with the W_k weighed; c1 1x1 -> 32, c2 3x3 -> 24
       b           = c3(maxpool2(a))        3x3 24 -> 24 at half the grid
       l           = shuffle(c5(c4([upsample2(b), a])))   c4 1x1 48 -> 24, c5 1x1 24 -> 16 K,
                     shuffle: F.pixel_shuffle(., 4) (channel 16 c + s), cropped: K logits per
-                    output pixel, K = 1 + (2 r + 1)^2 (N + 1), r = KERNEL_RADIUS
-      out         = from_y(blend(l, B, [Z_0, W_1, ..., W_N]))   as NSRR's, y clamped to [0, 0.999]
+                    output pixel, K = blend_logits([r, r', ..., r']), r = KERNEL_RADIUS
+      out         = from_y(blend(l, B, Hy, [Z_0, W_1, ..., W_N]))   as NSRR's, the previous frames'
+                    samples within r' = prev_radius (0: only the one at the pixel), y clamped
+                    to [0, 0.999]
 
     ReLU after every convolution but R's last and c5."""
 
-    def __init__(self, frames=RT_FRAMES, radius=KERNEL_RADIUS):
+    def __init__(self, frames=RT_FRAMES, prev_radius=RT_PREVIOUS_RADIUS):
         super().__init__()
-        self.frames, self.radius = frames, radius
-        kernel = 1 + (2 * radius + 1) ** 2 * (frames + 1)
-        cin = 4 * RT_CELLS * (frames + 1) + 1
+        self.frames, self.radii = frames, [KERNEL_RADIUS] + [prev_radius] * frames
+        kernel = blend_logits(self.radii)
+        cin = 4 * RT_CELLS * (frames + 1) + 3 * RT_CELLS + 1
         self.r1, self.r2 = nn.Conv2d(cin, 16, 1), nn.Conv2d(16, RT_CELLS * frames, 1)
         self.c1, self.c2 = nn.Conv2d(cin, 32, 1), conv(32, 24)
         self.c3 = conv(24, 24)
@@ -266,21 +286,35 @@ class NSRRRealTime(nn.Module):
             self.c5.weight.mul_(0.1)
             self.c5.bias.zero_()
 
-    def forward(self, frames, f, scale=None):
+    def forward(self, frames, f, history, scale=None):
         """As NSRR.forward (frames beyond the first N + 1 are ignored)."""
         color, z0, warped, masks = align(frames, self.frames, f, scale)
         H, W = z0.shape[2:]
         feats = [z0] + warped
         pad = (0, -W % (2 * GRID), 0, -H % (2 * GRID))
         g = [F.pixel_unshuffle(F.pad(x, pad), GRID) for x in feats]
+        gh = F.pixel_unshuffle(F.pad(history, pad), GRID)
         fc = torch.full_like(g[0][:, :1], f / 4.0)
-        x = torch.cat(g + [fc], 1)
+        x = torch.cat(g + [gh, fc], 1)
         wts = 0.5 * REWEIGHT_MAX * (1.0 + torch.tanh(self.r2(F.relu(self.r1(x)))))
         x = torch.cat([g[0]] + [g[k] * wts[:, RT_CELLS * (k - 1):RT_CELLS * k].repeat(1, 4, 1, 1)
-                                for k in range(1, self.frames + 1)] + [fc], 1)
+                                for k in range(1, self.frames + 1)] + [gh, fc], 1)
         a = F.relu(self.c2(F.relu(self.c1(x))))
         b = F.relu(self.c3(F.max_pool2d(a, 2)))
         o = self.c5(F.relu(self.c4(torch.cat([upsample2(b), a], 1))))
         base = bilinear_base(color, frames[0][3], f)
-        y = torch.clamp(blend(F.pixel_shuffle(o, GRID)[:, :, :H, :W], base, feats, masks, self.radius), 0.0, Y_MAX)
+        y = torch.clamp(blend(F.pixel_shuffle(o, GRID)[:, :, :H, :W], base, history, feats, masks, self.radii), 0.0, Y_MAX)
         return M.from_y(y), y
+
+
+def history_sequence(ins, jit, f, upsampler):
+    """Hy of every frame of a sequence: ins (B,T,6,h,w) (colour, depth, motion), jit (B,T,2);
+    the learned TAAU (model.step with `upsampler`) run from frame 0, its linear output back to
+    y (as the engine takes it from the TAAU's output image). -> (B,T,3,f h,f w)."""
+    state, out = None, []
+    with torch.no_grad():
+        for t in range(ins.shape[1]):
+            x = ins[:, t]
+            lin, _, state = M.step(x[:, 0:3], x[:, 3:4], x[:, 4:6], jit[:, t], f, state, model=upsampler)
+            out.append(M.to_y(lin))
+    return torch.stack(out, 1)

@@ -4,7 +4,7 @@ its real-time member `nsrr-rt` (nsrr.NSRRRealTime) on the train clips of make_da
 --families, one network for both factors (f / 4 is an input channel), and writes (NAME:
 upscaler_nsrr, or upscaler_nsrr_rt with --arch rt)
   weights/NAME.kdw              the weights (format v1 of docs/denoiser.md, magic KSTRLNSR,
-                                architecture 5 (nsrr) or 6 (nsrr-rt))
+                                architecture 7 (nsrr) or 9 (nsrr-rt))
   weights/NAME.json             provenance: dataset, command, steps, seed, losses, git revision
   weights/NAME_loss.png
   tests/data/NAME/              a parity fixture: four frames of a held-out clip, both factors,
@@ -13,12 +13,15 @@ upscaler_nsrr, or upscaler_nsrr_rt with --arch rt)
     train_nsrr.py [--arch full|rt] [--data out/upscale_families] [--steps 3000] [--crop 64]
                   [--batch 4] [--lr 1e-3] [--seed 1] [--threads 2]
                   [--checkpoint out/NAME_train.pt] [--fixture-only]
+                  [--history-weights weights/upscaler.kdw] [--init FILE --init-architecture N]
 
 A sample is one output frame and the N = 3 frames before it (fewer at the start of a clip,
 the missing ones absent as at the start of a sequence), its inputs the clean point-sampled
 frames or, for --denoised-fraction of the samples, the same frames rendered at 1 spp and
 denoised (what the real-time loop feeds the upsampler); crops of --crop output pixels,
-horizontal mirroring (motion and jitter mirrored too). Loss: L1 after the evaluation's tone
+horizontal mirroring (motion and jitter mirrored too). The history candidate Hy of every frame
+(nsrr.history_sequence: the learned TAAU of --history-weights, what the engine runs beside the
+network) is computed once per clip and input over the whole frames, then cropped as the target. Loss: L1 after the evaluation's tone
 map (ACES fit + sRGB). Adam, one-cycle schedule. The checkpoint (every 100 steps) makes the run
 resumable: re-running the same command continues it.
 """
@@ -35,7 +38,7 @@ import torch
 
 import model as M
 import nsrr as N
-from train import aces_srgb, jitters, load_clip, write_fixture_inputs
+from train import aces_srgb, jitters, load_clip, load_weights, write_fixture_inputs
 
 sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), ".."))
 import kestrel_nn  # noqa: E402
@@ -43,7 +46,9 @@ from kestrel_nn import write_pfm  # noqa: E402
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 ROOT = os.path.normpath(os.path.join(HERE, "..", ".."))
-ARCHITECTURES = {"full": 5, "rt": 6}  # 1, 2: before the bilinear base; 4, 3: a correction of it
+# 1, 2: before the bilinear base; 4, 3: a correction of it; 5, 6: the blend without the history
+# 8: nsrr-rt with the previous frames' samples at radius 1 (tried, 2026-12-05: 9 ms slower, no better)
+ARCHITECTURES = {"full": 7, "rt": 9}
 NAMES = {"full": "upscaler_nsrr", "rt": "upscaler_nsrr_rt"}
 MAGIC = b"KSTRLNSR"
 FIXTURE_CLIP = "test_gallery_1000"
@@ -58,9 +63,16 @@ def frames_at(ins, jit, t, n_prev):
     return out
 
 
-def write_fixture(model, arch, clip, out_dir, name=FIXTURE_CLIP, frames=4, H=48, W=64):
+def load_history_upsampler(path):
+    up = M.Upsampler()
+    load_weights(up, path)
+    return up.eval()
+
+
+def write_fixture(model, arch, clip, out_dir, upsampler, name=FIXTURE_CLIP, frames=4, H=48, W=64):
     """Frames 0..3 of a crop of a held-out clip, both factors: inputs and the model's outputs
-    (frame t sees frames t, t-1, ..., 0: the start of a sequence)."""
+    (frame t sees frames t, t-1, ..., 0: the start of a sequence; Hy from `upsampler` run over
+    the crop, as the engine's learned TAAU runs beside the network)."""
     os.makedirs(out_dir, exist_ok=True)
     ins, _ = clip
     meta = dict(frames=frames, width=W, height=H, clip=name, jitter=[list(M.jitter_of(t)) for t in range(frames)])
@@ -68,10 +80,11 @@ def write_fixture(model, arch, clip, out_dir, name=FIXTURE_CLIP, frames=4, H=48,
         for f in (2, 4):
             seq = ins[f][:frames, :, : H // f, : W // f][None]
             jit = jitters(frames)[None]
+            hist = N.history_sequence(seq, jit, f, upsampler)
             for t in range(frames):
                 x = seq[:, t]
                 write_fixture_inputs(x, out_dir, f, t)
-                lin, _ = model(frames_at(seq, jit, t, min(t, model.frames)), f)
+                lin, _ = model(frames_at(seq, jit, t, min(t, model.frames)), f, hist[:, t])
                 write_pfm(os.path.join(out_dir, f"x{f}_out_{t}.pfm"), lin[0].numpy().transpose(1, 2, 0))
     json.dump(meta, open(os.path.join(out_dir, "fixture.json"), "w"), indent=1)
     kestrel_nn.export_kdw(model, os.path.join(out_dir, "weights.kdw"), MAGIC, arch)
@@ -92,7 +105,11 @@ def main():
     ap.add_argument("--fixture-only", action="store_true", help="only write the fixture of --weights")
     ap.add_argument("--fixture-clip", default=FIXTURE_CLIP)
     ap.add_argument("--init-only", action="store_true", help="write --weights at the seed's initialisation")
+    ap.add_argument("--init", default="", help="start from these weights (an older architecture's: kestrel_nn.load_kdw partial)")
+    ap.add_argument("--init-architecture", type=int, default=0, help="the architecture of --init")
     ap.add_argument("--weights", default="", help="default weights/NAME.kdw")
+    ap.add_argument("--history-weights", default=os.path.join(ROOT, "weights", "upscaler.kdw"),
+                    help="the learned TAAU whose output is the history candidate (the engine's default)")
     ap.add_argument("--bf16", action="store_true", help="train under bf16 autocast (about twice as fast on AMX/AVX-512 bf16)")
     ap.add_argument("--arch", default="full", choices=sorted(ARCHITECTURES),
                     help="full: nsrr (Xiao et al.'s network); rt: nsrr-rt, the real-time member")
@@ -117,9 +134,13 @@ def main():
         return
     if args.fixture_only:
         kestrel_nn.load_kdw(model, args.weights, MAGIC, ARCHITECTURE)
-        write_fixture(model, ARCHITECTURE, load_clip(args.data, args.fixture_clip, 4), fixture_dir, args.fixture_clip)
+        write_fixture(model, ARCHITECTURE, load_clip(args.data, args.fixture_clip, 4), fixture_dir,
+                      load_history_upsampler(args.history_weights), args.fixture_clip)
         print(f"wrote {fixture_dir}")
         return
+    if args.init:
+        kestrel_nn.load_kdw(model, args.init, MAGIC, args.init_architecture, partial=True)
+        print(f"started from {args.init} (architecture {args.init_architecture})", flush=True)
     names = sorted(n for n, c in manifest["clips"].items() if c["split"] == "train")
     clips = [load_clip(args.data, n, manifest["clips"][n]["frames"]) for n in names]
     # The same frames at 1 spp through the denoiser (make_dataset.py --denoised), the same targets.
@@ -129,6 +150,14 @@ def main():
         sys.exit(f"{args.data}: no denoised inputs (make_dataset.py --denoised); pass --denoised-fraction 0")
     # The depth scale of every frame, from the whole frame (what inference sees).
     scales = [{f: N.depth_scale(ins[f][:, 3:4]) for f in (2, 4)} for ins, _ in clips]
+    # Hy of every frame, clean and denoised inputs (the learned TAAU over the whole clip).
+    upsampler = load_history_upsampler(args.history_weights)
+    t_hist = time.time()
+    hist = [{f: N.history_sequence(ins[f][None], jitters(ins[f].shape[0])[None], f, upsampler)[0] for f in (2, 4)}
+            for ins, _ in clips]
+    hist_dn = [{f: N.history_sequence(d[f][None], jitters(d[f].shape[0])[None], f, upsampler)[0] for f in (2, 4)}
+               if d is not None else None for d in denoised]
+    print(f"history candidates of {len(clips)} clips in {time.time() - t_hist:.0f} s", flush=True)
     print(f"{len(clips)} training clips: {', '.join(names)}", flush=True)
     params = sum(p.numel() for p in model.parameters())
     print(f"{params} parameters", flush=True)
@@ -148,12 +177,13 @@ def main():
         f = 2 if step % 2 == 0 else 4
         # Fewer than N previous frames in 1 batch of 8: the start of a sequence.
         n_prev = rng.randint(0, model.frames - 1) if rng.random() < 0.125 else model.frames
-        seqs, refs, jits, ss = [], [], [], []
+        seqs, refs, jits, ss, hs = [], [], [], [], []
         for _ in range(args.batch):
             k = rng.randrange(len(clips))
             ins, ref = clips[k]
+            hk = hist[k]
             if denoised[k] is not None and rng.random() < args.denoised_fraction:
-                ins = denoised[k]
+                ins, hk = denoised[k], hist_dn[k]
             T, _, Hf, Wf = ref.shape
             t = rng.randint(n_prev, T - 1)
             cx = rng.randrange(0, (Wf - c) // 4 + 1) * 4
@@ -161,16 +191,18 @@ def main():
             lx, ly, lc = cx // f, cy // f, c // f
             seq = ins[f][t - n_prev:t + 1, :, ly:ly + lc, lx:lx + lc]
             r = ref[t, :, cy:cy + c, cx:cx + c]
+            hy = hk[f][t, :, cy:cy + c, cx:cx + c]
             jit = jitters(n_prev + 1, t - n_prev)
             if rng.random() < 0.5:  # mirror: flips the horizontal motion and the jitter
                 seq = torch.flip(seq, [3]).clone()
                 seq[:, 4] = -seq[:, 4]
                 r = torch.flip(r, [2])
+                hy = torch.flip(hy, [2])
                 jit[:, 0] = 1.0 - jit[:, 0]
-            seqs.append(seq), refs.append(r), jits.append(jit), ss.append(scales[k][f][t])
-        seq, ref, jit, s = torch.stack(seqs), torch.stack(refs), torch.stack(jits), torch.stack(ss)
+            seqs.append(seq), refs.append(r), jits.append(jit), ss.append(scales[k][f][t]), hs.append(hy)
+        seq, ref, jit, s, hy = torch.stack(seqs), torch.stack(refs), torch.stack(jits), torch.stack(ss), torch.stack(hs)
         with torch.autocast("cpu", dtype=torch.bfloat16, enabled=args.bf16):
-            lin, _ = model(frames_at(seq, jit, n_prev, n_prev), f, scale=s)
+            lin, _ = model(frames_at(seq, jit, n_prev, n_prev), f, hy, scale=s)
         lin = lin.float()
         m = 4
         loss = torch.mean(torch.abs(aces_srgb(lin) - aces_srgb(ref))[:, :, m:-m, m:-m])
@@ -196,9 +228,13 @@ def main():
                  f"(scripts/upscale/nsrr.py {type(model).__name__}; after Xiao et al. 2020)"),
         parameters=params,
         dataset=os.path.relpath(args.data, ROOT),
+        history=dict(weights=os.path.relpath(args.history_weights, ROOT),
+                     fnv1a=f"{kestrel_nn.fnv1a(open(args.history_weights, 'rb').read()):016x}"),
         dataset_commands=manifest.get("commands", {}),
         clips=names,
         command="python3 scripts/upscale/train_nsrr.py " + " ".join(sys.argv[1:]),
+        init=dict(weights=args.init, architecture=args.init_architecture,
+                  fnv1a=f"{kestrel_nn.fnv1a(open(args.init, 'rb').read()):016x}") if args.init else None,
         loss="L1 after ACES fit + sRGB", denoised_fraction=args.denoised_fraction, steps=args.steps, crop=args.crop, batch=args.batch, lr=args.lr, seed=args.seed,
         final_l1_x2=float(np.mean([h[2] for h in tail if h[1] == 2])),
         final_l1_x4=float(np.mean([h[2] for h in tail if h[1] == 4])),
@@ -208,7 +244,7 @@ def main():
     json.dump(prov, open(os.path.splitext(args.weights)[0] + ".json", "w"), indent=1)
     kestrel_nn.plot_loss(history, os.path.splitext(args.weights)[0] + "_loss.png", 25)
     if FIXTURE_CLIP in manifest["clips"]:
-        write_fixture(model, ARCHITECTURE, load_clip(args.data, FIXTURE_CLIP, 4), fixture_dir)
+        write_fixture(model, ARCHITECTURE, load_clip(args.data, FIXTURE_CLIP, 4), fixture_dir, upsampler)
     print(f"wrote {args.weights}")
 
 

@@ -25,10 +25,12 @@ using tag = memory::format_tag;
 using dt = memory::data_type;
 
 constexpr int kPrevious = 3, kFeatures = 12, kExtractIn = 4;
-constexpr int kUnetIn = kFeatures * (kPrevious + 1) + 1, kReweightIn = 4 * (kPrevious + 1);
+// The U-Net's input: the window's features, f / 4, the history's y.
+constexpr int kUnetIn = kFeatures * (kPrevious + 1) + 1 + 3, kReweightIn = 4 * (kPrevious + 1);
 constexpr int kKernel = blend_logits(kPrevious);
-// 1: before the bilinear base; 4: a correction of the bilinear base instead of the blend.
-constexpr uint32_t kArchitecture = 5;
+// 1: before the bilinear base; 4: a correction of the bilinear base instead of the blend; 5:
+// the blend without the history candidate.
+constexpr uint32_t kArchitecture = 7;
 static_assert(kPrevious + 1 <= kBlendMaxFrames);
 
 // The tensors of weights/upscaler_nsrr.kdw, in order (nsrr.NSRR's named_parameters).
@@ -44,7 +46,8 @@ const std::vector<nn::LayerSpec> kSpecs = {
 class Full final : public Member {
  public:
   Full(const std::string& weights, int factor, bool bf16);
-  void run(const UpscaleInput& in, FloatImage& out, Upscaler::Times& times) override;
+  void run(const UpscaleInput& in, const FloatImage& history, FloatImage& out,
+           Upscaler::Times& times) override;
 
  private:
   // Built per input size.
@@ -119,7 +122,8 @@ void Full::frame_features(float s) {
   }
 }
 
-void Full::run(const UpscaleInput& in, FloatImage& out, Upscaler::Times& times) {
+void Full::run(const UpscaleInput& in, const FloatImage& history, FloatImage& out,
+               Upscaler::Times& times) {
   Timer timer;
   try {
     if (in.color->width != w || in.color->height != h) {
@@ -134,6 +138,7 @@ void Full::run(const UpscaleInput& in, FloatImage& out, Upscaler::Times& times) 
   try {
     frame_features(s);
     window.warp(f, W, H, kPrevious, src);
+    history_y(history);
     // The reweighting network's input: [Z_0[:4], W_1[:4], ..., W_N[:4]].
     const std::vector<int32_t>& cur = window[0].sample_at;
     float* ri = static_cast<float*>(reweight_in.get_data_handle());
@@ -153,7 +158,7 @@ void Full::run(const UpscaleInput& in, FloatImage& out, Upscaler::Times& times) 
     Timer net_timer;
     reweight.run(dnn.strm);
     dnn.strm.wait();
-    // The U-Net's input: [Z_0, w_1 W_1, ..., w_N W_N, f / 4], zero padding to Wp x Hp.
+    // The U-Net's input: [Z_0, w_1 W_1, ..., w_N W_N, f / 4, Hy], zero padding to Wp x Hp.
     const float* rw = static_cast<const float*>(reweight_out.get_data_handle());
     float* ui = static_cast<float*>(unet_in.get_data_handle());
     const size_t Np = size_t(Wp) * size_t(Hp);
@@ -173,7 +178,9 @@ void Full::run(const UpscaleInput& in, FloatImage& out, Upscaler::Times& times) 
             for (size_t c = 0; c < size_t(kFeatures); ++c)
               ui[(k * kFeatures + c) * Np + qp] = ik >= 0 ? wk * fk[c * n + size_t(ik)] : 0.0f;
           }
-          ui[size_t(kUnetIn - 1) * Np + qp] = inside ? float(f) / 4.0f : 0.0f;
+          ui[size_t(kUnetIn - 4) * Np + qp] = inside ? float(f) / 4.0f : 0.0f;
+          for (size_t c = 0; c < 3; ++c)
+            ui[(size_t(kUnetIn - 3) + c) * Np + qp] = inside ? hist[c * N + q] : 0.0f;
         }
     });
     unet.run(dnn.strm);
@@ -187,10 +194,11 @@ void Full::run(const UpscaleInput& in, FloatImage& out, Upscaler::Times& times) 
   const size_t Np = size_t(Wp) * size_t(Hp);
   // The blend of the candidates by the U-Net's logits (its output padded to Wp x Hp).
   base.build(window[0], f, W);
-  blend.run(base, window, src, kPrevious, W, H, out, [&](size_t Y, float* l) {
-    for (size_t c = 0; c < size_t(kKernel); ++c)
-      std::copy_n(uo + c * Np + Y * size_t(Wp), size_t(W), l + c * size_t(W));
-  });
+  blend.run(base, hist.data(), window, src, kPrevious, kBlendRadius, W, H, out,
+            [&](size_t Y, float* l) {
+              for (size_t c = 0; c < size_t(kKernel); ++c)
+                std::copy_n(uo + c * Np + Y * size_t(Wp), size_t(W), l + c * size_t(W));
+            });
   times.reconstruct = out_timer.ms();
 }
 

@@ -25,30 +25,33 @@ static void zero_upsample_rows(const ZeroUpArgs& a, int r0, int r1) {
 }
 
 // One output row of the blend: the softmax of the logits over the candidates present (the
-// base, and every frame's samples in the (2 r + 1)^2 pixels around each output pixel), their
-// y so weighted, clamped to [0, kBlendYMax] and back to linear colour (as model.from_y).
+// base, every frame's samples in the (2 r_k + 1)^2 pixels around each output pixel, and the
+// history), their y so weighted, clamped to [0, kBlendYMax] and back to linear colour (as
+// model.from_y).
 static void blend_row(const BlendArgs& a) {
-  const int d = 2 * a.r + 1;
   const size_t W = size_t(a.W), Wz = W + 2 * size_t(a.r);
   const size_t plane = Wz * (size_t(a.H) + 2 * size_t(a.r));
   for_lanes(a.W, [&](auto t, int X) {
     using T = decltype(t);
-    // The largest logit present (the base always is).
+    // The largest logit present (the base and the history always are).
     T m = ld<T>(a.logits + X);
     size_t c = 1;
     for (int k = 0; k < a.frames; ++k) {
+      const int rk = a.rk[k];
       if (!a.z[k]) {
-        c += size_t(d * d);
+        c += size_t((2 * rk + 1) * (2 * rk + 1));
         continue;
       }
-      for (int dy = -a.r; dy <= a.r; ++dy) {
+      for (int dy = -rk; dy <= rk; ++dy) {
         const float* p = a.z[k] + 3 * plane + size_t(a.Y + a.r + dy) * Wz + size_t(a.r + X);
-        for (int dx = -a.r; dx <= a.r; ++dx, ++c) {
+        for (int dx = -rk; dx <= rk; ++dx, ++c) {
           const T l = ld<T>(a.logits + c * W + size_t(X));
           m = ld<T>(p + dx) > 0.0f ? vmax(m, l) : m;
         }
       }
     }
+    const T lh = ld<T>(a.logits + c * W + size_t(X));  // the history's, the last
+    m = vmax(m, lh);
     // The base, bilinear: the columns' indices span a few samples (one load and a permute).
     using I = lanes_int<T>;
     const I i0 = ldi<I>(a.i0 + X), i1 = ldi<I>(a.i1 + X);
@@ -63,16 +66,21 @@ static void blend_row(const BlendArgs& a) {
       base[ch] = top + a.ty * (bot - top);
     }
     const T e0 = vexp2((ld<T>(a.logits + X) - m) * kLog2e);
-    T s = e0, y0 = e0 * base[0], y1 = e0 * base[1], y2 = e0 * base[2];
+    const T eh = vexp2((lh - m) * kLog2e);
+    const float* h = a.hist + X;
+    T s = e0 + eh, y0 = e0 * base[0] + eh * ld<T>(h),
+      y1 = e0 * base[1] + eh * ld<T>(h + a.hist_plane),
+      y2 = e0 * base[2] + eh * ld<T>(h + 2 * a.hist_plane);
     c = 1;
     for (int k = 0; k < a.frames; ++k) {
+      const int rk = a.rk[k];
       if (!a.z[k]) {
-        c += size_t(d * d);
+        c += size_t((2 * rk + 1) * (2 * rk + 1));
         continue;
       }
-      for (int dy = -a.r; dy <= a.r; ++dy) {
+      for (int dy = -rk; dy <= rk; ++dy) {
         const float* p = a.z[k] + size_t(a.Y + a.r + dy) * Wz + size_t(a.r + X);
-        for (int dx = -a.r; dx <= a.r; ++dx, ++c) {
+        for (int dx = -rk; dx <= rk; ++dx, ++c) {
           const T l = ld<T>(a.logits + c * W + size_t(X));
           T e = vexp2((l - m) * kLog2e);
           e = ld<T>(p + 3 * plane + dx) > 0.0f ? e : T{};

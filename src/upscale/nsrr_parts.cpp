@@ -98,6 +98,7 @@ template <typename T>
 void grid_rows(const GridFill& a, T* grid, size_t gy0, size_t gy1) {
   constexpr size_t kC = size_t(GridFill::kChannels), kX = size_t(GridFill::kX);
   const float zero[GridFill::kX] = {0.0f, 0.0f, 0.0f, 0.0f};
+  const size_t N = size_t(a.W) * size_t(a.H);
   for (size_t gy = gy0; gy < gy1; ++gy)
     for (size_t r = 0; r < 4; ++r) {
       const size_t Y = 4 * gy + r;
@@ -111,6 +112,9 @@ void grid_rows(const GridFill& a, T* grid, size_t gy0, size_t gy1) {
           T* g = grid + cell + kX * k * 16 + sub;
           for (size_t c = 0; c < kX; ++c) store(g[16 * c], x[c]);
         }
+        for (size_t c = 0; c < 3; ++c)
+          store(grid[cell + size_t(GridFill::kHistory) + 16 * c + sub],
+                inside ? a.hist[c * N + q] : 0.0f);
         if (sub == 0) store(grid[cell + kC - 1], a.last);
       }
     }
@@ -150,6 +154,20 @@ void Window::warp(int f, int W, int H, int previous, std::vector<int32_t>& src) 
                         float(f), 1.0f / float(f)};
         warp_row(a, pos.data(), src.data() + (k - 1) * N + Y * size_t(W));
       }
+    }
+  });
+}
+
+void Member::history_y(const FloatImage& history) {
+  const size_t N = size_t(history.width) * size_t(history.height);
+  hist.resize(3 * N);
+  parallel_for(0, N, 4096, [&](size_t q0, size_t q1) {
+    for (size_t q = q0; q < q1; ++q) {
+      float c[3];
+      for (size_t k = 0; k < 3; ++k)
+        c[k] = std::max(finite_or_zero(history.pixels[3 * q + k]), 0.0f);
+      const float s = 1.0f / (1.0f + luma(c));
+      for (size_t k = 0; k < 3; ++k) hist[k * N + q] = c[k] * s;
     }
   });
 }

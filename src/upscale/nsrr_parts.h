@@ -27,11 +27,13 @@ using nn::Dnn;
 using nn::Net;
 
 constexpr float kReweightMax = 10.0f;
-/// The blend's candidates (nsrr.KERNEL_RADIUS): every frame's samples in the (2 r + 1)^2 output
-/// pixels around a pixel; a member of `previous` frames predicts blend_logits(previous) per pixel.
+/// The blend's candidates (nsrr.blend_logits): the base, every frame's samples in the (2 r + 1)^2
+/// output pixels around a pixel (r = kBlendRadius for the current frame, `previous_radius` <=
+/// kBlendRadius for the `previous` others), and the history.
 constexpr int kBlendRadius = 1;
-constexpr int blend_logits(int previous) {
-  return 1 + (2 * kBlendRadius + 1) * (2 * kBlendRadius + 1) * (previous + 1);
+constexpr int blend_logits(int previous, int previous_radius = kBlendRadius) {
+  return 2 + (2 * kBlendRadius + 1) * (2 * kBlendRadius + 1) +
+         previous * (2 * previous_radius + 1) * (2 * previous_radius + 1);
 }
 constexpr char kMagic[9] = "KSTRLNSR";
 
@@ -105,19 +107,22 @@ class BilinearBase {
 };
 
 /// The kernel-predicting reconstruction both members end with (nsrr.blend), into the output
-/// frame (W x H, linear RGB). row_logits(Y, l) writes output row Y's K = blend_logits(previous)
-/// = 1 + (2 r + 1)^2 (previous + 1) logits (r = kBlendRadius), planar (logit c of pixel X at l[c W
-/// + X]): c = 0 weighs `base`, c = 1 + k (2 r + 1)^2 + (dy + r)(2 r + 1) + dx + r the y of frame
-/// t-k's sample at output pixel (X + dx, Y + dy) (frame 0's sample_at, then the warp's src), a
-/// candidate where that pixel is on the image and holds a sample. The output is the softmax over
-/// the candidates of their y, a convex combination, back from y. `base` must be built for this
-/// frame; its planes holds the frames' zero-upsampled samples (reconstruct.h: ZeroUpArgs), kept
-/// between frames. The per-pixel loops are reconstruct.h's kernels of default_isa().
+/// frame (W x H, linear RGB). row_logits(Y, l) writes output row Y's K = blend_logits(previous,
+/// previous_radius) logits, planar (logit c of pixel X at l[c W + X]): c = 0 weighs `base`,
+/// then per frame t-k in order the y of its samples at output pixels (X + dx, Y + dy), |dx|,
+/// |dy| <= r_k (kBlendRadius for the current frame, previous_radius for the others), row by
+/// row (frame 0's sample_at, then the warp's src), a candidate where that pixel is on the image
+/// and holds a sample; c = K - 1 the history (`hist`: its y, 3 planes of W x H).
+/// The output is the softmax over the candidates of their y, a convex combination, back from
+/// y. `base` must be built for this frame; its planes hold the frames' zero-upsampled samples
+/// (reconstruct.h: ZeroUpArgs), kept between frames. The per-pixel loops are reconstruct.h's
+/// kernels of default_isa().
 class Blend {
  public:
   template <class RowLogits>
-  void run(const BilinearBase& base, const Window& window, const std::vector<int32_t>& src,
-           int previous, int W, int H, FloatImage& out, RowLogits&& row_logits) {
+  void run(const BilinearBase& base, const float* hist, const Window& window,
+           const std::vector<int32_t>& src, int previous, int previous_radius, int W, int H,
+           FloatImage& out, RowLogits&& row_logits) {
     constexpr int r = kBlendRadius;
     const int frames = std::min(int(window.size()), previous + 1);
     const size_t N = size_t(W) * size_t(H), n = size_t(window[0].w) * size_t(window[0].h);
@@ -141,8 +146,9 @@ class Blend {
                    [&](size_t r0, size_t r1) { kern.zero_upsample(z, int(r0), int(r1)); });
       b.z[k] = z.z;
     }
-    b.W = W, b.H = H, b.r = r, b.frames = previous + 1;
-    const size_t K = size_t(blend_logits(previous));
+    b.W = W, b.H = H, b.r = r, b.frames = previous + 1, b.hist_plane = N;
+    for (int k = 0; k <= previous; ++k) b.rk[k] = k == 0 ? r : previous_radius;
+    const size_t K = size_t(blend_logits(previous, previous_radius));
     out.width = W, out.height = H, out.channels = 3;
     out.pixels.resize(3 * N);
     parallel_for(0, size_t(H), 8, [&](size_t r0, size_t r1) {
@@ -152,6 +158,7 @@ class Blend {
       for (size_t Y = r0; Y < r1; ++Y) {
         row_logits(Y, l.data());
         base.set(a, Y);
+        a.hist = hist + Y * size_t(W);
         a.Y = int(Y), a.out = &out.pixels[3 * Y * size_t(W)];
         kern.blend_row(a);
       }
@@ -164,7 +171,7 @@ class Blend {
 };
 
 /// What both members hold: their layers (loaded and checked from the weights file), the oneDNN
-/// engine, the window of frames and the bilinear base.
+/// engine, the window of frames, the bilinear base and the history's y.
 class Member : public NsrrNetwork {
  public:
   void reset() override { window.clear(); }
@@ -187,6 +194,10 @@ class Member : public NsrrNetwork {
   Window window;  // [current, previous, ...]
   BilinearBase base;
   Blend blend;
+  std::vector<float> hist;  // the history's y (nsrr.history_sequence): 3 planes of W x H
+
+  /// hist from the learned TAAU's output (linear, channels last), cleaned as a frame's colour.
+  void history_y(const FloatImage& history);
 
  private:
   size_t parameters_ = 0;

@@ -4,9 +4,10 @@
 // nsrr does, with N = 2 previous frames and a frame's x = [y, d(z)] as its features; the
 // reweighting and reconstruction networks run on cells of 4 x 4 output pixels (the cell's
 // pixels folded into channels, pixel_unshuffle / pixel_shuffle order), a quarter of the
-// output resolution at either factor; their output is the logits of the blend of the current
-// frame's bilinear upsampling and the aligned samples around each output pixel (nsrr_parts.h:
-// Blend). The warp and grid loops are nsrr_warp.h's, scalar or AVX-512.
+// output resolution at either factor, and see the learned TAAU's output (the history) too;
+// their output is the logits of the blend of the current frame's bilinear upsampling, the
+// history, the current frame's samples around each output pixel and the previous frames' at it
+// (nsrr_parts.h: Blend). The warp and grid loops are nsrr_warp.h's, scalar or AVX-512.
 #include <fmt/format.h>
 
 #include <algorithm>
@@ -29,10 +30,15 @@ using tag = memory::format_tag;
 using dt = memory::data_type;
 
 constexpr int kPrevious = 2, kCell = 4, kCells = kCell * kCell, kX = 4;
-constexpr int kIn = kX * kCells * (kPrevious + 1) + 1;
-constexpr int kKernel = blend_logits(kPrevious);
-// 2: before the bilinear base; 3: a correction of the bilinear base instead of the blend.
-constexpr uint32_t kArchitecture = 6;
+// The grid's channels: the window's x, the history's y (3 per cell pixel), f / 4.
+constexpr int kIn = kX * kCells * (kPrevious + 1) + 3 * kCells + 1;
+// The blend takes the previous frames' samples at the output pixel only (nsrr.RT_PREVIOUS_RADIUS).
+constexpr int kPreviousRadius = 0;
+constexpr int kKernel = blend_logits(kPrevious, kPreviousRadius);
+// 2: before the bilinear base; 3: a correction of the bilinear base instead of the blend; 6:
+// the blend without the history candidate; 8: the previous frames' samples at radius 1 (as
+// nsrr's: 9 ms slower per 1280 x 720 output, no better).
+constexpr uint32_t kArchitecture = 9;
 static_assert(kPrevious + 1 <= kBlendMaxFrames);
 static_assert(kIn == GridFill::kChannels && kPrevious + 1 == GridFill::kFrames &&
               kX == GridFill::kX);
@@ -50,7 +56,8 @@ const std::vector<nn::LayerSpec> kSpecs = {{"r1", 16, kIn, 1},
 class RealTime final : public Member {
  public:
   RealTime(const std::string& weights, int factor, bool bf16);
-  void run(const UpscaleInput& in, FloatImage& out, Upscaler::Times& times) override;
+  void run(const UpscaleInput& in, const FloatImage& history, FloatImage& out,
+           Upscaler::Times& times) override;
 
  private:
   // Built per input size: the output padded to multiples of 8 (two cells, for the pooling),
@@ -87,7 +94,7 @@ void RealTime::fill_grid(float depth_scale) {
   a.frames = int(std::min(window.size(), size_t(kPrevious) + 1));
   a.at[0] = window[0].sample_at.data();
   for (size_t k = 1; k < size_t(a.frames); ++k) a.at[k] = src.data() + (k - 1) * N;
-  a.packed = packed.data(), a.n = n, a.W = W, a.H = H, a.Gw = Gw;
+  a.packed = packed.data(), a.n = n, a.hist = hist.data(), a.W = W, a.H = H, a.Gw = Gw;
   a.last = float(f) / 4.0f;
   a.bf16 = dnn.bf16, a.grid = grid_in.get_data_handle();
   const GridRowsFn rows = grid_rows_for(default_isa());
@@ -135,7 +142,8 @@ void RealTime::build(int w_, int h_) {
   out_grid = conv(reconstruct, d, c5, false, true, nullptr, tag::nhwc);
 }
 
-void RealTime::run(const UpscaleInput& in, FloatImage& out, Upscaler::Times& times) {
+void RealTime::run(const UpscaleInput& in, const FloatImage& history, FloatImage& out,
+                   Upscaler::Times& times) {
   Timer timer;
   try {
     if (in.color->width != w || in.color->height != h) {
@@ -147,6 +155,7 @@ void RealTime::run(const UpscaleInput& in, FloatImage& out, Upscaler::Times& tim
   }
   const float s = window.push(in, f, kPrevious);
   window.warp(f, W, H, kPrevious, src);
+  history_y(history);
   fill_grid(s);
   times.features = timer.ms();
   Timer net_timer;
@@ -168,21 +177,23 @@ void RealTime::run(const UpscaleInput& in, FloatImage& out, Upscaler::Times& tim
   // The blend of the candidates by the networks' logits (cell (X / 4, Y / 4), pixel_shuffle
   // order).
   base.build(window[0], f, W);
-  blend.run(base, window, src, kPrevious, W, H, out, [&](size_t Y, float* l) {
-    // A cell's 4 pixels on row Y are 4 consecutive channels of each logit's 16.
-    const float* row =
-        o + (Y / kCell) * size_t(Gw) * size_t(kKernel * kCells) + (Y % kCell) * kCell;
-    for (size_t X = 0; X < size_t(W); X += kCell) {
-      const float* oc = row + (X / kCell) * size_t(kKernel * kCells);
-      if (X + kCell <= size_t(W)) {
-        for (size_t c = 0; c < size_t(kKernel); ++c)
-          std::memcpy(l + c * size_t(W) + X, oc + c * kCells, kCell * sizeof(float));
-      } else {
-        for (size_t c = 0; c < size_t(kKernel); ++c)
-          for (size_t j = 0; X + j < size_t(W); ++j) l[c * size_t(W) + X + j] = oc[c * kCells + j];
-      }
-    }
-  });
+  blend.run(base, hist.data(), window, src, kPrevious, kPreviousRadius, W, H, out,
+            [&](size_t Y, float* l) {
+              // A cell's 4 pixels on row Y are 4 consecutive channels of each logit's 16.
+              const float* row =
+                  o + (Y / kCell) * size_t(Gw) * size_t(kKernel * kCells) + (Y % kCell) * kCell;
+              for (size_t X = 0; X < size_t(W); X += kCell) {
+                const float* oc = row + (X / kCell) * size_t(kKernel * kCells);
+                if (X + kCell <= size_t(W)) {
+                  for (size_t c = 0; c < size_t(kKernel); ++c)
+                    std::memcpy(l + c * size_t(W) + X, oc + c * kCells, kCell * sizeof(float));
+                } else {
+                  for (size_t c = 0; c < size_t(kKernel); ++c)
+                    for (size_t j = 0; X + j < size_t(W); ++j)
+                      l[c * size_t(W) + X + j] = oc[c * kCells + j];
+                }
+              }
+            });
   times.reconstruct = out_timer.ms();
 }
 

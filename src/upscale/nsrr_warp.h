@@ -56,13 +56,16 @@ WarpRowFn warp_row_for(Isa isa);
 
 /// nsrr-rt's input grid (channels last, cells of 4 x 4 output pixels): channel (4 k + c) 16 +
 /// sub of cell (gx, gy) is x[c] = [y, d(z)][c] of frame t-k at output pixel (4 gx + sub % 4,
-/// 4 gy + sub / 4), 0 where that pixel holds no sample; the last channel `last`.
+/// 4 gy + sub / 4), 0 where that pixel holds no sample; channel kHistory + 16 c + sub the
+/// history's y[c] there (0 off the image); the last channel `last`.
 struct GridFill {
-  static constexpr int kFrames = 3, kX = 4, kChannels = kFrames * kX * 16 + 1;
+  static constexpr int kFrames = 3, kX = 4, kHistory = kFrames * kX * 16;
+  static constexpr int kChannels = kHistory + 3 * 16 + 1;
   const int32_t* at[kFrames];  // per frame: output pixel -> low-res pixel, -1
   int frames;                  // frames in the window (the rest read as no sample)
   const float* packed;         // frame k's x of low-res pixel i at packed[4 (k n + i)]
   size_t n;                    // low-res pixels per frame
+  const float* hist;           // the history's y: 3 planes of W x H
   int W, H, Gw;
   float last;
   bool bf16;   // grid elements bf16 (uint16_t, round to nearest even) or float

@@ -72,6 +72,19 @@ void grid_rows_avx512(const GridFill& a, size_t gy0, size_t gy1) {
   constexpr int kC = GridFill::kChannels, kX = GridFill::kX;
   const __m512i none = _mm512_set1_epi32(-1), izero = _mm512_setzero_si512(),
                 round = _mm512_set1_epi32(0x7FFF), lsb = _mm512_set1_epi32(1);
+  const size_t N = size_t(a.W) * size_t(a.H);
+  // 16 channels at element `at` of the grid, bf16 (round to nearest even) or float.
+  auto put = [&](size_t at, __m512 v) {
+    if (a.bf16) {
+      const __m512i u = _mm512_castps_si512(v);
+      const __m512i rr = _mm512_add_epi32(
+          u, _mm512_add_epi32(round, _mm512_and_si512(_mm512_srli_epi32(u, 16), lsb)));
+      _mm256_storeu_si256(reinterpret_cast<__m256i*>(static_cast<uint16_t*>(a.grid) + at),
+                          _mm512_cvtepi32_epi16(_mm512_srli_epi32(rr, 16)));
+    } else {
+      _mm512_storeu_ps(static_cast<float*>(a.grid) + at, v);
+    }
+  };
   for (size_t gy = gy0; gy < gy1; ++gy)
     for (size_t gx = 0; gx < size_t(a.Gw); ++gx) {
       const size_t cell = (gy * size_t(a.Gw) + gx) * size_t(kC);
@@ -109,19 +122,31 @@ void grid_rows_avx512(const GridFill& a, size_t gy0, size_t gy1) {
           const float* x = base + size_t(kX) * size_t(lane_index[lane]);
           for (int c = 0; c < kX; ++c) block[c][lane] = x[c];
         }
-        for (int c = 0; c < kX; ++c) {
-          const __m512 v = _mm512_load_ps(block[c]);
-          const size_t at = cell + size_t((kX * k + c) * 16);
-          if (a.bf16) {
-            const __m512i u = _mm512_castps_si512(v);
-            const __m512i rr = _mm512_add_epi32(
-                u, _mm512_add_epi32(round, _mm512_and_si512(_mm512_srli_epi32(u, 16), lsb)));
-            _mm256_storeu_si256(reinterpret_cast<__m256i*>(static_cast<uint16_t*>(a.grid) + at),
-                                _mm512_cvtepi32_epi16(_mm512_srli_epi32(rr, 16)));
-          } else {
-            _mm512_storeu_ps(static_cast<float*>(a.grid) + at, v);
+        for (int c = 0; c < kX; ++c)
+          put(cell + size_t((kX * k + c) * 16), _mm512_load_ps(block[c]));
+      }
+      // The history's y: a cell's 16 pixels are four row loads per channel.
+      for (size_t c = 0; c < 3; ++c) {
+        __m512 v = _mm512_setzero_ps();
+        for (int r = 0; r < rows; ++r) {
+          const __m128 x =
+              _mm_maskz_loadu_ps(cm, a.hist + c * N + size_t(Y0 + r) * size_t(a.W) + size_t(X0));
+          switch (r) {
+            case 0:
+              v = _mm512_insertf32x4(v, x, 0);
+              break;
+            case 1:
+              v = _mm512_insertf32x4(v, x, 1);
+              break;
+            case 2:
+              v = _mm512_insertf32x4(v, x, 2);
+              break;
+            default:
+              v = _mm512_insertf32x4(v, x, 3);
+              break;
           }
         }
+        put(cell + size_t(GridFill::kHistory) + 16 * c, v);
       }
       if (a.bf16)
         static_cast<uint16_t*>(a.grid)[cell + kC - 1] = float_to_bf16(a.last);

@@ -96,15 +96,18 @@ struct ZeroUpArgs {
   float* z;  // the four planes, each (W + 2 r) (H + 2 r)
   int W, H, r;
 };
-// One output row Y: K = 1 + (2 r + 1)^2 frames logits per pixel, planar (logit c of pixel X
-// at logits[c W + X]): c = 0 weighs the base, c = 1 + k (2 r + 1)^2 + (dy + r)(2 r + 1) + dx + r
-// frame k's sample at (X + dx, Y + dy).
+// One output row Y: K = 2 + sum over frames of (2 r_k + 1)^2 logits per pixel (r_k <= r, the
+// border), planar (logit c of pixel X at logits[c W + X]): c = 0 weighs the base, then per frame
+// k in order its samples at (X + dx, Y + dy), |dx|, |dy| <= r_k, row by row, and c = K - 1 the
+// history (the row's y, 3 planes of W at hist[c hist_plane]).
 // The base (nsrr.bilinear_base) is the current frame's y (3 planes of n, padded by kMaxLanes)
 // at rows j0, j1 (offsets, weight ty of j1) and columns i0[X], i1[X] (non-decreasing, weight
 // tx[X] of i1).
 struct BlendArgs {
   const float* z[kBlendMaxFrames];  // per frame of the window (ZeroUpArgs::z), null: none
   const float* logits;
+  const float* hist;  // the history's y at row Y (its 3 planes hist_plane apart)
+  size_t hist_plane;
   const float* y;  // the base's frame
   size_t n, j0, j1;
   float ty;
@@ -112,6 +115,7 @@ struct BlendArgs {
   const float* tx;
   float* out;  // W x 3: the row's linear colour
   int W, H, r, frames, Y;
+  int rk[kBlendMaxFrames];  // per frame: the radius of its candidates, <= r
 };
 
 // The upsampler's per-pixel stages for one instruction set, each over rows [r0, r1).

@@ -188,6 +188,9 @@ struct Upscaler::Impl {
   Axis ax, ay;
   GridAxis gx, gy;
   std::unique_ptr<upscale::NsrrNetwork> nsrr;
+  // nsrr, nsrr-rt: the learned TAAU run beside the network, its output the blend's history.
+  std::unique_ptr<Upscaler> history;
+  FloatImage history_out;
 
   void prepare(const UpscaleInput& in, const upscale::UpscaleKernels& k);
   void spatial(const UpscaleInput& in, FloatImage& out, bool cubic);
@@ -205,7 +208,9 @@ Upscaler::Upscaler(const UpscalerOptions& options) : impl_(std::make_unique<Impl
     impl_->nsrr = options.method == UpscaleMethod::nsrr
                       ? upscale::make_nsrr(path, options.factor, options.bf16)
                       : upscale::make_nsrr_rt(path, options.factor, options.bf16);
-    impl_->parameters = impl_->nsrr->parameters();
+    impl_->history = std::make_unique<Upscaler>(
+        UpscalerOptions{UpscaleMethod::neural, options.factor, "", options.bf16});
+    impl_->parameters = impl_->nsrr->parameters() + impl_->history->parameter_count();
   }
   if (options.method == UpscaleMethod::neural) {
     const std::string path = options.weights.empty() ? default_upscaler_weights() : options.weights;
@@ -224,6 +229,7 @@ Upscaler& Upscaler::operator=(Upscaler&&) noexcept = default;
 void Upscaler::reset() {
   impl_->has_history = false;
   if (impl_->nsrr) impl_->nsrr->reset();
+  if (impl_->history) impl_->history->reset();
 }
 bool Upscaler::uses_bf16() const {
   return impl_->nsrr && impl_->nsrr->bf16();
@@ -269,8 +275,13 @@ void Upscaler::upscale(const UpscaleInput& input, FloatImage& out) {
         throw Error(ErrorCode::invalid_argument,
                     fmt::format("upscale: {} needs the depth and the motion vectors of every frame",
                                 upscale_method_name(m.options.method)));
-      m.nsrr->run(input, out, m.times);
-      break;
+      {
+        m.history->upscale(input, m.history_out);
+        const Times ht = m.history->last_times();
+        m.nsrr->run(input, m.history_out, out, m.times);
+        m.times.features += ht.features + ht.network + ht.reconstruct;
+        break;
+      }
     default:
       m.temporal(input, out);
       break;

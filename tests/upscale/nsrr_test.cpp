@@ -148,13 +148,16 @@ TEST_P(Nsrr, BadInputIsAnError) {
   EXPECT_EQ(up.upscale({&c2, &d2, &m2}).width, 40);
 }
 
-// The reconstruction is a softmax blend of the bilinear base and the window's samples, so
-// whatever the trained weights predict, every output pixel's y = c / (1 + L(c)) lies within
-// the range of the y of the samples of the frames in its window (grey samples here, so no
-// channel reaches the y clamp): no member can brighten or darken beyond what was sampled.
-TEST_P(Nsrr, OutputStaysWithinTheWindowsSamples) {
+// The reconstruction is a softmax blend of the bilinear base, the learned TAAU's output (the
+// history) and the window's samples, so whatever the trained weights predict, every output
+// pixel's y = c / (1 + L(c)) lies within the range of the y of the samples of the frames in its
+// window and of the history at that pixel (the learned TAAU run alongside on the same frames;
+// grey samples here, so no channel reaches the y clamp): no member can brighten or darken beyond
+// what was sampled or accumulated.
+TEST_P(Nsrr, OutputStaysWithinItsCandidates) {
   for (int f : {2, 4}) {
     Upscaler up(nsrr(GetParam(), f));
+    Upscaler taau(UpscalerOptions{UpscaleMethod::neural, f});
     std::mt19937 rng(7 + f);
     std::uniform_real_distribution<float> u(0.0f, 1.0f);
     const int w = 24, h = 16, window = GetParam() == UpscaleMethod::nsrr ? 4 : 3;
@@ -162,7 +165,7 @@ TEST_P(Nsrr, OutputStaysWithinTheWindowsSamples) {
     for (int t = 0; t < 8; ++t) {
       FloatImage color(w, h, 3), depth(w, h, 1), motion(w, h, 2);
       // A bright frame every third one: a window holding it may reach its y, one without it
-      // may not.
+      // may not (unless the history holds it).
       const float scale = t % 3 == 1 ? 40.0f : 2.0f;
       float lo = INFINITY, hi = 0.0f;
       for (size_t p = 0; p < size_t(w) * size_t(h); ++p) {
@@ -175,18 +178,19 @@ TEST_P(Nsrr, OutputStaysWithinTheWindowsSamples) {
       range.emplace_back(lo, hi);
       const auto [jx, jy] = std::pair{u(rng), u(rng)};
       const FloatImage out = up.upscale({&color, &depth, &motion, jx, jy});
+      const FloatImage hist = taau.upscale({&color, &depth, &motion, jx, jy});
       float wlo = INFINITY, whi = 0.0f;
       for (int k = std::max(0, t - window + 1); k <= t; ++k)
         wlo = std::min(wlo, range[size_t(k)].first), whi = std::max(whi, range[size_t(k)].second);
-      for (size_t q = 0; q < out.pixels.size(); q += 3) {
-        const float* c = &out.pixels[q];
-        const float L = 0.2126f * c[0] + 0.7152f * c[1] + 0.0722f * c[2];
+      auto y_of = [](const float* c, size_t ch) {
+        return c[ch] / (1 + 0.2126f * c[0] + 0.7152f * c[1] + 0.0722f * c[2]);
+      };
+      for (size_t q = 0; q < out.pixels.size(); q += 3)
         for (size_t ch = 0; ch < 3; ++ch) {
-          const float y = c[ch] / (1 + L);
-          ASSERT_GE(y, wlo - 1e-4f) << "factor " << f << " frame " << t;
-          ASSERT_LE(y, whi + 1e-4f) << "factor " << f << " frame " << t;
+          const float y = y_of(&out.pixels[q], ch), hy = y_of(&hist.pixels[q], ch);
+          ASSERT_GE(y, std::min(wlo, hy) - 1e-4f) << "factor " << f << " frame " << t;
+          ASSERT_LE(y, std::max(whi, hy) + 1e-4f) << "factor " << f << " frame " << t;
         }
-      }
     }
   }
 }
@@ -224,7 +228,7 @@ TEST(NsrrWarp, Avx512RowIsTheScalarRow) {
 }
 
 // nsrr-rt's grid fill, AVX-512 against scalar: partial cells at the right and bottom edges,
-// frames missing from the window, bf16 and float grids.
+// frames missing from the window, the history's channels, bf16 and float grids.
 TEST(NsrrWarp, Avx512GridIsTheScalarGrid) {
   if (!isa_supported(Isa::avx512)) GTEST_SKIP() << "this CPU has no AVX-512";
   using upscale::nsrr::GridFill;
@@ -241,6 +245,8 @@ TEST(NsrrWarp, Avx512GridIsTheScalarGrid) {
     u = (u & 0xFFFE0000u) | low[i % 4];
     std::memcpy(&packed[i], &u, 4);
   }
+  std::vector<float> hist(3 * size_t(W * H));  // the history's y, bf16 ties probed as above
+  for (size_t i = 0; i < hist.size(); ++i) hist[i] = packed[i % packed.size()];
   std::vector<int32_t> at(GridFill::kFrames * size_t(W * H));
   for (int32_t& i : at) i = std::uniform_int_distribution<int32_t>(-3, int32_t(n) - 1)(rng);
   for (bool bf16 : {false, true})
@@ -249,7 +255,8 @@ TEST(NsrrWarp, Avx512GridIsTheScalarGrid) {
       std::vector<unsigned char> g1(bytes, 0xAB), g2(bytes, 0xCD);
       GridFill a{};
       for (int k = 0; k < GridFill::kFrames; ++k) a.at[k] = at.data() + size_t(k * W * H);
-      a.frames = frames, a.packed = packed.data(), a.n = n, a.W = W, a.H = H, a.Gw = Gw;
+      a.frames = frames, a.packed = packed.data(), a.n = n, a.hist = hist.data(), a.W = W, a.H = H,
+      a.Gw = Gw;
       a.last = 0.5f, a.bf16 = bf16;
       a.grid = g1.data();
       upscale::nsrr::grid_rows_scalar(a, 0, Gh);
