@@ -65,6 +65,22 @@ void warp_row_avx512(const WarpRow& a, float* pos, int32_t* out) {
   }
 }
 
+namespace {
+// v with its 128-bit quarter r (0..3) replaced by x: a cell's row r of 4 pixels.
+__m512i insert_row(__m512i v, __m128i x, int r) {
+  switch (r) {  // _mm512_inserti32x4 takes its lane as a constant
+    case 0:
+      return _mm512_inserti32x4(v, x, 0);
+    case 1:
+      return _mm512_inserti32x4(v, x, 1);
+    case 2:
+      return _mm512_inserti32x4(v, x, 2);
+    default:
+      return _mm512_inserti32x4(v, x, 3);
+  }
+}
+}  // namespace
+
 void grid_rows_avx512(const GridFill& a, size_t gy0, size_t gy1) {
   // No gathers (slow where the Gather Data Sampling mitigation is on): a cell's 16 indices
   // are four row loads, and only its pixels that hold a sample (1 in f^2 on average) are
@@ -97,21 +113,7 @@ void grid_rows_avx512(const GridFill& a, size_t gy0, size_t gy1) {
         if (k < a.frames)
           for (int r = 0; r < rows; ++r) {
             const int32_t* row = a.at[k] + size_t(Y0 + r) * size_t(a.W) + size_t(X0);
-            const __m128i v = _mm_mask_loadu_epi32(_mm_set1_epi32(-1), cm, row);
-            switch (r) {  // _mm512_inserti32x4 takes its lane as a constant
-              case 0:
-                idx = _mm512_inserti32x4(idx, v, 0);
-                break;
-              case 1:
-                idx = _mm512_inserti32x4(idx, v, 1);
-                break;
-              case 2:
-                idx = _mm512_inserti32x4(idx, v, 2);
-                break;
-              default:
-                idx = _mm512_inserti32x4(idx, v, 3);
-                break;
-            }
+            idx = insert_row(idx, _mm_mask_loadu_epi32(_mm_set1_epi32(-1), cm, row), r);
           }
         alignas(64) int32_t lane_index[16];
         _mm512_store_si512(lane_index, idx);
@@ -127,26 +129,12 @@ void grid_rows_avx512(const GridFill& a, size_t gy0, size_t gy1) {
       }
       // The history's y: a cell's 16 pixels are four row loads per channel.
       for (size_t c = 0; c < 3; ++c) {
-        __m512 v = _mm512_setzero_ps();
+        __m512i v = _mm512_setzero_si512();
         for (int r = 0; r < rows; ++r) {
-          const __m128 x =
-              _mm_maskz_loadu_ps(cm, a.hist + c * N + size_t(Y0 + r) * size_t(a.W) + size_t(X0));
-          switch (r) {
-            case 0:
-              v = _mm512_insertf32x4(v, x, 0);
-              break;
-            case 1:
-              v = _mm512_insertf32x4(v, x, 1);
-              break;
-            case 2:
-              v = _mm512_insertf32x4(v, x, 2);
-              break;
-            default:
-              v = _mm512_insertf32x4(v, x, 3);
-              break;
-          }
+          const float* row = a.hist + c * N + size_t(Y0 + r) * size_t(a.W) + size_t(X0);
+          v = insert_row(v, _mm_maskz_loadu_epi32(cm, row), r);
         }
-        put(cell + size_t(GridFill::kHistory) + 16 * c, v);
+        put(cell + size_t(GridFill::kHistory) + 16 * c, _mm512_castsi512_ps(v));
       }
       if (a.bf16)
         static_cast<uint16_t*>(a.grid)[cell + kC - 1] = float_to_bf16(a.last);
