@@ -160,10 +160,10 @@ def blend_logits(radii):
 
 def blend(logits, base, history, feats, masks, radii):
     """The kernel-predicting reconstruction both members end with. logits (B,K,H,W), K =
-    blend_logits(radii): channel 0 weighs base (B,3,H,W); then per frame k, in order,
-    (2 r_k + 1)^2 channels: channel o = (dy + r_k)(2 r_k + 1) + dx + r_k of frame k's weighs the
-    y (channels 0..2) of feats[k] at the output pixel X + (dx, dy), where masks[k] there is 1
-    (off the image or no sample: not a candidate); the last channel weighs history (B,3,H,W, y).
+    blend_logits(radii): channel 0 weighs base (B,3,H,W); then (2 r_k + 1)^2 channels per frame
+    k, in order, the o-th of them, o = (dy + r_k)(2 r_k + 1) + dx + r_k, weighing the y (channels
+    0..2) of feats[k] at the output pixel X + (dx, dy), where masks[k] there is 1 (off the image
+    or no sample: not a candidate); the last channel weighs history (B,3,H,W, y).
     -> sum of softmax(logits over the candidates) times their y (B,3,H,W)."""
     B, _, H, W = base.shape
     one = torch.ones_like(masks[0]) > 0

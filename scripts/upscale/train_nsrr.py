@@ -21,9 +21,11 @@ frames or, for --denoised-fraction of the samples, the same frames rendered at 1
 denoised (what the real-time loop feeds the upsampler); crops of --crop output pixels,
 horizontal mirroring (motion and jitter mirrored too). The history candidate Hy of every frame
 (nsrr.history_sequence: the learned TAAU of --history-weights, what the engine runs beside the
-network) is computed once per clip and input over the whole frames, then cropped as the target. Loss: L1 after the evaluation's tone
-map (ACES fit + sRGB). Adam, one-cycle schedule. The checkpoint (every 100 steps) makes the run
-resumable: re-running the same command continues it.
+network) is computed once per clip over the whole frames, then cropped as the target. Loss: L1
+after the evaluation's tone map (ACES fit + sRGB). Adam, one-cycle schedule. --init starts
+from other weights (an older architecture's: new input channels at 0, new outputs at their
+initial values). The checkpoint (every 100 steps) makes the run resumable: re-running the same
+command continues it.
 """
 import argparse
 import json
