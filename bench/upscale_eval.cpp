@@ -265,7 +265,7 @@ int main(int argc, char** argv) {
       }
       for (UpscaleMethod m : methods) {
         Upscaler up(options(m, f));
-        std::vector<double> times, feat, net, rec;
+        std::vector<double> times, feat, net, rec, hist;
         FloatImage out;
         const int timed = m == UpscaleMethod::nsrr ? std::min(repeat, 3) : repeat;
         for (int r = 0; r < timed + 2; ++r) {
@@ -277,12 +277,15 @@ int main(int argc, char** argv) {
           if (r >= 2) {
             times.push_back(t);
             const Upscaler::Times st = up.last_times();
-            feat.push_back(st.features), net.push_back(st.network), rec.push_back(st.reconstruct);
+            feat.push_back(st.features), net.push_back(st.network), rec.push_back(st.reconstruct),
+                hist.push_back(st.history);
           }
         }
         ms[f][m] = median(times);
-        stages[f][m] = {
-            {"features", median(feat)}, {"network", median(net)}, {"reconstruct", median(rec)}};
+        stages[f][m] = {{"features", median(feat)},
+                        {"network", median(net)},
+                        {"reconstruct", median(rec)},
+                        {"history", median(hist)}};
         fmt::print("x{} {:24s} {:.1f} ms per 1280x720 output ({} threads, median of {})\n", f,
                    label(m), ms[f][m], threads, timed);
       }
@@ -350,8 +353,12 @@ int main(int argc, char** argv) {
                {UpscaleMethod::neural, UpscaleMethod::nsrr_rt, UpscaleMethod::nsrr})
             if (stages[f].count(m))
               md += fmt::format(
-                  "\n{} stages (ms): features {:.1f}, networks {:.1f}, output {:.1f}.\n", label(m),
-                  stages[f][m]["features"], stages[f][m]["network"], stages[f][m]["reconstruct"]);
+                  "\n{} stages (ms): features {:.1f}, networks {:.1f}, output {:.1f}{}.\n",
+                  label(m), stages[f][m]["features"], stages[f][m]["network"],
+                  stages[f][m]["reconstruct"],
+                  stages[f][m]["history"] > 0
+                      ? fmt::format(", the learned TAAU beside it {:.1f}", stages[f][m]["history"])
+                      : "");
         md += "\n";
       }
     md +=

@@ -101,7 +101,7 @@ void run_upscale(const UpscaleArgs& a) {
   Upscaler up(o);
   const int count = a.sequence ? (a.frames > 0 ? a.frames : count_frames(a)) : 1;
   FloatImage out;
-  std::vector<double> ms, stage[3];
+  std::vector<double> ms, stage[4];
   for (int i = 0; i < count; ++i) {
     const int frame = a.start + i;
     const Loaded l = load(a, frame);
@@ -119,7 +119,7 @@ void run_upscale(const UpscaleArgs& a) {
                 .count());
         const Upscaler::Times t = up.last_times();
         stage[0].push_back(t.features), stage[1].push_back(t.network),
-            stage[2].push_back(t.reconstruct);
+            stage[2].push_back(t.reconstruct), stage[3].push_back(t.history);
       }
     }
     const std::string path = a.sequence ? frame_name(a.out, frame) : a.out;
@@ -135,9 +135,11 @@ void run_upscale(const UpscaleArgs& a) {
   };
   fmt::print(
       "upscale  {} frames, {}{}: median {:.1f} ms per {}x{} output frame (features {:.1f}, "
-      "network {:.1f}, reconstruction {:.1f})\n",
+      "network {:.1f}, reconstruction {:.1f}{})\n",
       count, a.method, up.uses_bf16() ? " (bf16)" : "", median(ms), out.width, out.height,
-      median(stage[0]), median(stage[1]), median(stage[2]));
+      median(stage[0]), median(stage[1]), median(stage[2]),
+      stage[3].back() > 0 ? fmt::format(", the learned TAAU beside it {:.1f}", median(stage[3]))
+                          : "");
 }
 
 }  // namespace

@@ -70,10 +70,10 @@ class Upscaler {
   int factor() const;
   size_t parameter_count() const;  ///< 0 for the baselines
   bool uses_bf16() const;          ///< nsrr / nsrr-rt running its convolutions in bf16
-  /// Milliseconds of the last frame's stages: features, network, reconstruction (nsrr,
-  /// nsrr-rt: the learned TAAU run beside them counts as features).
+  /// Milliseconds of the last frame's stages: features, network, reconstruction, and for nsrr
+  /// and nsrr-rt the learned TAAU run beside them (its whole frame: history).
   struct Times {
-    double features = 0, network = 0, reconstruct = 0;
+    double features = 0, network = 0, reconstruct = 0, history = 0;
   };
   Times last_times() const;
 

@@ -279,7 +279,7 @@ void Upscaler::upscale(const UpscaleInput& input, FloatImage& out) {
         m.history->upscale(input, m.history_out);
         const Times ht = m.history->last_times();
         m.nsrr->run(input, m.history_out, out, m.times);
-        m.times.features += ht.features + ht.network + ht.reconstruct;
+        m.times.history = ht.features + ht.network + ht.reconstruct;
         break;
       }
     default:
