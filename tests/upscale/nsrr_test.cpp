@@ -4,7 +4,9 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstdlib>
 #include <cstring>
+#include <filesystem>
 #include <fstream>
 #include <nlohmann/json.hpp>
 #include <random>
@@ -130,6 +132,31 @@ TEST_P(Nsrr, CorruptOrForeignWeightsAreErrorsNamingTheFile) {
   expect_error("nsrr_other.kdw", std::vector<char>((std::istreambuf_iterator<char>(other)),
                                                    std::istreambuf_iterator<char>()));
   EXPECT_THROW(Upscaler(nsrr(m, 2, false, dir + "does_not_exist.kdw")), Error);
+}
+
+// The history runs the learned TAAU's default weights ($KESTREL_WEIGHTS_DIR/upscaler.kdw): a
+// corrupt one there is an error naming it, even though the member's own weights are fine.
+TEST_P(Nsrr, CorruptHistoryWeightsAreAnErrorNamingTheFile) {
+  const std::string dir = testing::TempDir() + "nsrr_history_" + upscale_method_name(GetParam());
+  std::filesystem::create_directories(dir);
+  const std::string path = dir + "/upscaler.kdw";
+  std::ifstream in(std::string(KESTREL_SOURCE_DIR) + "/weights/upscaler.kdw", std::ios::binary);
+  std::vector<char> bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  ASSERT_GT(bytes.size(), 1000u);
+  std::ofstream(path, std::ios::binary).write(bytes.data(), std::streamsize(bytes.size() / 2));
+  const char* before = std::getenv("KESTREL_WEIGHTS_DIR");
+  const std::string saved = before ? before : "";
+  setenv("KESTREL_WEIGHTS_DIR", dir.c_str(), 1);
+  try {
+    Upscaler up(nsrr(GetParam(), 2));
+    ADD_FAILURE() << "a truncated history weights file was accepted";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find(path), std::string::npos) << e.what();
+  }
+  if (before)
+    setenv("KESTREL_WEIGHTS_DIR", saved.c_str(), 1);
+  else
+    unsetenv("KESTREL_WEIGHTS_DIR");
 }
 
 TEST_P(Nsrr, BadInputIsAnError) {
