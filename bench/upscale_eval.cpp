@@ -86,7 +86,8 @@ const Variant kVariants[] = {{"clean", ""}, {"denoised 1 spp", "_dn"}};
 int main(int argc, char** argv) {
   std::string dataset = std::string(KESTREL_SOURCE_DIR) + "/out/upscale_families";
   std::string out_dir = std::string(KESTREL_SOURCE_DIR) + "/docs/upscaler";
-  std::string weights, rt_weights, nsrr_weights, only;
+  std::string weights, rt_weights, nsrr_weights;
+  std::vector<std::string> only;
   int threads = int(std::thread::hardware_concurrency()), repeat = 9;
   bool quick = false;
   CLI::App app{"kestrel_upscale_eval: the upsamplers on the held-out clips"};
@@ -100,7 +101,8 @@ int main(int argc, char** argv) {
   app.add_option("--nsrr-rt-weights", rt_weights,
                  "nsrr-rt weights (default: weights/upscaler_nsrr_rt.kdw)");
   app.add_option("--methods", only,
-                 fmt::format("Only these methods, comma-separated (of {})", upscale_method_list()));
+                 fmt::format("Only these methods, comma-separated (of {})", upscale_method_list()))
+      ->delimiter(',');
   app.add_option("--threads", threads, "Worker threads")->capture_default_str();
   app.add_option("--repeat", repeat, "Timed frames (median)")->capture_default_str();
   app.add_flag("--quick", quick, "Three frames per clip (smoke test)");
@@ -135,19 +137,14 @@ int main(int argc, char** argv) {
       return o;
     };
     std::vector<UpscaleMethod> wanted(std::begin(kMethods), std::end(kMethods));
-    if (!only.empty()) {
-      wanted.clear();
-      for (size_t at = 0; at <= only.size();) {
-        const size_t end = std::min(only.find(',', at), only.size());
-        const std::string name = only.substr(at, end - at);
-        const auto m = upscale_method_from_name(name);
-        if (!m)
-          throw Error(
-              ErrorCode::invalid_argument,
-              fmt::format("--methods: no method '{}' (methods: {})", name, upscale_method_list()));
-        wanted.push_back(*m);
-        at = end + 1;
-      }
+    if (!only.empty()) wanted.clear();
+    for (const std::string& name : only) {
+      const auto m = upscale_method_from_name(name);
+      if (!m)
+        throw Error(
+            ErrorCode::invalid_argument,
+            fmt::format("--methods: no method '{}' (methods: {})", name, upscale_method_list()));
+      wanted.push_back(*m);
     }
     // The methods whose weights load (a missing network is reported, not fatal).
     std::vector<UpscaleMethod> methods;

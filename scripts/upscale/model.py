@@ -294,6 +294,17 @@ def step(color, depth, motion, jitter, f, state, model=None, constants=None):
     return from_y(out_y), out_y, (out_y, depth, jitter.float())
 
 
+def run_sequence(seq, jit, f, model=None, constants=None):
+    """step over a whole sequence from its first frame: seq (B,T,6,h,w) (colour, depth,
+    motion), jit (B,T,2) -> list of y outputs per frame."""
+    state, outs = None, []
+    for t in range(seq.shape[1]):
+        x = seq[:, t]
+        _, y, state = step(x[:, 0:3], x[:, 3:4], x[:, 4:6], jit[:, t], f, state, model=model, constants=constants)
+        outs.append(y)
+    return outs
+
+
 def bilinear_upscale(color, jitter, f, cubic=False):
     """The spatial baselines: the current frame alone, bilinear or Catmull-Rom bicubic, with
     the jitter accounted for (sample (i, j) sits at (i + jx, j + jy))."""

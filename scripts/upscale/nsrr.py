@@ -309,12 +309,8 @@ class NSRRRealTime(nn.Module):
 
 def history_sequence(ins, jit, f, upsampler):
     """Hy of every frame of a sequence: ins (B,T,6,h,w) (colour, depth, motion), jit (B,T,2);
-    the learned TAAU (model.step with `upsampler`) run from frame 0, its linear output back to
-    y (as the engine takes it from the TAAU's output image). -> (B,T,3,f h,f w)."""
-    state, out = None, []
+    the learned TAAU (model.run_sequence with `upsampler`) run from frame 0, its output to
+    linear and back to y (as the engine takes it from the TAAU's output image).
+    -> (B,T,3,f h,f w)."""
     with torch.no_grad():
-        for t in range(ins.shape[1]):
-            x = ins[:, t]
-            lin, _, state = M.step(x[:, 0:3], x[:, 3:4], x[:, 4:6], jit[:, t], f, state, model=upsampler)
-            out.append(M.to_y(lin))
-    return torch.stack(out, 1)
+        return torch.stack([M.to_y(M.from_y(y)) for y in M.run_sequence(ins, jit, f, model=upsampler)], 1)

@@ -61,16 +61,6 @@ def jitters(frames, start=0):
     return torch.tensor([M.jitter_of(start + t) for t in range(frames)], dtype=torch.float32)
 
 
-def run_sequence(seq, jit, f, model=None, constants=None):
-    """seq (B,T,6,h,w), jit (B,T,2) -> list of y outputs per frame."""
-    state, outs = None, []
-    for t in range(seq.shape[1]):
-        x = seq[:, t]
-        _, y, state = M.step(x[:, 0:3], x[:, 3:4], x[:, 4:6], jit[:, t], f, state, model=model, constants=constants)
-        outs.append(y)
-    return outs
-
-
 def aces_srgb(c):
     """The evaluation's tone map (kestrel::tonemap_aces_srgb) of linear colour."""
     c = torch.clamp(c, min=0.0, max=1e6)
@@ -111,7 +101,7 @@ def tune_taau(clips, grid, space):
             for ins, ref in clips:
                 T = ref.shape[0]
                 for f in (2, 4):
-                    outs = run_sequence(ins[f][None], jitters(T)[None], f, constants=c)
+                    outs = M.run_sequence(ins[f][None], jitters(T)[None], f, constants=c)
                     total += loss_of(outs, ref[None], space=space)[0].item()
             print(f"taau a={a} gamma={g} kappa={k}: {total / (2 * len(clips)):.5f}", flush=True)
             if best is None or total < best[0]:
@@ -249,7 +239,7 @@ def main():
                 jit = jitters(n, t0)
             seqs.append(seq), refs.append(r), jits.append(jit)
         seq, ref, jit = torch.stack(seqs), torch.stack(refs), torch.stack(jits)
-        outs = run_sequence(seq, jit, f, model=model)
+        outs = M.run_sequence(seq, jit, f, model=model)
         l1, tl = loss_of(outs, ref, margin=8, space=args.loss)
         loss = l1 + 0.25 * tl
         opt.zero_grad()

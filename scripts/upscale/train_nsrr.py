@@ -155,10 +155,10 @@ def main():
     # Hy of every frame, clean and denoised inputs (the learned TAAU over the whole clip).
     upsampler = load_history_upsampler(args.history_weights)
     t_hist = time.time()
-    hist = [{f: N.history_sequence(ins[f][None], jitters(ins[f].shape[0])[None], f, upsampler)[0] for f in (2, 4)}
-            for ins, _ in clips]
-    hist_dn = [{f: N.history_sequence(d[f][None], jitters(d[f].shape[0])[None], f, upsampler)[0] for f in (2, 4)}
-               if d is not None else None for d in denoised]
+    def histories(ins):
+        return {f: N.history_sequence(ins[f][None], jitters(ins[f].shape[0])[None], f, upsampler)[0] for f in (2, 4)}
+    hist = [histories(ins) for ins, _ in clips]
+    hist_dn = [histories(d) if d is not None else None for d in denoised]
     print(f"history candidates of {len(clips)} clips in {time.time() - t_hist:.0f} s", flush=True)
     print(f"{len(clips)} training clips: {', '.join(names)}", flush=True)
     params = sum(p.numel() for p in model.parameters())

@@ -14,6 +14,14 @@ constexpr float kMaxMotion = 65536.0f;
 float finite_or_zero(float v) {
   return std::isfinite(v) ? v : 0.0f;
 }
+// Pixel p of a channels-last RGB image into planar y (nsrr.clean + model.to_y): NaN/Inf and
+// negative channels read as 0, then c / (1 + L(c)).
+void to_y_planar(const float* rgb, size_t p, float* y, size_t plane) {
+  float c[3];
+  for (size_t k = 0; k < 3; ++k) c[k] = std::max(finite_or_zero(rgb[3 * p + k]), 0.0f);
+  const float s = 1.0f / (1.0f + luma(c));
+  for (size_t k = 0; k < 3; ++k) y[k * plane + p] = c[k] * s;
+}
 }  // namespace
 
 using dnnl::memory;
@@ -38,11 +46,7 @@ float Window::push(const UpscaleInput& in, int f, int previous) {
       double sum = 0;
       size_t count = 0;
       for (size_t p = j * size_t(w); p < (j + 1) * size_t(w); ++p) {
-        float c[3];
-        for (size_t k = 0; k < 3; ++k)
-          c[k] = std::max(finite_or_zero(in.color->pixels[3 * p + k]), 0.0f);
-        const float s = 1.0f / (1.0f + luma(c));
-        for (size_t k = 0; k < 3; ++k) fr.y[k * n + p] = c[k] * s;
+        to_y_planar(in.color->pixels.data(), p, fr.y.data(), n);
         const float z = in.depth ? std::max(finite_or_zero(in.depth->pixels[p]), 0.0f) : 1.0f;
         fr.depth[p] = z;
         if (z > 0) sum += double(z), ++count;
@@ -162,13 +166,7 @@ void Member::history_y(const FloatImage& history) {
   const size_t N = size_t(history.width) * size_t(history.height);
   hist.resize(3 * N);
   parallel_for(0, N, 4096, [&](size_t q0, size_t q1) {
-    for (size_t q = q0; q < q1; ++q) {
-      float c[3];
-      for (size_t k = 0; k < 3; ++k)
-        c[k] = std::max(finite_or_zero(history.pixels[3 * q + k]), 0.0f);
-      const float s = 1.0f / (1.0f + luma(c));
-      for (size_t k = 0; k < 3; ++k) hist[k * N + q] = c[k] * s;
-    }
+    for (size_t q = q0; q < q1; ++q) to_y_planar(history.pixels.data(), q, hist.data(), N);
   });
 }
 

@@ -208,8 +208,8 @@ Upscaler::Upscaler(const UpscalerOptions& options) : impl_(std::make_unique<Impl
     impl_->nsrr = options.method == UpscaleMethod::nsrr
                       ? upscale::make_nsrr(path, options.factor, options.bf16)
                       : upscale::make_nsrr_rt(path, options.factor, options.bf16);
-    impl_->history = std::make_unique<Upscaler>(
-        UpscalerOptions{UpscaleMethod::neural, options.factor, "", options.bf16});
+    impl_->history =
+        std::make_unique<Upscaler>(UpscalerOptions{UpscaleMethod::neural, options.factor});
     impl_->parameters = impl_->nsrr->parameters() + impl_->history->parameter_count();
   }
   if (options.method == UpscaleMethod::neural) {
