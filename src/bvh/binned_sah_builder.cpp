@@ -14,6 +14,7 @@
 
 #include "bvh/builders.h"
 #include "bvh/node_slots.h"
+#include "bvh/radix_sort.h"
 #include "bvh/sah.h"
 #include "core/parallel.h"
 #include "core/raw_array.h"
@@ -38,6 +39,8 @@ constexpr size_t exact_sweep_cap = 64;
 // Ranges at least this large get their binned split refined exactly (refine_and_partition);
 // below it the sort would cost more than it gains over the plain binned split.
 constexpr size_t refine_min = 256;
+// Middles of at least this many references are sorted by radix (std::sort below).
+constexpr size_t radix_min = 64;
 // Ranges at least this large are binned into two alternating bin sets (see bin_range).
 constexpr size_t two_set_min = 256;
 constexpr size_t parallel_binning_threshold = 1u << 16;
@@ -316,52 +319,95 @@ struct BinnedBuilder {
         [&] { build(pair + 1, right_descendants(pair, left_count), right, data, other); });
   }
 
-  // Exact SAH over the sorted centroids of a small range; false when a leaf is cheaper.
+  // Exact SAH over the sorted centroids of a small range; false when a leaf is cheaper. The
+  // three axes are swept at once: lane a of every vector below belongs to axis a. Each
+  // reference's place in a stable sort by doubled centroid is counted (no branches), the
+  // references are transposed into that order per axis, and the sweeps compute the same
+  // float operations, in the same order, as a sweep per axis would.
   bool exact_split(const RangeInfo& info, PrimRef* refs, float inv_area, RangeInfo& left,
                    RangeInfo& right) const {
     const size_t n = info.end - info.begin;
     const PrimRef* r = refs + info.begin;
+    __m128 key[exact_sweep_cap];
+    for (size_t i = 0; i < n; ++i) key[i] = (ref_lo(r, i) + ref_hi(r, i)).v;
     uint8_t order[3][exact_sweep_cap];
-    float right_area[exact_sweep_cap];
+    for (size_t i = 0; i < n; ++i) {
+      // Stable: i goes after the earlier references with keys <= its own.
+      __m128i rank = _mm_setzero_si128();
+      for (size_t j = 0; j < i; ++j)
+        rank = _mm_sub_epi32(rank, _mm_castps_si128(_mm_cmple_ps(key[j], key[i])));
+      for (size_t j = i + 1; j < n; ++j)
+        rank = _mm_sub_epi32(rank, _mm_castps_si128(_mm_cmplt_ps(key[j], key[i])));
+      alignas(16) int32_t k[4];
+      _mm_store_si128(reinterpret_cast<__m128i*>(k), rank);
+      for (int a = 0; a < 3; ++a) order[a][k[a]] = uint8_t(i);
+    }
+    // Position q's references on the three axes, as x, y and z rows of lo and hi.
+    struct Rows {
+      __m128 lx, ly, lz, hx, hy, hz;
+    };
+    Rows rows[exact_sweep_cap];
+    for (size_t q = 0; q < n; ++q) {
+      __m128 l0 = ref_lo(r, order[0][q]).v, l1 = ref_lo(r, order[1][q]).v,
+             l2 = ref_lo(r, order[2][q]).v, l3 = _mm_setzero_ps();
+      __m128 h0 = ref_hi(r, order[0][q]).v, h1 = ref_hi(r, order[1][q]).v,
+             h2 = ref_hi(r, order[2][q]).v, h3 = _mm_setzero_ps();
+      _MM_TRANSPOSE4_PS(l0, l1, l2, l3);
+      _MM_TRANSPOSE4_PS(h0, h1, h2, h3);
+      rows[q] = {l0, l1, l2, h0, h1, h2};
+    }
+    // simd::half_area per lane: (dx*dy + dy*dz) + dz*dx, with d = max(hi - lo, 0).
+    const __m128 zero = _mm_setzero_ps();
+    auto area = [zero](const Rows& b) {
+      const __m128 dx = _mm_max_ps(_mm_sub_ps(b.hx, b.lx), zero),
+                   dy = _mm_max_ps(_mm_sub_ps(b.hy, b.ly), zero),
+                   dz = _mm_max_ps(_mm_sub_ps(b.hz, b.lz), zero);
+      return _mm_add_ps(_mm_add_ps(_mm_mul_ps(dx, dy), _mm_mul_ps(dy, dz)), _mm_mul_ps(dz, dx));
+    };
+    auto grow = [](Rows& b, const Rows& o) {
+      b = {_mm_min_ps(b.lx, o.lx), _mm_min_ps(b.ly, o.ly), _mm_min_ps(b.lz, o.lz),
+           _mm_max_ps(b.hx, o.hx), _mm_max_ps(b.hy, o.hy), _mm_max_ps(b.hz, o.hz)};
+    };
+    const __m128 inf = _mm_set1_ps(std::numeric_limits<float>::infinity());
+    const __m128 neg_inf = _mm_set1_ps(-std::numeric_limits<float>::infinity());
+    const Rows empty{inf, inf, inf, neg_inf, neg_inf, neg_inf};
+    __m128 right_area[exact_sweep_cap];
+    Rows box = empty;
+    for (size_t q = n; q-- > 1;) {
+      grow(box, rows[q]);
+      right_area[q] = area(box);
+    }
+    // split_cost per lane: Ct + (Ci * (Al * Nl + Ar * Nr)) * (1 / A); strict < keeps the
+    // first minimum in position order.
+    const __m128 ct = _mm_set1_ps(config.traversal_cost),
+                 ci = _mm_set1_ps(config.intersection_cost), inv = _mm_set1_ps(inv_area);
+    __m128 best = inf;
+    __m128i best_q = _mm_setzero_si128();
+    box = empty;
+    for (size_t q = 0; q + 1 < n; ++q) {
+      grow(box, rows[q]);
+      const __m128 sum = _mm_add_ps(_mm_mul_ps(area(box), _mm_set1_ps(float(q + 1))),
+                                    _mm_mul_ps(right_area[q + 1], _mm_set1_ps(float(n - q - 1))));
+      const __m128 c = _mm_add_ps(ct, _mm_mul_ps(_mm_mul_ps(ci, sum), inv));
+      const __m128 better = _mm_cmplt_ps(c, best);
+      best = _mm_or_ps(_mm_and_ps(better, c), _mm_andnot_ps(better, best));
+      best_q = _mm_or_si128(_mm_and_si128(_mm_castps_si128(better), _mm_set1_epi32(int(q + 1))),
+                            _mm_andnot_si128(_mm_castps_si128(better), best_q));
+    }
+    alignas(16) float cost[4];
+    alignas(16) int32_t split_at[4];
+    _mm_store_ps(cost, best);
+    _mm_store_si128(reinterpret_cast<__m128i*>(split_at), best_q);
+    // The first minimum in (axis, position) order, as the sweeps per axis would find it.
     float best_cost = std::numeric_limits<float>::infinity();
     int best_axis = 0;
     size_t best_left = 0;
-    for (int a = 0; a < 3; ++a) {
-      uint8_t* o = order[a];
-      // Insertion sort of (key, index) by doubled centroid; ties keep range order, which is
-      // itself deterministic, so the result does not depend on threads.
-      float key[exact_sweep_cap];
-      for (size_t i = 0; i < n; ++i) {
-        const float k = (&r[i].lo.x)[a] + (&r[i].hi.x)[a];
-        size_t j = i;
-        while (j > 0 && key[j - 1] > k) {
-          key[j] = key[j - 1];
-          o[j] = o[j - 1];
-          --j;
-        }
-        key[j] = k;
-        o[j] = uint8_t(i);
+    for (int a = 0; a < 3; ++a)
+      if (cost[a] < best_cost) {
+        best_cost = cost[a];
+        best_axis = a;
+        best_left = size_t(split_at[a]);
       }
-      Vec4f lo(std::numeric_limits<float>::infinity()), hi(-std::numeric_limits<float>::infinity());
-      for (size_t i = n; i-- > 1;) {
-        lo = min(lo, Vec4f::load(&r[o[i]].lo));
-        hi = max(hi, Vec4f::load(&r[o[i]].hi));
-        right_area[i] = simd::half_area(lo, hi);
-      }
-      lo = Vec4f(std::numeric_limits<float>::infinity());
-      hi = Vec4f(-std::numeric_limits<float>::infinity());
-      for (size_t i = 0; i + 1 < n; ++i) {
-        lo = min(lo, Vec4f::load(&r[o[i]].lo));
-        hi = max(hi, Vec4f::load(&r[o[i]].hi));
-        const float c = split_cost(config, inv_area, simd::half_area(lo, hi), i + 1,
-                                   right_area[i + 1], n - i - 1);
-        if (c < best_cost) {
-          best_cost = c;
-          best_axis = a;
-          best_left = i + 1;
-        }
-      }
-    }
     if (n <= config.max_leaf_size && leaf_cost(config, n) <= best_cost) return false;
     PrimRef sorted[exact_sweep_cap];
     for (size_t i = 0; i < n; ++i) sorted[i] = r[order[best_axis][i]];
@@ -427,7 +473,7 @@ struct BinnedBuilder {
     // One pass: lower bins to the front of dst, upper bins to its back, the middle packed at
     // the front of src's own range, which the pass has already read (every reference written
     // to one of three places, chosen by selects).
-    thread_local std::vector<uint64_t> order;
+    thread_local std::vector<uint64_t> order, order_tmp;
     thread_local std::vector<float> suffix_area;
     const size_t b = info.begin, e = info.end;
     PrimRef* middle = src + b;
@@ -458,8 +504,14 @@ struct BinnedBuilder {
       bits = (bits & 0x80000000u) ? ~bits : bits | 0x80000000u;  // float order as unsigned order
       order[q] = uint64_t(bits) << 32 | uint32_t(q);
     }
-    std::sort(order.begin(), order.end());
-    for (size_t q = 0; q < m; ++q) mid[q] = middle[uint32_t(order[q])];
+    const uint64_t* sorted = order.data();
+    if (m < radix_min) {
+      std::sort(order.begin(), order.end());
+    } else {  // stable on the key alone: ties keep q's order, as the sort on (key, q)
+      order_tmp.resize(m);
+      sorted = radix_sort_packed(order.data(), order_tmp.data(), m, 32, 32);
+    }
+    for (size_t q = 0; q < m; ++q) mid[q] = middle[uint32_t(sorted[q])];
     // Exact sweep over the m + 1 split positions in the middle.
     suffix_area.resize(m + 1);
     Vec4f lo = upper.geom_lo, hi = upper.geom_hi;
