@@ -118,24 +118,21 @@ struct BinMapping {
 };
 
 // Side accumulators of a branch-free partition: a reference's box joins one side's bounds
-// through a lane mask instead of a branch (the side is as unpredictable as a coin).
+// through a lane mask instead of a branch (the side is as unpredictable as a coin). A box
+// that does not join is made NaN (all bits set), which MINPS / MAXPS pass over: they return
+// their second operand, the accumulator, when the first is NaN.
 struct SideBounds {
   Vec4f geom_lo = Vec4f(std::numeric_limits<float>::infinity()),
         geom_hi = Vec4f(-std::numeric_limits<float>::infinity()),
         cent_lo = Vec4f(std::numeric_limits<float>::infinity()),
         cent_hi = Vec4f(-std::numeric_limits<float>::infinity());
-  // Adds [lo, hi] where mask is all ones (else +-inf, which changes nothing).
-  void add_masked(__m128 mask, Vec4f lo, Vec4f hi) {
-    const __m128 inf = _mm_set1_ps(std::numeric_limits<float>::infinity());
-    const __m128 neg_inf = _mm_set1_ps(-std::numeric_limits<float>::infinity());
-    auto pick = [mask](__m128 v, __m128 other) {
-      return Vec4f(_mm_or_ps(_mm_and_ps(mask, v), _mm_andnot_ps(mask, other)));
-    };
-    const Vec4f c = lo + hi;
-    geom_lo = min(geom_lo, pick(lo.v, inf));
-    geom_hi = max(geom_hi, pick(hi.v, neg_inf));
-    cent_lo = min(cent_lo, pick(c.v, inf));
-    cent_hi = max(cent_hi, pick(c.v, neg_inf));
+  // Adds [lo, hi] unless skip is all ones; c = lo + hi.
+  void add_unless(__m128 skip, Vec4f lo, Vec4f hi, Vec4f c) {
+    const __m128 l = _mm_or_ps(lo.v, skip), h = _mm_or_ps(hi.v, skip), cc = _mm_or_ps(c.v, skip);
+    geom_lo = Vec4f(_mm_min_ps(l, geom_lo.v));
+    geom_hi = Vec4f(_mm_max_ps(h, geom_hi.v));
+    cent_lo = Vec4f(_mm_min_ps(cc, cent_lo.v));
+    cent_hi = Vec4f(_mm_max_ps(cc, cent_hi.v));
   }
   RangeInfo range(size_t begin, size_t end) const {
     return {geom_lo, geom_hi, cent_lo, cent_hi, begin, end};
@@ -444,9 +441,10 @@ struct BinnedBuilder {
       hi.store(&to->hi);
       f += left;
       k -= !left;
-      const __m128 m = lane_mask(left);
-      front.add_masked(m, lo, hi);
-      back.add_masked(_mm_xor_ps(m, lane_mask(true)), lo, hi);
+      const __m128 to_back = lane_mask(!left);
+      const Vec4f c = lo + hi;
+      front.add_unless(to_back, lo, hi, c);
+      back.add_unless(_mm_xor_ps(to_back, lane_mask(true)), lo, hi, c);
     }
     return f;
   }
@@ -489,8 +487,9 @@ struct BinnedBuilder {
       f += is_lower;
       k -= is_upper;
       t += is_middle;
-      lower.add_masked(lane_mask(is_lower), lo, hi);
-      upper.add_masked(lane_mask(is_upper), lo, hi);
+      const Vec4f c = lo + hi;
+      lower.add_unless(lane_mask(!is_lower), lo, hi, c);
+      upper.add_unless(lane_mask(!is_upper), lo, hi, c);
     }
     const size_t m = t, n_lower = f - b, n_upper = e - k;
     PrimRef* mid = dst + f;
