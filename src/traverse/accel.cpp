@@ -113,19 +113,23 @@ Accel build_accel(const Scene& scene, const BuildConfig& config) {
   }
   accel.prim_count = refs.size();  // spatial splits may reference a triangle from several leaves
   if (!bvh.empty()) accel.bounds = {bvh.nodes[0].lo, bvh.nodes[0].hi};
+  // Wide layouts read the leaves' triangles from the meshes as they write the blocks (no
+  // gathered copy), unless the builder has them by id already (spatial splits).
   Buffer<Triangle> triangles;
-  if (by_id.empty()) {
-    triangles = gather_triangles(scene, bvh.prim_ids);
-  } else {
+  if (!by_id.empty()) {
     triangles = Buffer<Triangle>(bvh.prim_ids.size());
     for (size_t i = 0; i < bvh.prim_ids.size(); ++i) triangles[i] = by_id[bvh.prim_ids[i]];
+  } else if (!blocks) {
+    triangles = gather_triangles(scene, bvh.prim_ids);
   }
   switch (accel.layout) {
     case Layout::bvh4:
-      accel.nodes->bvh4 = collapse_to_bvh4(bvh, triangles, config.max_leaf_size);
+      accel.nodes->bvh4 = by_id.empty() ? collapse_to_bvh4(bvh, scene, config.max_leaf_size)
+                                        : collapse_to_bvh4(bvh, triangles, config.max_leaf_size);
       break;
     case Layout::bvh8:
-      accel.nodes->bvh8 = collapse_to_bvh8(bvh, triangles, config.max_leaf_size);
+      accel.nodes->bvh8 = by_id.empty() ? collapse_to_bvh8(bvh, scene, config.max_leaf_size)
+                                        : collapse_to_bvh8(bvh, triangles, config.max_leaf_size);
       break;
     default:
       accel.nodes->triangles = std::move(triangles);

@@ -17,6 +17,10 @@ namespace kestrel {
 /// max(max_leaf, 4) primitives become one leaf where a block-counting SAH prefers it.
 Bvh4 collapse_to_bvh4(const Bvh2& bvh, std::span<const Triangle> leaf_triangles, uint32_t max_leaf);
 Bvh8 collapse_to_bvh8(const Bvh2& bvh, std::span<const Triangle> leaf_triangles, uint32_t max_leaf);
+/// The same, reading each leaf triangle from its mesh (bvh.prim_ids are global triangle ids of
+/// `scene`): no gathered copy of the triangles.
+Bvh4 collapse_to_bvh4(const Bvh2& bvh, const Scene& scene, uint32_t max_leaf);
+Bvh8 collapse_to_bvh8(const Bvh2& bvh, const Scene& scene, uint32_t max_leaf);
 
 /// Writes child slot j of a wide node: its box into the six bound rows, and its reference.
 template <class Node>
