@@ -26,23 +26,16 @@ void tally(std::span<const uint8_t> kind, SceneValidation& out) {
   ValidationReport& r = out.report;
   r.triangle_count = kind.size();
   out.valid.resize(kind.size());
+  size_t count[256] = {};  // per class: a table, not a branch per triangle
   for (size_t i = 0; i < kind.size(); ++i) {
     out.valid[i] = kind[i] == tri_valid;
-    switch (kind[i]) {
-      case tri_valid:
-        ++r.valid_triangle_count;
-        break;
-      case tri_nonfinite:
-        ++r.nonfinite_triangle_count;
-        break;
-      case tri_bad_index:
-        ++r.bad_index_triangle_count;
-        break;
-      default:
-        ++r.degenerate_triangle_count;
-        break;
-    }
+    ++count[kind[i]];
   }
+  r.valid_triangle_count += count[tri_valid];
+  r.nonfinite_triangle_count += count[tri_nonfinite];
+  r.bad_index_triangle_count += count[tri_bad_index];
+  r.degenerate_triangle_count +=
+      kind.size() - count[tri_valid] - count[tri_nonfinite] - count[tri_bad_index];
 }
 
 SceneValidation validate_scene(const Scene& scene) {

@@ -1,6 +1,9 @@
 #include "geometry/prim_ref.h"
 
+#include <immintrin.h>
+
 #include <algorithm>
+#include <limits>
 #include <mutex>
 
 #include "core/parallel.h"
@@ -59,6 +62,37 @@ PrimRef triangle_ref(const TriangleMesh& mesh, size_t t, uint32_t gid) {
   return r;
 }
 
+// classify_triangle and triangle_ref in one, the indices and vertices read once: writes the
+// reference when the triangle is valid and grows the centroid bounds [cent_lo, cent_hi] by
+// lo + hi. The same values as the two functions: MINPS(b, a) is std::min(a, b) (b < a ? b :
+// a) and MAXPS(b, a) is std::max(a, b), signed zeros included; the area test is theirs.
+inline uint8_t classify_and_ref(const TriangleMesh& mesh, size_t t, uint32_t gid, PrimRef& out,
+                                __m128& cent_lo, __m128& cent_hi) {
+  const size_t vertex_count = mesh.positions.size();
+  const uint32_t* idx = &mesh.indices[3 * t];
+  if (idx[0] >= vertex_count || idx[1] >= vertex_count || idx[2] >= vertex_count)
+    return tri_bad_index;
+  const Vec3 a = mesh.positions[idx[0]], b = mesh.positions[idx[1]], c = mesh.positions[idx[2]];
+  const __m128 va = _mm_setr_ps(a.x, a.y, a.z, 0.0f), vb = _mm_setr_ps(b.x, b.y, b.z, 0.0f),
+               vc = _mm_setr_ps(c.x, c.y, c.z, 0.0f);
+  // x - x is NaN exactly when x is infinite or NaN.
+  const __m128 d =
+      _mm_add_ps(_mm_add_ps(_mm_sub_ps(va, va), _mm_sub_ps(vb, vb)), _mm_sub_ps(vc, vc));
+  if (_mm_movemask_ps(_mm_cmpunord_ps(d, d)) != 0) return tri_nonfinite;
+  const double ux = double(b.x) - a.x, uy = double(b.y) - a.y, uz = double(b.z) - a.z;
+  const double vx = double(c.x) - a.x, vy = double(c.y) - a.y, vz = double(c.z) - a.z;
+  if (uy * vz - uz * vy == 0.0 && uz * vx - ux * vz == 0.0 && ux * vy - uy * vx == 0.0)
+    return tri_degenerate;
+  const __m128 lo = _mm_min_ps(vc, _mm_min_ps(vb, va)), hi = _mm_max_ps(vc, _mm_max_ps(vb, va));
+  // lo's lane 3 carries the prim id, hi's the spare word (0).
+  _mm_store_ps(&out.lo.x, _mm_or_ps(lo, _mm_castsi128_ps(_mm_setr_epi32(0, 0, 0, int32_t(gid)))));
+  _mm_store_ps(&out.hi.x, hi);
+  const __m128 centroid = _mm_add_ps(lo, hi);
+  cent_lo = _mm_min_ps(centroid, cent_lo);
+  cent_hi = _mm_max_ps(centroid, cent_hi);
+  return tri_valid;
+}
+
 // Slot of each valid triangle among the valid ones (exclusive scan), and their count.
 size_t valid_slots(std::span<const uint8_t> valid, std::vector<uint32_t>& slot) {
   slot.resize(valid.size());
@@ -95,13 +129,15 @@ Buffer<PrimRef> validate_and_make_prim_refs(const Scene& scene, SceneValidation&
   Bounds3 cb;
   std::mutex cb_mutex;
   for_each_triangle_chunk(scene, [&](auto&& visit) {
-    Bounds3 local;
+    __m128 cent_lo = _mm_set1_ps(std::numeric_limits<float>::infinity());
+    __m128 cent_hi = _mm_set1_ps(-std::numeric_limits<float>::infinity());
     visit([&](size_t gid, const TriangleMesh& mesh, size_t t) {
-      kind[gid] = classify_triangle(mesh, t);
-      if (kind[gid] != tri_valid) return;
-      refs[gid] = triangle_ref(mesh, t, uint32_t(gid));
-      extend(local, refs[gid].lo + refs[gid].hi);
+      kind[gid] = classify_and_ref(mesh, t, uint32_t(gid), refs[gid], cent_lo, cent_hi);
     });
+    alignas(16) float lo[4], hi[4];
+    _mm_store_ps(lo, cent_lo);
+    _mm_store_ps(hi, cent_hi);
+    const Bounds3 local{{lo[0], lo[1], lo[2]}, {hi[0], hi[1], hi[2]}};
     const std::lock_guard<std::mutex> lock(cb_mutex);
     extend(cb, local);
   });
