@@ -129,7 +129,7 @@ void run_bvh(const BvhArgs& a) {
     build_ms.push_back(t1.ms());
   }
   // Ready to trace: what trace and the renderer build (validation, prim refs, the tree, the
-  // collapse to the traced layout, the triangle copy), timed the same way.
+  // collapse to the traced layout and its triangle blocks), timed the same way.
   std::vector<double> accel_ms;
   std::string accel_layout;
   double accel_sah = 0;  // the traced tree's own SAH cost (wide layouts; lbvh's is built directly)

@@ -52,7 +52,7 @@ struct Accel {
   /// deeper than traversal allows (pathological inputs) and was rebuilt (`depth_fallback`).
   Builder builder = Builder::binned;
   bool depth_fallback = false;
-  double build_ms = 0;  ///< prim refs + builder + collapse + triangle copy, wall
+  double build_ms = 0;  ///< prim refs + builder + collapse + triangle blocks, wall
   /// Bytes of the traversal structure: nodes + triangles (+ prim ids for bvh2).
   size_t memory_bytes() const;
   std::unique_ptr<detail::AccelNodes> nodes;  ///< never null

@@ -46,6 +46,11 @@ constexpr size_t two_set_min = 256;
 constexpr size_t parallel_binning_threshold = 1u << 16;
 constexpr size_t binning_chunk = 1u << 14;
 
+/// The doubled centroid lo + hi, lane 3 zero (lo's lane 3 is the prim id: simd::clear_w).
+inline Vec4f centroid2(Vec4f lo, Vec4f hi) {
+  return simd::clear_w(lo) + hi;
+}
+
 /// Bounds of a range: geometric, and of the doubled centroids (lo + hi).
 struct RangeInfo {
   Vec4f geom_lo, geom_hi, cent_lo, cent_hi;
@@ -61,7 +66,7 @@ struct RangeInfo {
   void add(Vec4f lo, Vec4f hi) {
     geom_lo = min(geom_lo, lo);
     geom_hi = max(geom_hi, hi);
-    Vec4f c = lo + hi;
+    const Vec4f c = centroid2(lo, hi);
     cent_lo = min(cent_lo, c);
     cent_hi = max(cent_hi, c);
   }
@@ -104,15 +109,17 @@ struct BinMapping {
     Vec4f ext = info.cent_hi - info.cent_lo;
     alignas(16) float e[4], s[4];
     ext.store(e);
-    for (int a = 0; a < 4; ++a) s[a] = e[a] > 0.0f ? float(bins) * 0.99999f / e[a] : 0.0f;
+    for (int a = 0; a < 3; ++a) s[a] = e[a] > 0.0f ? float(bins) * 0.99999f / e[a] : 0.0f;
+    s[3] = 0.0f;
     scale = Vec4f::load(s);
+    offset = simd::clear_w(offset);
     top = Vec4f(float(bins - 1));
   }
   // Clamped in float before truncation: two SIMD ops instead of three integer clamps.
   // The partition calls the same function, so a reference always lands in the bin it was
   // counted in (a mismatch could leave one side empty).
   void bin_of(Vec4f lo, Vec4f hi, int* out) const {
-    simd::to_int(min(max((lo + hi - offset) * scale, Vec4f(0.0f)), top), out);
+    simd::to_int(min(max((centroid2(lo, hi) - offset) * scale, Vec4f(0.0f)), top), out);
   }
   Vec4f top = Vec4f(0.0f);
 };
@@ -326,7 +333,7 @@ struct BinnedBuilder {
     const size_t n = info.end - info.begin;
     const PrimRef* r = refs + info.begin;
     __m128 key[exact_sweep_cap];
-    for (size_t i = 0; i < n; ++i) key[i] = (ref_lo(r, i) + ref_hi(r, i)).v;
+    for (size_t i = 0; i < n; ++i) key[i] = centroid2(ref_lo(r, i), ref_hi(r, i)).v;
     uint8_t order[3][exact_sweep_cap];
     for (size_t i = 0; i < n; ++i) {
       // Stable: i goes after the earlier references with keys <= its own.
@@ -442,7 +449,7 @@ struct BinnedBuilder {
       f += left;
       k -= !left;
       const __m128 to_back = lane_mask(!left);
-      const Vec4f c = lo + hi;
+      const Vec4f c = centroid2(lo, hi);
       front.add_unless(to_back, lo, hi, c);
       back.add_unless(_mm_xor_ps(to_back, lane_mask(true)), lo, hi, c);
     }
@@ -487,7 +494,7 @@ struct BinnedBuilder {
       f += is_lower;
       k -= is_upper;
       t += is_middle;
-      const Vec4f c = lo + hi;
+      const Vec4f c = centroid2(lo, hi);
       lower.add_unless(lane_mask(!is_lower), lo, hi, c);
       upper.add_unless(lane_mask(!is_upper), lo, hi, c);
     }

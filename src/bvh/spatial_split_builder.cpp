@@ -125,7 +125,7 @@ struct Work {
   void add(const PrimRef& r) {
     refs.push_back(r);
     geom.add(r);
-    const Vec4f c = Vec4f::load(&r.lo) + Vec4f::load(&r.hi);
+    const Vec4f c = simd::clear_w(Vec4f::load(&r.lo)) + Vec4f::load(&r.hi);  // lane 3: prim id
     cent.lo = min(cent.lo, c);
     cent.hi = max(cent.hi, c);
   }
