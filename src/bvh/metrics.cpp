@@ -18,17 +18,33 @@ double half_area_double(const Bvh2Node& n) {
 
 uint32_t max_depth(const Bvh2& bvh) {
   if (bvh.empty()) return 0;
+  // Every kestrel builder puts children after their parent: then one forward pass over the
+  // array gives each node its depth (no stack, no branch on leaf or not). Other orders: a
+  // depth-first walk.
+  const size_t n = bvh.nodes.size();
+  std::vector<uint32_t> depth(n);
+  depth[0] = 0;
   uint32_t deepest = 0;
+  size_t i = 0;
+  for (; i < n; ++i) {
+    const Bvh2Node& node = bvh.nodes[i];
+    deepest = std::max(deepest, depth[i]);
+    if (node.is_leaf()) continue;
+    if (node.index <= i || node.index + 1 >= n) break;  // not parents first
+    depth[node.index] = depth[node.index + 1] = depth[i] + 1;
+  }
+  if (i == n) return deepest;
+  deepest = 0;
   std::vector<std::pair<uint32_t, uint32_t>> stack{{0, 0}};
   while (!stack.empty()) {
-    auto [i, depth] = stack.back();
+    auto [k, d] = stack.back();
     stack.pop_back();
-    const Bvh2Node& node = bvh.nodes[i];
+    const Bvh2Node& node = bvh.nodes[k];
     if (node.is_leaf()) {
-      deepest = std::max(deepest, depth);
+      deepest = std::max(deepest, d);
     } else {
-      stack.push_back({node.index, depth + 1});
-      stack.push_back({node.index + 1, depth + 1});
+      stack.push_back({node.index, d + 1});
+      stack.push_back({node.index + 1, d + 1});
     }
   }
   return deepest;
