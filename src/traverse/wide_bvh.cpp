@@ -30,7 +30,11 @@ struct LeafPlan {
   Buffer<uint32_t> count;   // primitives under each Bvh2 node
   Buffer<uint8_t> flat;     // 1: emit the whole subtree as one leaf
   Buffer<uint32_t> blocks;  // blocks the subtree's leaves take (flat: one leaf's)
-  size_t block_count = 0;   // triangle blocks of all leaves (flat subtrees, parent not flat)
+  // The subtree's first leaf-order primitive when its leaves, left first, cover one run
+  // [first, first + count) (top-down builders' trees), else scattered: then they are walked.
+  Buffer<uint32_t> first;
+  size_t block_count = 0;  // triangle blocks of all leaves (flat subtrees, parent not flat)
+  static constexpr uint32_t scattered = ~0u;
 };
 
 // Nodes in an order that puts every child after its parent: the node array itself when its
@@ -57,7 +61,7 @@ Buffer<uint32_t> parents_first(const Bvh2& bvh) {
 LeafPlan plan_leaves(const Bvh2& bvh, uint32_t max_leaf) {
   const size_t n = bvh.nodes.size();
   // Every entry is written below (children before parents) before it is read.
-  LeafPlan plan{Buffer<uint32_t>(n), Buffer<uint8_t>(n), Buffer<uint32_t>(n)};
+  LeafPlan plan{Buffer<uint32_t>(n), Buffer<uint8_t>(n), Buffer<uint32_t>(n), Buffer<uint32_t>(n)};
   Buffer<float> cost(n);
   Buffer<uint32_t>& blocks = plan.blocks;
   const Buffer<uint32_t> order = parents_first(bvh);
@@ -70,6 +74,7 @@ LeafPlan plan_leaves(const Bvh2& bvh, uint32_t max_leaf) {
     const float area = half_area(node);
     if (node.is_leaf()) {
       plan.count[id] = node.count;
+      plan.first[id] = node.index;
       plan.flat[id] = 1;
       cost[id] = area * float((node.count + 3) / 4);
       blocks[id] = (node.count + 3) / 4;
@@ -78,6 +83,9 @@ LeafPlan plan_leaves(const Bvh2& bvh, uint32_t max_leaf) {
     const uint32_t l = node.index, r = node.index + 1;
     const uint32_t c = plan.count[l] + plan.count[r];
     plan.count[id] = c;
+    const uint32_t fl = plan.first[l];
+    plan.first[id] =
+        fl != LeafPlan::scattered && plan.first[r] == fl + plan.count[l] ? fl : LeafPlan::scattered;
     const float split = area + cost[l] + cost[r];
     const float leaf = area * float((c + 3) / 4);
     if (c <= max_leaf && (c <= 4 || leaf <= split)) {
@@ -218,7 +226,11 @@ Wide collapse(const Bvh2& bvh, const Source& tris, uint32_t max_leaf) {
     std::vector<uint32_t> prims, walk;  // leaf-order indices of a flat subtree
     for (size_t j = jb; j < je; ++j) {
       prims.clear();
-      walk.assign(1, jobs[j].subtree);
+      if (const uint32_t first = plan.first[jobs[j].subtree]; first != LeafPlan::scattered) {
+        for (uint32_t k = 0; k < plan.count[jobs[j].subtree]; ++k) prims.push_back(first + k);
+      } else {
+        walk.assign(1, jobs[j].subtree);
+      }
       while (!walk.empty()) {
         const Bvh2Node& n = bvh.nodes[walk.back()];
         walk.pop_back();
