@@ -22,7 +22,8 @@ uint32_t max_depth(const Bvh2& bvh) {
   // array gives each node its depth (no stack, no branch on leaf or not). Other orders: a
   // depth-first walk.
   const size_t n = bvh.nodes.size();
-  std::vector<uint32_t> depth(n);
+  Buffer<uint32_t> depth(n);  // pooled: a rebuilt scene does not fault it in again
+  std::fill(depth.begin(), depth.end(), 0u);
   depth[0] = 0;
   uint32_t deepest = 0;
   size_t i = 0;

@@ -203,7 +203,8 @@ Wide collapse(const Bvh2& bvh, const Source& tris, uint32_t max_leaf) {
   struct LeafJob {
     uint32_t subtree, first_block;
   };
-  std::vector<LeafJob> jobs;
+  Buffer<LeafJob> jobs;       // pooled when large: a rebuilt scene does not fault it in again
+  jobs.reserve(block_count);  // a leaf takes at least one block
   Buffer<uint32_t> first_block(bvh.nodes.size());  // written for the flat subtrees' roots only
   {
     std::vector<LeafJob> stack{{0, 0}};
