@@ -340,6 +340,24 @@ void expect_same_wide(const Wide& a, const Wide& b, size_t prims, const std::str
   EXPECT_EQ(std::count(seen.begin(), seen.end(), 1), ptrdiff_t(prims)) << what;
 }
 
+// build_accel(scene, c) gives the same wide tree bytes with one thread and with four.
+void expect_thread_independent(const Scene& scene, const BuildConfig& c, size_t prims,
+                               const std::string& what) {
+  Accel one, four;
+  {
+    ThreadLimit l(1);
+    one = build_accel(scene, c);
+  }
+  {
+    ThreadLimit l(4);
+    four = build_accel(scene, c);
+  }
+  if (c.layout == Layout::bvh4)
+    expect_same_wide(one.nodes->bvh4, four.nodes->bvh4, prims, what);
+  else
+    expect_same_wide(one.nodes->bvh8, four.nodes->bvh8, prims, what);
+}
+
 TEST(WideBuild, DirectMortonBuildIsExactAndThreadIndependent) {
   for (size_t n : {size_t(1), size_t(4), size_t(5), size_t(60000)}) {
     const Scene scene = test::random_soup(n, n > 100 ? 0.02f : 0.6f, 11 + n);
@@ -349,21 +367,9 @@ TEST(WideBuild, DirectMortonBuildIsExactAndThreadIndependent) {
         c.builder = Builder::lbvh;
         c.layout = layout;
         c.morton_bits = bits;
-        Accel one, four;
-        {
-          ThreadLimit l(1);
-          one = build_accel(scene, c);
-        }
-        {
-          ThreadLimit l(4);
-          four = build_accel(scene, c);
-        }
-        const std::string what =
-            std::to_string(n) + " " + layout_name(layout) + " " + std::to_string(bits) + " bits";
-        if (layout == Layout::bvh4)
-          expect_same_wide(one.nodes->bvh4, four.nodes->bvh4, n, what);
-        else
-          expect_same_wide(one.nodes->bvh8, four.nodes->bvh8, n, what);
+        expect_thread_independent(
+            scene, c, n,
+            std::to_string(n) + " " + layout_name(layout) + " " + std::to_string(bits) + " bits");
       }
     if (n >= 5)
       expect_same_as_reference(scene, test::random_rays(3000, n), Builder::lbvh, "direct");
@@ -396,20 +402,8 @@ TEST(WideBuild, CollapsedBuildsAreThreadIndependent) {
       BuildConfig c;
       c.builder = builder;
       c.layout = layout;
-      Accel one, four;
-      {
-        ThreadLimit l(1);
-        one = build_accel(scene, c);
-      }
-      {
-        ThreadLimit l(4);
-        four = build_accel(scene, c);
-      }
-      const std::string what = std::string(builder_name(builder)) + " " + layout_name(layout);
-      if (layout == Layout::bvh4)
-        expect_same_wide(one.nodes->bvh4, four.nodes->bvh4, one.prim_count, what);
-      else
-        expect_same_wide(one.nodes->bvh8, four.nodes->bvh8, one.prim_count, what);
+      expect_thread_independent(scene, c, scene.triangle_count(),
+                                std::string(builder_name(builder)) + " " + layout_name(layout));
     }
   BuildConfig c;
   SceneValidation validation;
