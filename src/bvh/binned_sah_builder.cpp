@@ -133,7 +133,7 @@ struct SideBounds {
         geom_hi = Vec4f(-std::numeric_limits<float>::infinity()),
         cent_lo = Vec4f(std::numeric_limits<float>::infinity()),
         cent_hi = Vec4f(-std::numeric_limits<float>::infinity());
-  // Adds [lo, hi] unless skip is all ones; c = lo + hi.
+  // Adds [lo, hi] unless skip is all ones; c is their doubled centroid (centroid2).
   void add_unless(__m128 skip, Vec4f lo, Vec4f hi, Vec4f c) {
     const __m128 l = _mm_or_ps(lo.v, skip), h = _mm_or_ps(hi.v, skip), cc = _mm_or_ps(c.v, skip);
     geom_lo = Vec4f(_mm_min_ps(l, geom_lo.v));

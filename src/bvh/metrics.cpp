@@ -24,7 +24,6 @@ uint32_t max_depth(const Bvh2& bvh) {
   const size_t n = bvh.nodes.size();
   Buffer<uint32_t> depth(n);  // pooled: a rebuilt scene does not fault it in again
   std::fill(depth.begin(), depth.end(), 0u);
-  depth[0] = 0;
   uint32_t deepest = 0;
   size_t i = 0;
   for (; i < n; ++i) {

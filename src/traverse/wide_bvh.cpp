@@ -242,6 +242,10 @@ Wide collapse(const Bvh2& bvh, const Source& tris, uint32_t max_leaf) {
           walk.push_back(n.index);
         }
       }
+      // The plan placed this leaf's blocks; a walk that found other primitives (a malformed
+      // tree) must not write past them.
+      KESTREL_CHECK(prims.size() == plan.count[jobs[j].subtree],
+                    "collapse: a leaf holds other primitives than its plan counted");
       const uint32_t count = uint32_t(prims.size());
       const uint32_t nb = (count + 3) / 4;
       for (uint32_t b = 0; b < nb; ++b) {
