@@ -17,16 +17,16 @@ struct BuilderCost {
   double build_ns_per_prim;  // build_accel, wide layout included
   double ray_factor;         // trace cost per ray relative to binned
 };
-// Fitted from the amortization benchmark of 2026-12-05 (AMD Zen 5, after the single-ray
-// kernels' critical-path work and the LBVH's fused passes; scenes bunny_grid, lamborghini,
-// sponza, teapot; the first of two runs, the second judged it: docs/amortization.csv). The
-// per-ray line through the four scenes has a negative intercept (it is a line through four
-// points, not a law): floored at ray_ns_min, it stays positive for the smallest scenes.
-constexpr double ray_ns_base = -17.40, ray_ns_per_log2n = 6.80, ray_ns_min = 10.0;
+// Fitted from the amortization benchmark of 2026-12-05 (evening; AMD Zen 5, after the builds'
+// denormal, validation and collapse work; scenes bunny_grid, lamborghini, sponza, teapot; the
+// first of two runs, the second judged it: docs/amortization.csv). The per-ray line through
+// the four scenes has a negative intercept (it is a line through four points, not a law):
+// floored at ray_ns_min, it stays positive for the smallest scenes.
+constexpr double ray_ns_base = -23.47, ray_ns_per_log2n = 6.91, ray_ns_min = 10.0;
 constexpr BuilderCost costs[] = {
-    {Builder::median, 398.5, 1.228},   {Builder::lbvh, 99.5, 1.149},
-    {Builder::binned, 514.4, 1.000},   {Builder::sweep, 1228.8, 1.000},
-    {Builder::spatial, 2224.9, 0.989},
+    {Builder::median, 352.9, 1.243},   {Builder::lbvh, 74.3, 1.146},
+    {Builder::binned, 282.9, 1.000},   {Builder::sweep, 905.5, 1.004},
+    {Builder::spatial, 1708.7, 0.963},
 };
 }  // namespace
 
