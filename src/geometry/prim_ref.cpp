@@ -64,25 +64,16 @@ PrimRef triangle_ref(const TriangleMesh& mesh, size_t t, uint32_t gid) {
 
 // classify_triangle and triangle_ref in one, the indices and vertices read once: writes the
 // reference when the triangle is valid and grows the centroid bounds [cent_lo, cent_hi] by
-// lo + hi. The same values as the two functions: MINPS(b, a) is std::min(a, b) (b < a ? b :
-// a) and MAXPS(b, a) is std::max(a, b), signed zeros included; the area test is theirs.
+// lo + hi. The same values as triangle_ref: MINPS(b, a) is std::min(a, b) (b < a ? b : a) and
+// MAXPS(b, a) is std::max(a, b), signed zeros included.
 inline uint8_t classify_and_ref(const TriangleMesh& mesh, size_t t, uint32_t gid, PrimRef& out,
                                 __m128& cent_lo, __m128& cent_hi) {
-  const size_t vertex_count = mesh.positions.size();
+  if (!indices_in_range(mesh, t)) return tri_bad_index;
   const uint32_t* idx = &mesh.indices[3 * t];
-  if (idx[0] >= vertex_count || idx[1] >= vertex_count || idx[2] >= vertex_count)
-    return tri_bad_index;
   const Vec3 a = mesh.positions[idx[0]], b = mesh.positions[idx[1]], c = mesh.positions[idx[2]];
+  if (const uint8_t kind = classify_vertices(a, b, c); kind != tri_valid) return kind;
   const __m128 va = _mm_setr_ps(a.x, a.y, a.z, 0.0f), vb = _mm_setr_ps(b.x, b.y, b.z, 0.0f),
                vc = _mm_setr_ps(c.x, c.y, c.z, 0.0f);
-  // x - x is NaN exactly when x is infinite or NaN.
-  const __m128 d =
-      _mm_add_ps(_mm_add_ps(_mm_sub_ps(va, va), _mm_sub_ps(vb, vb)), _mm_sub_ps(vc, vc));
-  if (_mm_movemask_ps(_mm_cmpunord_ps(d, d)) != 0) return tri_nonfinite;
-  const double ux = double(b.x) - a.x, uy = double(b.y) - a.y, uz = double(b.z) - a.z;
-  const double vx = double(c.x) - a.x, vy = double(c.y) - a.y, vz = double(c.z) - a.z;
-  if (uy * vz - uz * vy == 0.0 && uz * vx - ux * vz == 0.0 && ux * vy - uy * vx == 0.0)
-    return tri_degenerate;
   const __m128 lo = _mm_min_ps(vc, _mm_min_ps(vb, va)), hi = _mm_max_ps(vc, _mm_max_ps(vb, va));
   // lo's lane 3 carries the prim id, hi's the spare word (0).
   _mm_store_ps(&out.lo.x, _mm_or_ps(lo, _mm_castsi128_ps(_mm_setr_epi32(0, 0, 0, int32_t(gid)))));
