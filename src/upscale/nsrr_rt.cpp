@@ -53,6 +53,19 @@ const std::vector<nn::LayerSpec> kSpecs = {{"r1", 16, kIn, 1},
                                            {"c4", 24, 48, 1},
                                            {"c5", kKernel* kCells, 24, 1}};
 
+// Output row Y's blend logits, planar (logit c of pixel X at l[c W + X]), from the networks'
+// output grid o (cells of 4 x 4 pixels, Gw per row, pixel_shuffle order): a cell's 4 pixels on
+// row Y are 4 consecutive channels of each logit's 16.
+void cell_logits_row(const float* o, size_t Y, size_t W, size_t Gw, float* l) {
+  constexpr size_t K = size_t(kKernel), C = size_t(kCell);
+  const float* row = o + (Y / C) * Gw * K * size_t(kCells) + (Y % C) * C;
+  for (size_t X = 0; X < W; X += C) {
+    const float* oc = row + (X / C) * K * size_t(kCells);
+    const size_t n = std::min(C, W - X);  // the last cell may stick out of the image
+    for (size_t c = 0; c < K; ++c) std::memcpy(l + c * W + X, oc + c * kCells, n * sizeof(float));
+  }
+}
+
 class RealTime final : public Member {
  public:
   RealTime(const std::string& weights, int factor, bool bf16);
@@ -178,22 +191,7 @@ void RealTime::run(const UpscaleInput& in, const FloatImage& history, FloatImage
   // order).
   base.build(window[0], f, W);
   blend.run(base, hist.data(), window, src, kPrevious, kPreviousRadius, W, H, out,
-            [&](size_t Y, float* l) {
-              // A cell's 4 pixels on row Y are 4 consecutive channels of each logit's 16.
-              const float* row =
-                  o + (Y / kCell) * size_t(Gw) * size_t(kKernel * kCells) + (Y % kCell) * kCell;
-              for (size_t X = 0; X < size_t(W); X += kCell) {
-                const float* oc = row + (X / kCell) * size_t(kKernel * kCells);
-                if (X + kCell <= size_t(W)) {
-                  for (size_t c = 0; c < size_t(kKernel); ++c)
-                    std::memcpy(l + c * size_t(W) + X, oc + c * kCells, kCell * sizeof(float));
-                } else {
-                  for (size_t c = 0; c < size_t(kKernel); ++c)
-                    for (size_t j = 0; X + j < size_t(W); ++j)
-                      l[c * size_t(W) + X + j] = oc[c * kCells + j];
-                }
-              }
-            });
+            [&](size_t Y, float* l) { cell_logits_row(o, Y, size_t(W), size_t(Gw), l); });
   times.reconstruct = out_timer.ms();
 }
 
