@@ -17,16 +17,17 @@ struct BuilderCost {
   double build_ns_per_prim;  // build_accel, wide layout included
   double ray_factor;         // trace cost per ray relative to binned
 };
-// Fitted from the amortization benchmark of 2026-12-05 (evening; AMD Zen 5, after the builds'
-// denormal, validation and collapse work; scenes bunny_grid, lamborghini, sponza, teapot; the
-// first of two runs, the second judged it: docs/amortization.csv). The per-ray line through
-// the four scenes has a negative intercept (it is a line through four points, not a law):
-// floored at ray_ns_min, it stays positive for the smallest scenes.
-constexpr double ray_ns_base = -23.47, ray_ns_per_log2n = 6.91, ray_ns_min = 10.0;
+// Fitted from the amortization benchmark of 2026-12-05 (night; AMD Zen 5, after the collapse
+// took each wide node's slots by the SAH-optimal program, which made the binned, sweep, median
+// and spatial trees faster to trace and the LBVH's relatively slower; scenes bunny_grid,
+// lamborghini, sponza, teapot; the first of two runs, the second judged it:
+// docs/amortization.csv). The per-ray line is one through four points, not a law: floored at
+// ray_ns_min for the smallest scenes.
+constexpr double ray_ns_base = 22.42, ray_ns_per_log2n = 4.11, ray_ns_min = 10.0;
 constexpr BuilderCost costs[] = {
-    {Builder::median, 352.9, 1.243},   {Builder::lbvh, 74.3, 1.146},
-    {Builder::binned, 282.9, 1.000},   {Builder::sweep, 905.5, 1.004},
-    {Builder::spatial, 1708.7, 0.963},
+    {Builder::median, 373.9, 1.415},   {Builder::lbvh, 86.7, 1.262},
+    {Builder::binned, 342.6, 1.000},   {Builder::sweep, 1077.5, 1.015},
+    {Builder::spatial, 2074.0, 0.954},
 };
 }  // namespace
 
