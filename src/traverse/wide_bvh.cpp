@@ -76,6 +76,7 @@ void inner_slot_costs(SlotCosts<W>& c, float area, const SlotCosts<W>& cl, const
 // C(inner) = A + C(left) + C(right) (one SIMD box test, then the children). A subtree of at
 // most max_leaf primitives is flattened when that is no more expensive; a subtree of at most
 // four always is. This turns the binary builders' many 2-triangle leaves into full blocks.
+template <int W>
 struct LeafPlan {
   Buffer<uint32_t> count;   // primitives under each Bvh2 node
   Buffer<uint8_t> flat;     // 1: emit the whole subtree as one leaf
@@ -83,8 +84,8 @@ struct LeafPlan {
   // The subtree's first leaf-order primitive when its leaves, left first, cover one run
   // [first, first + count) (top-down builders' trees), else scattered: then they are walked.
   Buffer<uint32_t> first;
-  Buffer<float> slots;     // cost(n, i) of the wide nodes' slots, W per node (SlotCosts)
-  size_t block_count = 0;  // triangle blocks of all leaves (flat subtrees, parent not flat)
+  Buffer<SlotCosts<W>> slots;  // cost(n, i) of the wide nodes' slots
+  size_t block_count = 0;      // triangle blocks of all leaves (flat subtrees, parent not flat)
   static constexpr uint32_t scattered = ~0u;
 };
 
@@ -110,14 +111,12 @@ Buffer<uint32_t> parents_first(const Bvh2& bvh) {
 }
 
 template <int W>
-LeafPlan plan_leaves(const Bvh2& bvh, uint32_t max_leaf) {
+LeafPlan<W> plan_leaves(const Bvh2& bvh, uint32_t max_leaf) {
   const size_t n = bvh.nodes.size();
   // Every entry is written below (children before parents) before it is read.
-  LeafPlan plan{Buffer<uint32_t>(n), Buffer<uint8_t>(n), Buffer<uint32_t>(n), Buffer<uint32_t>(n),
-                Buffer<float>(n * W)};
-  const auto slots = [&](uint32_t id) -> SlotCosts<W>& {
-    return *reinterpret_cast<SlotCosts<W>*>(plan.slots.data() + size_t(id) * W);
-  };
+  LeafPlan<W> plan{Buffer<uint32_t>(n), Buffer<uint8_t>(n), Buffer<uint32_t>(n),
+                   Buffer<uint32_t>(n), Buffer<SlotCosts<W>>(n)};
+  const auto slots = [&](uint32_t id) -> SlotCosts<W>& { return plan.slots[id]; };
   Buffer<float> cost(n);
   Buffer<uint32_t>& blocks = plan.blocks;
   const Buffer<uint32_t> order = parents_first(bvh);
@@ -141,8 +140,9 @@ LeafPlan plan_leaves(const Bvh2& bvh, uint32_t max_leaf) {
     const uint32_t c = plan.count[l] + plan.count[r];
     plan.count[id] = c;
     const uint32_t fl = plan.first[l];
-    plan.first[id] =
-        fl != LeafPlan::scattered && plan.first[r] == fl + plan.count[l] ? fl : LeafPlan::scattered;
+    plan.first[id] = fl != LeafPlan<W>::scattered && plan.first[r] == fl + plan.count[l]
+                         ? fl
+                         : LeafPlan<W>::scattered;
     const float split = area + cost[l] + cost[r];
     const float leaf = area * float((c + 3) / 4);
     if (c <= max_leaf && (c <= 4 || leaf <= split)) {
@@ -162,16 +162,15 @@ LeafPlan plan_leaves(const Bvh2& bvh, uint32_t max_leaf) {
 }
 
 // Wide nodes from a binary tree: flat[i] marks the binary subtrees that become one leaf
-// slot, slot_costs holds cost(n, i) (W per node, plan_leaves); emit_leaf(i) returns a leaf
+// slot, cost holds cost(n, i) of every binary node (plan_leaves); emit_leaf(i) returns a leaf
 // slot's child reference.
 template <int W, class Node, class EmitLeaf>
 void build_wide_nodes(const Bvh2& bvh, std::span<const uint8_t> flat,
-                      std::span<const float> slot_costs, Buffer<Node>& nodes,
+                      std::span<const SlotCosts<W>> cost, Buffer<Node>& nodes,
                       EmitLeaf&& emit_leaf) {
   struct Work {
     uint32_t src, dst;
   };
-  const auto* cost = reinterpret_cast<const SlotCosts<W>*>(slot_costs.data());
   std::vector<Work> todo{{0, 0}};
   nodes.emplace_back();
   while (!todo.empty()) {
@@ -262,7 +261,7 @@ Wide collapse(const Bvh2& bvh, const Source& tris, uint32_t max_leaf) {
   if (bvh.empty()) return out;
   if (bvh.prim_ids.size() >= size_t(block_last_bit))
     throw Error(ErrorCode::invalid_argument, "wide BVH: more than 2^31 primitives");
-  const LeafPlan plan = plan_leaves<W>(bvh, std::max<uint32_t>(max_leaf, 4));
+  const LeafPlan<W> plan = plan_leaves<W>(bvh, std::max<uint32_t>(max_leaf, 4));
   const size_t block_count = plan.block_count;
   if (block_count >= size_t(wide_leaf_bit))
     throw Error(ErrorCode::invalid_argument, "wide BVH: too many triangle blocks");
@@ -299,7 +298,7 @@ Wide collapse(const Bvh2& bvh, const Source& tris, uint32_t max_leaf) {
     std::vector<uint32_t> prims, walk;  // leaf-order indices of a flat subtree
     for (size_t j = jb; j < je; ++j) {
       prims.clear();
-      if (const uint32_t first = plan.first[jobs[j].subtree]; first != LeafPlan::scattered) {
+      if (const uint32_t first = plan.first[jobs[j].subtree]; first != LeafPlan<W>::scattered) {
         for (uint32_t k = 0; k < plan.count[jobs[j].subtree]; ++k) prims.push_back(first + k);
       } else {
         walk.assign(1, jobs[j].subtree);
@@ -511,7 +510,7 @@ Buffer<Node> collapse_instance_tree(const Bvh2& bvh) {
   }
   nodes.reserve(bvh.nodes.size() / (W - 1) + 1);
   build_wide_nodes<W>(
-      bvh, flat, std::span(&slots[0][0], slots.size() * W), nodes,
+      bvh, flat, std::span<const SlotCosts<W>>(slots.data(), slots.size()), nodes,
       [&](uint32_t leaf) { return wide_leaf_bit | bvh.prim_ids[bvh.nodes[leaf].index]; });
   return nodes;
 }
