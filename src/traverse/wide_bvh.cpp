@@ -29,10 +29,8 @@ float half_area(const Bvh2Node& n) {
 // most i slots of one wide node, a wide node's visit costing its area and a leaf its area per
 // block (what wide_sah_cost measures). One slot: n itself, a leaf (flat) or a wide node of its
 // own, A(n) + dist(n, W); i slots: cost(n, i - 1), or n's two children sharing them, dist(n, i)
-// = min over k of cost(l, k) + cost(r, i - k). The collapse before opened the largest-area
-// child until the node was full: wide SAH 22.80 against 21.46 now inside Sponza, 17.98 against
-// 17.39 for the Lamborghini, 135.8 against 130.1 for the hairball (Embree MEDIUM: 22.00 inside
-// Sponza, by its own statistics), the same binary trees.
+// = min over k of cost(l, k) + cost(r, i - k). (Opening the largest-area child instead, until
+// the node was full: wide SAH 22.80 against 21.46 inside Sponza; docs/bvh_layout.md.)
 template <int W>
 using SlotCosts = std::array<float, W>;  // [i - 1]: cost(n, i)
 
@@ -110,6 +108,16 @@ Buffer<uint32_t> parents_first(const Bvh2& bvh) {
   return order;
 }
 
+// Calls fn(id) for every node, children before their parents: parents_first backwards (the
+// array backwards, not a breadth-first list, took the leaf plan from ~12 % of an LBVH's
+// ready-to-trace build to ~3 %).
+template <class Fn>
+void for_each_child_first(const Bvh2& bvh, Fn&& fn) {
+  const Buffer<uint32_t> order = parents_first(bvh);
+  for (size_t i = order.empty() ? bvh.nodes.size() : order.size(); i-- > 0;)
+    fn(order.empty() ? uint32_t(i) : order[i]);
+}
+
 template <int W>
 LeafPlan<W> plan_leaves(const Bvh2& bvh, uint32_t max_leaf) {
   const size_t n = bvh.nodes.size();
@@ -119,12 +127,7 @@ LeafPlan<W> plan_leaves(const Bvh2& bvh, uint32_t max_leaf) {
   const auto slots = [&](uint32_t id) -> SlotCosts<W>& { return plan.slots[id]; };
   Buffer<float> cost(n);
   Buffer<uint32_t>& blocks = plan.blocks;
-  const Buffer<uint32_t> order = parents_first(bvh);
-  const size_t m = order.empty() ? n : order.size();
-  // Children before parents: the order backwards. (Reading the array backwards, not a
-  // breadth-first list, took this pass from ~12 % of an LBVH's ready-to-trace build to ~3 %.)
-  for (size_t i = m; i-- > 0;) {
-    const uint32_t id = order.empty() ? uint32_t(i) : order[i];
+  for_each_child_first(bvh, [&](uint32_t id) {
     const Bvh2Node& node = bvh.nodes[id];
     const float area = half_area(node);
     if (node.is_leaf()) {
@@ -134,7 +137,7 @@ LeafPlan<W> plan_leaves(const Bvh2& bvh, uint32_t max_leaf) {
       cost[id] = area * float((node.count + 3) / 4);
       blocks[id] = (node.count + 3) / 4;
       slots(id).fill(cost[id]);
-      continue;
+      return;
     }
     const uint32_t l = node.index, r = node.index + 1;
     const uint32_t c = plan.count[l] + plan.count[r];
@@ -156,7 +159,7 @@ LeafPlan<W> plan_leaves(const Bvh2& bvh, uint32_t max_leaf) {
       blocks[id] = blocks[l] + blocks[r];
       inner_slot_costs<W>(slots(id), area, slots(l), slots(r));
     }
-  }
+  });
   plan.block_count = n > 0 ? blocks[0] : 0;
   return plan;
 }
@@ -179,7 +182,6 @@ void build_wide_nodes(const Bvh2& bvh, std::span<const uint8_t> flat,
     uint32_t kids[W];
     float area[W];
     int n = 0;
-    const Bvh2Node& src = bvh.nodes[work.src];
     if (flat[work.src]) {
       kids[n++] = work.src;  // a one-leaf tree: the root holds one leaf slot
     } else {
@@ -499,15 +501,13 @@ Buffer<Node> collapse_instance_tree(const Bvh2& bvh) {
   }
   // Slot costs as plan_leaves', each leaf one instance (a block).
   Buffer<SlotCosts<W>> slots(bvh.nodes.size());
-  const Buffer<uint32_t> order = parents_first(bvh);
-  for (size_t o = order.empty() ? bvh.nodes.size() : order.size(); o-- > 0;) {
-    const uint32_t id = order.empty() ? uint32_t(o) : order[o];
+  for_each_child_first(bvh, [&](uint32_t id) {
     const Bvh2Node& node = bvh.nodes[id];
     if (flat[id])
       slots[id].fill(half_area(node));
     else
       inner_slot_costs<W>(slots[id], half_area(node), slots[node.index], slots[node.index + 1]);
-  }
+  });
   nodes.reserve(bvh.nodes.size() / (W - 1) + 1);
   build_wide_nodes<W>(
       bvh, flat, std::span<const SlotCosts<W>>(slots.data(), slots.size()), nodes,
