@@ -4,14 +4,17 @@
 // both ends, and the references are partitioned in place. Each node carries its geometric
 // and centroid bounds from its parent's partition pass, so no extra pass over the range is
 // needed. Large ranges are binned in parallel over fixed chunks (merged in chunk order, so
-// results do not depend on the thread count); subtrees are built in parallel through
-// core/parallel.h with node slots fixed in advance (node_slots.h).
+// results do not depend on the thread count) and, with more than one thread, partitioned in
+// parallel (counted per chunk, then scattered: the same array as one pass); subtrees are
+// built in parallel through core/parallel.h with node slots fixed in advance (node_slots.h),
+// each reporting its node count so the slots compact in parallel too.
 #include <algorithm>
 #include <atomic>
 #include <cstring>
 #include <limits>
 #include <vector>
 
+#include "bvh/binned_parts.h"
 #include "bvh/builders.h"
 #include "bvh/node_slots.h"
 #include "bvh/radix_sort.h"
@@ -25,9 +28,8 @@ namespace kestrel {
 
 namespace {
 
-using simd::Vec4f;
+using namespace binned;  // Vec4f, RangeInfo, Bins, BinMapping, SideBounds
 
-constexpr int max_bins = 32;
 // Ranges this small are split by an exact sweep over centroid-sorted primitives instead of
 // bins: cheaper than clearing and sweeping 3 x bin_count bins, and never worse in SAH.
 constexpr size_t exact_sweep_max = 8;
@@ -43,112 +45,10 @@ constexpr size_t refine_min = 256;
 constexpr size_t radix_min = 64;
 // Ranges at least this large are binned into two alternating bin sets (see bin_range).
 constexpr size_t two_set_min = 256;
+// Ranges at least this large are binned, and with more than one thread partitioned, in
+// parallel chunks of binning_chunk.
 constexpr size_t parallel_binning_threshold = 1u << 16;
 constexpr size_t binning_chunk = 1u << 14;
-
-/// The doubled centroid lo + hi, lane 3 zero (lo's lane 3 is the prim id: simd::clear_w).
-inline Vec4f centroid2(Vec4f lo, Vec4f hi) {
-  return simd::clear_w(lo) + hi;
-}
-
-/// Bounds of a range: geometric, and of the doubled centroids (lo + hi).
-struct RangeInfo {
-  Vec4f geom_lo, geom_hi, cent_lo, cent_hi;
-  size_t begin, end;
-  static RangeInfo empty_at(size_t begin) {
-    return {Vec4f(std::numeric_limits<float>::infinity()),
-            Vec4f(-std::numeric_limits<float>::infinity()),
-            Vec4f(std::numeric_limits<float>::infinity()),
-            Vec4f(-std::numeric_limits<float>::infinity()),
-            begin,
-            begin};
-  }
-  void add(Vec4f lo, Vec4f hi) {
-    geom_lo = min(geom_lo, lo);
-    geom_hi = max(geom_hi, hi);
-    const Vec4f c = centroid2(lo, hi);
-    cent_lo = min(cent_lo, c);
-    cent_hi = max(cent_hi, c);
-  }
-};
-
-struct Bins {
-  Vec4f lo[3][max_bins], hi[3][max_bins];
-  uint32_t count[3][max_bins];
-  void clear(int bin_count) {
-    for (int a = 0; a < 3; ++a)
-      for (int b = 0; b < bin_count; ++b) {
-        lo[a][b] = Vec4f(std::numeric_limits<float>::infinity());
-        hi[a][b] = Vec4f(-std::numeric_limits<float>::infinity());
-        count[a][b] = 0;
-      }
-  }
-  /// Adds a reference with bounds [lo, hi] to its bin on each axis.
-  void add(const int* bin, Vec4f lo, Vec4f hi) {
-    for (int a = 0; a < 3; ++a) {
-      this->lo[a][bin[a]] = min(this->lo[a][bin[a]], lo);
-      this->hi[a][bin[a]] = max(this->hi[a][bin[a]], hi);
-      count[a][bin[a]]++;
-    }
-  }
-  void merge(const Bins& o, int bin_count) {
-    for (int a = 0; a < 3; ++a)
-      for (int b = 0; b < bin_count; ++b) {
-        lo[a][b] = min(lo[a][b], o.lo[a][b]);
-        hi[a][b] = max(hi[a][b], o.hi[a][b]);
-        count[a][b] += o.count[a][b];
-      }
-  }
-};
-
-struct BinMapping {
-  Vec4f offset, scale;
-  int bin_count;
-  BinMapping(const RangeInfo& info, int bins) : offset(info.cent_lo), bin_count(bins) {
-    // Slightly under bins/extent so the largest centroid lands in the last bin, not past it.
-    Vec4f ext = info.cent_hi - info.cent_lo;
-    alignas(16) float e[4], s[4];
-    ext.store(e);
-    for (int a = 0; a < 3; ++a) s[a] = e[a] > 0.0f ? float(bins) * 0.99999f / e[a] : 0.0f;
-    s[3] = 0.0f;
-    scale = Vec4f::load(s);
-    offset = simd::clear_w(offset);
-    top = Vec4f(float(bins - 1));
-  }
-  // Clamped in float before truncation: two SIMD ops instead of three integer clamps.
-  // The partition calls the same function, so a reference always lands in the bin it was
-  // counted in (a mismatch could leave one side empty).
-  void bin_of(Vec4f lo, Vec4f hi, int* out) const {
-    simd::to_int(min(max((centroid2(lo, hi) - offset) * scale, Vec4f(0.0f)), top), out);
-  }
-  Vec4f top = Vec4f(0.0f);
-};
-
-// Side accumulators of a branch-free partition: a reference's box joins one side's bounds
-// through a lane mask instead of a branch (the side is as unpredictable as a coin). A box
-// that does not join is made NaN (all bits set), which MINPS / MAXPS pass over: they return
-// their second operand, the accumulator, when the first is NaN.
-struct SideBounds {
-  Vec4f geom_lo = Vec4f(std::numeric_limits<float>::infinity()),
-        geom_hi = Vec4f(-std::numeric_limits<float>::infinity()),
-        cent_lo = Vec4f(std::numeric_limits<float>::infinity()),
-        cent_hi = Vec4f(-std::numeric_limits<float>::infinity());
-  // Adds [lo, hi] unless skip is all ones; c is their doubled centroid (centroid2).
-  void add_unless(__m128 skip, Vec4f lo, Vec4f hi, Vec4f c) {
-    const __m128 l = _mm_or_ps(lo.v, skip), h = _mm_or_ps(hi.v, skip), cc = _mm_or_ps(c.v, skip);
-    geom_lo = Vec4f(_mm_min_ps(l, geom_lo.v));
-    geom_hi = Vec4f(_mm_max_ps(h, geom_hi.v));
-    cent_lo = Vec4f(_mm_min_ps(cc, cent_lo.v));
-    cent_hi = Vec4f(_mm_max_ps(cc, cent_hi.v));
-  }
-  RangeInfo range(size_t begin, size_t end) const {
-    return {geom_lo, geom_hi, cent_lo, cent_hi, begin, end};
-  }
-};
-
-inline __m128 lane_mask(bool b) {
-  return _mm_castsi128_ps(_mm_set1_epi32(-int32_t(b)));
-}
 
 // The references are partitioned out of place: a range lives in one of two buffers and its
 // children in the other (each node records which), so a partition is one branch-free pass
@@ -211,7 +111,7 @@ struct BinnedBuilder {
     for (size_t c = 1; c < chunks; ++c) bins.merge(partial[c], map.bin_count);
   }
 
-  void make_leaf(uint32_t slot, const RangeInfo& info, const PrimRef* r) {
+  uint32_t make_leaf(uint32_t slot, const RangeInfo& info, const PrimRef* r) {
     for (size_t i = info.begin; i < info.end; ++i) ids[i] = r[i].prim_id;
     Bvh2Node& node = slots[slot];
     alignas(16) float lo[4], hi[4];
@@ -221,6 +121,7 @@ struct BinnedBuilder {
                     uint32_t(info.begin),
                     {hi[0], hi[1], hi[2]},
                     uint32_t(info.end - info.begin)};
+    return 1;
   }
 
   // Splits [begin, end) at its middle (all centroids equal: no SAH split exists).
@@ -236,8 +137,9 @@ struct BinnedBuilder {
   }
 
   // Builds slot `slot` over `info`, whose references are in r[info.begin, info.end); `spare`
-  // is the other buffer. The children's references end up in r or in spare (`data`).
-  void build(uint32_t slot, uint32_t pair, const RangeInfo& info, PrimRef* r, PrimRef* spare) {
+  // is the other buffer. The children's references end up in r or in spare (`data`). Returns
+  // the subtree's node count.
+  uint32_t build(uint32_t slot, uint32_t pair, const RangeInfo& info, PrimRef* r, PrimRef* spare) {
     const size_t n = info.end - info.begin;
     if (n == 1 || n <= block_leaf) return make_leaf(slot, info, r);
     PrimRef* data = r;  // where the range's references are now
@@ -318,9 +220,14 @@ struct BinnedBuilder {
     slots[slot].lo = {lo[0], lo[1], lo[2]};
     slots[slot].hi = {hi[0], hi[1], hi[2]};
     const size_t left_count = left.end - left.begin;
+    uint32_t left_nodes = 0, right_nodes = 0;
     build_children(
-        n > config.parallel_threshold, [&] { build(pair, pair + 2, left, data, other); },
-        [&] { build(pair + 1, right_descendants(pair, left_count), right, data, other); });
+        n > config.parallel_threshold,
+        [&] { left_nodes = build(pair, pair + 2, left, data, other); },
+        [&] {
+          right_nodes = build(pair + 1, right_descendants(pair, left_count), right, data, other);
+        });
+    return slots.set_subtree_nodes(slot, left_nodes, right_nodes);
   }
 
   // Exact SAH over the sorted centroids of a small range; false when a leaf is cheaper. The
@@ -466,24 +373,12 @@ struct BinnedBuilder {
     right = r.range(mid, info.end);
   }
 
-  // Refines the chosen bin boundary while partitioning into `dst`. On regular structures
-  // (grids, tessellated planes) bin boundaries cut through rows of centroids, so the
-  // references of the two bins at the boundary are gathered in the middle of the range,
-  // sorted by centroid, and the exact SAH split among them is taken (the binned split is one
-  // of the candidates: never worse). Returns the split's cost.
-  float refine_and_partition(int axis, int split, const BinMapping& map, float inv_area,
-                             const RangeInfo& info, PrimRef* src, PrimRef* dst, RangeInfo& left,
-                             RangeInfo& right) const {
-    const float below = float(split - 1), above = float(split + 1);  // middle: bins split-1, split
-    // One pass: lower bins to the front of dst, upper bins to its back, the middle packed at
-    // the front of src's own range, which the pass has already read (every reference written
-    // to one of three places, chosen by selects).
-    thread_local std::vector<uint64_t> order, order_tmp;
-    thread_local std::vector<float> suffix_area;
-    const size_t b = info.begin, e = info.end;
-    PrimRef* middle = src + b;
-    SideBounds lower, upper;
-    size_t f = b, k = e, t = 0;
+  // Three ways, out of place: src[b, e) with x below `below` to dst[f, ...) in order, with x
+  // at or above `above` to dst[..., k) in reverse order, the rest to middle[t, ...) in order;
+  // f, k and t advanced, either outer side's bounds grown.
+  static void scatter3(const PrimRef* src, PrimRef* dst, size_t b, size_t e, int axis,
+                       const BinMapping& map, float below, float above, PrimRef* middle, size_t& f,
+                       size_t& k, size_t& t, SideBounds& lower, SideBounds& upper) {
     for (size_t i = b; i < e; ++i) {
       const Vec4f lo = ref_lo(src, i), hi = ref_hi(src, i);
       const float x = position(src[i], axis, map);
@@ -497,6 +392,70 @@ struct BinnedBuilder {
       const Vec4f c = centroid2(lo, hi);
       lower.add_unless(lane_mask(!is_lower), lo, hi, c);
       upper.add_unless(lane_mask(!is_upper), lo, hi, c);
+    }
+  }
+
+  // Refines the chosen bin boundary while partitioning into `dst`. On regular structures
+  // (grids, tessellated planes) bin boundaries cut through rows of centroids, so the
+  // references of the two bins at the boundary are gathered in the middle of the range,
+  // sorted by centroid, and the exact SAH split among them is taken (the binned split is one
+  // of the candidates: never worse). Returns the split's cost.
+  float refine_and_partition(int axis, int split, const BinMapping& map, float inv_area,
+                             const RangeInfo& info, PrimRef* src, PrimRef* dst, RangeInfo& left,
+                             RangeInfo& right) const {
+    const float below = float(split - 1), above = float(split + 1);  // middle: bins split-1, split
+    // One pass: lower bins to the front of dst, upper bins to its back, the middle packed at
+    // the front of src's own range, which the pass has already read (every reference written
+    // to one of three places, chosen by selects). Large ranges with more than one thread:
+    // counted per chunk first, then scattered by chunks in parallel (the middle into the
+    // gap, then moved), to the same places with the same bounds.
+    thread_local std::vector<uint64_t> order, order_tmp;
+    thread_local std::vector<float> suffix_area;
+    const size_t b = info.begin, e = info.end;
+    PrimRef* middle = src + b;
+    SideBounds lower, upper;
+    size_t f = b, k = e, t = 0;
+    if (e - b < parallel_binning_threshold || current_thread_count() == 1) {
+      scatter3(src, dst, b, e, axis, map, below, above, middle, f, k, t, lower, upper);
+    } else {
+      const size_t chunks = chunk_count(e - b, binning_chunk);
+      struct Chunk {
+        size_t lower = 0, upper = 0, middle = 0;
+        SideBounds lower_bounds, upper_bounds;
+      };
+      std::vector<Chunk> c(chunks);
+      const auto chunk_begin = [&](size_t i) { return b + i * binning_chunk; };
+      const auto chunk_end = [&](size_t i) { return std::min(e, b + (i + 1) * binning_chunk); };
+      parallel_for(0, chunks, 1, [&](size_t c0, size_t c1) {
+        for (size_t i = c0; i < c1; ++i)
+          for (size_t j = chunk_begin(i); j < chunk_end(i); ++j) {
+            const float x = position(src[j], axis, map);
+            c[i].lower += x < below;
+            c[i].upper += !(x < above);
+          }
+      });
+      size_t lower_count = 0;
+      for (size_t i = 0; i < chunks; ++i) {
+        c[i].middle = chunk_end(i) - chunk_begin(i) - c[i].lower - c[i].upper;
+        lower_count += c[i].lower;
+      }
+      PrimRef* gap = dst + b + lower_count;  // the middle's place until it moves to src
+      std::vector<size_t> lower_at(chunks), upper_at(chunks), middle_at(chunks);
+      for (size_t i = 0, lo = b, up = e, mi = 0; i < chunks; ++i) {
+        lower_at[i] = lo, upper_at[i] = up, middle_at[i] = mi;
+        lo += c[i].lower, up -= c[i].upper, mi += c[i].middle;
+      }
+      parallel_for(0, chunks, 1, [&](size_t c0, size_t c1) {
+        for (size_t i = c0; i < c1; ++i)
+          scatter3(src, dst, chunk_begin(i), chunk_end(i), axis, map, below, above, gap,
+                   lower_at[i], upper_at[i], middle_at[i], c[i].lower_bounds, c[i].upper_bounds);
+      });
+      for (const Chunk& ch : c) {  // in chunk order: ties keep the first, as one pass does
+        lower.merge(ch.lower_bounds);
+        upper.merge(ch.upper_bounds);
+        f += ch.lower, k -= ch.upper, t += ch.middle;
+      }
+      std::copy(gap, gap + t, middle);
     }
     const size_t m = t, n_lower = f - b, n_upper = e - k;
     PrimRef* mid = dst + f;

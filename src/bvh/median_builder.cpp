@@ -30,11 +30,13 @@ struct MedianBuilder {
     return b;
   }
 
-  void make_leaf(uint32_t slot, const Bounds3& b, size_t begin, size_t end) {
+  uint32_t make_leaf(uint32_t slot, const Bounds3& b, size_t begin, size_t end) {
     slots[slot] = Bvh2Node{b.lo, uint32_t(begin), b.hi, uint32_t(end - begin)};
+    return 1;
   }
 
-  void build(uint32_t slot, uint32_t pair, size_t begin, size_t end) {
+  // Returns the subtree's node count.
+  uint32_t build(uint32_t slot, uint32_t pair, size_t begin, size_t end) {
     Bounds3 centroid_bounds;
     const Bounds3 node_bounds = bounds_of(begin, end, &centroid_bounds);
     const size_t n = end - begin;
@@ -53,9 +55,11 @@ struct MedianBuilder {
       if (leaf_cost(config, n) <= split) return make_leaf(slot, node_bounds, begin, end);
     }
     slots[slot] = Bvh2Node{node_bounds.lo, pair, node_bounds.hi, 0};
+    uint32_t left_nodes = 0, right_nodes = 0;
     build_children(
-        n > config.parallel_threshold, [&] { build(pair, pair + 2, begin, mid); },
-        [&] { build(pair + 1, right_descendants(pair, mid - begin), mid, end); });
+        n > config.parallel_threshold, [&] { left_nodes = build(pair, pair + 2, begin, mid); },
+        [&] { right_nodes = build(pair + 1, right_descendants(pair, mid - begin), mid, end); });
+    return slots.set_subtree_nodes(slot, left_nodes, right_nodes);
   }
 };
 

@@ -30,13 +30,14 @@ struct SweepBuilder {
 
   Bounds3 ref_bounds(uint32_t i) const { return {refs[i].lo, refs[i].hi}; }
 
-  void build(uint32_t slot, uint32_t pair, size_t begin, size_t end) {
+  // Returns the subtree's node count.
+  uint32_t build(uint32_t slot, uint32_t pair, size_t begin, size_t end) {
     const size_t n = end - begin;
     Bounds3 node_bounds;
     for (size_t i = begin; i < end; ++i) extend(node_bounds, ref_bounds(order[0][i]));
     if (n == 1) {
       slots[slot] = Bvh2Node{node_bounds.lo, uint32_t(begin), node_bounds.hi, 1};
-      return;
+      return 1;
     }
     const float inv_area = inverse_area(half_area(node_bounds));
     float best_cost = std::numeric_limits<float>::infinity();
@@ -64,7 +65,7 @@ struct SweepBuilder {
     }
     if (n <= config.max_leaf_size && leaf_cost(config, n) <= best_cost) {
       slots[slot] = Bvh2Node{node_bounds.lo, uint32_t(begin), node_bounds.hi, uint32_t(n)};
-      return;
+      return 1;
     }
     const size_t mid = begin + best_left;
     for (size_t i = begin; i < end; ++i) goes_left[order[best_axis][i]] = i < mid;
@@ -76,9 +77,11 @@ struct SweepBuilder {
       std::copy(scratch.begin() + begin, scratch.begin() + end, o + begin);
     }
     slots[slot] = Bvh2Node{node_bounds.lo, pair, node_bounds.hi, 0};
+    uint32_t left_nodes = 0, right_nodes = 0;
     build_children(
-        n > config.parallel_threshold, [&] { build(pair, pair + 2, begin, mid); },
-        [&] { build(pair + 1, right_descendants(pair, mid - begin), mid, end); });
+        n > config.parallel_threshold, [&] { left_nodes = build(pair, pair + 2, begin, mid); },
+        [&] { right_nodes = build(pair + 1, right_descendants(pair, mid - begin), mid, end); });
+    return slots.set_subtree_nodes(slot, left_nodes, right_nodes);
   }
 };
 

@@ -26,27 +26,33 @@ inline void prefetch_vertices(const TriangleMesh& mesh, size_t t) {
     if (idx[k] < vertex_count) __builtin_prefetch(&mesh.positions[idx[k]]);
 }
 
-// Visits the triangles in parallel chunks, mesh by mesh: chunk(f) runs on a chunk's thread
-// with visit(f), which calls f(global id, mesh, local triangle) for each of its triangles
-// (the vertices of the triangle `prefetch_distance` on prefetched).
+// Visits the triangles in parallel chunks of the global ids (a chunk may span meshes: scenes
+// of many small meshes run in parallel too): chunk(f) runs on a chunk's thread with visit(f),
+// which calls f(global id, mesh, local triangle) for each of its triangles (the vertices of
+// the triangle `prefetch_distance` on in the same mesh prefetched).
 template <class Chunk>
 void for_each_triangle_chunk(const Scene& scene, Chunk&& chunk) {
-  size_t offset = 0;
-  for (const TriangleMesh& mesh : scene.meshes) {
-    const size_t n = mesh.triangle_count();
-    parallel_for(0, n, 16384, [&](size_t b, size_t e) {
-      chunk([&](auto&& f) {
-        for (size_t i = b; i < e; ++i) {
-          if (i + prefetch_distance < e) prefetch_vertices(mesh, i + prefetch_distance);
-          f(offset + i, mesh, i);
+  std::vector<size_t> first{0};  // first[m]: global id of mesh m's first triangle
+  for (const TriangleMesh& mesh : scene.meshes)
+    first.push_back(first.back() + mesh.triangle_count());
+  parallel_for(0, first.back(), 16384, [&](size_t b, size_t e) {
+    chunk([&](auto&& f) {
+      // The mesh holding global id b (the last of equal starts: empty meshes skipped).
+      size_t m = size_t(std::upper_bound(first.begin(), first.end(), b) - first.begin()) - 1;
+      for (size_t g = b; g < e; ++m) {
+        const TriangleMesh& mesh = scene.meshes[m];
+        const size_t end = std::min(e, first[m + 1]);
+        for (size_t i = g - first[m], n = end - first[m]; i < n; ++i) {
+          if (i + prefetch_distance < n) prefetch_vertices(mesh, i + prefetch_distance);
+          f(first[m] + i, mesh, i);
         }
-      });
+        g = end;
+      }
     });
-    offset += n;
-  }
+  });
 }
 
-// Visits (global id, mesh, local triangle) in parallel chunks, mesh by mesh.
+// Visits (global id, mesh, local triangle) in parallel chunks.
 template <class F>
 void for_each_triangle(const Scene& scene, F&& f) {
   for_each_triangle_chunk(scene, [&](auto&& visit) { visit(f); });

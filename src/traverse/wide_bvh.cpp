@@ -6,11 +6,9 @@
 #include <limits>
 #include <vector>
 
-#include <fmt/format.h>
-
 #include "core/check.h"
 #include "core/parallel.h"
-#include "core/simd/vec4f.h"
+#include "core/vec.h"
 #include "geometry/prim_ref.h"
 #include "kestrel/error.h"
 
@@ -118,6 +116,49 @@ void for_each_child_first(const Bvh2& bvh, Fn&& fn) {
     fn(order.empty() ? uint32_t(i) : order[i]);
 }
 
+// Subtrees of fewer nodes are planned by one task.
+constexpr uint32_t plan_grain = 4096;
+
+// Calls visit(id) for node `at` and its descendants, children before parents, subtrees in
+// parallel, when the tree is laid out depth first (compact_slots' order: the descendants of
+// `at` are the run [begin, end), its children's pair first, then the left child's
+// descendants). A node whose children lie outside its run clears depth_first and stops
+// that run (the caller then visits the whole tree serially).
+template <class Visit>
+void visit_subtrees(const Bvh2& bvh, const Visit& visit, uint32_t at, uint32_t begin, uint32_t end,
+                    bool& depth_first) {
+  const Bvh2Node& node = bvh.nodes[at];
+  if (end - begin < plan_grain || node.is_leaf()) {
+    if (node.is_leaf() ? begin != end : node.index != begin) {
+      depth_first = false;
+      return;
+    }
+    for (uint32_t i = end; i-- > begin;) {
+      const Bvh2Node& m = bvh.nodes[i];
+      if (!m.is_leaf() && (m.index <= i || m.index + 2 > end)) {
+        depth_first = false;
+        return;
+      }
+      visit(i);
+    }
+    visit(at);
+    return;
+  }
+  const uint32_t l = node.index, r = l + 1;
+  const Bvh2Node &left = bvh.nodes[l], &right = bvh.nodes[r];
+  const uint32_t split = right.is_leaf() ? end : right.index;  // the right child's run
+  if (l != begin || split < begin + 2 || split > end ||
+      (!left.is_leaf() && left.index != begin + 2)) {
+    depth_first = false;
+    return;
+  }
+  bool left_ok = true, right_ok = true;
+  parallel_invoke([&] { visit_subtrees(bvh, visit, l, begin + 2, split, left_ok); },
+                  [&] { visit_subtrees(bvh, visit, r, split, end, right_ok); });
+  depth_first = left_ok && right_ok;
+  if (depth_first) visit(at);
+}
+
 template <int W>
 LeafPlan<W> plan_leaves(const Bvh2& bvh, uint32_t max_leaf) {
   const size_t n = bvh.nodes.size();
@@ -127,7 +168,7 @@ LeafPlan<W> plan_leaves(const Bvh2& bvh, uint32_t max_leaf) {
   const auto slots = [&](uint32_t id) -> SlotCosts<W>& { return plan.slots[id]; };
   Buffer<float> cost(n);
   Buffer<uint32_t>& blocks = plan.blocks;
-  for_each_child_first(bvh, [&](uint32_t id) {
+  const auto visit = [&](uint32_t id) {
     const Bvh2Node& node = bvh.nodes[id];
     const float area = half_area(node);
     if (node.is_leaf()) {
@@ -159,94 +200,177 @@ LeafPlan<W> plan_leaves(const Bvh2& bvh, uint32_t max_leaf) {
       blocks[id] = blocks[l] + blocks[r];
       inner_slot_costs<W>(slots(id), area, slots(l), slots(r));
     }
-  });
+  };
+  if (current_thread_count() > 1 && n >= 2 * plan_grain) {
+    bool depth_first = true;
+    visit_subtrees(bvh, visit, 0, 1, uint32_t(n), depth_first);
+    if (!depth_first) for_each_child_first(bvh, visit);  // not the layout: once more, serially
+  } else {
+    for_each_child_first(bvh, visit);
+  }
   plan.block_count = n > 0 ? blocks[0] : 0;
   return plan;
 }
 
-// Wide nodes from a binary tree: flat[i] marks the binary subtrees that become one leaf
-// slot, cost holds cost(n, i) of every binary node (plan_leaves); emit_leaf(i) returns a leaf
-// slot's child reference.
-template <int W, class Node, class EmitLeaf>
-void build_wide_nodes(const Bvh2& bvh, std::span<const uint8_t> flat,
-                      std::span<const SlotCosts<W>> cost, Buffer<Node>& nodes,
-                      EmitLeaf&& emit_leaf) {
+// What the node pass reads of the plan: flat[i] marks the binary subtrees that become one leaf
+// slot, cost holds cost(n, i) of every binary node, blocks the triangle blocks of each
+// subtree's leaves (empty: no blocks, as in the instance tree).
+template <int W>
+struct SlotPlan {
+  std::span<const uint8_t> flat;
+  std::span<const SlotCosts<W>> cost;
+  std::span<const uint32_t> blocks;
+};
+
+// A wide node's slots: binary nodes, and the first block of each one's leaves.
+template <int W>
+struct WideSlots {
+  uint32_t kid[W], first[W];
+  int n = 0;
+};
+
+// The slots of the wide node over binary node `src`, whose leaves' blocks start at `first`:
+// the (binary node, slots) pairs the plan gives, expanded until each holds one slot, then
+// ordered by surface area, largest first (occlusion rays visit them in slot order, and a ray
+// is likelier to hit a larger box: any hit on the diffuse rays, Sponza +36 %, bunny grid
+// +17 %, Lamborghini +4 %; closest hit sorts by distance and is unchanged).
+template <int W>
+WideSlots<W> choose_slots(const Bvh2& bvh, const SlotPlan<W>& plan, uint32_t src, uint32_t first) {
+  WideSlots<W> out;
+  uint32_t kid[W], kid_first[W];
+  if (plan.flat[src]) {
+    kid[out.n] = src, kid_first[out.n++] = first;  // a one-leaf tree: the root holds one leaf
+  } else {
+    struct Part {
+      uint32_t node;
+      int slots;
+      uint32_t first;
+    };
+    Part parts[2 * W];
+    int np = 0;
+    const auto split = [&](uint32_t at, int slots, uint32_t at_first) {
+      const uint32_t l = bvh.nodes[at].index;
+      const int k = best_split<W>(plan.cost[l], plan.cost[l + 1], slots);
+      const uint32_t right_first = plan.blocks.empty() ? 0 : at_first + plan.blocks[l];
+      parts[np++] = {l + 1, slots - k, right_first};
+      parts[np++] = {l, k, at_first};
+    };
+    split(src, W, first);
+    while (np > 0) {
+      Part p = parts[--np];
+      // cost(n, i) = cost(n, i - 1): fewer slots were as good (inner_slot_costs).
+      while (p.slots > 1 && !plan.flat[p.node] &&
+             plan.cost[p.node][p.slots - 1] == plan.cost[p.node][p.slots - 2])
+        --p.slots;
+      if (p.slots == 1 || plan.flat[p.node])
+        kid[out.n] = p.node, kid_first[out.n++] = p.first;
+      else
+        split(p.node, p.slots, p.first);
+    }
+  }
+  float area[W];
+  for (int i = 0; i < out.n; ++i) area[i] = half_area(bvh.nodes[kid[i]]);
+  int slot[W];  // an insertion sort, stable (std::stable_sort took a heap buffer per node)
+  for (int i = 0; i < out.n; ++i) {
+    int k = i;
+    for (; k > 0 && area[slot[k - 1]] < area[i]; --k) slot[k] = slot[k - 1];
+    slot[k] = i;
+  }
+  for (int i = 0; i < out.n; ++i) out.kid[i] = kid[slot[i]], out.first[i] = kid_first[slot[i]];
+  return out;
+}
+
+// Writes the wide node over binary node `src` (its leaves' blocks from `first`) to nodes[at],
+// and the wide nodes below it depth first, appended to `nodes` and referenced by their index
+// there: each node's inner children allocated together, the first child's subtree next. A
+// child for which defer(kid) holds is allocated but not expanded: defer_to(kid, first, index)
+// hands it to the caller. leaf(kid, first) returns a leaf slot's child reference.
+template <int W, class Node, class Leaf, class Defer, class DeferTo>
+void write_wide_nodes(const Bvh2& bvh, const SlotPlan<W>& plan, uint32_t src, uint32_t first,
+                      uint32_t at, Buffer<Node>& nodes, Leaf&& leaf, Defer&& defer,
+                      DeferTo&& defer_to) {
   struct Work {
-    uint32_t src, dst;
+    uint32_t src, first, dst;
   };
-  std::vector<Work> todo{{0, 0}};
-  nodes.emplace_back();
+  std::vector<Work> todo{{src, first, at}};
   while (!todo.empty()) {
     const Work work = todo.back();
     todo.pop_back();
-    uint32_t kids[W];
-    float area[W];
-    int n = 0;
-    if (flat[work.src]) {
-      kids[n++] = work.src;  // a one-leaf tree: the root holds one leaf slot
-    } else {
-      // The slots the plan gives the node's subtree: (binary node, slots) pairs expanded
-      // until each holds one slot.
-      struct Part {
-        uint32_t node;
-        int slots;
-      };
-      Part parts[2 * W];
-      int np = 0;
-      const auto split = [&](uint32_t at, int slots) {
-        const uint32_t l = bvh.nodes[at].index;
-        const int k = best_split<W>(cost[l], cost[l + 1], slots);
-        parts[np++] = {l + 1, slots - k};
-        parts[np++] = {l, k};
-      };
-      split(work.src, W);
-      while (np > 0) {
-        Part p = parts[--np];
-        // cost(n, i) = cost(n, i - 1): fewer slots were as good (inner_slot_costs).
-        while (p.slots > 1 && !flat[p.node] &&
-               cost[p.node][p.slots - 1] == cost[p.node][p.slots - 2])
-          --p.slots;
-        if (p.slots == 1 || flat[p.node])
-          kids[n++] = p.node;
-        else
-          split(p.node, p.slots);
-      }
-    }
-    // Slots by surface area, largest first: occlusion rays visit them in slot order, and a
-    // ray is likelier to hit a larger box (any hit on the diffuse rays: Sponza +36 %, bunny
-    // grid +17 %, Lamborghini +4 %; closest hit sorts by distance and is unchanged).
-    for (int i = 0; i < n; ++i) area[i] = half_area(bvh.nodes[kids[i]]);
-    int slot[W];  // an insertion sort, stable (std::stable_sort took a heap buffer per node)
-    for (int i = 0; i < n; ++i) {
-      int k = i;
-      for (; k > 0 && area[slot[k - 1]] < area[i]; --k) slot[k] = slot[k - 1];
-      slot[k] = i;
-    }
-    uint32_t sorted[W];
-    for (int i = 0; i < n; ++i) sorted[i] = kids[slot[i]];
-    std::copy(sorted, sorted + n, kids);
+    const WideSlots<W> s = choose_slots<W>(bvh, plan, work.src, work.first);
     Node node;
     const size_t first_new = todo.size();
     for (int j = 0; j < W; ++j) {
-      if (j >= n) {
+      if (j >= s.n) {
         const float inf = INFINITY;
         set_wide_slot(node, j, Bounds3{{inf, inf, inf}, {-inf, -inf, -inf}}, wide_empty);
         continue;
       }
-      const Bvh2Node& k = bvh.nodes[kids[j]];
+      const uint32_t kid = s.kid[j];
+      const Bvh2Node& k = bvh.nodes[kid];
       const Bounds3 box{k.lo, k.hi};
-      if (flat[kids[j]]) {
-        set_wide_slot(node, j, box, emit_leaf(kids[j]));
-      } else {
-        const uint32_t dst = uint32_t(nodes.size());
-        nodes.emplace_back();
-        todo.push_back({kids[j], dst});
-        set_wide_slot(node, j, box, dst);
+      if (plan.flat[kid]) {
+        set_wide_slot(node, j, box, leaf(kid, s.first[j]));
+        continue;
       }
+      const uint32_t dst = uint32_t(nodes.size());
+      nodes.emplace_back();
+      set_wide_slot(node, j, box, dst);
+      if (defer(kid))
+        defer_to(kid, s.first[j], dst);
+      else
+        todo.push_back({kid, s.first[j], dst});
     }
     std::reverse(todo.begin() + first_new, todo.end());  // first child is built next
     nodes[work.dst] = node;
   }
+}
+
+// Binary subtrees of fewer primitives under a larger one are the node pass's tasks: their
+// wide nodes follow the top ones', task by task (the same array for any thread count).
+constexpr uint32_t node_task_prims = 4096;
+
+// The whole node pass: the top wide nodes, then each task's, in parallel with more than one
+// thread (into a buffer per task, moved into place after).
+template <int W, class Node, class Leaf>
+void build_wide_nodes(const Bvh2& bvh, const SlotPlan<W>& plan, std::span<const uint32_t> count,
+                      Buffer<Node>& nodes, Leaf&& leaf) {
+  struct Task {
+    uint32_t src, first, dst;
+  };
+  std::vector<Task> tasks;
+  nodes.emplace_back();
+  write_wide_nodes<W>(
+      bvh, plan, 0, 0, 0, nodes, leaf, [&](uint32_t kid) { return count[kid] < node_task_prims; },
+      [&](uint32_t kid, uint32_t first, uint32_t dst) {
+        tasks.push_back({kid, first, dst});
+      });
+  const auto never = [](uint32_t) { return false; };
+  const auto none = [](uint32_t, uint32_t, uint32_t) {};
+  if (current_thread_count() == 1 || tasks.size() < 2) {
+    for (const Task& t : tasks)
+      write_wide_nodes<W>(bvh, plan, t.src, t.first, t.dst, nodes, leaf, never, none);
+    return;
+  }
+  std::vector<Buffer<Node>> local(tasks.size());  // [0]: the task's root, then what follows it
+  parallel_for(0, tasks.size(), 1, [&](size_t b, size_t e) {
+    for (size_t i = b; i < e; ++i) {
+      local[i].emplace_back();
+      write_wide_nodes<W>(bvh, plan, tasks[i].src, tasks[i].first, 0, local[i], leaf, never, none);
+    }
+  });
+  std::vector<uint32_t> base(tasks.size());  // local index k > 0 goes to base + k - 1
+  size_t total = nodes.size();
+  for (size_t i = 0; i < tasks.size(); ++i) base[i] = uint32_t(total), total += local[i].size() - 1;
+  nodes.resize(total);
+  parallel_for(0, tasks.size(), 1, [&](size_t b, size_t e) {
+    for (size_t i = b; i < e; ++i)
+      for (size_t k = 0; k < local[i].size(); ++k) {
+        Node node = local[i][k];
+        for (uint32_t& ref : node.child)
+          if (ref != wide_empty && !(ref & wide_leaf_bit)) ref = base[i] + ref - 1;
+        nodes[k == 0 ? tasks[i].dst : base[i] + k - 1] = node;
+      }
+  });
 }
 
 // Leaf-order triangles from a gathered array.
@@ -269,41 +393,33 @@ Wide collapse(const Bvh2& bvh, const Source& tris, uint32_t max_leaf) {
     throw Error(ErrorCode::invalid_argument, "wide BVH: too many triangle blocks");
   out.blocks.resize(block_count);
   out.nodes.reserve(bvh.nodes.size() / (W - 1) + 1);
-  // Each leaf's blocks in leaf order (the binary tree's depth-first order, left first): the
-  // block pass below then reads the triangles and writes the blocks front to back, in
-  // parallel (disjoint runs of out.blocks: the same bytes for any thread count). The nodes,
-  // built depth first by area, only look up their leaves' first blocks.
-  struct LeafJob {
-    uint32_t subtree, first_block;
+  // The node pass places each leaf's blocks in leaf order (the binary tree's depth-first
+  // order, left first) and marks them with its subtree; the block pass then reads the
+  // triangles and writes the blocks front to back, in parallel (disjoint runs of out.blocks:
+  // the same bytes for any thread count).
+  // leaf_of_block: a leaf's subtree at its first block, `continued` at its others.
+  constexpr uint32_t unplaced = ~0u, continued = ~1u;
+  Buffer<uint32_t> leaf_of_block(block_count, unplaced);
+  const auto leaf = [&](uint32_t subtree, uint32_t first) {
+    KESTREL_CHECK(plan.blocks[subtree] > 0 && size_t(first) + plan.blocks[subtree] <= block_count,
+                  "collapse: the leaf plan counted other blocks");
+    leaf_of_block[first] = subtree;
+    for (uint32_t b = 1; b < plan.blocks[subtree]; ++b) leaf_of_block[first + b] = continued;
+    return wide_leaf_bit | first;
   };
-  Buffer<LeafJob> jobs;       // pooled when large: a rebuilt scene does not fault it in again
-  jobs.reserve(block_count);  // a leaf takes at least one block
-  Buffer<uint32_t> first_block(bvh.nodes.size());  // written for the flat subtrees' roots only
-  {
-    std::vector<LeafJob> stack{{0, 0}};
-    while (!stack.empty()) {
-      const LeafJob at = stack.back();
-      stack.pop_back();
-      if (plan.flat[at.subtree]) {
-        first_block[at.subtree] = at.first_block;
-        jobs.push_back(at);
-        continue;
-      }
-      const uint32_t l = bvh.nodes[at.subtree].index;
-      stack.push_back({l + 1, at.first_block + plan.blocks[l]});
-      stack.push_back({l, at.first_block});
-    }
-  }
-  build_wide_nodes<W>(bvh, plan.flat, plan.slots, out.nodes,
-                      [&](uint32_t subtree) { return wide_leaf_bit | first_block[subtree]; });
-  parallel_for(0, jobs.size(), 2048, [&](size_t jb, size_t je) {
+  const SlotPlan<W> slot_plan{plan.flat, plan.slots, plan.blocks};
+  build_wide_nodes<W>(bvh, slot_plan, plan.count, out.nodes, leaf);
+  parallel_for(0, block_count, 2048, [&](size_t b0, size_t b1) {
     std::vector<uint32_t> prims, walk;  // leaf-order indices of a flat subtree
-    for (size_t j = jb; j < je; ++j) {
+    for (size_t at = b0; at < b1; ++at) {
+      const uint32_t subtree = leaf_of_block[at];
+      if (subtree == continued) continue;  // written with its leaf's first block
+      KESTREL_CHECK(subtree != unplaced, "collapse: a block no leaf placed");
       prims.clear();
-      if (const uint32_t first = plan.first[jobs[j].subtree]; first != LeafPlan<W>::scattered) {
-        for (uint32_t k = 0; k < plan.count[jobs[j].subtree]; ++k) prims.push_back(first + k);
+      if (const uint32_t first = plan.first[subtree]; first != LeafPlan<W>::scattered) {
+        for (uint32_t k = 0; k < plan.count[subtree]; ++k) prims.push_back(first + k);
       } else {
-        walk.assign(1, jobs[j].subtree);
+        walk.assign(1, subtree);
       }
       while (!walk.empty()) {
         const Bvh2Node& n = bvh.nodes[walk.back()];
@@ -317,12 +433,12 @@ Wide collapse(const Bvh2& bvh, const Source& tris, uint32_t max_leaf) {
       }
       // The plan placed this leaf's blocks; a walk that found other primitives (a malformed
       // tree) must not write past them.
-      KESTREL_CHECK(prims.size() == plan.count[jobs[j].subtree],
+      KESTREL_CHECK(prims.size() == plan.count[subtree],
                     "collapse: a leaf holds other primitives than its plan counted");
       const uint32_t count = uint32_t(prims.size());
       const uint32_t nb = (count + 3) / 4;
       for (uint32_t b = 0; b < nb; ++b) {
-        TriangleBlock& blk = out.blocks[jobs[j].first_block + b];
+        TriangleBlock& blk = out.blocks[at + b];
         for (uint32_t lane = 0; lane < 4; ++lane) {
           const uint32_t k = prims[std::min(4 * b + lane, count - 1)];  // pad with the last one
           write_block_lane(blk, int(lane), tris.at(k), bvh.prim_ids[k]);
@@ -331,28 +447,7 @@ Wide collapse(const Bvh2& bvh, const Source& tris, uint32_t max_leaf) {
       }
     }
   });
-  KESTREL_CHECK(
-      jobs.empty() ||
-          jobs.back().first_block + (plan.count[jobs.back().subtree] + 3) / 4 == block_count,
-      "collapse: the leaf plan counted other blocks");
   return out;
-}
-
-void grow(Bounds3& b, const Vec3& p) {
-  b.lo = {std::min(b.lo.x, p.x), std::min(b.lo.y, p.y), std::min(b.lo.z, p.z)};
-  b.hi = {std::max(b.hi.x, p.x), std::max(b.hi.y, p.y), std::max(b.hi.z, p.z)};
-}
-
-// Min / max over the four lanes of a 128-bit row.
-float hmin(simd::Vec4f v) {
-  v = min(v, simd::Vec4f(_mm_shuffle_ps(v.v, v.v, _MM_SHUFFLE(1, 0, 3, 2))));
-  v = min(v, simd::Vec4f(_mm_shuffle_ps(v.v, v.v, _MM_SHUFFLE(2, 3, 0, 1))));
-  return _mm_cvtss_f32(v.v);
-}
-float hmax(simd::Vec4f v) {
-  v = max(v, simd::Vec4f(_mm_shuffle_ps(v.v, v.v, _MM_SHUFFLE(1, 0, 3, 2))));
-  v = max(v, simd::Vec4f(_mm_shuffle_ps(v.v, v.v, _MM_SHUFFLE(2, 3, 0, 1))));
-  return _mm_cvtss_f32(v.v);
 }
 
 template <int W, class Wide>
@@ -362,107 +457,10 @@ Bounds3 root_bounds(const Wide& bvh) {
   const auto& r = bvh.nodes[0];
   for (int j = 0; j < W; ++j)
     if (r.child[j] != wide_empty) {
-      grow(box, {r.bounds[0][j], r.bounds[2][j], r.bounds[4][j]});
-      grow(box, {r.bounds[1][j], r.bounds[3][j], r.bounds[5][j]});
+      extend(box, Vec3{r.bounds[0][j], r.bounds[2][j], r.bounds[4][j]});
+      extend(box, Vec3{r.bounds[1][j], r.bounds[3][j], r.bounds[5][j]});
     }
   return box;
-}
-
-// One leaf block's box and whether it ends its leaf: what the node pass needs, written by the
-// block pass so the node pass never goes back to the (cold) blocks.
-struct BlockBox {
-  float lo[3];
-  uint32_t last;
-  float hi[3];
-  uint32_t pad;
-};
-
-// Pass 1, over the blocks in memory order (chunks in parallel): new vertices, then the
-// block's box while it is hot. Returns the smallest invalid prim id met, or ~0u.
-uint32_t refit_blocks(std::span<TriangleBlock> blocks, std::span<BlockBox> boxes,
-                      BlockRewrite rewrite) {
-  using simd::Vec4f;
-  constexpr size_t grain = 2048;
-  const size_t chunks = chunk_count(blocks.size(), grain);
-  std::vector<uint32_t> bad(chunks, ~0u);
-  parallel_for(0, chunks, 1, [&](size_t c0, size_t c1) {
-    for (size_t c = c0; c < c1; ++c) {
-      const size_t b0 = c * grain, b1 = std::min(blocks.size(), b0 + grain);
-      bad[c] = rewrite(blocks.subspan(b0, b1 - b0));
-      for (size_t b = b0; b < b1; ++b) {
-        const TriangleBlock& blk = blocks[b];
-        BlockBox& out = boxes[b];
-        for (int a = 0; a < 3; ++a) {  // one row per vertex and axis: 4 lanes at once
-          const Vec4f v0 = Vec4f::load(blk.v[0][a]), v1 = Vec4f::load(blk.v[1][a]),
-                      v2 = Vec4f::load(blk.v[2][a]);
-          out.lo[a] = hmin(min(min(v0, v1), v2));
-          out.hi[a] = hmax(max(max(v0, v1), v2));
-        }
-        out.last = blk.prim_id[0] & block_last_bit;
-      }
-    }
-  });
-  uint32_t first_bad = ~0u;
-  for (uint32_t b : bad) first_bad = std::min(first_bad, b);
-  return first_bad;
-}
-
-double slot_area(float dx, float dy, float dz) {
-  return double(dx) * dy + double(dy) * dz + double(dz) * dx;
-}
-
-// Pass 2, bottom-up over the nodes (children follow their parent in the array): each slot's
-// box from its child node or its leaf's block boxes; the SAH cost on the way.
-template <int W, class Wide>
-double refit_nodes(Wide& bvh, BlockRewrite rewrite) {
-  using simd::Vec4f;
-  if (bvh.empty()) return 0;
-  Buffer<BlockBox> boxes(bvh.blocks.size());  // every entry written by refit_blocks
-  const uint32_t bad = refit_blocks({bvh.blocks.data(), bvh.blocks.size()}, boxes, rewrite);
-  if (bad != ~0u)
-    throw Error(
-        ErrorCode::invalid_argument,
-        fmt::format("refit: triangle {} is no longer valid (NaN/Inf vertex or bad index); rebuild",
-                    bad));
-  const float inf = INFINITY;
-  double cost = 0;
-  Buffer<BlockBox> node_box(bvh.nodes.size());  // each node's box, written once its slots are set
-  constexpr size_t ahead = 4;  // leaf block boxes are gathers: prefetch a few nodes ahead
-  for (size_t i = bvh.nodes.size(); i-- > 0;) {
-    if (i >= ahead)
-      for (const uint32_t ref : bvh.nodes[i - ahead].child)
-        if (ref != wide_empty && (ref & wide_leaf_bit))
-          __builtin_prefetch(&boxes[ref & ~wide_leaf_bit]);
-    auto& node = bvh.nodes[i];
-    float nlo[3] = {inf, inf, inf}, nhi[3] = {-inf, -inf, -inf};
-    for (int j = 0; j < W; ++j) {
-      const uint32_t ref = node.child[j];
-      if (ref == wide_empty) continue;
-      float lo[3], hi[3];
-      double weight = 1;
-      const BlockBox* b = ref & wide_leaf_bit ? &boxes[ref & ~wide_leaf_bit] : &node_box[ref];
-      for (int a = 0; a < 3; ++a) lo[a] = b->lo[a], hi[a] = b->hi[a];
-      if (ref & wide_leaf_bit)
-        for (; !b->last; weight += 1) {
-          ++b;
-          for (int a = 0; a < 3; ++a) {
-            lo[a] = std::min(lo[a], b->lo[a]);
-            hi[a] = std::max(hi[a], b->hi[a]);
-          }
-        }
-      set_wide_slot(node, j, Bounds3{{lo[0], lo[1], lo[2]}, {hi[0], hi[1], hi[2]}}, ref);
-      cost += weight * slot_area(hi[0] - lo[0], hi[1] - lo[1], hi[2] - lo[2]);
-      for (int a = 0; a < 3; ++a) {
-        nlo[a] = std::min(nlo[a], lo[a]);
-        nhi[a] = std::max(nhi[a], hi[a]);
-      }
-    }
-    BlockBox& nb = node_box[i];
-    for (int a = 0; a < 3; ++a) nb.lo[a] = nlo[a], nb.hi[a] = nhi[a];
-  }
-  const Bounds3 box = root_bounds<W>(bvh);
-  const double root = slot_area(box.hi.x - box.lo.x, box.hi.y - box.lo.y, box.hi.z - box.lo.z);
-  return root > 0 ? 1.0 + cost / root : 1.0;
 }
 
 }  // namespace
@@ -479,12 +477,6 @@ Bvh8 collapse_to_bvh8(const Bvh2& bvh, std::span<const Triangle> t, uint32_t max
 Bvh8 collapse_to_bvh8(const Bvh2& bvh, const Scene& scene, uint32_t max_leaf) {
   return collapse<8, Bvh8Node, Bvh8>(bvh, TrianglesById(scene, bvh.prim_ids), max_leaf);
 }
-double refit_wide(Bvh4& bvh, BlockRewrite rewrite) {
-  return refit_nodes<4>(bvh, rewrite);
-}
-double refit_wide(Bvh8& bvh, BlockRewrite rewrite) {
-  return refit_nodes<8>(bvh, rewrite);
-}
 
 namespace {
 
@@ -499,19 +491,24 @@ Buffer<Node> collapse_instance_tree(const Bvh2& bvh) {
                   "instance tree: every leaf must hold one instance (max_leaf_size = 1)");
     flat[i] = bvh.nodes[i].is_leaf();
   }
-  // Slot costs as plan_leaves', each leaf one instance (a block).
+  // Slot costs as plan_leaves', each leaf one instance (a block), and the instances under
+  // each node (the node pass's tasks).
   Buffer<SlotCosts<W>> slots(bvh.nodes.size());
+  Buffer<uint32_t> count(bvh.nodes.size());
   for_each_child_first(bvh, [&](uint32_t id) {
     const Bvh2Node& node = bvh.nodes[id];
-    if (flat[id])
+    if (flat[id]) {
       slots[id].fill(half_area(node));
-    else
+      count[id] = 1;
+    } else {
       inner_slot_costs<W>(slots[id], half_area(node), slots[node.index], slots[node.index + 1]);
+      count[id] = count[node.index] + count[node.index + 1];
+    }
   });
   nodes.reserve(bvh.nodes.size() / (W - 1) + 1);
   build_wide_nodes<W>(
-      bvh, flat, std::span<const SlotCosts<W>>(slots.data(), slots.size()), nodes,
-      [&](uint32_t leaf) { return wide_leaf_bit | bvh.prim_ids[bvh.nodes[leaf].index]; });
+      bvh, SlotPlan<W>{flat, slots, {}}, count, nodes,
+      [&](uint32_t leaf, uint32_t) { return wide_leaf_bit | bvh.prim_ids[bvh.nodes[leaf].index]; });
   return nodes;
 }
 
@@ -563,37 +560,6 @@ double wide_sah_cost(const Bvh4& bvh) {
 }
 double wide_sah_cost(const Bvh8& bvh) {
   return sah<8>(bvh);
-}
-
-void refit_bvh2(Bvh2& bvh, std::span<const Triangle> tris) {
-  if (bvh.empty()) return;
-  // Parents before children (breadth first), then boxes in reverse.
-  std::vector<uint32_t> order{0};
-  for (size_t i = 0; i < order.size(); ++i) {
-    const Bvh2Node& n = bvh.nodes[order[i]];
-    if (!n.is_leaf()) {
-      order.push_back(n.index);
-      order.push_back(n.index + 1);
-    }
-  }
-  for (size_t i = order.size(); i-- > 0;) {
-    Bvh2Node& n = bvh.nodes[order[i]];
-    Bounds3 box;
-    if (n.is_leaf()) {
-      for (uint32_t k = n.index; k < n.index + n.count; ++k) {
-        grow(box, tris[k].v0);
-        grow(box, tris[k].v1);
-        grow(box, tris[k].v2);
-      }
-    } else {
-      for (uint32_t c = n.index; c < n.index + 2; ++c) {
-        grow(box, bvh.nodes[c].lo);
-        grow(box, bvh.nodes[c].hi);
-      }
-    }
-    n.lo = box.lo;
-    n.hi = box.hi;
-  }
 }
 
 }  // namespace kestrel

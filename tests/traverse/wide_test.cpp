@@ -392,17 +392,40 @@ TEST(WideBuild, DirectMortonBuildIsExactAndThreadIndependent) {
   expect_same_as_reference(split, test::random_rays(3000, 8), Builder::lbvh, "direct, 4 meshes");
 }
 
-// The collapse writes its leaves' blocks in parallel, straight from the meshes: the same
-// bytes with one thread and with four, and the same bytes as a collapse from a gathered copy
-// of the leaf triangles (the other entry point, which spatial splits use).
+// `scene`'s one mesh cut into meshes of uneven sizes (an empty one among them), each with
+// its own copy of the vertices.
+Scene cut_into_meshes(const Scene& scene) {
+  const TriangleMesh& whole = scene.meshes[0];
+  Scene out;
+  for (size_t t = 0, size = 1; t < whole.triangle_count(); size = size * 3 + 7) {
+    TriangleMesh& mesh = out.meshes.emplace_back();
+    if (out.meshes.size() == 3) continue;  // empty
+    const size_t end = std::min(whole.triangle_count(), t + size);
+    for (; t < end; ++t)
+      for (int k = 0; k < 3; ++k) {
+        mesh.indices.push_back(uint32_t(mesh.positions.size()));
+        mesh.positions.push_back(whole.positions[whole.indices[3 * t + k]]);
+      }
+  }
+  return out;
+}
+
+// The build runs its large partitions, the collapse its leaf plan, wide nodes and blocks in
+// parallel tasks (blocks straight from the meshes): the same bytes with one thread and with
+// four, and the same bytes as a collapse from a gathered copy of the leaf triangles (the
+// other entry point, which spatial splits use). The binned build's scene is large enough
+// for the parallel partitions (2^16 references) and spread over many meshes.
 TEST(WideBuild, CollapsedBuildsAreThreadIndependent) {
   const Scene scene = test::random_soup(60000, 0.02f, 29);
+  const Scene large = cut_into_meshes(test::random_soup(150000, 0.01f, 31));
+  ASSERT_GT(large.meshes.size(), 8u);
   for (Builder builder : {Builder::binned, Builder::spatial})
     for (Layout layout : {Layout::bvh4, Layout::bvh8}) {
       BuildConfig c;
       c.builder = builder;
       c.layout = layout;
-      expect_thread_independent(scene, c, scene.triangle_count(),
+      const Scene& s = builder == Builder::binned ? large : scene;
+      expect_thread_independent(s, c, s.triangle_count(),
                                 std::string(builder_name(builder)) + " " + layout_name(layout));
     }
   BuildConfig c;
