@@ -515,8 +515,8 @@ struct BinnedBuilder {
 
 Bvh2 build_binned_sah(std::span<const PrimRef> input, const BuildConfig& config,
                       bool block_leaves) {
-  Buffer<PrimRef> refs(input.begin(), input.end()), spare(input.size());
-  const size_t n = refs.size();
+  const size_t n = input.size();
+  Buffer<PrimRef> refs(n), spare(n);  // refs: copied from the input with the root's bounds
   NodeSlots slots(n);
   RawArray<uint32_t> ids(n);
   BinnedBuilder builder{config,
@@ -531,9 +531,11 @@ Bvh2 build_binned_sah(std::span<const PrimRef> input, const BuildConfig& config,
     std::vector<RangeInfo> partial(chunks, RangeInfo::empty_at(0));
     parallel_for(0, chunks, 1, [&](size_t cb, size_t ce) {
       for (size_t c = cb; c < ce; ++c)
-        for (size_t i = c * binning_chunk; i < std::min(n, (c + 1) * binning_chunk); ++i)
-          partial[c].add(BinnedBuilder::ref_lo(refs.data(), i),
-                         BinnedBuilder::ref_hi(refs.data(), i));
+        for (size_t i = c * binning_chunk; i < std::min(n, (c + 1) * binning_chunk); ++i) {
+          refs[i] = input[i];
+          partial[c].add(BinnedBuilder::ref_lo(input.data(), i),
+                         BinnedBuilder::ref_hi(input.data(), i));
+        }
     });
     for (const RangeInfo& p : partial) {
       root.geom_lo = min(root.geom_lo, p.geom_lo);
