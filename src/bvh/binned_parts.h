@@ -108,13 +108,6 @@ struct SideBounds {
     cent_lo = Vec4f(_mm_min_ps(cc, cent_lo.v));
     cent_hi = Vec4f(_mm_max_ps(cc, cent_hi.v));
   }
-  // Adds another side's bounds: ties keep this side's value, as add_unless does.
-  void merge(const SideBounds& o) {
-    geom_lo = Vec4f(_mm_min_ps(o.geom_lo.v, geom_lo.v));
-    geom_hi = Vec4f(_mm_max_ps(o.geom_hi.v, geom_hi.v));
-    cent_lo = Vec4f(_mm_min_ps(o.cent_lo.v, cent_lo.v));
-    cent_hi = Vec4f(_mm_max_ps(o.cent_hi.v, cent_hi.v));
-  }
   RangeInfo range(size_t begin, size_t end) const {
     return {geom_lo, geom_hi, cent_lo, cent_hi, begin, end};
   }

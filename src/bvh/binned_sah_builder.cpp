@@ -4,10 +4,9 @@
 // both ends, and the references are partitioned in place. Each node carries its geometric
 // and centroid bounds from its parent's partition pass, so no extra pass over the range is
 // needed. Large ranges are binned in parallel over fixed chunks (merged in chunk order, so
-// results do not depend on the thread count) and, with more than one thread, partitioned in
-// parallel (counted per chunk, then scattered: the same array as one pass); subtrees are
-// built in parallel through core/parallel.h with node slots fixed in advance (node_slots.h),
-// each reporting its node count so the slots compact in parallel too.
+// results do not depend on the thread count); subtrees are built in parallel through
+// core/parallel.h with node slots fixed in advance (node_slots.h), each reporting its node
+// count so the slots compact in parallel too.
 #include <algorithm>
 #include <atomic>
 #include <cstring>
@@ -45,8 +44,7 @@ constexpr size_t refine_min = 256;
 constexpr size_t radix_min = 64;
 // Ranges at least this large are binned into two alternating bin sets (see bin_range).
 constexpr size_t two_set_min = 256;
-// Ranges at least this large are binned, and with more than one thread partitioned, in
-// parallel chunks of binning_chunk.
+// Ranges at least this large are binned in parallel chunks of binning_chunk.
 constexpr size_t parallel_binning_threshold = 1u << 16;
 constexpr size_t binning_chunk = 1u << 14;
 
@@ -373,12 +371,24 @@ struct BinnedBuilder {
     right = r.range(mid, info.end);
   }
 
-  // Three ways, out of place: src[b, e) with x below `below` to dst[f, ...) in order, with x
-  // at or above `above` to dst[..., k) in reverse order, the rest to middle[t, ...) in order;
-  // f, k and t advanced, either outer side's bounds grown.
-  static void scatter3(const PrimRef* src, PrimRef* dst, size_t b, size_t e, int axis,
-                       const BinMapping& map, float below, float above, PrimRef* middle, size_t& f,
-                       size_t& k, size_t& t, SideBounds& lower, SideBounds& upper) {
+  // Refines the chosen bin boundary while partitioning into `dst`. On regular structures
+  // (grids, tessellated planes) bin boundaries cut through rows of centroids, so the
+  // references of the two bins at the boundary are gathered in the middle of the range,
+  // sorted by centroid, and the exact SAH split among them is taken (the binned split is one
+  // of the candidates: never worse). Returns the split's cost.
+  float refine_and_partition(int axis, int split, const BinMapping& map, float inv_area,
+                             const RangeInfo& info, PrimRef* src, PrimRef* dst, RangeInfo& left,
+                             RangeInfo& right) const {
+    const float below = float(split - 1), above = float(split + 1);  // middle: bins split-1, split
+    // One pass: lower bins to the front of dst, upper bins to its back, the middle packed at
+    // the front of src's own range, which the pass has already read (every reference written
+    // to one of three places, chosen by selects).
+    thread_local std::vector<uint64_t> order, order_tmp;
+    thread_local std::vector<float> suffix_area;
+    const size_t b = info.begin, e = info.end;
+    PrimRef* middle = src + b;
+    SideBounds lower, upper;
+    size_t f = b, k = e, t = 0;
     for (size_t i = b; i < e; ++i) {
       const Vec4f lo = ref_lo(src, i), hi = ref_hi(src, i);
       const float x = position(src[i], axis, map);
@@ -392,70 +402,6 @@ struct BinnedBuilder {
       const Vec4f c = centroid2(lo, hi);
       lower.add_unless(lane_mask(!is_lower), lo, hi, c);
       upper.add_unless(lane_mask(!is_upper), lo, hi, c);
-    }
-  }
-
-  // Refines the chosen bin boundary while partitioning into `dst`. On regular structures
-  // (grids, tessellated planes) bin boundaries cut through rows of centroids, so the
-  // references of the two bins at the boundary are gathered in the middle of the range,
-  // sorted by centroid, and the exact SAH split among them is taken (the binned split is one
-  // of the candidates: never worse). Returns the split's cost.
-  float refine_and_partition(int axis, int split, const BinMapping& map, float inv_area,
-                             const RangeInfo& info, PrimRef* src, PrimRef* dst, RangeInfo& left,
-                             RangeInfo& right) const {
-    const float below = float(split - 1), above = float(split + 1);  // middle: bins split-1, split
-    // One pass: lower bins to the front of dst, upper bins to its back, the middle packed at
-    // the front of src's own range, which the pass has already read (every reference written
-    // to one of three places, chosen by selects). Large ranges with more than one thread:
-    // counted per chunk first, then scattered by chunks in parallel (the middle into the
-    // gap, then moved), to the same places with the same bounds.
-    thread_local std::vector<uint64_t> order, order_tmp;
-    thread_local std::vector<float> suffix_area;
-    const size_t b = info.begin, e = info.end;
-    PrimRef* middle = src + b;
-    SideBounds lower, upper;
-    size_t f = b, k = e, t = 0;
-    if (e - b < parallel_binning_threshold || current_thread_count() == 1) {
-      scatter3(src, dst, b, e, axis, map, below, above, middle, f, k, t, lower, upper);
-    } else {
-      const size_t chunks = chunk_count(e - b, binning_chunk);
-      struct Chunk {
-        size_t lower = 0, upper = 0, middle = 0;
-        SideBounds lower_bounds, upper_bounds;
-      };
-      std::vector<Chunk> c(chunks);
-      const auto chunk_begin = [&](size_t i) { return b + i * binning_chunk; };
-      const auto chunk_end = [&](size_t i) { return std::min(e, b + (i + 1) * binning_chunk); };
-      parallel_for(0, chunks, 1, [&](size_t c0, size_t c1) {
-        for (size_t i = c0; i < c1; ++i)
-          for (size_t j = chunk_begin(i); j < chunk_end(i); ++j) {
-            const float x = position(src[j], axis, map);
-            c[i].lower += x < below;
-            c[i].upper += !(x < above);
-          }
-      });
-      size_t lower_count = 0;
-      for (size_t i = 0; i < chunks; ++i) {
-        c[i].middle = chunk_end(i) - chunk_begin(i) - c[i].lower - c[i].upper;
-        lower_count += c[i].lower;
-      }
-      PrimRef* gap = dst + b + lower_count;  // the middle's place until it moves to src
-      std::vector<size_t> lower_at(chunks), upper_at(chunks), middle_at(chunks);
-      for (size_t i = 0, lo = b, up = e, mi = 0; i < chunks; ++i) {
-        lower_at[i] = lo, upper_at[i] = up, middle_at[i] = mi;
-        lo += c[i].lower, up -= c[i].upper, mi += c[i].middle;
-      }
-      parallel_for(0, chunks, 1, [&](size_t c0, size_t c1) {
-        for (size_t i = c0; i < c1; ++i)
-          scatter3(src, dst, chunk_begin(i), chunk_end(i), axis, map, below, above, gap,
-                   lower_at[i], upper_at[i], middle_at[i], c[i].lower_bounds, c[i].upper_bounds);
-      });
-      for (const Chunk& ch : c) {  // in chunk order: ties keep the first, as one pass does
-        lower.merge(ch.lower_bounds);
-        upper.merge(ch.upper_bounds);
-        f += ch.lower, k -= ch.upper, t += ch.middle;
-      }
-      std::copy(gap, gap + t, middle);
     }
     const size_t m = t, n_lower = f - b, n_upper = e - k;
     PrimRef* mid = dst + f;

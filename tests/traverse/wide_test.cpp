@@ -410,11 +410,11 @@ Scene cut_into_meshes(const Scene& scene) {
   return out;
 }
 
-// The build runs its large partitions, the collapse its leaf plan, wide nodes and blocks in
-// parallel tasks (blocks straight from the meshes): the same bytes with one thread and with
-// four, and the same bytes as a collapse from a gathered copy of the leaf triangles (the
-// other entry point, which spatial splits use). The binned build's scene is large enough
-// for the parallel partitions (2^16 references) and spread over many meshes.
+// The build compacts its slots, the collapse plans its leaves and builds its wide nodes and
+// blocks in parallel tasks (blocks straight from the meshes): the same bytes with one thread
+// and with four, and the same bytes as a collapse from a gathered copy of the leaf triangles
+// (the other entry point, which spatial splits use). The binned build's scene is spread over
+// many meshes (references made in chunks across them).
 TEST(WideBuild, CollapsedBuildsAreThreadIndependent) {
   const Scene scene = test::random_soup(60000, 0.02f, 29);
   const Scene large = cut_into_meshes(test::random_soup(150000, 0.01f, 31));
