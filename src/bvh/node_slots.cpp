@@ -53,7 +53,7 @@ void compact_parallel(const NodeSlots& slots, Bvh2Node* out, uint32_t slot, uint
 
 }  // namespace
 
-Bvh2 compact_slots(NodeSlots& slots, std::span<const uint32_t> ordered_prim_ids) {
+Bvh2 compact_slots(const NodeSlots& slots, std::span<const uint32_t> ordered_prim_ids) {
   Bvh2 out;
   out.prim_ids.assign(ordered_prim_ids.begin(), ordered_prim_ids.end());
   if (ordered_prim_ids.empty()) return out;

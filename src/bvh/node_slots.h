@@ -56,6 +56,6 @@ inline void build_children(bool parallel, FunctionRef<void()> left, FunctionRef<
 /// becomes a compact Bvh2 (depth-first, children pairs adjacent: a node's descendants are
 /// one run of the array, its children's pair first). Every inner node's subtree size must
 /// have been recorded (set_subtree_nodes). The same array for any thread count.
-Bvh2 compact_slots(NodeSlots& slots, std::span<const uint32_t> ordered_prim_ids);
+Bvh2 compact_slots(const NodeSlots& slots, std::span<const uint32_t> ordered_prim_ids);
 
 }  // namespace kestrel

@@ -32,19 +32,15 @@ inline void prefetch_vertices(const TriangleMesh& mesh, size_t t) {
 // the triangle `prefetch_distance` on in the same mesh prefetched).
 template <class Chunk>
 void for_each_triangle_chunk(const Scene& scene, Chunk&& chunk) {
-  std::vector<size_t> first{0};  // first[m]: global id of mesh m's first triangle
-  for (const TriangleMesh& mesh : scene.meshes)
-    first.push_back(first.back() + mesh.triangle_count());
-  parallel_for(0, first.back(), 16384, [&](size_t b, size_t e) {
+  const MeshStarts starts(scene);
+  parallel_for(0, starts.total(), 16384, [&](size_t b, size_t e) {
     chunk([&](auto&& f) {
-      // The mesh holding global id b (the last of equal starts: empty meshes skipped).
-      size_t m = size_t(std::upper_bound(first.begin(), first.end(), b) - first.begin()) - 1;
-      for (size_t g = b; g < e; ++m) {
+      for (size_t g = b, m = starts.mesh_of(b); g < e; ++m) {
         const TriangleMesh& mesh = scene.meshes[m];
-        const size_t end = std::min(e, first[m + 1]);
-        for (size_t i = g - first[m], n = end - first[m]; i < n; ++i) {
+        const size_t first = starts.start(m), end = std::min(e, starts.start(m + 1));
+        for (size_t i = g - first, n = end - first; i < n; ++i) {
           if (i + prefetch_distance < n) prefetch_vertices(mesh, i + prefetch_distance);
-          f(first[m] + i, mesh, i);
+          f(first + i, mesh, i);
         }
         g = end;
       }

@@ -30,6 +30,25 @@ Buffer<Triangle> triangles_for_builder(const Scene& scene, const SceneValidation
 /// The triangles of the given global prim ids, in that order (e.g. a BVH's leaf order).
 Buffer<Triangle> gather_triangles(const Scene& scene, std::span<const uint32_t> prim_ids);
 
+/// Where each mesh's triangles start among the scene's global prim ids (mesh m holds
+/// [start(m), start(m + 1))), and the mesh of a global id.
+class MeshStarts {
+ public:
+  explicit MeshStarts(const Scene& scene) : first_{0} {
+    for (const TriangleMesh& mesh : scene.meshes)
+      first_.push_back(first_.back() + mesh.triangle_count());
+  }
+  size_t start(size_t m) const { return first_[m]; }
+  size_t total() const { return first_.back(); }
+  /// The mesh holding global id `gid` < total() (empty meshes, which hold none, skipped).
+  size_t mesh_of(size_t gid) const {
+    return size_t(std::upper_bound(first_.begin(), first_.end(), gid) - first_.begin()) - 1;
+  }
+
+ private:
+  std::vector<size_t> first_;  // first global id of each mesh, then the total
+};
+
 /// The triangles of global prim ids read straight from the meshes: at(k) is the triangle of
 /// ids[k]. Read in ascending k, it prefetches in two stages -- the index triple 2 x `ahead`
 /// positions on, the vertices of the triangle `ahead` on -- since scrambled meshes make the
@@ -37,11 +56,8 @@ Buffer<Triangle> gather_triangles(const Scene& scene, std::span<const uint32_t> 
 class TrianglesById {
  public:
   static constexpr size_t ahead = 16;
-  TrianglesById(const Scene& scene, std::span<const uint32_t> ids) : scene_(scene), ids_(ids) {
-    size_t offset = 0;
-    for (const TriangleMesh& mesh : scene.meshes)
-      first_.push_back(offset), offset += mesh.triangle_count();
-  }
+  TrianglesById(const Scene& scene, std::span<const uint32_t> ids)
+      : scene_(scene), ids_(ids), starts_(scene) {}
   Triangle at(size_t k) const {
     if (k + 2 * ahead < ids_.size()) {
       const auto [mesh, t] = locate(ids_[k + 2 * ahead]);
@@ -60,14 +76,13 @@ class TrianglesById {
  private:
   // (mesh, local triangle) of a global id.
   std::pair<const TriangleMesh*, size_t> locate(uint32_t gid) const {
-    if (first_.size() == 1) return {&scene_.meshes[0], gid};
-    const size_t m =
-        size_t(std::upper_bound(first_.begin(), first_.end(), size_t(gid)) - first_.begin()) - 1;
-    return {&scene_.meshes[m], gid - first_[m]};
+    if (scene_.meshes.size() == 1) return {&scene_.meshes[0], gid};
+    const size_t m = starts_.mesh_of(gid);
+    return {&scene_.meshes[m], gid - starts_.start(m)};
   }
   const Scene& scene_;
   std::span<const uint32_t> ids_;
-  std::vector<size_t> first_;  // first global id of each mesh
+  MeshStarts starts_;
 };
 
 }  // namespace kestrel

@@ -150,22 +150,15 @@ namespace {
 // layout wants.
 class BlockRewriter {
  public:
-  explicit BlockRewriter(const Scene& scene) : scene_(scene) {
-    size_t offset = 0;
-    for (const TriangleMesh& mesh : scene.meshes) {
-      first_.push_back(offset);
-      offset += mesh.triangle_count();
-    }
-  }
+  explicit BlockRewriter(const Scene& scene) : scene_(scene), starts_(scene) {}
   uint32_t operator()(std::span<TriangleBlock> blocks) const {
     if (scene_.meshes.size() == 1) {
       const TriangleMesh& mesh = scene_.meshes[0];
       return rewrite(blocks, [&](uint32_t id) { return Located{&mesh, id}; });
     }
     return rewrite(blocks, [&](uint32_t id) {  // one binary search per lane
-      const size_t m =
-          size_t(std::upper_bound(first_.begin(), first_.end(), size_t(id)) - first_.begin()) - 1;
-      return Located{&scene_.meshes[m], id - first_[m]};
+      const size_t m = starts_.mesh_of(id);
+      return Located{&scene_.meshes[m], id - starts_.start(m)};
     });
   }
 
@@ -232,7 +225,7 @@ class BlockRewriter {
   }
 
   const Scene& scene_;
-  std::vector<size_t> first_;
+  MeshStarts starts_;
 };
 }  // namespace
 
