@@ -208,8 +208,9 @@ Upscaler::Upscaler(const UpscalerOptions& options) : impl_(std::make_unique<Impl
     impl_->nsrr = options.method == UpscaleMethod::nsrr
                       ? upscale::make_nsrr(path, options.factor, options.bf16)
                       : upscale::make_nsrr_rt(path, options.factor, options.bf16);
-    impl_->history =
-        std::make_unique<Upscaler>(UpscalerOptions{UpscaleMethod::neural, options.factor});
+    UpscalerOptions history;  // the learned TAAU, with its default weights
+    history.factor = options.factor;
+    impl_->history = std::make_unique<Upscaler>(history);
     impl_->parameters = impl_->nsrr->parameters() + impl_->history->parameter_count();
   }
   if (options.method == UpscaleMethod::neural) {
