@@ -1,9 +1,16 @@
-"""Shared by the training scripts (scripts/denoise, scripts/upscale): PFM files and kestrel's
-weights files (.kdw, format v1: docs/denoiser.md)."""
+"""Shared by the training scripts (scripts/denoise, scripts/upscale): PFM files, kestrel's
+weights files (.kdw, format v1: docs/denoiser.md) and the evaluations' tone map."""
 import struct
 
 import numpy as np
 import torch
+
+
+def aces_srgb(c):
+    """The evaluation's tone map (kestrel::tonemap_aces_srgb) of linear colour."""
+    c = torch.clamp(c, min=0.0, max=1e6)
+    y = torch.clamp((c * (2.51 * c + 0.03)) / (c * (2.43 * c + 0.59) + 0.14), 0.0, 1.0)
+    return torch.where(y <= 0.0031308, 12.92 * y, 1.055 * torch.clamp(y, min=0.0031308) ** (1 / 2.4) - 0.055)
 
 
 def read_pfm(path):

@@ -17,13 +17,7 @@ import torch
 
 import model as M
 import train as T
-
-
-def aces_srgb(c):
-    """kestrel::tonemap_aces_srgb of linear colour."""
-    c = torch.clamp(c, min=0.0, max=1e6)
-    y = torch.clamp((c * (2.51 * c + 0.03)) / (c * (2.43 * c + 0.59) + 0.14), 0.0, 1.0)
-    return torch.where(y <= 0.0031308, 12.92 * y, 1.055 * torch.clamp(y, min=0.0031308) ** (1 / 2.4) - 0.055)
+from kestrel_nn import aces_srgb
 
 
 def psnr(a, b):
@@ -35,21 +29,6 @@ def load_model(path):
     model = M.Denoiser()
     T.load_weights(model, path)
     return model.eval()
-
-
-def run_clip(model, ins):
-    """ins (T,H,W,13) -> outputs (T,3,H,W), the padded frames cut back to H x W."""
-    seq = torch.from_numpy(ins).permute(0, 3, 1, 2).contiguous()
-    h, w = seq.shape[-2:]
-    outs, state = [], None
-    with torch.no_grad():
-        for t in range(seq.shape[0]):
-            x = T.split_inputs(seq[t:t + 1])
-            padded = None if state is None else tuple(M.pad8(s) for s in state)
-            o, state = model(**{k: M.pad8(v) for k, v in x.items()}, state=padded, size=(h, w))
-            state = tuple(s[..., :h, :w] for s in state)
-            outs.append(o[0, :, :h, :w])
-    return torch.stack(outs)
 
 
 def family(name):
@@ -77,7 +56,7 @@ def main():
         ref = aces_srgb(torch.from_numpy(refs).permute(0, 3, 1, 2))
         row = []
         for w, model in zip(args.weights, models):
-            out = aces_srgb(run_clip(model, ins))
+            out = aces_srgb(T.denoise_frames(model, ins))
             p = float(np.mean([psnr(out[t], ref[t]) for t in range(frames)]))
             terr = float(((out[1:] - out[:-1]) - (ref[1:] - ref[:-1])).abs().mean())
             per[w].setdefault(family(name), []).append((p, terr))

@@ -140,19 +140,27 @@ def loss_summary(history, args):
                                          energy=float(tail[:, 5].mean())))
 
 
-def write_fixture_frames(model, ins, out_dir):
-    """ins (T,H,W,13): the frames' inputs as PFMs and the model's outputs (expected.pfm)."""
-    os.makedirs(out_dir, exist_ok=True)
+def denoise_frames(model, ins):
+    """ins (T,H,W,13), any H, W -> the model's outputs (T,3,H,W), as the engine runs it: each
+    frame padded to multiples of 8 (edge replication), the output and the state cut back."""
     seq = torch.from_numpy(ins).permute(0, 3, 1, 2)[None].contiguous()
+    outs, state = [], None
     with torch.no_grad():
-        state = None
         for t in range(ins.shape[0]):
             x = split_inputs(seq[:, t])
             h, w = x["color"].shape[-2:]
             padded_state = None if state is None else tuple(M.pad8(s) for s in state)
             o, state = model(**{k: M.pad8(v) for k, v in x.items()}, state=padded_state, size=(h, w))
-            write_frame_pfms(os.path.join(out_dir, f"frame_{t}"), ins[t], o[0, :, :h, :w].permute(1, 2, 0).numpy())
+            outs.append(o[0, :, :h, :w])
             state = tuple(s[..., :h, :w] for s in state)
+    return torch.stack(outs)
+
+
+def write_fixture_frames(model, ins, out_dir):
+    """ins (T,H,W,13): the frames' inputs as PFMs and the model's outputs (expected.pfm)."""
+    os.makedirs(out_dir, exist_ok=True)
+    for t, o in enumerate(denoise_frames(model, ins)):
+        write_frame_pfms(os.path.join(out_dir, f"frame_{t}"), ins[t], o.permute(1, 2, 0).numpy())
 
 
 def add_loss_arguments(ap):

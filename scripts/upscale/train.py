@@ -31,7 +31,7 @@ import model as M
 
 sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), ".."))
 import kestrel_nn  # noqa: E402
-from kestrel_nn import read_pfm, write_pfm  # noqa: E402
+from kestrel_nn import aces_srgb, read_pfm, write_pfm  # noqa: E402
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 ROOT = os.path.normpath(os.path.join(HERE, "..", ".."))
@@ -59,13 +59,6 @@ def load_clip(root, name, frames, suffix=""):
 
 def jitters(frames, start=0):
     return torch.tensor([M.jitter_of(start + t) for t in range(frames)], dtype=torch.float32)
-
-
-def aces_srgb(c):
-    """The evaluation's tone map (kestrel::tonemap_aces_srgb) of linear colour."""
-    c = torch.clamp(c, min=0.0, max=1e6)
-    y = torch.clamp((c * (2.51 * c + 0.03)) / (c * (2.43 * c + 0.59) + 0.14), 0.0, 1.0)
-    return torch.where(y <= 0.0031308, 12.92 * y, 1.055 * torch.clamp(y, min=0.0031308) ** (1 / 2.4) - 0.055)
 
 
 def loss_of(outs, refs, margin=0, space="y"):
