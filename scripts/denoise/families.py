@@ -19,7 +19,13 @@ evaluation, with the shared scenes):
   gallery          (heldout) photo-like textured canvases on walls, spot-lit, a slow pan
 Variations common to all: exposure (light intensity scaled by 1/8 .. 8: overexposed and very
 dark frames), camera speed (slow: a few pixels per frame; fast: tens), untextured / checker /
-noise / photo-like textures.
+noise / photo-like textures; and in half of the training families' scenes 1-3 animated objects
+(add_movers: sliding, spinning, hopping or flying boxes and spheres), written as glTF
+(gltf_scene.py) since an OBJ cannot move.
+
+    families.py --movers FAMILY SEED OUT_DIR     with animated objects whatever the family
+    families.py --no-movers FAMILY SEED OUT_DIR  without
+    families.py --gltf FAMILY SEED OUT_DIR       without, as glTF (the OBJ / glTF check)
 """
 import json
 import math
@@ -31,6 +37,7 @@ from PIL import Image
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 from procedural import Mesh, texture  # noqa: E402
+import gltf_scene  # noqa: E402
 
 TRAIN = ["sunlit_interior", "night_interior", "corridor", "outdoor", "product"]
 HELDOUT = ["mirror_room", "stairwell", "gallery"]
@@ -44,6 +51,8 @@ class Scene:
         self.mesh, self.mats, self.textures, self.lights = Mesh(), {}, [], []
         self.flags = []
         self.bounds = None  # the first room's (W, H, D): the camera stays inside it
+        self.movers = []  # animated objects (add_movers): the scene is then written as glTF
+        self.as_gltf = False  # write glTF even without movers (the OBJ / glTF equivalence check)
         os.makedirs(out, exist_ok=True)
 
     # Materials: MTL text per name.
@@ -144,7 +153,7 @@ class Scene:
         if any(all(lo[i] < start[i] < hi[i] for i in range(3)) for lo, hi in self.mesh.solids):
             print(f"families.py: {self.out}: the camera starts inside an object", file=sys.stderr)
 
-    def write(self, family, seed, exposure):
+    def write_obj(self, family, seed):
         obj, mtl = os.path.join(self.out, "scene.obj"), os.path.join(self.out, "scene.mtl")
         with open(mtl, "w") as f:
             f.write("\n\n".join(self.mats.values()) + "\n")
@@ -158,6 +167,14 @@ class Scene:
                 f.write(f"usemtl {mat}\n")
                 for tri in faces:
                     f.write("f " + " ".join(f"{v + 1}/{t + 1}" for v, t in tri) + "\n")
+        return obj
+
+    def write(self, family, seed, exposure):
+        if self.movers or self.as_gltf:
+            scene = os.path.join(self.out, "scene.gltf")
+            gltf_scene.write(scene, self.mesh, self.movers, self.mats, comment=f"{family} {seed}")
+        else:
+            scene = self.write_obj(family, seed)
         flags = list(self.flags)
         if self.lights:
             for L in self.lights:
@@ -167,8 +184,9 @@ class Scene:
         self.keep_camera_free()
         self.path["scene"] = f"{family} {seed}"
         json.dump(self.path, open(os.path.join(self.out, "path.json"), "w"), indent=1)
-        info = {"family": family, "seed": seed, "exposure": exposure, "flags": flags,
-                "scene": obj, "path": os.path.join(self.out, "path.json"), "triangles": sum(len(g[1]) for g in self.mesh.groups)}
+        triangles = sum(len(g[1]) for m in [self.mesh] + [mv["mesh"] for mv in self.movers] for g in m.groups)
+        info = {"family": family, "seed": seed, "exposure": exposure, "flags": flags, "scene": scene,
+                "path": os.path.join(self.out, "path.json"), "triangles": triangles, "movers": len(self.movers)}
         json.dump(info, open(os.path.join(self.out, "render.json"), "w"), indent=1)
         return info
 
@@ -423,9 +441,11 @@ def mirror_sphere_probe(out):
 FAMILIES = {f.__name__: f for f in [sunlit_interior, night_interior, corridor, outdoor, product, mirror_room, stairwell, gallery]}
 
 
-def dataset_clips(seeds, test_seeds, shared):
-    """A dataset's clips: the TRAIN families x `seeds` (split train), the HELDOUT families x
-    `test_seeds` (seeds from 1000, split test), then the `shared` clips (dicts, split test)."""
+def dataset_clips(seeds, test_seeds, shared, test_movers=0):
+    """A dataset's clips: the TRAIN families x `seeds` (split train; half of them with moving
+    objects), the HELDOUT families x `test_seeds` (seeds from 1000, split test, static), the
+    HELDOUT families x `test_movers` with moving objects (seeds from 2000, split test, family
+    "<family>_moving" in the evaluation), then the `shared` clips (dicts, split test)."""
     out = []
     for f in TRAIN:
         for s in range(seeds):
@@ -433,14 +453,81 @@ def dataset_clips(seeds, test_seeds, shared):
     for f in HELDOUT:
         for s in range(test_seeds):
             out.append(dict(name=f"test_{f}_{1000 + s}", split="test", family=f, seed=1000 + s))
+    for f in HELDOUT:
+        for s in range(test_movers):
+            out.append(dict(name=f"test_{f}_moving_{2000 + s}", split="test", family=f, seed=2000 + s, movers=True))
     return out + [dict(c, split="test") for c in shared]
 
 
-def make(family, seed, out):
+MOVER_TIMES = [0.0, 0.25, 0.5, 0.75, 1.0, 1.5]  # keys past the clip's end (1): no wrap-around
+
+
+def add_movers(s, family, seed, movers=None):
+    """Animated objects: 1-3 boxes or spheres that slide, spin, hop or fly through the view
+    during the clip (a quarter of a metre to two metres over it). From a random stream of
+    their own, so a scene's static part is the same with or without them. movers=None: half
+    of the training families' scenes have them, the held-out families' none (their test clips
+    stay as they were); True / False: always / never."""
+    rng = random.Random(f"{family}:{seed}:movers")
+    if movers is None:
+        movers = family in TRAIN and rng.random() < 0.5
+    if not movers:
+        return
+    keys = s.path["keyframes"]
+    eyes = [k["eye"] for k in keys]
+    for i in range(rng.randint(1, 3)):
+        main_rng, s.rng = s.rng, rng  # the mover's material from the movers' stream too
+        mat = s.mat(f"mover_{i}")
+        s.rng = main_rng
+        kind = rng.choice(["box", "sphere", "sphere"])
+        m = Mesh()
+        if kind == "box":
+            h = (rng.uniform(0.1, 0.4), rng.uniform(0.1, 0.5), rng.uniform(0.1, 0.4))
+            m.box(mat, (0, h[1], 0), h, 0.0, uv_scale=rng.choice([1, 2]))
+            reach, top = math.hypot(h[0], h[2]), 2 * h[1]
+        else:
+            r = rng.uniform(0.1, 0.45)
+            m.surface(mat, (0, r, 0), r, "sphere", seg=32)
+            reach, top = r, 2 * r
+        fly = kind == "sphere" and rng.random() < 0.3
+        hop = kind == "sphere" and not fly and rng.random() < 0.4
+        dist = rng.choice([0.25, 0.5, 1.0, 2.0])  # metres over the clip
+        spin = rng.uniform(-math.pi, math.pi) if rng.random() < 0.6 else 0.0
+        for attempt in range(20):
+            e, t = keys[0]["eye"], keys[0]["target"]
+            f = rng.uniform(0.3, 0.8)
+            p0 = [e[0] + (t[0] - e[0]) * f, rng.uniform(0.4, 1.6) if fly else 0.0, e[2] + (t[2] - e[2]) * f]
+            a = rng.uniform(0, 2 * math.pi)
+            d = [math.cos(a) * dist, rng.uniform(-0.3, 0.3) * dist if fly else 0.0, math.sin(a) * dist]
+            pos = []
+            for tk in MOVER_TIMES:
+                p = [p0[j] + d[j] * tk for j in range(3)]
+                if hop:
+                    p[1] = abs(math.sin(math.pi * 2 * tk)) * rng.uniform(0.2, 0.6)
+                if s.bounds is not None:  # inside the first room, clear of its walls
+                    p = [min(max(p[0], reach + 0.05), s.bounds[0] - reach - 0.05), p[1],
+                         min(max(p[2], reach + 0.05), s.bounds[2] - reach - 0.05)]
+                    p[1] = min(p[1], s.bounds[1] - top - 0.05)
+                pos.append([round(v, 5) for v in p])
+            clear = all(math.dist(p, eye) > reach + top + 0.6 for p in pos for eye in eyes)
+            if clear:
+                break
+        else:
+            continue  # no place away from the camera: leave this one out
+        # The swept box keeps the camera walk (keep_camera_free) out of the object's way.
+        s.mesh.solids.append((tuple(min(p[j] for p in pos) - (reach if j != 1 else 0) for j in range(3)),
+                              tuple(max(p[j] for p in pos) + (reach if j != 1 else top) for j in range(3))))
+        yaws = [round(spin * tk, 5) for tk in MOVER_TIMES]
+        s.movers.append({"name": f"mover_{i}", "mesh": m, "times": MOVER_TIMES, "translations": pos, "yaws": yaws})
+
+
+def make(family, seed, out, movers=None, as_gltf=False):
     rng = random.Random(f"{family}:{seed}")
     s = Scene(rng, out)
     exposure, speed = exposure_and_speed(rng)
     FAMILIES[family](s, rng, exposure, speed)
+    add_movers(s, family, seed, movers)
+    s.as_gltf = as_gltf
     return s.write(family, seed, exposure)
 
 
@@ -452,6 +539,13 @@ if __name__ == "__main__":
         for f in FAMILIES:
             print(f, "heldout" if f in HELDOUT else "train")
         sys.exit(0)
-    if len(sys.argv) != 4 or sys.argv[1] not in FAMILIES:
-        sys.exit(f"usage: families.py FAMILY SEED OUT_DIR | --probe OUT_DIR | --list  (families: {', '.join(FAMILIES)})")
-    print(json.dumps(make(sys.argv[1], int(sys.argv[2]), sys.argv[3])))
+    args = sys.argv[1:]
+    opts = {"--movers": dict(movers=True), "--no-movers": dict(movers=False),
+            "--gltf": dict(movers=False, as_gltf=True)}
+    kw = {}
+    while args and args[0] in opts:
+        kw.update(opts[args.pop(0)])
+    if len(args) != 3 or args[0] not in FAMILIES:
+        sys.exit("usage: families.py [--movers | --no-movers | --gltf] FAMILY SEED OUT_DIR | --probe OUT_DIR | --list"
+                 f"  (families: {', '.join(FAMILIES)}; --gltf: without movers, as glTF)")
+    print(json.dumps(make(args[0], int(args[1]), args[2], **kw)))

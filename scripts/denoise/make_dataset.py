@@ -15,7 +15,12 @@ training) and the shared Sponza and Lamborghini, with --test-frames frames and r
 --test-ref-spp:
 
     make_dataset.py --families --out out/denoise_families --frames 8 --ref-spp 64 \
-                    --test-frames 16 --test-ref-spp 256
+                    --test-frames 16 --test-ref-spp 256 --test-movers 1
+
+Half of the training scenes have moving objects (families.add_movers); the held-out ones are
+static, and --test-movers N adds N clips per held-out family with moving objects
+(test_<family>_moving_<seed>). --no-movers makes the static training set the committed
+weights were trained on (the default before 2026-12-05, night).
 
 Re-running skips finished clips (a clip is finished when its manifest entry exists).
 """
@@ -40,7 +45,7 @@ SCENES = os.path.normpath(os.path.join(ROOT, "..", "shared", "scenes"))
 def family_clips(args):
     """--families: TRAIN families x --seeds for training (Noise2Noise targets), HELDOUT
     families x --test-seeds and the shared Sponza and Lamborghini for evaluation."""
-    return families.dataset_clips(args.seeds, args.test_seeds, [
+    return families.dataset_clips(args.seeds, args.test_seeds, test_movers=args.test_movers, shared=[
         dict(name="test_sponza", scene=os.path.join(SCENES, "dabrovic_sponza/sponza.obj"),
              path=os.path.join(ROOT, "data/paths/sponza_short.json"), env=None),
         dict(name="test_lamborghini", scene=os.path.join(SCENES, "lamborghini/lamborghini.obj"), path="orbit:24",
@@ -90,6 +95,10 @@ def main():
     ap.add_argument("--families", action="store_true", help="scene families (families.py) instead of rooms and shared scenes")
     ap.add_argument("--seeds", type=int, default=8, help="--families: seeds per training family")
     ap.add_argument("--test-seeds", type=int, default=3, help="--families: seeds per held-out family")
+    ap.add_argument("--test-movers", type=int, default=0,
+                    help="--families: seeds per held-out family with moving objects (clips test_<family>_moving_<seed>)")
+    ap.add_argument("--no-movers", action="store_true",
+                    help="--families: no moving objects in the training scenes (the static set the committed weights were trained on)")
     kestrel_mpi.add_arguments(ap)
     args = ap.parse_args()
     os.makedirs(args.out, exist_ok=True)
@@ -105,7 +114,8 @@ def main():
         scene, path, env = clip.get("scene"), clip.get("path"), clip.get("env")
         flags = []
         if "family" in clip:
-            info = families.make(clip["family"], clip["seed"], os.path.join(d, "scene"))
+            info = families.make(clip["family"], clip["seed"], os.path.join(d, "scene"),
+                                 movers=False if args.no_movers and not clip.get("movers") else clip.get("movers"))
             scene, path, flags = info["scene"], info["path"], info["flags"]
         elif "room" in clip:
             rd = os.path.join(d, "scene")

@@ -126,6 +126,8 @@ def main():
     ap.add_argument("--families", action="store_true", help="scene families (../denoise/families.py) instead of rooms and shared scenes")
     ap.add_argument("--seeds", type=int, default=6, help="--families: seeds per training family")
     ap.add_argument("--test-seeds", type=int, default=2, help="--families: seeds per held-out family")
+    ap.add_argument("--no-movers", action="store_true",
+                    help="--families: no moving objects in the training scenes (the static set the committed weights were trained on)")
     ap.add_argument("--denoised", default="", metavar="METHOD",
                     help="also x2_dn/, x4_dn/: the inputs at 1 spp denoised by METHOD (neural | svgf | atrous)")
     kestrel_mpi.add_arguments(ap)
@@ -150,7 +152,8 @@ def main():
         t0 = time.time()
         scene, path, env, flags = clip.get("scene"), clip.get("path"), None, []
         if "family" in clip:
-            info = families.make(clip["family"], clip["seed"], os.path.join(d, "scene"))
+            info = families.make(clip["family"], clip["seed"], os.path.join(d, "scene"),
+                                 movers=False if args.no_movers else clip.get("movers"))
             scene, path, flags = info["scene"], info["path"], info["flags"]
         elif "room" in clip:
             rd = os.path.join(d, "scene")

@@ -8,6 +8,7 @@
 
 #include "io/gltf_reader.h"
 
+#include <algorithm>
 #include <array>
 #include <cmath>
 #include <filesystem>
@@ -190,6 +191,25 @@ Material convert_material(const tinygltf::Material& m, const tinygltf::Model& mo
   out.metallic = float(pbr.metallicFactor);
   out.roughness = float(pbr.roughnessFactor);
   out.specular = 1.0f;  // glTF dielectrics: Fresnel with F0 = 0.04 (IOR 1.5)
+  // KHR_materials_specular: the coat's weight is specularFactor times the brightest channel of
+  // specularColorFactor (kestrel's coat is uncoloured), clamped to [0, 1]; 0 leaves the
+  // Lambertian base alone, as an MTL material without Ks. A non-finite factor stays non-finite
+  // and is refused with the material's name when the scene is rendered.
+  if (auto spec = m.extensions.find("KHR_materials_specular"); spec != m.extensions.end()) {
+    const tinygltf::Value& v = spec->second;
+    double weight = v.Has("specularFactor") ? v.Get("specularFactor").GetNumberAsDouble() : 1.0;
+    if (v.Has("specularColorFactor") && v.Get("specularColorFactor").IsArray()) {
+      const tinygltf::Value& c = v.Get("specularColorFactor");
+      double brightest = 0;
+      for (int i = 0; i < int(std::min<size_t>(c.ArrayLen(), 3)); ++i) {
+        const double x = c.Get(i).GetNumberAsDouble();
+        brightest = std::isfinite(x) ? std::max(brightest, x) : x;
+        if (!std::isfinite(x)) break;
+      }
+      weight *= brightest;
+    }
+    out.specular = std::isfinite(weight) ? std::clamp(float(weight), 0.0f, 1.0f) : float(weight);
+  }
   float strength = 1.0f;
   auto ext = m.extensions.find("KHR_materials_emissive_strength");
   if (ext != m.extensions.end() && ext->second.Has("emissiveStrength"))

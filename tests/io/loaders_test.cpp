@@ -234,6 +234,36 @@ TEST(Scene, ProceduralBuiltinsAreValidAndRepeatable) {
     EXPECT_NE(std::find(names.begin(), names.end(), n), names.end()) << n;
 }
 
+// KHR_materials_specular sets the dielectric coat's weight: specularFactor times the brightest
+// channel of specularColorFactor, clamped to [0, 1]; without it a glTF dielectric has the full
+// coat. (scripts/denoise/gltf_scene.py writes the MTL's Ks this way; families_smoke.sh renders
+// both files and asks for the same frames.)
+TEST(Gltf, SpecularExtensionSetsTheCoatWeight) {
+  const std::string path = test::write_temp_file("specular.gltf", R"({
+    "asset": {"version": "2.0"}, "scene": 0, "scenes": [{"nodes": [0]}], "nodes": [{"mesh": 0}],
+    "meshes": [{"primitives": [{"attributes": {"POSITION": 0}, "material": 0}]}],
+    "extensionsUsed": ["KHR_materials_specular"],
+    "materials": [
+      {"name": "plain"},
+      {"name": "lambert", "extensions": {"KHR_materials_specular": {"specularFactor": 0}}},
+      {"name": "tinted", "extensions": {"KHR_materials_specular":
+          {"specularFactor": 0.5, "specularColorFactor": [0.2, 0.8, 0.4]}}},
+      {"name": "loud", "extensions": {"KHR_materials_specular": {"specularFactor": 3}}},
+      {"name": "default_factor", "extensions": {"KHR_materials_specular": {}}}],
+    "buffers": [{"byteLength": 36,
+                 "uri": "data:application/octet-stream;base64,AAAAAAAAAAAAAAAAAACAPwAAAAAAAAAAAAAAAAAAgD8AAAAA"}],
+    "bufferViews": [{"buffer": 0, "byteOffset": 0, "byteLength": 36}],
+    "accessors": [{"bufferView": 0, "componentType": 5126, "count": 3, "type": "VEC3",
+                   "min": [0, 0, 0], "max": [1, 1, 0]}]})");
+  const Scene s = load_scene(path);
+  ASSERT_GE(s.materials.size(), 5u);
+  EXPECT_EQ(s.materials[0].specular, 1.0f);
+  EXPECT_EQ(s.materials[1].specular, 0.0f);
+  EXPECT_FLOAT_EQ(s.materials[2].specular, 0.4f);
+  EXPECT_EQ(s.materials[3].specular, 1.0f);
+  EXPECT_EQ(s.materials[4].specular, 1.0f);
+}
+
 TEST(Gltf, MalformedAndTruncatedFilesAreErrors) {
   const std::string not_json =
       test::write_temp_file("broken.gltf", "{ \"asset\": { \"version\": \"2.0\" ");
