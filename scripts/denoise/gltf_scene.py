@@ -9,7 +9,7 @@ render-sequence` poses per frame (motion vectors included). Materials are the MT
 mapped so that kestrel's glTF loader gives the same Material as its MTL loader:
 
     Kd -> baseColorFactor          map_Kd -> baseColorTexture (OBJ v flipped: glTF's v is down)
-    Pm -> metallicFactor           Pr -> roughnessFactor (MTL without Pr: sqrt(2 / (Ns + 2)),
+    Pm -> metallicFactor           Pr -> roughnessFactor (without Pr and Pm: sqrt(2 / (Ns + 2)),
     Ks -> KHR_materials_specular         tinyobjloader's Ns default 1)
     Ke -> emissiveFactor / KHR_materials_emissive_strength
 
@@ -18,6 +18,7 @@ ways (families.py --gltf) and asks for the same frames.
 """
 import json
 import math
+import os
 import struct
 
 FLOAT, UINT = 5126, 5125
@@ -139,7 +140,8 @@ def write(path_gltf, static_mesh, movers, mtl_by_name, comment=""):
         for path, out in (("translation", tr), ("rotation", rot)):
             samplers.append({"input": t, "output": out, "interpolation": "LINEAR"})
             channels.append({"sampler": len(samplers) - 1, "target": {"node": node, "path": path}})
-    bin_name = path_gltf.rsplit("/", 1)[-1].rsplit(".", 1)[0] + ".bin"
+    bin_path = os.path.splitext(path_gltf)[0] + ".bin"
+    bin_name = os.path.basename(bin_path)
     doc = {"asset": {"version": "2.0", "generator": "kestrel scripts/denoise/families.py" + (f" ({comment})" if comment else "")},
            "extensionsUsed": ["KHR_materials_specular", "KHR_materials_emissive_strength"],
            "scene": 0, "scenes": [{"nodes": list(range(len(nodes)))}], "nodes": nodes, "meshes": meshes,
@@ -151,7 +153,7 @@ def write(path_gltf, static_mesh, movers, mtl_by_name, comment=""):
         doc["samplers"] = [{"magFilter": 9729, "minFilter": 9729, "wrapS": 10497, "wrapT": 10497}]
     if channels:
         doc["animations"] = [{"name": "movers", "channels": channels, "samplers": samplers}]
-    with open(path_gltf.rsplit(".", 1)[0] + ".bin", "wb") as f:
+    with open(bin_path, "wb") as f:
         f.write(bytes(buf.data))
     with open(path_gltf, "w") as f:
         json.dump(doc, f, indent=1)
