@@ -493,7 +493,7 @@ def add_movers(s, family, seed, movers=None):
         hop = kind == "sphere" and not fly and rng.random() < 0.4
         dist = rng.choice([0.25, 0.5, 1.0, 2.0])  # metres over the clip
         spin = rng.uniform(-math.pi, math.pi) if rng.random() < 0.6 else 0.0
-        for attempt in range(20):
+        for _ in range(20):
             e, t = keys[0]["eye"], keys[0]["target"]
             f = rng.uniform(0.3, 0.8)
             p0 = [e[0] + (t[0] - e[0]) * f, rng.uniform(0.4, 1.6) if fly else 0.0, e[2] + (t[2] - e[2]) * f]

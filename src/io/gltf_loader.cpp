@@ -203,8 +203,11 @@ Material convert_material(const tinygltf::Material& m, const tinygltf::Model& mo
       double brightest = 0;
       for (int i = 0; i < int(std::min<size_t>(c.ArrayLen(), 3)); ++i) {
         const double x = c.Get(i).GetNumberAsDouble();
-        brightest = std::isfinite(x) ? std::max(brightest, x) : x;
-        if (!std::isfinite(x)) break;
+        if (!std::isfinite(x)) {  // kept, so that the material is refused
+          brightest = x;
+          break;
+        }
+        brightest = std::max(brightest, x);
       }
       weight *= brightest;
     }
