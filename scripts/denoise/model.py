@@ -59,7 +59,15 @@ The filter averages *linear* irradiance (no log-domain bias) with weights from l
   car window among white paint took the paint's irradiance, x 1, and came out grey)
   (n_p.n_p rather than 1: the centre tap weighs exactly 1 even where there is no normal, so
   the sum of weights never vanishes)
-The output colour is max(r_4, 0) * d; (r_1, z, n, black) is the recurrent state: the first level's
+  ro = min(r_4, max(m4, yw valid))                the output's isolated bright pixels: m4 = the
+       second largest of r_4's 8 neighbours (inside the image, as for rc), so a pixel that
+       the edge stops kept brighter than all but one of its neighbours, and than its valid
+       history, comes out at that level (since 2026-12-06, a fixed rule added after the
+       weights were trained: fireflies on edges and in disocclusions survived the filter,
+       up to 7x the reference's brightest pixel on held-out clips); a line or a blob keeps
+       its level, a pixel that was as bright in the history (a small lamp) keeps it after
+       its first frame; the state is r_1, before this step
+The output colour is max(ro, 0) * d; (r_1, z, n, black) is the recurrent state: the first level's
 output, as SVGF's first pass (architecture 3 fed back r_4, filtered at dilations up to 8,
 which blurs more every frame, so the network had kept its weight small; r0 itself converged
 ~5x slower on a static noisy sequence). Every step is a convex combination or a clamp from above (alpha,
@@ -181,14 +189,9 @@ def window_max(t, cells=3):
     return F.interpolate(hi, scale_factor=4, mode="nearest")
 
 
-def firefly_clamp(r, kappa, size=None, history=None):
-    """min(r, max(m + kappa * max(mu - (r + m1) s, 0), HISTORY_ALLOWANCE * history)) (s =
-    own_share, 1/144 away from the border; m1 the largest neighbour): m the second largest of the 8 neighbours inside the image (size
-    = (h, w) of the image inside the padding, None: all; outside neighbours count as 0, so a
-    firefly on the border is not its own neighbour; the second largest, so a pair of
-    fireflies does not shield itself), mu the 12x12 window mean (3x3 box over quarter-res 4x4
-    block means, edge replicated, nearest upsampled); history = the warped history where
-    valid, 0 elsewhere (None: no history)."""
+def neighbour_top2(r, size=None):
+    """The largest and second largest of each pixel's 8 neighbours (per channel), neighbours
+    outside the image (size = (h, w) inside the padding, None: all) counting as 0."""
     inside = r
     if size is not None:
         h, w = size
@@ -202,6 +205,29 @@ def firefly_clamp(r, kappa, size=None, history=None):
                 q = shift0(inside, dy, dx)
                 top2 = torch.maximum(top2, torch.minimum(top1, q))
                 top1 = torch.maximum(top1, q)
+    return top1, top2
+
+
+def output_clamp(r, size=None, history=None):
+    """min(r, max(m, history)): m the second largest of the 8 neighbours inside the image
+    (neighbour_top2), history the warped history where valid, 0 elsewhere (None: none). A
+    pixel brighter than all but one of its neighbours and than its history -- a firefly the
+    edge stops kept -- comes out at its neighbours' level."""
+    bound = neighbour_top2(r, size)[1]
+    if history is not None:
+        bound = torch.maximum(bound, history)
+    return torch.minimum(r, bound)
+
+
+def firefly_clamp(r, kappa, size=None, history=None):
+    """min(r, max(m + kappa * max(mu - (r + m1) s, 0), HISTORY_ALLOWANCE * history)) (s =
+    own_share, 1/144 away from the border; m1 the largest neighbour): m the second largest of the 8 neighbours inside the image (size
+    = (h, w) of the image inside the padding, None: all; outside neighbours count as 0, so a
+    firefly on the border is not its own neighbour; the second largest, so a pair of
+    fireflies does not shield itself), mu the 12x12 window mean (3x3 box over quarter-res 4x4
+    block means, edge replicated, nearest upsampled); history = the warped history where
+    valid, 0 elsewhere (None: no history)."""
+    top1, top2 = neighbour_top2(r, size)
     mu = window_mean(r)
     # mu without r's own share, nor its brightest neighbour's (at r's weight): a pair of
     # adjacent fireflies does not raise each other's allowance
@@ -309,7 +335,7 @@ class Denoiser(nn.Module):
             xi = xi + beta * (acc / wsum - xi)
             if l == 0:
                 h_new = xi
-        out = xi.clamp(min=0) * dm
+        out = output_clamp(xi, size, yw_lin * valid).clamp(min=0) * dm
         return out, (h_new, z, n_new, bk)
 
 

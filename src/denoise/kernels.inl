@@ -494,14 +494,39 @@ static const Planes& network(const NeuralWeights& nw, const Planes& in, Planes& 
     std::swap(ws.lg, ws.lg2);
   }
   lap(&stage.filter);
+  // The output: model.py's output_clamp (a pixel brighter than all but one of its neighbours
+  // inside the image and than its valid history comes out at that level), times d.
   ensure(ws.out, W, H, 3);
+  const int image_w = in.image_width > 0 ? in.image_width : W;
+  const int image_h = in.image_height > 0 ? in.image_height : H;
   parallel_rows(H, 8, [&](int r0, int r1) {
-    for (int c = 0; c < 3; ++c) {
-      const size_t b = size_t(r0) * size_t(W), e = size_t(r1) * size_t(W);
-      const float* xi = ws.xi.ch(c);
-      const float* dm = ws.demod.ch(c);
-      float* o = ws.out.ch(c);
-      for (size_t p = b; p < e; ++p) o[p] = (xi[p] > 0.0f ? xi[p] : 0.0f) * dm[p];
+    for (int y = r0; y < r1; ++y) {
+      const size_t row = size_t(y) * size_t(W);
+      const bool inner_row = y >= 1 && y + 1 < image_h;
+      const float* valid = ws.valid.data() + row;
+      for (int c = 0; c < 3; ++c) {
+        const float* x = ws.xi.ch(c);
+        const float* b = x + row;
+        const float *a = b - (y >= 1 ? W : 0), *d = b + (y + 1 < H ? W : 0);
+        const float* yw = ws.yw.ch(c) + row;
+        const float* dm = ws.demod.ch(c) + row;
+        float* o = ws.out.ch(c) + row;
+        auto checked = [&](int i) {  // neighbours outside the image count as 0
+          float top1 = 0.0f, top2 = 0.0f;
+          for (int dy = -1; dy <= 1; ++dy)
+            for (int dx = -1; dx <= 1; ++dx) {
+              const int yy = y + dy, xx = i + dx;
+              if (dy == 0 && dx == 0) continue;
+              const bool inside = yy >= 0 && yy < image_h && xx >= 0 && xx < image_w;
+              add_neighbour(top1, top2, inside ? x[size_t(yy) * size_t(W) + size_t(xx)] : 0.0f);
+            }
+          o[i] = output_cut(b[i], top2, yw[i], valid[i], dm[i]);
+        };
+        const int i1 = inner_row ? std::min(image_w - 1, W) : 0;
+        if (i1 > 0) checked(0);
+        if (i1 > 1) output_row(1, i1, a, b, d, yw, valid, dm, o);
+        for (int i = i1 > 0 ? i1 : 0; i < W; ++i) checked(i);
+      }
     }
     std::memcpy(ws.next_state.ch(3) + size_t(r0) * size_t(W), z + size_t(r0) * size_t(W),
                 sizeof(float) * size_t(r1 - r0) * size_t(W));

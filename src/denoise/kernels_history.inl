@@ -112,6 +112,33 @@ static void firefly_row(int i0, int i1, const float* __restrict a, const float* 
   }
 }
 
+// model.py's output_clamp and the remodulation over pixels [i0, i1) of a row whose neighbours
+// are all inside the image: o = max(min(r, max(m, yw valid)), 0) d, m the second largest of
+// r's 8 neighbours (a, b, d the rows above, at and below), yw the warped history, d the
+// demodulation; restrict-qualified so that it vectorises.
+static inline float output_cut(float r, float m, float yw, float valid, float dm) {
+  const float hist = yw * valid, bound = m > hist ? m : hist, v = r < bound ? r : bound;
+  return (v > 0.0f ? v : 0.0f) * dm;
+}
+
+static void output_row(int i0, int i1, const float* __restrict a, const float* __restrict b,
+                       const float* __restrict d, const float* __restrict yw,
+                       const float* __restrict valid, const float* __restrict dm,
+                       float* __restrict out) {
+  for (int i = i0; i < i1; ++i) {
+    float top1 = 0.0f, top2 = 0.0f;
+    add_neighbour(top1, top2, a[i - 1]);
+    add_neighbour(top1, top2, a[i]);
+    add_neighbour(top1, top2, a[i + 1]);
+    add_neighbour(top1, top2, b[i - 1]);
+    add_neighbour(top1, top2, b[i + 1]);
+    add_neighbour(top1, top2, d[i - 1]);
+    add_neighbour(top1, top2, d[i]);
+    add_neighbour(top1, top2, d[i + 1]);
+    out[i] = output_cut(b[i], top2, yw[i], valid[i], dm[i]);
+  }
+}
+
 // model.own_counts: along an axis of n positions (the first `inside` the image's, the rest
 // copies of its last one), how many times each position's value counts in its window mean
 // (a 3-cell box, edge cells replicated, over 4-pixel cells), its copies included.
