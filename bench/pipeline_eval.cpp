@@ -60,6 +60,8 @@ int main(int argc, char** argv) {
   std::vector<int> depths;
   std::string depth_list = "4,2";
   bool quick = false;
+  float indirect_rate = 1.0f;
+  bool radiance_cache = false;
   CLI::App app{"kestrel_pipeline_eval: the real-time loop, speed and quality"};
   app.add_option("--dataset", dataset, "The dataset of scripts/upscale/make_dataset.py")
       ->capture_default_str();
@@ -69,6 +71,12 @@ int main(int argc, char** argv) {
       ->capture_default_str();
   app.add_option("--timing-path", timing_path, "Its camera path")->capture_default_str();
   app.add_option("--timing-frames", timing_frames, "Timed frames")->capture_default_str();
+  app.add_option("--indirect-rate", indirect_rate,
+                 "PipelineSettings::indirect_rate of every run: 1, 0.5 or 0.25")
+      ->capture_default_str();
+  app.add_flag("--radiance-cache", radiance_cache,
+               "Every run with the radiance cache (kestrel run's default; the references are "
+               "full paths either way)");
   app.add_option("--max-depths", depth_list, "Path depths of the speed measurement")
       ->capture_default_str();
   app.add_flag("--quick", quick, "Three frames per clip and per speed setting (smoke test)");
@@ -106,6 +114,7 @@ int main(int argc, char** argv) {
         for (int factor : {2, 4}) {
           PipelineSettings s;
           s.width = 1280, s.height = 720, s.factor = factor, s.max_depth = max_depth;
+          s.indirect_rate = indirect_rate, s.radiance_cache = radiance_cache;
           Pipeline p(timing_scene, s);
           const int n = quick ? 3 : timing_frames;
           std::vector<double> st[6], mr;
@@ -151,8 +160,29 @@ int main(int argc, char** argv) {
     std::string per_clip;
     for (const auto& [clip, c] : manifest.at("clips").items()) {
       if (c.at("split") != "test") continue;
-      const std::string scene = c.at("scene"), path_spec = c.at("path"),
-                        env = c.value("env", std::string("default"));
+      const std::string scene = c.at("scene"), path_spec = c.at("path");
+      std::string env = c.value("env", std::string("default"));
+      // The render flags the clip's references were made with (make_dataset.py's "flags"):
+      // the environment, a lights file, the light sampling, a sun and the sky.
+      std::string lights, sun;
+      bool sky = false, tree = false;
+      const std::vector<std::string> flags = c.value("flags", std::vector<std::string>{});
+      for (size_t i = 0; i < flags.size(); ++i) {
+        const bool has_value = i + 1 < flags.size();
+        if (flags[i] == "--env" && has_value)
+          env = flags[++i];
+        else if (flags[i] == "--lights" && has_value)
+          lights = flags[++i];
+        else if (flags[i] == "--light-sampling" && has_value)
+          tree = flags[++i] == "tree";
+        else if (flags[i] == "--sun" && has_value)
+          sun = flags[++i];
+        else if (flags[i] == "--sky")
+          sky = true;
+        else
+          throw Error(ErrorCode::parse_error,
+                      fmt::format("{}: render flag '{}' is not supported here", clip, flags[i]));
+      }
       int w = 0, h = 0;
       if (std::sscanf(std::string(c.at("res")).c_str(), "%dx%d", &w, &h) != 2)
         throw Error(ErrorCode::parse_error, clip + ": bad res");
@@ -173,7 +203,12 @@ int main(int argc, char** argv) {
           s.width = w, s.height = h, s.factor = factor, s.denoiser = cfg.denoiser,
           s.upscaler = cfg.upscaler;
           s.max_depth = c.value("max_depth", 3), s.clamp = c.value("clamp", 8.0f);
-          Pipeline p(scene, s, env == "default" ? "" : env);
+          s.indirect_rate = indirect_rate, s.radiance_cache = radiance_cache;
+          s.sun = sun, s.sky = sky;
+          if (tree) s.light_sampling = LightSampling::tree;
+          Asset asset = Asset::load(scene);
+          if (!lights.empty()) asset.add_lights(load_lights(lights));
+          Pipeline p(std::move(asset), s, env == "default" ? "" : env);
           double ps = 0, ss = 0, te = 0;
           std::vector<float> prev;
           for (int t = 0; t < frames; ++t) {

@@ -29,7 +29,7 @@ struct RenderArgs {
   int spp = 1, max_depth = 8, threads = 0, frames = 0, frame = 0, factor = 2;
   uint64_t seed = 0;
   double time_limit = 0, time = 0;
-  float exposure = 0, clamp = 0, fps = 30;
+  float exposure = 0, clamp = 0, fps = 30, indirect_rate = 1;
   bool no_jitter = false, fixed_jitter = false, quiet = false, radiance_cache = false;
 };
 
@@ -73,6 +73,10 @@ void add_common(CLI::App& cmd, RenderArgs& a) {
   cmd.add_option("--exposure", a.exposure, "Exposure of the PNG, stops")->capture_default_str();
   cmd.add_option("--clamp", a.clamp, "Clamp sample radiance to this (biased; 0 = off)")
       ->capture_default_str();
+  cmd.add_option("--indirect-rate", a.indirect_rate,
+                 "Share of pixels that trace a first bounce per pass: 1 | 0.5 (a checkerboard) | "
+                 "0.25; the others keep their direct light (unbiased, noisier)")
+      ->capture_default_str();
   cmd.add_flag("--no-jitter", a.no_jitter, "Sample pixel centres (no Halton jitter)");
   cmd.add_flag("--fixed-jitter", a.fixed_jitter,
                "Every sample at the frame's jitter (point-sampled, as an upsampler's input)");
@@ -94,6 +98,7 @@ RenderSettings settings_of(const RenderArgs& a) {
   s.jitter = !a.no_jitter;
   s.fixed_jitter = a.fixed_jitter;
   s.clamp = a.clamp;
+  s.indirect_rate = a.indirect_rate;
   s.radiance_cache = a.radiance_cache;
   s.progress = !a.quiet && isatty(2);
   if (a.light_sampling == "tree")
@@ -324,7 +329,7 @@ void run_sequence(const RenderArgs& a) {
   const RenderSettings s = settings_of(a);
   PipelineSettings ps;
   ps.width = s.width, ps.height = s.height, ps.spp = s.spp, ps.max_depth = s.max_depth,
-  ps.clamp = s.clamp, ps.radiance_cache = s.radiance_cache;
+  ps.clamp = s.clamp, ps.radiance_cache = s.radiance_cache, ps.indirect_rate = s.indirect_rate;
   ps.seed = s.seed, ps.threads = s.threads, ps.jitter = s.jitter, ps.fixed_jitter = s.fixed_jitter;
   ps.exposure = a.exposure;
   ps.factor = 1;

@@ -20,7 +20,7 @@ struct PipelineArgs {
               radiance_cache = "on";
   bool sky = false, auto_exposure = false;
   int factor = 2, spp = 1, max_depth = 4, threads = 0;
-  float clamp = 16, exposure = 0;
+  float clamp = 16, exposure = 0, indirect_rate = 1;
   double target_ms = 0;
   uint64_t seed = 0;
   std::shared_ptr<ThreadLimit> limit;
@@ -43,6 +43,10 @@ struct PipelineArgs {
         ->capture_default_str()
         ->check(CLI::Range(1, 1024));
     cmd.add_option("--clamp", clamp, "Sample radiance clamp (0 = off)")->capture_default_str();
+    cmd.add_option("--indirect-rate", indirect_rate,
+                   "Share of pixels that trace a first bounce each frame: 1 | 0.5 (a "
+                   "checkerboard) | 0.25; the others keep their direct light (unbiased, noisier)")
+        ->capture_default_str();
     cmd.add_option("--env", env, "Environment: none | sky | constant:R,G,B | image file");
     cmd.add_option("--exposure", exposure, "Tone-map exposure, stops")->capture_default_str();
     cmd.add_option(
@@ -111,7 +115,7 @@ struct PipelineArgs {
                                                            upscale, upscale_method_list()));
     s.upscaler = *u;
     s.spp = spp, s.max_depth = max_depth, s.clamp = clamp, s.exposure = exposure,
-    s.target_ms = target_ms, s.seed = seed;
+    s.indirect_rate = indirect_rate, s.target_ms = target_ms, s.seed = seed;
     s.sun = sun, s.sky = sky, s.auto_exposure = auto_exposure;
     if (light_sampling == "tree")
       s.light_sampling = LightSampling::tree;

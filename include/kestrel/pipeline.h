@@ -23,6 +23,8 @@ struct PipelineSettings {
   DenoiseMethod denoiser = DenoiseMethod::neural;
   UpscaleMethod upscaler = UpscaleMethod::neural;  ///< unused at factor 1
   int spp = 1, max_depth = 4;
+  /// RenderSettings::indirect_rate: 1, 0.5 or 0.25 of the pixels trace a first bounce.
+  float indirect_rate = 1.0f;
   bool jitter = true;        ///< sub-pixel Halton jitter by frame (false: pixel centres)
   bool fixed_jitter = true;  ///< every sample of a frame at its jitter (what upsamplers expect)
   int threads = 0;           ///< the render's threads (RenderSettings::threads; 0 = all)

@@ -174,6 +174,12 @@ struct RenderSettings {
   int max_depth = 8;  ///< path vertices after the camera (1 = direct light only)
   int rr_depth = 3;   ///< Russian roulette from this bounce on
   float clamp = 0;    ///< > 0: clamp each sample's radiance (biased); 0 = off
+  /// The share of pixels whose path goes on after the first hit: 1 (all), 0.5 or 0.25. The
+  /// others stop there (their direct light is kept) and the survivors' paths count 1 / rate
+  /// times: Russian roulette at the first bounce, unbiased, stratified over the image (a
+  /// checkerboard, or one pixel of each 2x2 block, moving with the frame index) so that every
+  /// pixel goes on once in 1 / rate frames. Fewer bounce rays for more indirect noise.
+  float indirect_rate = 1.0f;
   LightSampling light_sampling = LightSampling::power;
   /// ReSTIR keeps reservoirs between renders of one Renderer: frame f's first pass reuses
   /// the last pass of frame f - 1 (any other frame index starts afresh), later passes reuse

@@ -318,10 +318,12 @@ void bind_render(py::module_& m) {
           [](PyRenderer& r, const Camera& camera, int spp, py::handle res, uint64_t seed,
              int max_depth, int rr_depth, float clamp, uint32_t frame, bool jitter,
              bool fixed_jitter, double time_limit, int threads, std::optional<Camera> prev_camera,
-             const std::string& light_sampling, const std::string& direct, bool radiance_cache) {
+             const std::string& light_sampling, const std::string& direct, bool radiance_cache,
+             float indirect_rate) {
             RenderSettings s;
             set_lighting(light_sampling, direct, s.light_sampling, s.direct);
             s.radiance_cache = radiance_cache;
+            s.indirect_rate = indirect_rate;
             std::tie(s.width, s.height) = resolution(res);
             s.spp = spp;
             s.seed = seed;
@@ -346,13 +348,16 @@ void bind_render(py::module_& m) {
           py::arg("fixed_jitter") = false, py::arg("time_limit") = 0.0, py::arg("threads") = 0,
           py::arg("prev_camera") = py::none(), py::arg("light_sampling") = "power",
           py::arg("direct") = "nee", py::arg("radiance_cache") = false,
+          py::arg("indirect_rate") = 1.0f,
           "Renders one frame: a dict of AOVs color, albedo, normal, depth, roughness, motion, spp, "
           "variance, each a "
           "float32 (H, W, C) array (the same bits as `kestrel render` writes for the same "
           "settings). light_sampling: 'power' | 'tree'; direct: 'nee' | 'restir' (ReSTIR DI, "
           "biased) | 'restir-unbiased' (reservoirs are reused from the previous frame index); "
           "radiance_cache: paths stop at their first bounce's surface and take a world-space "
-          "cache's radiance (biased; the cache is kept from the previous frame index).")
+          "cache's radiance (biased; the cache is kept from the previous frame index); "
+          "indirect_rate: 1, 0.5 or 0.25 of the pixels trace a first bounce per pass (stratified "
+          "Russian roulette, unbiased; fewer rays, more indirect noise).")
       .def_property_readonly("last_stats",
                              [](const PyRenderer& r) { return stats_dict(r.last_stats); })
       .def_property_readonly(

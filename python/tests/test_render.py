@@ -276,6 +276,23 @@ def test_radiance_cache_matches_the_cli(cli, tmp_path, cornell):
         assert np.isfinite(loop.frame(cam)["rgb8"]).all()
 
 
+def test_indirect_rate_matches_the_cli(cli, tmp_path, cornell):
+    """A quarter of the first bounces from Python: the CLI's bits, fewer bounce rays; a rate
+    other than 1, 0.5 or 0.25 is an error."""
+    cam = kestrel.view(cornell)
+    r = kestrel.Renderer(cornell)
+    r.render(cam, res=RES, spp=4, seed=5)
+    full = r.last_stats["bounce_rays"]
+    mine = r.render(cam, res=RES, spp=4, seed=5, indirect_rate=0.25)["color"]
+    assert r.last_stats["bounce_rays"] < 0.5 * full
+    cli("render", "builtin:cornell_box", "--res", f"{RES[0]}x{RES[1]}", "--spp", 4, "--seed", 5,
+        "--indirect-rate", 0.25, "--quiet", "-o", tmp_path / "f.exr", "--pfm", tmp_path / "pfm")
+    pfm = kestrel.read_pfm(str(tmp_path / "pfm" / "color.pfm"))
+    assert np.array_equal(bits(mine), bits(pfm[..., :3]))
+    with pytest.raises(Exception, match="indirect rate"):
+        r.render(cam, res=RES, indirect_rate=0.3)
+
+
 def test_restir_matches_the_cli(cli, tmp_path):
     """ReSTIR DI from Python: the CLI's bits for the same settings; bad names are errors."""
     hall = kestrel.load_scene("builtin:lamp_hall")

@@ -30,6 +30,10 @@ void check(const PipelineSettings& s) {
       !(s.target_ms >= 0))
     throw Error(ErrorCode::invalid_argument,
                 "pipeline: spp and max depth must be positive, clamp and target time >= 0");
+  if (s.indirect_rate != 1.0f && s.indirect_rate != 0.5f && s.indirect_rate != 0.25f)
+    throw Error(
+        ErrorCode::invalid_argument,
+        fmt::format("pipeline: indirect rate must be 1, 0.5 or 0.25, got {}", s.indirect_rate));
 }
 
 }  // namespace
@@ -112,6 +116,7 @@ struct Pipeline::Impl {
     rs.jitter = settings.jitter, rs.threads = settings.threads;
     rs.light_sampling = light_sampling(), rs.direct = direct();
     rs.radiance_cache = settings.radiance_cache;
+    rs.indirect_rate = settings.indirect_rate;
     return rs;
   }
 };

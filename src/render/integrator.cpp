@@ -221,6 +221,16 @@ bool Renderer::Impl::sample_light(const Surface& sf, const Basis& frame, Vec3 wo
   return true;
 }
 
+// Whether pixel (x, y)'s path goes on after its first hit in frame `frame` at the given
+// indirect rate: 0.5 a checkerboard, 0.25 one pixel of each 2x2 block, both cycling with the
+// frame so that every pixel goes on once in 1 / rate frames.
+static bool first_bounce_survives(uint32_t x, uint32_t y, uint32_t frame, float rate) {
+  if (rate >= 1.0f) return true;
+  if (rate >= 0.5f) return ((x + y + frame) & 1u) == 0;
+  static constexpr uint32_t order[4] = {0, 3, 1, 2};  // (0,0) (1,1) (1,0) (0,1)
+  return ((x & 1u) | ((y & 1u) << 1)) == order[frame & 3u];
+}
+
 // ---- one tile ----------------------------------------------------------------------------------
 
 void Renderer::Impl::render_tile(const CameraModel& cam, const CameraModel& prev_cam,
@@ -435,6 +445,12 @@ void Renderer::Impl::render_tile(const CameraModel& cam, const CameraModel& prev
       ps.bsdf_pdf = bs.pdf;
       ps.prev_normal = ns;
       ps.rough = bp.alpha >= cache_alpha_first;
+      if (depth == 0 && s.indirect_rate < 1.0f && !specular_surface) {
+        const uint32_t px_x = uint32_t(x0 + int(ps.pixel % uint32_t(x1 - x0)));
+        const uint32_t px_y = uint32_t(y0 + int(ps.pixel / uint32_t(x1 - x0)));
+        if (!first_bounce_survives(px_x, px_y, s.frame + uint32_t(pass), s.indirect_rate)) continue;
+        ps.throughput = ps.throughput * (1.0f / s.indirect_rate);
+      }
       if (depth + 1 >= s.rr_depth) {
         const float q =
             std::min(0.95f, std::max({ps.throughput.x, ps.throughput.y, ps.throughput.z}));

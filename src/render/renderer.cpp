@@ -146,6 +146,10 @@ void check_render_settings(const Camera& camera, const RenderSettings& s,
                 fmt::format("render: max depth must be positive, got {}", s.max_depth));
   if (!(s.time_limit_s >= 0) || !(s.clamp >= 0))
     throw Error(ErrorCode::invalid_argument, "render: time limit and clamp must be >= 0");
+  if (s.indirect_rate != 1.0f && s.indirect_rate != 0.5f && s.indirect_rate != 0.25f)
+    throw Error(
+        ErrorCode::invalid_argument,
+        fmt::format("render: indirect rate must be 1, 0.5 or 0.25, got {}", s.indirect_rate));
   if (s.direct != DirectLighting::nee && s.direct != DirectLighting::restir &&
       s.direct != DirectLighting::restir_unbiased)
     throw Error(ErrorCode::invalid_argument, "render: unknown direct lighting method");

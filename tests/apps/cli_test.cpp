@@ -59,6 +59,14 @@ TEST(Cli, BadInputIsAOneLineErrorAndNonZeroExit) {
   EXPECT_NE(r.status, 0);
   r = run("preview --res 0x10");
   EXPECT_EQ(r.status, 1);
+  for (const char* cmd :
+       {"render builtin:cornell_box --res 8x8 --quiet -o /tmp/kestrel_never.exr",
+        "run builtin:cornell_box --res 16x16 --frames 1 --out /tmp/kestrel_never"}) {
+    r = run(std::string(cmd) + " --indirect-rate 0.3");
+    EXPECT_EQ(r.status, 1) << cmd;
+    EXPECT_NE(r.out.find("indirect rate must be 1, 0.5 or 0.25"), std::string::npos) << r.out;
+    EXPECT_EQ(std::count(r.out.begin(), r.out.end(), '\n'), 1) << r.out;
+  }
   const std::string nan_obj =
       test::write_temp_file("all_nan.obj", "v nan 0 0\nv 0 nan 0\nv 0 0 nan\nf 1 2 3\n");
   r = run("bvh " + nan_obj);

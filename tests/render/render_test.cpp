@@ -144,6 +144,42 @@ TEST(Furnace, ClosedEmittingBoxConvergesToLeOverOneMinusAlbedo) {
   }
 }
 
+// RenderSettings::indirect_rate: Russian roulette at the first bounce, stratified over the
+// image, keeps the estimate unbiased — the furnace box's radiance is still 2 everywhere —
+// and traces the asked share of bounce rays; the same bits for any thread count.
+TEST(Furnace, FirstBounceAtAQuarterOrHalfRateStaysUnbiased) {
+  Scene s;
+  s.source = "test:furnace_box";
+  s.materials = {Material{.name = "wall", .base_color = {0.5f, 0.5f, 0.5f}, .emission = {1, 1, 1}}};
+  s.meshes.push_back(test::closed_box({-1, -1, -1}, {1, 1, 1}).meshes[0]);
+  s.meshes[0].material_ids.assign(s.meshes[0].triangle_count(), 0);
+  SceneRenderer r(std::move(s), Environment::parse("none"));
+  const Camera cam{{0.2f, 0.1f, -0.3f}, {0.5f, 0.3f, 0.8f}, 80};
+  RenderSettings rs;
+  rs.width = 48, rs.height = 48, rs.spp = 64, rs.max_depth = 64;
+  const uint64_t all = r.render(cam, rs).stats.bounce_rays;
+  for (float rate : {0.5f, 0.25f}) {
+    rs.indirect_rate = rate;
+    rs.threads = 1;
+    const Frame f = r.render(cam, rs);
+    for (int c = 0; c < 3; ++c) {
+      double mean, se;
+      mean_and_error(f[Aov::color], c, mean, se);
+      EXPECT_NEAR(mean, 2.0, 0.005 * 2.0)
+          << "rate " << rate << " channel " << c << " (se " << se << ")";
+    }
+    // Every pixel's first hit traces a bounce in `rate` of its passes; a surviving path's
+    // weight is 1 / rate, so the later Russian roulette (kept with probability min(0.95,
+    // throughput)) keeps it a little longer: the bounce rays scale by a little over `rate`
+    // (0.555 and 0.333 here).
+    const double share = double(f.stats.bounce_rays) / double(all);
+    EXPECT_GT(share, rate) << "rate " << rate;
+    EXPECT_LT(share, rate + 0.1) << "rate " << rate;
+    rs.threads = 2;
+    EXPECT_EQ(f[Aov::color].pixels, r.render(cam, rs)[Aov::color].pixels) << "rate " << rate;
+  }
+}
+
 TEST(Furnace, WhiteSphereInConstantEnvironmentIsInvisible) {
   // rho = 1 Lambertian convex object under a uniform environment of 1: every pixel is 1.
   for (const char* env : {"constant:1,1,1", "image"}) {
@@ -584,6 +620,9 @@ TEST(BadInput, ClearErrors) {
   RenderSettings rs;
   rs.spp = 0;
   expect_error([&] { r.render(Camera{{0, 0, 0}, {0, 0, 1}, 45}, rs); }, "spp");
+  rs = RenderSettings{};
+  rs.indirect_rate = 0.3f;
+  expect_error([&] { r.render(Camera{{0, 0, 0}, {0, 0, 1}, 45}, rs); }, "indirect rate");
   rs = RenderSettings{};
   rs.width = 0;
   expect_error([&] { r.render(Camera{{0, 0, 0}, {0, 0, 1}, 45}, rs); }, "resolution");
