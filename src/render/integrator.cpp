@@ -435,6 +435,14 @@ void Renderer::Impl::render_tile(const CameraModel& cam, const CameraModel& prev
           shadows.push_back({contribution, active[k]});
         }
       }
+      // Russian roulette at the first bounce (indirect_rate < 1): the pixels whose turn it is
+      // not stop here with their direct light; mirror-like surfaces always go on.
+      if (depth == 0 && s.indirect_rate < 1.0f && !specular_surface) {
+        const uint32_t px_x = uint32_t(x0 + int(ps.pixel % uint32_t(x1 - x0)));
+        const uint32_t px_y = uint32_t(y0 + int(ps.pixel / uint32_t(x1 - x0)));
+        if (!first_bounce_survives(px_x, px_y, s.frame + uint32_t(pass), s.indirect_rate)) continue;
+        ps.throughput = ps.throughput * (1.0f / s.indirect_rate);
+      }
       // Continue the path by sampling the BSDF.
       const float u0 = rng.uniform(), u1 = rng.uniform(), u2 = rng.uniform();
       BsdfSample bs;
@@ -445,12 +453,6 @@ void Renderer::Impl::render_tile(const CameraModel& cam, const CameraModel& prev
       ps.bsdf_pdf = bs.pdf;
       ps.prev_normal = ns;
       ps.rough = bp.alpha >= cache_alpha_first;
-      if (depth == 0 && s.indirect_rate < 1.0f && !specular_surface) {
-        const uint32_t px_x = uint32_t(x0 + int(ps.pixel % uint32_t(x1 - x0)));
-        const uint32_t px_y = uint32_t(y0 + int(ps.pixel / uint32_t(x1 - x0)));
-        if (!first_bounce_survives(px_x, px_y, s.frame + uint32_t(pass), s.indirect_rate)) continue;
-        ps.throughput = ps.throughput * (1.0f / s.indirect_rate);
-      }
       if (depth + 1 >= s.rr_depth) {
         const float q =
             std::min(0.95f, std::max({ps.throughput.x, ps.throughput.y, ps.throughput.z}));
