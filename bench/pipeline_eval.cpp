@@ -94,9 +94,10 @@ int main(int argc, char** argv) {
                                     size_t(std::max(threads, 1)));
   try {
     fs::create_directories(out_dir);
-    std::string md =
+    std::string md = fmt::format(
         "# Real-time pipeline evaluation\n\nWritten by `kestrel_pipeline_eval` "
-        "(bench/pipeline_eval.cpp).\n\n";
+        "(bench/pipeline_eval.cpp). Every run: radiance cache {}, indirect rate {}.\n\n",
+        radiance_cache ? "on" : "off", indirect_rate);
     nlohmann::json js;
     // Speed.
     md += fmt::format(
@@ -251,7 +252,7 @@ int main(int argc, char** argv) {
         "The test clips of `" +
         fs::relative(dataset, KESTREL_SOURCE_DIR).string() +
         "` (scripts/upscale/make_dataset.py): each clip's scene, camera path, frame times, path "
-        "depth and clamp, rendered "
+        "depth, clamp and render flags (environment, lights, light sampling, sun, sky), rendered "
         "by the pipeline at 1 spp and compared with the clip's full-resolution reference. Means "
         "over clips.\n\n"
         "| factor | pipeline | PSNR dB | SSIM | tErr |\n|---|---|---:|---:|---:|\n";

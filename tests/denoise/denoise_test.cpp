@@ -335,7 +335,9 @@ TEST(Denoise, ABrightPixelWithNoHistoryComesOutAtItsNeighboursLevel) {
       EXPECT_LT(out.at(20, 15)[0], 0.05f * 4) << "the lamp's first frame";
       for (int x = 32; x < 38; ++x) EXPECT_GT(out.at(x, 25)[0], 0.3f) << "the line at " << x;
     }
-    if (t == 9) EXPECT_GT(out.at(20, 15)[0], 0.8f * 10.0f) << "the lamp did not converge";
+    if (t == 9) {
+      EXPECT_GT(out.at(20, 15)[0], 0.8f * 10.0f) << "the lamp did not converge";
+    }
   }
 }
 
