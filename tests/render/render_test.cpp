@@ -124,18 +124,24 @@ void mean_and_error(const FloatImage& img, int channel, double& mean, double& se
   se = std::sqrt(v / (n - 1) / n);
 }
 
-TEST(Furnace, ClosedEmittingBoxConvergesToLeOverOneMinusAlbedo) {
-  // Every wall emits Le = 1 and reflects rho = 0.5 (Lambertian): radiance is 1 / (1 - 0.5) = 2
-  // everywhere inside. Exercises area-light NEE, MIS with BSDF hits, Russian roulette.
+// A closed box whose walls all emit Le = 1 and reflect rho = 0.5 (Lambertian): the radiance
+// is 1 / (1 - 0.5) = 2 everywhere inside. `furnace_camera` looks at it from inside.
+SceneRenderer furnace_box() {
   Scene s;
   s.source = "test:furnace_box";
   s.materials = {Material{.name = "wall", .base_color = {0.5f, 0.5f, 0.5f}, .emission = {1, 1, 1}}};
   s.meshes.push_back(test::closed_box({-1, -1, -1}, {1, 1, 1}).meshes[0]);
   s.meshes[0].material_ids.assign(s.meshes[0].triangle_count(), 0);
-  SceneRenderer r(std::move(s), Environment::parse("none"));
+  return SceneRenderer(std::move(s), Environment::parse("none"));
+}
+const Camera furnace_camera{{0.2f, 0.1f, -0.3f}, {0.5f, 0.3f, 0.8f}, 80};
+
+TEST(Furnace, ClosedEmittingBoxConvergesToLeOverOneMinusAlbedo) {
+  // Exercises area-light NEE, MIS with BSDF hits, Russian roulette.
+  SceneRenderer r = furnace_box();
   RenderSettings rs;
   rs.width = 48, rs.height = 48, rs.spp = 32, rs.max_depth = 64;
-  const Frame f = r.render(Camera{{0.2f, 0.1f, -0.3f}, {0.5f, 0.3f, 0.8f}, 80}, rs);
+  const Frame f = r.render(furnace_camera, rs);
   for (int c = 0; c < 3; ++c) {
     double mean, se;
     mean_and_error(f[Aov::color], c, mean, se);
@@ -148,13 +154,8 @@ TEST(Furnace, ClosedEmittingBoxConvergesToLeOverOneMinusAlbedo) {
 // image, keeps the estimate unbiased — the furnace box's radiance is still 2 everywhere —
 // and traces the asked share of bounce rays; the same bits for any thread count.
 TEST(Furnace, FirstBounceAtAQuarterOrHalfRateStaysUnbiased) {
-  Scene s;
-  s.source = "test:furnace_box";
-  s.materials = {Material{.name = "wall", .base_color = {0.5f, 0.5f, 0.5f}, .emission = {1, 1, 1}}};
-  s.meshes.push_back(test::closed_box({-1, -1, -1}, {1, 1, 1}).meshes[0]);
-  s.meshes[0].material_ids.assign(s.meshes[0].triangle_count(), 0);
-  SceneRenderer r(std::move(s), Environment::parse("none"));
-  const Camera cam{{0.2f, 0.1f, -0.3f}, {0.5f, 0.3f, 0.8f}, 80};
+  SceneRenderer r = furnace_box();
+  const Camera& cam = furnace_camera;
   RenderSettings rs;
   rs.width = 48, rs.height = 48, rs.spp = 64, rs.max_depth = 64;
   const uint64_t all = r.render(cam, rs).stats.bounce_rays;
