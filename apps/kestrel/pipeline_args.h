@@ -70,7 +70,8 @@ struct PipelineArgs {
     cmd.add_flag("--auto-exposure", auto_exposure,
                  "Exposure follows the image's log-average luminance (key 0.18, smoothed)");
     cmd.add_option("--target-ms", target_ms,
-                   "Adapt the factor (1, 2, 4) to hold this frame time (0 = fixed)");
+                   "Hold this frame time (0 = fixed): fewer first bounces (--indirect-rate down "
+                   "to 0.25) before a coarser factor (up to 4), and back");
     cmd.add_option("--seed", seed, "Random seed")->capture_default_str();
     cmd.add_option("--threads", threads, "Worker threads (0 = all)")
         ->capture_default_str()

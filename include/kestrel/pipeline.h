@@ -42,9 +42,12 @@ struct PipelineSettings {
   /// The world-space radiance cache (RenderSettings::radiance_cache; biased): most paths stop
   /// at their first bounce's surface. `kestrel run` / `view` turn it on (--radiance-cache).
   bool radiance_cache = false;
-  std::string sun;       ///< "" or Sun::parse's AZIMUTH,ELEVATION[,INTENSITY] (make_lighting)
-  bool sky = false;      ///< the physical sky (make_lighting)
-  double target_ms = 0;  ///< > 0: change the factor (1, 2, 4) to hold this frame time
+  std::string sun;   ///< "" or Sun::parse's AZIMUTH,ELEVATION[,INTENSITY] (make_lighting)
+  bool sky = false;  ///< the physical sky (make_lighting)
+  /// > 0: hold this frame time — when over 1.15x it, halve indirect_rate down to 0.25, then
+  /// double the factor up to 4; when under it, the reverse (the rate back under 0.7x, a finer
+  /// factor under 0.3x at the full rate)
+  double target_ms = 0;
   uint64_t seed = 0;
 };
 

@@ -472,7 +472,7 @@ void bind_render(py::module_& m) {
                        int max_depth, float clamp, float exposure, double target_ms, uint64_t seed,
                        const std::string& environment, const std::string& sun, bool sky,
                        bool auto_exposure, const std::string& light_sampling,
-                       const std::string& direct, bool radiance_cache) {
+                       const std::string& direct, bool radiance_cache, float indirect_rate) {
              PipelineSettings s =
                  pipeline_settings(resolution(res), factor, denoiser, upscaler, spp, max_depth,
                                    clamp, exposure, target_ms, seed);
@@ -481,6 +481,7 @@ void bind_render(py::module_& m) {
                           s.direct);
              s.sun = sun, s.sky = sky, s.auto_exposure = auto_exposure;
              s.radiance_cache = radiance_cache;
+             s.indirect_rate = indirect_rate;
              py::gil_scoped_release release;
              return std::make_unique<Pipeline>(scene.string(), s, environment);
            }),
@@ -490,14 +491,16 @@ void bind_render(py::module_& m) {
            py::arg("target_ms") = 0.0, py::arg("seed") = 0, py::arg("environment") = "",
            py::arg("sun") = "", py::arg("sky") = false, py::arg("auto_exposure") = false,
            py::arg("light_sampling") = "power", py::arg("direct") = "auto",
-           py::arg("radiance_cache") = true,
+           py::arg("radiance_cache") = true, py::arg("indirect_rate") = 1.0f,
            "radiance_cache: paths stop at their first bounce's surface and take a world-space "
            "cache's radiance there (biased; as `kestrel run`); "
            "direct: 'auto' (ReSTIR over the light tree for >= 64 lights, else light_sampling "
            "and NEE) | 'nee' | 'restir' | 'restir-unbiased'; "
            "sun: 'AZIMUTH,ELEVATION[,INTENSITY]' (degrees; with the physical sky unless "
            "environment is "
-           "given); sky: the physical sky; auto_exposure: the tone map follows the image.")
+           "given); sky: the physical sky; auto_exposure: the tone map follows the image; "
+           "indirect_rate: 1, 0.5 or 0.25 of the pixels trace a first bounce each frame "
+           "(target_ms lowers it before it coarsens the factor).")
       .def(
           "frame",
           [](Pipeline& p, const Camera& camera, double time) {

@@ -291,6 +291,11 @@ def test_indirect_rate_matches_the_cli(cli, tmp_path, cornell):
     assert np.array_equal(bits(mine), bits(pfm[..., :3]))
     with pytest.raises(Exception, match="indirect rate"):
         r.render(cam, res=RES, indirect_rate=0.3)
+    loop = kestrel.Pipeline("builtin:cornell_box", res=(32, 24), factor=1, denoiser=None,
+                            indirect_rate=0.5)
+    assert np.isfinite(loop.frame(cam)["rgb8"]).all()
+    with pytest.raises(Exception, match="indirect rate"):
+        kestrel.Pipeline("builtin:cornell_box", res=(32, 24), indirect_rate=2)
 
 
 def test_restir_matches_the_cli(cli, tmp_path):

@@ -125,17 +125,23 @@ TEST(Pipeline, AutoExposureFollowsTheImageSmoothly) {
 
 TEST(Pipeline, AdaptiveFactorFollowsTheTarget) {
   PipelineSettings s = small(2);
-  s.target_ms = 1e-6;  // impossible: coarser
+  s.target_ms = 1e-6;  // impossible: fewer first bounces, then coarser
   Pipeline p("builtin:cornell_box", s);
-  p.frame(front(), 0.0);
-  EXPECT_EQ(p.settings().factor, 4);
-  s.target_ms = 1e6;  // trivially met: finer, step by step
-  s.factor = 4;
+  const std::pair<float, int> down[] = {{0.5f, 2}, {0.25f, 2}, {0.25f, 4}, {0.25f, 4}};
+  for (const auto& [rate, factor] : down) {
+    p.frame(front(), 0.0);
+    EXPECT_EQ(p.settings().indirect_rate, rate);
+    EXPECT_EQ(p.settings().factor, factor);
+  }
+  s.target_ms = 1e6;  // trivially met: the full rate back, then finer, step by step
+  s.factor = 4, s.indirect_rate = 0.25f;
   p.set_settings(s);
-  p.frame(front(), 0.0);
-  EXPECT_EQ(p.settings().factor, 2);
-  p.frame(front(), 0.0);
-  EXPECT_EQ(p.settings().factor, 1);
+  const std::pair<float, int> up[] = {{0.5f, 4}, {1.0f, 4}, {1.0f, 2}, {1.0f, 1}, {1.0f, 1}};
+  for (const auto& [rate, factor] : up) {
+    p.frame(front(), 0.0);
+    EXPECT_EQ(p.settings().indirect_rate, rate);
+    EXPECT_EQ(p.settings().factor, factor);
+  }
 }
 
 TEST(Pipeline, ProgressiveReferenceAccumulatesAtRestAndConverges) {
