@@ -511,15 +511,9 @@ static const Planes& network(const NeuralWeights& nw, const Planes& in, Planes& 
         const float* yw = ws.yw.ch(c) + row;
         const float* dm = ws.demod.ch(c) + row;
         float* o = ws.out.ch(c) + row;
-        auto checked = [&](int i) {  // neighbours outside the image count as 0
-          float top1 = 0.0f, top2 = 0.0f;
-          for (int dy = -1; dy <= 1; ++dy)
-            for (int dx = -1; dx <= 1; ++dx) {
-              const int yy = y + dy, xx = i + dx;
-              if (dy == 0 && dx == 0) continue;
-              const bool inside = yy >= 0 && yy < image_h && xx >= 0 && xx < image_w;
-              add_neighbour(top1, top2, inside ? x[size_t(yy) * size_t(W) + size_t(xx)] : 0.0f);
-            }
+        auto checked = [&](int i) {
+          float top1, top2;
+          neighbours_top2_checked(x, W, i, y, image_w, image_h, top1, top2);
           o[i] = output_cut(b[i], top2, yw[i], valid[i], dm[i]);
         };
         const int i1 = inner_row ? std::min(image_w - 1, W) : 0;

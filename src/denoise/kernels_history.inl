@@ -78,6 +78,35 @@ static inline void add_neighbour(float& top1, float& top2, float q) {
   top1 = top1 > q ? top1 : q;
 }
 
+// The largest and second largest of pixel i's 8 neighbours, a, b, d the rows above, at and
+// below (all inside the image), in model.py's order.
+static inline void neighbours_top2(const float* __restrict a, const float* __restrict b,
+                                   const float* __restrict d, int i, float& top1, float& top2) {
+  top1 = 0.0f, top2 = 0.0f;
+  add_neighbour(top1, top2, a[i - 1]);
+  add_neighbour(top1, top2, a[i]);
+  add_neighbour(top1, top2, a[i + 1]);
+  add_neighbour(top1, top2, b[i - 1]);
+  add_neighbour(top1, top2, b[i + 1]);
+  add_neighbour(top1, top2, d[i - 1]);
+  add_neighbour(top1, top2, d[i]);
+  add_neighbour(top1, top2, d[i + 1]);
+}
+
+// The same for pixel (x, y) of a W-wide plane whose neighbours may lie outside the
+// image_w x image_h image (the padding included): those count as 0.
+static inline void neighbours_top2_checked(const float* plane, int W, int x, int y, int image_w,
+                                           int image_h, float& top1, float& top2) {
+  top1 = 0.0f, top2 = 0.0f;
+  for (int dy = -1; dy <= 1; ++dy)
+    for (int dx = -1; dx <= 1; ++dx) {
+      const int yy = y + dy, xx = x + dx;
+      if (dy == 0 && dx == 0) continue;
+      const bool inside = yy >= 0 && yy < image_h && xx >= 0 && xx < image_w;
+      add_neighbour(top1, top2, inside ? plane[size_t(yy) * size_t(W) + size_t(xx)] : 0.0f);
+    }
+}
+
 // r cut to max(m + kappa max(mu - (r + m1) s, 0), 4 yw valid): m1, m the largest and second
 // largest neighbour, mu the 12x12 window's mean, s r's own share of it (r's share and its
 // brightest neighbour's at the same weight taken out: a firefly does not raise its own
@@ -99,15 +128,8 @@ static void firefly_row(int i0, int i1, const float* __restrict a, const float* 
                         const float* __restrict yw, const float* __restrict valid,
                         float* __restrict out) {
   for (int i = i0; i < i1; ++i) {
-    float top1 = 0.0f, top2 = 0.0f;
-    add_neighbour(top1, top2, a[i - 1]);
-    add_neighbour(top1, top2, a[i]);
-    add_neighbour(top1, top2, a[i + 1]);
-    add_neighbour(top1, top2, b[i - 1]);
-    add_neighbour(top1, top2, b[i + 1]);
-    add_neighbour(top1, top2, d[i - 1]);
-    add_neighbour(top1, top2, d[i]);
-    add_neighbour(top1, top2, d[i + 1]);
+    float top1, top2;
+    neighbours_top2(a, b, d, i, top1, top2);
     out[i] = firefly_cut(b[i], top1, top2, kappa[i], mu[i], share[i], yw[i], valid[i]);
   }
 }
@@ -126,15 +148,8 @@ static void output_row(int i0, int i1, const float* __restrict a, const float* _
                        const float* __restrict valid, const float* __restrict dm,
                        float* __restrict out) {
   for (int i = i0; i < i1; ++i) {
-    float top1 = 0.0f, top2 = 0.0f;
-    add_neighbour(top1, top2, a[i - 1]);
-    add_neighbour(top1, top2, a[i]);
-    add_neighbour(top1, top2, a[i + 1]);
-    add_neighbour(top1, top2, b[i - 1]);
-    add_neighbour(top1, top2, b[i + 1]);
-    add_neighbour(top1, top2, d[i - 1]);
-    add_neighbour(top1, top2, d[i]);
-    add_neighbour(top1, top2, d[i + 1]);
+    float top1, top2;
+    neighbours_top2(a, b, d, i, top1, top2);
     out[i] = output_cut(b[i], top2, yw[i], valid[i], dm[i]);
   }
 }
@@ -227,15 +242,8 @@ static void firefly_clamp(Workspace& ws, int W, int H, int image_w, int image_h)
         const float* yw = ws.yw.ch(c) + row;
         const float* valid = ws.valid.data() + row;
         auto checked = [&](int i) {
-          float top1 = 0.0f, top2 = 0.0f;
-          for (int dy = -1; dy <= 1; ++dy)
-            for (int dx = -1; dx <= 1; ++dx) {
-              const int yy = y + dy, xx = i + dx;
-              if (dy == 0 && dx == 0) continue;
-              const bool inside = yy >= 0 && yy < image_h && xx >= 0 && xx < image_w;
-              add_neighbour(top1, top2,
-                            inside ? r.ch(c)[size_t(yy) * size_t(W) + size_t(xx)] : 0.0f);
-            }
+          float top1, top2;
+          neighbours_top2_checked(r.ch(c), W, i, y, image_w, image_h, top1, top2);
           out[i] = firefly_cut(b[i], top1, top2, kappa[size_t(i)], mu[i / 4], share[size_t(i)],
                                yw[i], valid[i]);
         };

@@ -242,21 +242,18 @@ const PipelineFrame& Pipeline::frame(const Camera& camera, double time) {
   if (s.target_ms > 0) {
     PipelineSettings next = s;
     const double t = o.times.total, target = s.target_ms;
+    const auto fits = [&](int f) { return s.width % f == 0 && s.height % f == 0; };
     if (t > 1.15 * target) {
       if (s.indirect_rate > 0.25f)
         next.indirect_rate = s.indirect_rate * 0.5f;
-      else if (s.factor < 4)
+      else if (s.factor < 4 && fits(s.factor * 2))
         next.factor = s.factor * 2;
     } else if (s.indirect_rate < 1.0f) {
       if (t < 0.7 * target) next.indirect_rate = s.indirect_rate * 2.0f;
-    } else if (t < 0.3 * target && s.factor > 1) {
+    } else if (t < 0.3 * target && s.factor > 1 && fits(s.factor / 2)) {
       next.factor = s.factor / 2;
     }
-    const bool factor_ok = s.width % next.factor == 0 && s.height % next.factor == 0;
-    if ((next.factor != s.factor && factor_ok) || next.indirect_rate != s.indirect_rate) {
-      if (!factor_ok) next.factor = s.factor;
-      set_settings(next);
-    }
+    if (next.factor != s.factor || next.indirect_rate != s.indirect_rate) set_settings(next);
   }
   return o;
 }
