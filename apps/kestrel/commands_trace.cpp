@@ -135,7 +135,8 @@ Action add_trace_command(CLI::App& cmd) {
                  "AVX-512, 8 otherwise)");
   cmd.add_option("--stream", args->stream,
                  "auto | on | off: trace the batch reordered by origin and direction (same hits, "
-                 "in the file's order); auto: for large unordered incoherent batches");
+                 "in the file's order); auto: for large incoherent batches (ray streams where the "
+                 "layout and ISA have them)");
   args->build.add_to(cmd);
   return [args] { run_trace(*args); };
 }

@@ -80,11 +80,14 @@ struct TraceOptions {
   std::optional<bool> packets;
   /// Stream mode (wide layouts): the batch is traced in an order that groups rays by
   /// direction octant, origin and direction (groups of up to 2^20 rays sorted by a 40-bit
-  /// key), as packets unless `packets` is false, and each hit is returned in the caller's
-  /// order: the same hits as single rays. Default: on for closest-hit batches of at least
-  /// 2^18 incoherent rays whose consecutive origins lie far apart (shuffled, compacted or
-  /// material-sorted bounces) over a tree of at least 4 MB, where it measured 1.3-1.5x
-  /// faster; off otherwise (pixel-order bounces gain nothing, small scenes and any hit lose).
+  /// key), and each hit is returned in the caller's order: the same hits as single rays.
+  /// Closest hits over bvh8 with AVX2 or AVX-512 go as ray streams (16 k rays of the order
+  /// walk the tree together, each node's boxes tested for 8 or 16 rays at once) unless
+  /// `packets` is set; otherwise as packets unless `packets` is false. Default: on for
+  /// closest-hit batches of at least 2^18 incoherent rays — with ray streams in any order
+  /// (1.2-1.5x faster than without on the shared scenes, docs/benchmarks.md), else only when
+  /// consecutive origins lie far apart over a tree of at least 2 MB; off otherwise (smaller
+  /// batches and any hit lose).
   std::optional<bool> stream;
 };
 

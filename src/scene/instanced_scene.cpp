@@ -351,7 +351,7 @@ void InstancedScene::trace(std::span<const Ray> rays, std::span<InstanceHit> hit
     });
   };
   const size_t bytes = rays.size() >= stream_min_rays ? memory_bytes() : 0;  // walks the meshes
-  if (stream_by_default(rays, s.world, bytes, false, options)) {             // traverse/stream.h
+  if (stream_by_default(rays, s.world, bytes, false, false, options)) {      // traverse/stream.h
     PacketChoice choice;  // for this batch's sorted chunks, as the flat stream (trace.cpp)
     for_each_stream_chunk(rays, s.world, [&](const Ray* r, const uint32_t* callers, size_t n) {
       InstanceHit local[stream_chunk];
@@ -392,7 +392,7 @@ void InstancedScene::occluded(std::span<const Ray> rays, std::span<uint8_t> out,
           });
     for (size_t j = 0; j < r.size(); ++j) out[callers ? callers[j] : first + j] = local[j].hit();
   };
-  if (stream_by_default(rays, s.world, 0, true, options)) {  // any hit: only when asked
+  if (stream_by_default(rays, s.world, 0, true, false, options)) {  // any hit: only when asked
     for_each_stream_chunk(rays, s.world, [&](const Ray* r, const uint32_t* callers, size_t n) {
       run(std::span<const Ray>(r, n), callers, 0);
     });

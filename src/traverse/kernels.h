@@ -42,6 +42,10 @@ struct Table {
   /// Two levels (Bvh8 TLAS and BLASes), coherent rays in packets (any n): the same hits as
   /// tlas_closest8 / tlas_any8.
   TlasFn tlas_packet8, tlas_any_packet8;
+  /// Closest hit, a large incoherent batch as ray streams (any n; best with thousands of rays):
+  /// the same hits as closest8 / closest4.
+  Bvh4Fn stream4;
+  Bvh8Fn stream8;
 };
 
 const Table& table_sse2();

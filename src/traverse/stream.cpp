@@ -103,37 +103,41 @@ bool looks_coherent(std::span<const Ray> rays) {
   return groups > 0 && coherent * 4 >= groups * 3;
 }
 
-// Measured in docs/benchmarks.md: the stream pays where the tree is larger than the caches,
-// the batch large and its rays unordered; pixel-order bounces trace as fast without it, small
-// scenes and batches slower with it, and so does any hit.
+// Measured in docs/benchmarks.md. Ray streams (closest hit, 8-wide nodes, AVX2 or AVX-512)
+// pay on every large incoherent batch, in pixel order or not, over small trees too (one
+// thread: Sponza's 908 k bounces in pixel order 3.9 -> 5.9 Mrays/s, the teapot's 729 k 9.0 ->
+// 11.0, the soup's 1.19 M 2.0 -> 2.7), and lose on smaller batches (the soup's 190 k 2.1 -> 1.4).
+// Sorted packets pay only where the tree is larger than the caches and the rays unordered;
+// any hit never.
 bool stream_by_default(std::span<const Ray> rays, const Bounds3& box, size_t tree_bytes,
-                       bool any_hit, const TraceOptions& options) {
+                       bool any_hit, bool ray_streams, const TraceOptions& options) {
   if (options.stream) return *options.stream;
-  return !any_hit && !options.packets && rays.size() >= stream_min_rays &&
-         tree_bytes >= stream_min_accel_bytes && !looks_coherent(rays) &&
-         origins_unordered(rays, box);
+  if (any_hit || options.packets || rays.size() < stream_min_rays || looks_coherent(rays))
+    return false;
+  return ray_streams || (tree_bytes >= stream_min_accel_bytes && origins_unordered(rays, box));
 }
 
 void for_each_stream_chunk(
     std::span<const Ray> rays, const Bounds3& box,
-    FunctionRef<void(const Ray* rays, const uint32_t* callers, size_t n)> chunk) {
+    FunctionRef<void(const Ray* rays, const uint32_t* callers, size_t n)> chunk,
+    size_t chunk_rays) {
   RawArray<uint32_t> order;
   RawArray<uint64_t> scratch;
   for (size_t g0 = 0; g0 < rays.size(); g0 += stream_group) {
     const auto group = rays.subspan(g0, std::min(stream_group, rays.size() - g0));
     stream_order(group, box, order, scratch);
-    parallel_for(0, group.size(), 1024, [&](size_t b, size_t e) {
+    parallel_for(0, group.size(), std::max<size_t>(1024, chunk_rays), [&](size_t b, size_t e) {
       constexpr size_t ahead = 16;  // the gather is random: prefetched
-      Ray sorted[stream_chunk];
-      uint32_t callers[stream_chunk];
-      for (size_t i = b; i < e; i += stream_chunk) {
-        const size_t n = std::min(stream_chunk, e - i);
+      RawArray<Ray> sorted(std::min(chunk_rays, e - b));
+      RawArray<uint32_t> callers(sorted.size());
+      for (size_t i = b; i < e; i += chunk_rays) {
+        const size_t n = std::min(chunk_rays, e - i);
         for (size_t j = 0; j < n; ++j) {
           if (i + j + ahead < e) __builtin_prefetch(&group[order[i + j + ahead]]);
           sorted[j] = group[order[i + j]];
           callers[j] = uint32_t(g0 + order[i + j]);
         }
-        chunk(sorted, callers, n);
+        chunk(sorted.data(), callers.data(), n);
       }
     });
   }

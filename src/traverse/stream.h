@@ -1,6 +1,7 @@
 // Stream mode for large incoherent batches: rays are traced in an order that groups similar
-// ones (Pharr et al. 1997; Eisenacher et al. 2013 sort by direction and origin), as packets
-// or single rays, and every hit is written back to its caller's slot. Hits are the ones single rays
+// ones (Pharr et al. 1997; Eisenacher et al. 2013 sort by direction and origin), as ray
+// streams (wide_stream_lanes.inl) or as packets or single rays, and every hit is written back
+// to its caller's slot. Hits are the ones single rays
 // get: each ray's traversal is exact and independent of its packet mates.
 //
 // The order is global within groups of up to 2^20 rays: a stable LSD radix sort (8-bit
@@ -27,9 +28,10 @@ namespace kestrel {
 
 inline constexpr size_t stream_group = size_t(1) << 20;
 
-/// The default takes the stream for closest-hit batches of at least this many incoherent,
-/// unordered rays (trace.cpp: use_stream) over a tree of at least this many bytes: larger
-/// than a core's L2 cache (1-2 MB), where the order pays. (It was 4 MB until the SAH-optimal
+/// The default takes the stream for closest-hit batches of at least this many incoherent rays
+/// (trace.cpp: use_stream); where it traces sorted packets (no ray streams for the layout or
+/// ISA), only for unordered rays over a tree of at least this many bytes: larger than a core's
+/// L2 cache (1-2 MB), where the order pays. (It was 4 MB until the SAH-optimal
 /// collapse shrank Sponza's tree from 4.26 to 4.00 MB: its shuffled bounces then went
 /// unsorted, 4.05 -> 3.29 Mrays/s, against 4.34 sorted.)
 inline constexpr size_t stream_min_rays = size_t(1) << 18;
@@ -37,6 +39,12 @@ inline constexpr size_t stream_min_accel_bytes = size_t(2) << 20;
 
 /// Rays per chunk the stream driver hands to its caller (a stack buffer of hits fits).
 inline constexpr size_t stream_chunk = 256;
+
+/// Rays per ray stream (kernels' stream8: closest hit, 8-wide nodes, AVX2 or AVX-512): a
+/// chunk of the ordered batch walks the tree together. Inside Sponza (908 k shuffled
+/// diffuse rays, one thread) 8 k, 16 k and 32 k rays per stream traced at 5.90, 5.96 and
+/// 5.86 Mrays/s, 128 k at 5.56.
+inline constexpr size_t ray_stream_rays = 16384;
 
 /// Packets or single rays for chunks of a batch (or of many batches: an Accel keeps one per
 /// query kind, an InstancedScene too between BLAS rebuilds): where the caller did not say, two
@@ -128,17 +136,19 @@ struct PacketChoices {
 bool looks_coherent(std::span<const Ray> rays);
 
 /// TraceOptions::stream's default for a batch over a tree of `tree_bytes` bounded by `box`:
-/// closest hit, `packets` unset, >= stream_min_rays rays, not coherent, consecutive
-/// origins far apart (unordered), tree >= stream_min_accel_bytes. An explicit option wins.
+/// closest hit, `packets` unset, >= stream_min_rays rays, not coherent; and, unless the
+/// kernels have ray streams for it (`ray_streams`), consecutive origins far apart (unordered)
+/// and a tree of >= stream_min_accel_bytes. An explicit option wins.
 bool stream_by_default(std::span<const Ray> rays, const Bounds3& box, size_t tree_bytes,
-                       bool any_hit, const TraceOptions& options);
+                       bool any_hit, bool ray_streams, const TraceOptions& options);
 
 /// The stream driver: orders each group of the batch (stream_order), gathers chunks of up
 /// to stream_chunk rays in that order and calls chunk(rays, callers, n), which traces
 /// rays[0, n) and writes hit j to the caller's slot callers[j]. Chunks run in parallel.
 void for_each_stream_chunk(
     std::span<const Ray> rays, const Bounds3& box,
-    FunctionRef<void(const Ray* rays, const uint32_t* callers, size_t n)> chunk);
+    FunctionRef<void(const Ray* rays, const uint32_t* callers, size_t n)> chunk,
+    size_t chunk_rays = stream_chunk);
 
 /// The trace order of a group (at most stream_group rays): order[i] = caller's index.
 /// `scratch` is reused between calls.

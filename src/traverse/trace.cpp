@@ -8,6 +8,7 @@
 #include <optional>
 
 #include "core/parallel.h"
+#include "core/raw_array.h"
 #include "geometry/triangle_intersect.h"
 #include "kestrel/error.h"
 #include "traverse/accel_nodes.h"
@@ -98,12 +99,37 @@ void trace_range(const Accel& accel, std::span<const Ray> rays, std::span<Hit> h
   for (Hit& h : hits) h = Hit{};  // empty wide BVH
 }
 
-// Stream mode: the hits of each sorted chunk written back to the caller's slots, each chunk
-// as packets or single rays by PacketChoice (stream.h).
-void trace_stream(const Accel& accel, std::span<const Ray> rays, bool any_hit,
+// Whether closest hits over `accel` with `isa` can go as ray streams (kernels' stream8).
+bool has_ray_streams(const Accel& accel, Isa isa) {
+  return accel.layout == Layout::bvh8 && isa != Isa::sse2;
+}
+
+// Stream mode: the hits of each sorted chunk written back to the caller's slots. Closest hits
+// over 8-wide nodes with AVX2 or AVX-512 go as ray streams of ray_stream_rays rays
+// (wide_stream_lanes.inl) unless the caller chose packets or single rays; otherwise each
+// chunk goes as packets or single rays by PacketChoice (stream.h).
+void trace_stream(const Accel& accel, std::span<const Ray> rays, bool any_hit, Isa isa,
                   const kernels::Table& k, std::optional<bool> packets,
                   FunctionRef<void(size_t caller, const Hit& hit)> put,
                   FunctionRef<void(size_t caller)> prefetch_put) {
+  if (!any_hit && !packets && has_ray_streams(accel, isa)) {
+    for_each_stream_chunk(
+        rays, accel.bounds,
+        [&](const Ray* r, const uint32_t* callers, size_t n) {
+          RawArray<Hit> local(n);
+          kernels::for_each_traceable_run(std::span<const Ray>(r, n), local.data(),
+                                          [&](const Ray* rr, Hit* h, size_t m) {
+                                            k.stream8(accel.nodes->bvh8.nodes.data(),
+                                                      accel.nodes->bvh8.blocks.data(), rr, h, m);
+                                          });
+          for (size_t j = 0; j < n; ++j) {
+            if (j + 16 < n) prefetch_put(callers[j + 16]);
+            put(callers[j], local[j]);
+          }
+        },
+        ray_stream_rays);
+    return;
+  }
   PacketChoice choice(packets);
   for_each_stream_chunk(rays, accel.bounds, [&](const Ray* r, const uint32_t* callers, size_t n) {
     Hit local[stream_chunk];
@@ -117,10 +143,11 @@ void trace_stream(const Accel& accel, std::span<const Ray> rays, bool any_hit,
   });
 }
 
-bool use_stream(const Accel& accel, std::span<const Ray> rays, bool any_hit,
+bool use_stream(const Accel& accel, std::span<const Ray> rays, bool any_hit, Isa isa,
                 const TraceOptions& options) {
   return accel.layout != Layout::bvh2 &&
-         stream_by_default(rays, accel.bounds, accel.memory_bytes(), any_hit, options);
+         stream_by_default(rays, accel.bounds, accel.memory_bytes(), any_hit,
+                           has_ray_streams(accel, isa), options);
 }
 
 // Traces a run of rays (traced(packets)) as packets where asked or, unsaid, where the run looks
@@ -162,9 +189,9 @@ void trace(const Accel& accel, std::span<const Ray> rays, std::span<Hit> hits, b
   const Isa isa = options.isa.value_or(default_isa());
   require_supported(isa);
   const kernels::Table& k = kernels::table_for(isa);
-  if (use_stream(accel, rays, any_hit, options)) {
+  if (use_stream(accel, rays, any_hit, isa, options)) {
     trace_stream(
-        accel, rays, any_hit, k, options.packets, [&](size_t i, const Hit& h) { hits[i] = h; },
+        accel, rays, any_hit, isa, k, options.packets, [&](size_t i, const Hit& h) { hits[i] = h; },
         [&](size_t i) { __builtin_prefetch(&hits[i], 1); });
     return;
   }
@@ -187,9 +214,10 @@ void occluded(const Accel& accel, std::span<const Ray> rays, std::span<uint8_t> 
   const Isa isa = options.isa.value_or(default_isa());
   require_supported(isa);
   const kernels::Table& k = kernels::table_for(isa);
-  if (use_stream(accel, rays, true, options)) {
+  if (use_stream(accel, rays, true, isa, options)) {
     trace_stream(
-        accel, rays, true, k, options.packets, [&](size_t i, const Hit& h) { out[i] = h.hit(); },
+        accel, rays, true, isa, k, options.packets,
+        [&](size_t i, const Hit& h) { out[i] = h.hit(); },
         [&](size_t i) { __builtin_prefetch(&out[i], 1); });
     return;
   }

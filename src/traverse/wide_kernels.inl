@@ -18,6 +18,7 @@
 #include <immintrin.h>
 
 #include <cstdint>
+#include <cstdlib>
 
 #include "traverse/kernels.h"
 
@@ -43,6 +44,7 @@ namespace {
 #include "traverse/wide_packet_lanes.inl"
 #include "traverse/wide_packets.inl"
 #include "traverse/wide_tlas_packets.inl"
+#include "traverse/wide_stream_lanes.inl"
 // clang-format on
 
 const Table table = {
@@ -53,6 +55,7 @@ const Table table = {
     &trace_tlas<8, false, Bvh8Node>,  &trace_tlas<8, true, Bvh8Node>,
     &occlusion_packets<4, Bvh4Node>,  &occlusion_packets<8, Bvh8Node>,
     &trace_tlas_packets<false>,       &trace_tlas_packets<true>,
+    &trace_streams<4, Bvh4Node>,      &trace_streams<8, Bvh8Node>,
 };
 
 }  // namespace

@@ -124,6 +124,67 @@ inline float scene_extent(const Bvh8Node& root) {
   return scene;
 }
 
+// The rays of a lane packet as the watertight test needs them (TriRay's, lane by lane).
+template <int L>
+struct LaneRays {
+  typename Simd<L>::F okx, oky, okz, dkx, dky, dkz, sx, sy, tmin;
+};
+
+// Triangle i of `blk` against the rays in the lanes, with the single-ray test's operations
+// (intersect_block, watertight_hit): the active lanes it hits beyond tmin, with t and the
+// edge functions v, w and their sum det (all the rays share the axis permutation kx, ky, kz).
+template <int L>
+[[gnu::always_inline]] inline typename Simd<L>::I lane_triangle(
+    const LaneRays<L>& r, int kx, int ky, int kz, const TriangleBlock& blk, int i,
+    typename Simd<L>::I active, typename Simd<L>::F& t, typename Simd<L>::F& v,
+    typename Simd<L>::F& w, typename Simd<L>::F& det) {
+  using S = Simd<L>;
+  using VF = typename S::F;
+  using VI = typename S::I;
+  const auto bcast = [](float x) { return S::splat(x); };
+  const VF zero = {};
+  const VF akz = bcast(blk.v[0][kz][i]) - r.okz, bkz = bcast(blk.v[1][kz][i]) - r.okz,
+           ckz = bcast(blk.v[2][kz][i]) - r.okz;
+  const VF akx = bcast(blk.v[0][kx][i]) - r.okx, aky = bcast(blk.v[0][ky][i]) - r.oky;
+  const VF bkx = bcast(blk.v[1][kx][i]) - r.okx, bky = bcast(blk.v[1][ky][i]) - r.oky;
+  const VF ckx = bcast(blk.v[2][kx][i]) - r.okx, cky = bcast(blk.v[2][ky][i]) - r.oky;
+  const VF ax = akx - r.sx * akz, ay = aky - r.sy * akz;
+  const VF bx = bkx - r.sx * bkz, by = bky - r.sy * bkz;
+  const VF cx = ckx - r.sx * ckz, cy = cky - r.sy * ckz;
+  VF u = cx * by - cy * bx;
+  v = ax * cy - ay * cx;
+  w = bx * ay - by * ax;
+  det = u + v + w;
+  VI ok;
+  const unsigned slow = S::mask((u == zero) | (v == zero) | (w == zero) | (det != det));
+  if (__builtin_expect(slow == 0, 1)) {
+    const VI ui = reinterpret_cast<VI>(u), vi = reinterpret_cast<VI>(v),
+             wi = reinterpret_cast<VI>(w);
+    ok = ((ui ^ vi) | (ui ^ wi)) >= VI{};
+  } else {
+    unsigned retry = S::mask((u == zero) | (v == zero) | (w == zero));
+    while (retry) {
+      const unsigned l = ctz(retry);
+      retry &= retry - 1;
+      u[l] = float(double(cx[l]) * by[l] - double(cy[l]) * bx[l]);
+      v[l] = float(double(ax[l]) * cy[l] - double(ay[l]) * cx[l]);
+      w[l] = float(double(bx[l]) * ay[l] - double(by[l]) * ax[l]);
+    }
+    const VI neg = (u < zero) | (v < zero) | (w < zero);
+    const VI pos = (u > zero) | (v > zero) | (w > zero);
+    ok = ~(neg & pos);
+    det = u + v + w;
+  }
+  ok &= (det != zero) & active;
+  if (!S::mask(ok)) return ok;
+  const VF e10 = bkx - akx, e11 = bky - aky, e12 = bkz - akz;
+  const VF e20 = ckx - akx, e21 = cky - aky, e22 = ckz - akz;
+  const VF n0 = e11 * e22 - e12 * e21, n1 = e12 * e20 - e10 * e22, n2 = e10 * e21 - e11 * e20;
+  const VF ndd = n0 * r.dkx + n1 * r.dky + n2 * r.dkz;
+  t = (n0 * akx + n1 * aky + n2 * akz) / ndd;
+  return ok & (ndd != zero) & (t > r.tmin);
+}
+
 // AnyHit: occlusion; a lane leaves the packet at its first hit (t < tmax), children are not
 // sorted, and the packet ends when every lane is done. `scene` is scene_extent(nodes[0]).
 template <int L, bool AnyHit>
@@ -164,6 +225,7 @@ PacketOutcome trace_packet_lanes(const Bvh8Node* nodes, const TriangleBlock* blo
   const VF dkx = dk[kx], dky = dk[ky], dkz = dk[kz];
   const VF okx = orgs[kx], oky = orgs[ky], okz = orgs[kz];
   const VF sx = dkx / dkz, sy = dky / dkz;  // TriRay's shear, the same division
+  const LaneRays<L> lr{okx, oky, okz, dkx, dky, dkz, sx, sy, tmin};
   const VF one = bcast(1.0f), far_factor = bcast(1.00000072f);
   const VF ix = one / dx, iy = one / dy, iz = one / dz;
   const VF fx = ix * far_factor, fy = iy * far_factor, fz = iz * far_factor;  // far_scale
@@ -296,47 +358,12 @@ PacketOutcome trace_packet_lanes(const Bvh8Node* nodes, const TriangleBlock* blo
         for (int i = 0; i < 4; ++i) {
           // A block's unused lanes repeat the triangle before them (same id): tested already.
           if (i > 0 && ((blk->prim_id[i] ^ blk->prim_id[i - 1]) & ~block_last_bit) == 0) continue;
-          const VF akz = bcast(blk->v[0][kz][i]) - okz, bkz = bcast(blk->v[1][kz][i]) - okz,
-                   ckz = bcast(blk->v[2][kz][i]) - okz;
-          const VF akx = bcast(blk->v[0][kx][i]) - okx, aky = bcast(blk->v[0][ky][i]) - oky;
-          const VF bkx = bcast(blk->v[1][kx][i]) - okx, bky = bcast(blk->v[1][ky][i]) - oky;
-          const VF ckx = bcast(blk->v[2][kx][i]) - okx, cky = bcast(blk->v[2][ky][i]) - oky;
-          const VF ax = akx - sx * akz, ay = aky - sy * akz;
-          const VF bx = bkx - sx * bkz, by = bky - sy * bkz;
-          const VF cx = ckx - sx * ckz, cy = cky - sy * ckz;
-          VF u = cx * by - cy * bx, v = ax * cy - ay * cx, w = bx * ay - by * ax;
-          VF det = u + v + w;
-          VI ok;
-          const unsigned slow = S::mask((u == zero) | (v == zero) | (w == zero) | (det != det));
-          if (__builtin_expect(slow == 0, 1)) {
-            const VI ui = reinterpret_cast<VI>(u), vi = reinterpret_cast<VI>(v),
-                     wi = reinterpret_cast<VI>(w);
-            ok = ((ui ^ vi) | (ui ^ wi)) >= VI{};
-          } else {
-            unsigned retry = S::mask((u == zero) | (v == zero) | (w == zero));
-            while (retry) {
-              const unsigned l = ctz(retry);
-              retry &= retry - 1;
-              u[l] = float(double(cx[l]) * by[l] - double(cy[l]) * bx[l]);
-              v[l] = float(double(ax[l]) * cy[l] - double(ay[l]) * cx[l]);
-              w[l] = float(double(bx[l]) * ay[l] - double(by[l]) * ax[l]);
-            }
-            const VI neg = (u < zero) | (v < zero) | (w < zero);
-            const VI pos = (u > zero) | (v > zero) | (w > zero);
-            ok = ~(neg & pos);
-            det = u + v + w;
-          }
-          ok &= (det != zero) & active;
+          VF t, v, w, det;
+          const VI ok = lane_triangle<L>(lr, kx, ky, kz, *blk, i, active, t, v, w, det);
           if (!S::mask(ok)) continue;
-          const VF e10 = bkx - akx, e11 = bky - aky, e12 = bkz - akz;
-          const VF e20 = ckx - akx, e21 = cky - aky, e22 = ckz - akz;
-          const VF n0 = e11 * e22 - e12 * e21, n1 = e12 * e20 - e10 * e22,
-                   n2 = e10 * e21 - e11 * e20;
-          const VF ndd = n0 * dkx + n1 * dky + n2 * dkz;
-          const VF t = (n0 * akx + n1 * aky + n2 * akz) / ndd;
           const VI id = VI{} + int(blk->prim_id[i] & ~block_last_bit);
           if constexpr (AnyHit) {
-            const VI found = ok & (ndd != zero) & (t > tmin) & (t < best_t) & (best_id == VI{} - 1);
+            const VI found = ok & (t < best_t) & (best_id == VI{} - 1);
             const unsigned f = S::mask(found);
             if (!f) continue;
             best_t = select_lanes(found, t, best_t);
@@ -346,8 +373,7 @@ PacketOutcome trace_packet_lanes(const Bvh8Node* nodes, const TriangleBlock* blo
           }
           // closer(): nearer, or equally near with a smaller id once a hit exists.
           const VI better =
-              ok & (ndd != zero) & (t > tmin) &
-              ((t < best_t) | ((t == best_t) & (best_id != VI{} - 1) & (id < best_id)));
+              ok & ((t < best_t) | ((t == best_t) & (best_id != VI{} - 1) & (id < best_id)));
           if (!S::mask(better)) continue;
           best_t = select_lanes(better, t, best_t);
           best_id = select_lanes(better, id, best_id);

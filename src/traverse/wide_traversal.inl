@@ -75,14 +75,16 @@ inline uint32_t push_sorted8(const uint32_t* child, vf8 tnear, vi8 hit, StackEnt
 template <int W>
 inline constexpr int stack_size = 256 * (W - 1) + 1 + 8;
 
-// Walks a wide BVH nearest child first. leaf(ref) handles a leaf reference: it may lower
-// best_t (closest hit) and returns true to stop (any hit). Node is Bvh4Node or Bvh8Node.
+// Walks a wide BVH nearest child first, from `root` (an inner node the ray's box test reached;
+// 0, the tree's root, unless a ray stream hands the ray over below it). leaf(ref) handles a
+// leaf reference: it may lower best_t (closest hit) and returns true to stop (any hit). Node
+// is Bvh4Node or Bvh8Node.
 // Inlined into its caller, where the ray's constants and the hit being kept are locals the
 // compiler can tell apart: as a function of its own, every store of a closer hit could alias
 // the ray and forced the triangle test to reload it per block (4 % slower on diffuse rays).
 template <int W, bool AnyHit, class Node, class LeafFn>
 [[gnu::always_inline]] inline void traverse(const Node* nodes, const BoxRay<W>& box, float tmin_s,
-                                            float& best_t, LeafFn&& leaf) {
+                                            float& best_t, LeafFn&& leaf, uint32_t root = 0) {
   using S = Simd<W>;
   using F = typename S::F;
   const F tmin = S::splat(tmin_s);
@@ -90,7 +92,7 @@ template <int W, bool AnyHit, class Node, class LeafFn>
   F tmax = S::splat(cull_t);
   StackEntry stack[stack_size<W>];
   StackEntry* sp = stack;
-  uint32_t cur = 0;  // the root is an inner node
+  uint32_t cur = root;  // an inner node
   while (true) {
     // Descend through inner nodes, nearest child first.
     while (!(cur & wide_leaf_bit)) {

@@ -49,8 +49,11 @@ void expect_same_as_reference(const Scene& scene, std::span<const Ray> rays, Bui
     for (Isa isa : test::supported_isas()) {
       SCOPED_TRACE(what + " " + layout_name(layout) + " " + isa_name(isa) + " " +
                    builder_name(builder));
-      for (int mode = 0; mode < 4; ++mode) {  // packets off / on, stream off / on
-        const bool packets = mode & 1, stream = mode & 2;
+      // Packets auto / off / on, stream off / on (stream on with packets auto: ray streams).
+      for (int mode = 0; mode < 6; ++mode) {
+        const std::optional<bool> packets =
+            mode % 3 == 0 ? std::nullopt : std::optional<bool>(mode % 3 == 2);
+        const bool stream = mode >= 3;
         std::vector<Hit> got(rays.size());
         TraceOptions opt;
         opt.isa = isa;
@@ -59,7 +62,8 @@ void expect_same_as_reference(const Scene& scene, std::span<const Ray> rays, Bui
         trace(wide, rays, got, opt);
         for (size_t i = 0; i < rays.size(); ++i) {
           ASSERT_EQ(got[i].prim_id, want[i].prim_id)
-              << "ray " << i << " packets " << packets << " stream " << stream;
+              << "ray " << i << " packets " << (packets ? int(*packets) : -1) << " stream "
+              << stream;
           ASSERT_EQ(bits(got[i].t), bits(want[i].t))
               << "ray " << i << " t " << got[i].t << " vs " << want[i].t;
           ASSERT_EQ(got[i].u, want[i].u) << "ray " << i;
