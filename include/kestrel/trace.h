@@ -81,13 +81,13 @@ struct TraceOptions {
   /// Stream mode (wide layouts): the batch is traced in an order that groups rays by
   /// direction octant, origin and direction (groups of up to 2^20 rays sorted by a 40-bit
   /// key), and each hit is returned in the caller's order: the same hits as single rays.
-  /// Closest hits over bvh8 with AVX2 or AVX-512 go as ray streams (16 k rays of the order
-  /// walk the tree together, each node's boxes tested for 8 or 16 rays at once) unless
-  /// `packets` is set; otherwise as packets unless `packets` is false. Default: on for
-  /// closest-hit batches of at least 2^18 incoherent rays — with ray streams in any order
-  /// (1.2-1.5x faster than without on the shared scenes, docs/benchmarks.md), else only when
-  /// consecutive origins lie far apart over a tree of at least 2 MB; off otherwise (smaller
-  /// batches and any hit lose).
+  /// Over bvh8 with AVX2 or AVX-512 the sorted rays go as ray streams (16 k rays walk the tree
+  /// together, each node's boxes tested for 8 or 16 rays at once) unless `packets` is set;
+  /// otherwise as packets unless `packets` is false. Default: on for closest-hit batches of at
+  /// least 2^18 incoherent rays — with ray streams in any order (1.2-1.5x faster than without on
+  /// the shared scenes, docs/benchmarks.md), else only when consecutive origins lie far apart
+  /// over a tree of at least 2 MB; for 2^16 to 2^18 incoherent rays with ray streams, the Accel
+  /// times batches each way and takes the faster; off otherwise (any hit gains nothing).
   std::optional<bool> stream;
 };
 

@@ -42,10 +42,12 @@ struct Table {
   /// Two levels (Bvh8 TLAS and BLASes), coherent rays in packets (any n): the same hits as
   /// tlas_closest8 / tlas_any8.
   TlasFn tlas_packet8, tlas_any_packet8;
-  /// Closest hit, a large incoherent batch as ray streams (any n; best with thousands of rays):
-  /// the same hits as closest8 / closest4.
+  /// A large incoherent batch as ray streams (any n; best with thousands of rays): closest hit,
+  /// the same hits as closest4 / closest8; any hit, the same answers as any4 / any8.
   Bvh4Fn stream4;
   Bvh8Fn stream8;
+  Bvh4Fn any_stream4;
+  Bvh8Fn any_stream8;
 };
 
 const Table& table_sse2();

@@ -35,6 +35,9 @@ inline constexpr size_t stream_group = size_t(1) << 20;
 /// collapse shrank Sponza's tree from 4.26 to 4.00 MB: its shuffled bounces then went
 /// unsorted, 4.05 -> 3.29 Mrays/s, against 4.34 sorted.)
 inline constexpr size_t stream_min_rays = size_t(1) << 18;
+/// Smaller incoherent batches, down to this many rays, go as ray streams where timed batches
+/// find them faster (trace.cpp: may_stream).
+inline constexpr size_t stream_trial_rays = size_t(1) << 16;
 inline constexpr size_t stream_min_accel_bytes = size_t(2) << 20;
 
 /// Rays per chunk the stream driver hands to its caller (a stack buffer of hits fits).
@@ -59,6 +62,9 @@ inline constexpr size_t ray_stream_rays = 16384;
 class PacketChoice {
  public:
   explicit PacketChoice(std::optional<bool> fixed = std::nullopt) : fixed_(fixed) {}
+  /// Choices per whole batch (few, large, the first on cold caches): the first `warmup` calls
+  /// alternate as trials and each way's first timing is not counted.
+  PacketChoice(int warmup, bool drop_first) : warmup_(uint32_t(warmup)), drop_first_(drop_first) {}
 
   /// Whether the next chunk goes as packets; `trial`: time it and report to done().
   bool next(bool& trial) {
@@ -80,10 +86,11 @@ class PacketChoice {
       const double slower = ratio > 1 ? ratio : 1 / ratio;
       period = slower > 2.0 ? 1024 : slower > 1.3 ? 256 : 32;
     }
-    if (t % period < 2) return trial = true, (t & 1) != 0;
+    if (t < warmup_ || t % period < 2) return trial = true, (t & 1) != 0;
     return n0 == 0 || n1 == 0 || s1 * n0 <= s0 * n1;  // packets' ns per ray <= singles'
   }
   void done(bool packets, uint64_t ns, size_t rays) {
+    if (drop_first_ && first_[packets].exchange(false, std::memory_order_relaxed)) return;
     ns_[packets].fetch_add(ns, std::memory_order_relaxed);
     rays_[packets].fetch_add(rays, std::memory_order_relaxed);
     trials_[packets].fetch_add(1, std::memory_order_relaxed);
@@ -114,11 +121,14 @@ class PacketChoice {
   /// Forgets what was measured (the scene changed).
   void reset() {
     started_ = 0;
-    for (int k = 0; k < 2; ++k) ns_[k] = 0, rays_[k] = 0, trials_[k] = 0;
+    for (int k = 0; k < 2; ++k) ns_[k] = 0, rays_[k] = 0, trials_[k] = 0, first_[k] = true;
   }
 
  private:
   std::optional<bool> fixed_;
+  uint32_t warmup_ = 2;
+  bool drop_first_ = false;
+  std::atomic<bool> first_[2] = {true, true};
   std::atomic<uint32_t> started_{0};
   std::atomic<uint64_t> ns_[2] = {0, 0}, rays_[2] = {0, 0};  // [0] single rays, [1] packets
   std::atomic<uint32_t> trials_[2] = {0, 0};                 // chunks timed each way
@@ -128,6 +138,8 @@ namespace detail {
 /// What an Accel has learnt of its coherent batches (AccelNodes::choices).
 struct PacketChoices {
   PacketChoice closest, any;
+  /// Mid-size incoherent batches: ray streams (true) or not (trace.cpp: may_stream).
+  PacketChoice stream{4, true};
 };
 }  // namespace detail
 

@@ -104,23 +104,24 @@ bool has_ray_streams(const Accel& accel, Isa isa) {
   return accel.layout == Layout::bvh8 && isa != Isa::sse2;
 }
 
-// Stream mode: the hits of each sorted chunk written back to the caller's slots. Closest hits
-// over 8-wide nodes with AVX2 or AVX-512 go as ray streams of ray_stream_rays rays
+// Stream mode: the hits of each sorted chunk written back to the caller's slots. Queries over
+// 8-wide nodes with AVX2 or AVX-512 go as ray streams of ray_stream_rays rays
 // (wide_stream_lanes.inl) unless the caller chose packets or single rays; otherwise each
 // chunk goes as packets or single rays by PacketChoice (stream.h).
 void trace_stream(const Accel& accel, std::span<const Ray> rays, bool any_hit, Isa isa,
                   const kernels::Table& k, std::optional<bool> packets,
                   FunctionRef<void(size_t caller, const Hit& hit)> put,
                   FunctionRef<void(size_t caller)> prefetch_put) {
-  if (!any_hit && !packets && has_ray_streams(accel, isa)) {
+  if (!packets && has_ray_streams(accel, isa)) {
+    const kernels::Bvh8Fn fn = any_hit ? k.any_stream8 : k.stream8;
+    const Bvh8& bvh = accel.nodes->bvh8;
     for_each_stream_chunk(
         rays, accel.bounds,
         [&](const Ray* r, const uint32_t* callers, size_t n) {
           RawArray<Hit> local(n);
           kernels::for_each_traceable_run(std::span<const Ray>(r, n), local.data(),
                                           [&](const Ray* rr, Hit* h, size_t m) {
-                                            k.stream8(accel.nodes->bvh8.nodes.data(),
-                                                      accel.nodes->bvh8.blocks.data(), rr, h, m);
+                                            fn(bvh.nodes.data(), bvh.blocks.data(), rr, h, m);
                                           });
           for (size_t j = 0; j < n; ++j) {
             if (j + 16 < n) prefetch_put(callers[j + 16]);
@@ -148,6 +149,17 @@ bool use_stream(const Accel& accel, std::span<const Ray> rays, bool any_hit, Isa
   return accel.layout != Layout::bvh2 &&
          stream_by_default(rays, accel.bounds, accel.memory_bytes(), any_hit,
                            has_ray_streams(accel, isa), options);
+}
+
+// Mid-size incoherent batches (stream_trial_rays .. stream_min_rays rays, closest hit, ray
+// streams available, neither option set): ray streams win where the scene keeps many rays on
+// each node and lose where they part (one thread: Sponza's 227 k bounces 3.2-3.3 -> 4.1-5.4
+// Mrays/s as streams, the soup's 190 k 1.7-1.9 -> 1.5, the bunny grid's 90 k 2.6-2.7 -> 1.5),
+// so the Accel times batches each way (PacketChoice) and takes the faster.
+bool may_stream(const Accel& accel, std::span<const Ray> rays, bool any_hit, Isa isa,
+                const TraceOptions& options) {
+  return !any_hit && !options.stream && !options.packets && has_ray_streams(accel, isa) &&
+         rays.size() >= stream_trial_rays && rays.size() < stream_min_rays && !looks_coherent(rays);
 }
 
 // Traces a run of rays (traced(packets)) as packets where asked or, unsaid, where the run looks
@@ -189,18 +201,24 @@ void trace(const Accel& accel, std::span<const Ray> rays, std::span<Hit> hits, b
   const Isa isa = options.isa.value_or(default_isa());
   require_supported(isa);
   const kernels::Table& k = kernels::table_for(isa);
-  if (use_stream(accel, rays, any_hit, isa, options)) {
+  const auto streamed = [&] {
     trace_stream(
         accel, rays, any_hit, isa, k, options.packets, [&](size_t i, const Hit& h) { hits[i] = h; },
         [&](size_t i) { __builtin_prefetch(&hits[i], 1); });
-    return;
-  }
-  parallel_for(0, rays.size(), 1024, [&](size_t b, size_t e) {
-    const auto chunk = rays.subspan(b, e - b);
-    traced_as(accel, chunk, options, any_hit, [&](bool packets) {
-      trace_range(accel, chunk, hits.subspan(b, e - b), any_hit, k, packets);
+  };
+  const auto unstreamed = [&] {
+    parallel_for(0, rays.size(), 1024, [&](size_t b, size_t e) {
+      const auto chunk = rays.subspan(b, e - b);
+      traced_as(accel, chunk, options, any_hit, [&](bool packets) {
+        trace_range(accel, chunk, hits.subspan(b, e - b), any_hit, k, packets);
+      });
     });
-  });
+  };
+  if (use_stream(accel, rays, any_hit, isa, options)) return streamed();
+  if (may_stream(accel, rays, any_hit, isa, options))
+    return accel.nodes->choices->stream.run(rays.size(),
+                                            [&](bool s) { s ? streamed() : unstreamed(); });
+  unstreamed();
 }
 
 void trace(const Accel& accel, std::span<const Ray> rays, std::span<Hit> hits,

@@ -87,17 +87,26 @@ struct Closest {
   uint32_t id;
 };
 
-// The blocks of leaf `ref` against one ray (as trace_ray's leaf).
-[[gnu::always_inline]] inline void leaf_closest(const TriangleBlock* blocks, uint32_t ref,
-                                                const TriRay& tri, Closest& c) {
+// The blocks of leaf `ref` against one ray (as trace_ray's leaf); any hit: true at the first
+// hit before c.t.
+template <bool AnyHit>
+[[gnu::always_inline]] inline bool leaf_ray(const TriangleBlock* blocks, uint32_t ref,
+                                            const TriRay& tri, Closest& c) {
   for (const TriangleBlock* blk = blocks + (ref & ~wide_leaf_bit);; ++blk) {
-    const BlockHits h = intersect_block(tri, *blk);
+    const BlockHits h = intersect_block<AnyHit>(tri, *blk);
     for (unsigned m = h.mask; m; m &= m - 1) {
       const unsigned i = ctz(m);
       const uint32_t id = blk->prim_id[i] & ~block_last_bit;
-      if (closer(h.t[i], id, c.t, c.id)) c = {h.t[i], h.v[i], h.w[i], h.det[i], id};
+      if (AnyHit) {
+        if (h.t[i] < c.t) {
+          c.t = h.t[i], c.id = id;
+          return true;
+        }
+      } else if (closer(h.t[i], id, c.t, c.id)) {
+        c = {h.t[i], h.v[i], h.w[i], h.det[i], id};
+      }
     }
-    if (blk->prim_id[0] & block_last_bit) return;
+    if (blk->prim_id[0] & block_last_bit) return false;
   }
 }
 
@@ -110,17 +119,22 @@ struct StreamRays {
   Closest get(uint32_t p) const {
     return {best_t[p], best_v[p], best_w[p], best_det[p], best_id[p]};
   }
+  // The ray's hit so far, and the distance its box tests cull at: closest hit, the hit's
+  // cull_distance; any hit, the ray's tmax until it has a hit, then -inf (it is done).
+  template <bool AnyHit>
   void set(uint32_t p, const Closest& c) const {
     best_t[p] = c.t, best_v[p] = c.v, best_w[p] = c.w, best_det[p] = c.det, best_id[p] = c.id;
-    cull[p] = cull_distance(c.t);
+    cull[p] = !AnyHit ? cull_distance(c.t) : c.id != invalid_id ? -__builtin_inff() : c.t;
   }
 };
 
 // Leaf lists of fewer rays test their blocks ray by ray.
 constexpr unsigned stream_leaf_lanes = 4;
 
-// One group of rays with one lane_class: positions [first, first + m).
-template <int L>
+// One group of rays with one lane_class: positions [first, first + m). AnyHit: occlusion; a
+// ray leaves every list once it has a hit (its cull distance becomes -inf), children are
+// visited in slot order (largest box first) as by single rays.
+template <int L, bool AnyHit>
 void trace_stream_group(const Bvh8Node* nodes, const TriangleBlock* blocks, const Ray* rays,
                         const StreamRays& s, uint32_t first, uint32_t m, StreamScratch& scratch) {
   using S = Simd<L>;
@@ -158,31 +172,29 @@ void trace_stream_group(const Bvh8Node* nodes, const TriangleBlock* blocks, cons
       // Single rays from here on (from this node, or this leaf's blocks).
       for (uint32_t k = 0; k < cur.count; ++k) {
         const uint32_t p = list[k];
+        if (AnyHit && s.best_id[p] != invalid_id) continue;
         const Ray& ray = rays[s.caller[p]];
         const TriRay tri(ray);
         Closest c = s.get(p);
         if (cur.ref & wide_leaf_bit) {
-          leaf_closest(blocks, cur.ref, tri, c);
+          leaf_ray<AnyHit>(blocks, cur.ref, tri, c);
         } else {
           const BoxRay<8> box(ray);
-          traverse<8, false>(
+          traverse<8, AnyHit>(
               nodes, box, ray.tmin, c.t,
-              [&](uint32_t ref) {
-                leaf_closest(blocks, ref, tri, c);
-                return false;
-              },
-              cur.ref);
+              [&](uint32_t ref) { return leaf_ray<AnyHit>(blocks, ref, tri, c); }, cur.ref);
         }
-        s.set(p, c);
+        s.template set<AnyHit>(p, c);
       }
     } else if (cur.ref & wide_leaf_bit) {
       if (cur.count < stream_leaf_lanes) {
         for (uint32_t k = 0; k < cur.count; ++k) {
           const uint32_t p = list[k];
+          if (AnyHit && s.best_id[p] != invalid_id) continue;
           const TriRay tri(rays[s.caller[p]]);
           Closest c = s.get(p);
-          leaf_closest(blocks, cur.ref, tri, c);
-          s.set(p, c);
+          leaf_ray<AnyHit>(blocks, cur.ref, tri, c);
+          s.template set<AnyHit>(p, c);
         }
       } else {
         const TriangleBlock* leaf = blocks + (cur.ref & ~wide_leaf_bit);
@@ -212,7 +224,9 @@ void trace_stream_group(const Bvh8Node* nodes, const TriangleBlock* blocks, cons
               const VI ok = lane_triangle<L>(lr, kx, ky, kz, *blk, q, active, t, v, w, det);
               if (!S::mask(ok)) continue;
               const VI tid = VI{} + int(blk->prim_id[q] & ~block_last_bit);
-              const VI better = ok & ((t < bt) | ((t == bt) & (bid != VI{} - 1) & (tid < bid)));
+              const VI better =
+                  AnyHit ? ok & (t < bt) & (bid == VI{} - 1)
+                         : ok & ((t < bt) | ((t == bt) & (bid != VI{} - 1) & (tid < bid)));
               const unsigned b = S::mask(better);
               if (!b) continue;
               changed |= b;
@@ -226,7 +240,7 @@ void trace_stream_group(const Bvh8Node* nodes, const TriangleBlock* blocks, cons
           }
           for (; changed; changed &= changed - 1) {
             const unsigned l = ctz(changed);
-            s.set(uint32_t(id[l]), {bt[l], bv[l], bw[l], bd[l], uint32_t(bid[l])});
+            s.template set<AnyHit>(uint32_t(id[l]), {bt[l], bv[l], bw[l], bd[l], uint32_t(bid[l])});
           }
         }
       }
@@ -264,9 +278,12 @@ void trace_stream_group(const Bvh8Node* nodes, const TriangleBlock* blocks, cons
           if (hit) count[j] += compress_ids<L>(children + j * stride + count[j], id, hit);
         }
       }
-      // Farthest first by the list's middle ray's entry distances (its own slab test's).
+      // Closest hit: farthest first by the list's middle ray's entry distances (its own slab
+      // test's). Any hit: the last slot first, so the slots pop in slot order.
       float key[8];
-      {
+      if (AnyHit) {
+        for (int j = 0; j < 8; ++j) key[j] = float(j);
+      } else {
         const uint32_t p = list[n / 2];
         using S8 = Simd<8>;
         vf8 t = S8::load(node.bounds[nrx]) - s.ox[p];
@@ -304,8 +321,8 @@ void trace_stream_group(const Bvh8Node* nodes, const TriangleBlock* blocks, cons
   }
 }
 
-// Closest hits of a batch of traceable rays as ray streams.
-template <int L>
+// Closest (or any) hits of a batch of traceable rays as ray streams.
+template <int L, bool AnyHit>
 void trace_stream_lanes(const Bvh8Node* nodes, const TriangleBlock* blocks, const Ray* rays,
                         Hit* hits, size_t n) {
   static thread_local StreamScratch scratch;
@@ -339,11 +356,12 @@ void trace_stream_lanes(const Bvh8Node* nodes, const TriangleBlock* blocks, cons
     s.dx[p] = r.dir.x, s.dy[p] = r.dir.y, s.dz[p] = r.dir.z;
     s.ix[p] = 1.0f / r.dir.x, s.iy[p] = 1.0f / r.dir.y, s.iz[p] = 1.0f / r.dir.z;
     s.tmin[p] = r.tmin;
-    s.set(uint32_t(p), {r.tmax, 0.0f, 0.0f, 1.0f, invalid_id});
+    s.template set<AnyHit>(uint32_t(p), {r.tmax, 0.0f, 0.0f, 1.0f, invalid_id});
   }
   for (int c = 0; c < 64; ++c)
     if (start[c + 1] > start[c])
-      trace_stream_group<L>(nodes, blocks, rays, s, start[c], start[c + 1] - start[c], scratch);
+      trace_stream_group<L, AnyHit>(nodes, blocks, rays, s, start[c], start[c + 1] - start[c],
+                                    scratch);
   for (size_t p = 0; p < n; ++p) {
     const Closest c = s.get(uint32_t(p));
     Hit& hit = hits[caller[p]];
@@ -351,8 +369,8 @@ void trace_stream_lanes(const Bvh8Node* nodes, const TriangleBlock* blocks, cons
       const float inv_det = 1.0f / c.det;
       hit.t = c.t;
       hit.prim_id = c.id;
-      hit.u = c.v * inv_det;
-      hit.v = c.w * inv_det;
+      hit.u = AnyHit ? 0.0f : c.v * inv_det;
+      hit.v = AnyHit ? 0.0f : c.w * inv_det;
     } else {
       hit.t = __builtin_inff();
       hit.prim_id = invalid_id;
@@ -363,14 +381,14 @@ void trace_stream_lanes(const Bvh8Node* nodes, const TriangleBlock* blocks, cons
 #endif
 
 // The stream kernel where the ISA has lanes, single rays otherwise.
-template <int W, class Node>
+template <int W, bool AnyHit, class Node>
 void trace_streams(const Node* nodes, const TriangleBlock* blocks, const Ray* rays, Hit* hits,
                    size_t n) {
 #ifdef __AVX2__
   if constexpr (W == 8) {
-    trace_stream_lanes<packet_lanes>(nodes, blocks, rays, hits, n);
+    trace_stream_lanes<packet_lanes, AnyHit>(nodes, blocks, rays, hits, n);
     return;
   }
 #endif
-  trace_batch<W, false>(nodes, blocks, rays, hits, n);
+  trace_batch<W, AnyHit>(nodes, blocks, rays, hits, n);
 }

@@ -567,6 +567,70 @@ TEST(StreamMode, IncoherentBatchesGetTheSameHitsInTheCallersOrder) {
   }
 }
 
+// Ray streams (stream on, packets unset) where many rays share every list and hit shared
+// edges and vertices exactly: ties at equal distance resolve to the smallest prim id as for
+// single rays, closest and any hit, segments and tmin > 0 included.
+TEST(StreamMode, RayStreamsResolveTiesAsSingleRays) {
+  const Scene scene = test::closed_sphere(5, {0, 0, 0}, 1.0f);
+  const std::vector<Vec3>& vertices = scene.meshes[0].positions;
+  test::Rng rng{11};
+  std::vector<Ray> rays;
+  for (int i = 0; i < 40000; ++i) {
+    const Vec3 target = vertices[size_t(rng.next() % vertices.size())];
+    // Origins in a small cluster, so the lists stay long down the tree.
+    const Vec3 o = Vec3{2.5f, 0.3f, -0.2f} + rng.on_sphere() * 0.05f;
+    Ray r{o, target - o};
+    if (i % 5 == 1) r.tmax = 0.9f;  // a segment that may stop short of the sphere
+    if (i % 7 == 2) r.tmin = 0.5f;  // starts inside it: the far side
+    rays.push_back(r);
+  }
+  const Accel accel = build(scene, Builder::binned, Layout::bvh8);
+  TraceOptions single, stream;
+  single.stream = false;
+  single.packets = false;
+  stream.stream = true;
+  for (Isa isa : test::supported_isas()) {
+    single.isa = stream.isa = isa;
+    std::vector<Hit> want(rays.size()), got(rays.size());
+    trace(accel, rays, want, single);
+    trace(accel, rays, got, stream);
+    std::vector<uint8_t> want_occ(rays.size()), occ(rays.size());
+    occluded(accel, rays, want_occ, single);
+    occluded(accel, rays, occ, stream);
+    size_t hits = 0;
+    for (size_t i = 0; i < rays.size(); ++i) {
+      ASSERT_EQ(got[i].prim_id, want[i].prim_id) << isa_name(isa) << " ray " << i;
+      ASSERT_EQ(bits(got[i].t), bits(want[i].t)) << isa_name(isa) << " ray " << i;
+      ASSERT_EQ(bits(got[i].u), bits(want[i].u)) << isa_name(isa) << " ray " << i;
+      ASSERT_EQ(bits(got[i].v), bits(want[i].v)) << isa_name(isa) << " ray " << i;
+      ASSERT_EQ(occ[i], want_occ[i]) << isa_name(isa) << " ray " << i;
+      hits += got[i].hit();
+    }
+    EXPECT_GT(hits, rays.size() / 2);
+  }
+}
+
+// Mid-size incoherent batches with the default options: the Accel times batches as ray streams
+// and not (PacketChoice), then takes the faster; every batch gets the single-ray hits.
+TEST(StreamMode, MidSizeBatchesTimedEachWayGetTheSameHits) {
+  const Scene scene = test::random_soup(4000, 0.1f, 31);
+  const std::vector<Ray> rays = test::random_rays(stream_trial_rays + 3000, 32);
+  const Accel accel = build(scene, Builder::binned, Layout::bvh8);
+  TraceOptions single;
+  single.stream = false;
+  single.packets = false;
+  std::vector<Hit> want(rays.size());
+  trace(accel, rays, want, single);
+  for (int round = 0; round < 6; ++round) {  // the first four are trials, two each way
+    std::vector<Hit> got(rays.size());
+    trace(accel, rays, got);
+    for (size_t i = 0; i < rays.size(); ++i) {
+      ASSERT_EQ(got[i].prim_id, want[i].prim_id) << "round " << round << " ray " << i;
+      ASSERT_EQ(bits(got[i].t), bits(want[i].t)) << "round " << round << " ray " << i;
+    }
+  }
+}
+
 // More rays than one sort group holds: the second group's hits land in their own slots.
 TEST(StreamMode, BatchesLargerThanOneGroup) {
   const Scene scene = test::random_soup(64, 0.3f, 4);
