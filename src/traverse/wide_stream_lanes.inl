@@ -1,6 +1,6 @@
 // Ray streams: a large batch of incoherent rays walks the tree together, the rays in the
 // vector lanes and the tree's nodes fetched once per stream (after Barringer & Akenine-Möller
-// 2014, "Dynamic ray stream traversal", and Fuetterling et al. 2015). Closest hit.
+// 2014, "Dynamic ray stream traversal", and Fuetterling et al. 2015). Closest and any hit.
 // Part of wide_kernels.inl: included inside namespace kestrel::kernels::KESTREL_ISA_NS (an
 // anonymous namespace within it), once per instruction set.
 #ifdef __AVX2__
@@ -9,15 +9,18 @@
 // stack of (node, list of rays) entries, the root first with every ray. At an inner node,
 // each chunk of L rays of its list is tested against every child box at once (the single-ray
 // kernel's box test, lane by lane), and each child gets the list of rays that enter it; the
-// children are pushed farthest first as seen by the list's middle ray. At a leaf, each ray of
-// its list tests the leaf's blocks (the single-ray kernel's triangle test). A list shorter
-// than stream_handover rays goes on as single rays from its node (the lanes would idle).
+// children are pushed farthest first as seen by the list's middle ray. At a leaf, each chunk of
+// L rays is tested against each of its triangles at once (lane_triangle: the single-ray
+// kernel's triangle test, lane by lane). A list shorter than stream_handover rays goes on as
+// single rays from its node (the lanes would idle), and so does everything left of a stream
+// whose buffers cannot grow (out of memory: slower, never wrong).
 // Every ray is tested against exactly the boxes its own traversal could reach (a subset of the
 // stream's) with the same operations, and closest-hit ties resolve to the smallest id, so the
 // hits are the single-ray kernel's.
 constexpr unsigned stream_handover = 8;
 
-// One thread's buffers, kept between calls (no fresh pages per batch).
+// One thread's buffers, kept between calls (no fresh pages per batch). Null where memory runs
+// out (the callers then trace single rays).
 struct StreamScratch {
   void* p[4] = {};
   size_t bytes[4] = {};
@@ -27,17 +30,17 @@ struct StreamScratch {
       free(p[k]);
       n += n / 2;
       p[k] = malloc(n);
-      if (!p[k]) __builtin_trap();
-      bytes[k] = n;
+      bytes[k] = p[k] ? n : 0;
     }
     return p[k];
   }
-  // Buffer k grown to `n` bytes, its first `keep` bytes kept.
+  // Buffer k grown to `n` bytes, its first `keep` bytes kept; null (the old buffer kept) when
+  // there is no memory for it.
   void* grow(int k, size_t n, size_t keep) {
     if (bytes[k] >= n) return p[k];
     n += n / 2;
     void* q = malloc(n);
-    if (!q) __builtin_trap();
+    if (!q) return nullptr;
     if (keep) __builtin_memcpy(q, p[k], keep);
     free(p[k]);
     p[k] = q;
@@ -153,6 +156,22 @@ void trace_stream_group(const Bvh8Node* nodes, const TriangleBlock* blocks, cons
   struct Entry {
     uint32_t ref, begin, count;
   };
+  // Ray p from node (or leaf) `ref` on as a single ray.
+  const auto single = [&](uint32_t p, uint32_t ref) {
+    if (AnyHit && s.best_id[p] != invalid_id) return;
+    const Ray& ray = rays[s.caller[p]];
+    const TriRay tri(ray);
+    Closest c = s.get(p);
+    if (ref & wide_leaf_bit) {
+      leaf_ray<AnyHit>(blocks, ref, tri, c);
+    } else {
+      const BoxRay<8> box(ray);
+      traverse<8, AnyHit>(
+          nodes, box, ray.tmin, c.t,
+          [&](uint32_t r) { return leaf_ray<AnyHit>(blocks, r, tri, c); }, ref);
+    }
+    s.template set<AnyHit>(p, c);
+  };
   Entry stack[stack_size<8>];
   Entry* sp = stack;
   // ids: the lists of the stack's entries, in stack order (the top entry's list last);
@@ -160,6 +179,11 @@ void trace_stream_group(const Bvh8Node* nodes, const TriangleBlock* blocks, cons
   size_t ids_cap = size_t(m) * 4 + L;
   uint32_t* ids = static_cast<uint32_t*>(scratch.get(0, ids_cap * sizeof(uint32_t)));
   uint32_t* children = static_cast<uint32_t*>(scratch.get(1, size_t(m + L) * 8 * sizeof(uint32_t)));
+  if (!ids || !children) {
+    for (uint32_t p = first; p < first + m; ++p) single(p, 0);
+    return;
+  }
+  bool singles = false;  // out of memory: the rest as single rays
   for (uint32_t k = 0; k < m; ++k) ids[k] = first + k;
   Entry cur{0, 0, m};
   size_t top = m;  // ids in use
@@ -168,34 +192,12 @@ void trace_stream_group(const Bvh8Node* nodes, const TriangleBlock* blocks, cons
   const VF far_factor = S::splat(1.00000072f);  // far_scale
   while (true) {
     const uint32_t* list = ids + cur.begin;
-    if (cur.count < stream_handover) {
+    if (cur.count < stream_handover || singles) {
       // Single rays from here on (from this node, or this leaf's blocks).
-      for (uint32_t k = 0; k < cur.count; ++k) {
-        const uint32_t p = list[k];
-        if (AnyHit && s.best_id[p] != invalid_id) continue;
-        const Ray& ray = rays[s.caller[p]];
-        const TriRay tri(ray);
-        Closest c = s.get(p);
-        if (cur.ref & wide_leaf_bit) {
-          leaf_ray<AnyHit>(blocks, cur.ref, tri, c);
-        } else {
-          const BoxRay<8> box(ray);
-          traverse<8, AnyHit>(
-              nodes, box, ray.tmin, c.t,
-              [&](uint32_t ref) { return leaf_ray<AnyHit>(blocks, ref, tri, c); }, cur.ref);
-        }
-        s.template set<AnyHit>(p, c);
-      }
+      for (uint32_t k = 0; k < cur.count; ++k) single(list[k], cur.ref);
     } else if (cur.ref & wide_leaf_bit) {
       if (cur.count < stream_leaf_lanes) {
-        for (uint32_t k = 0; k < cur.count; ++k) {
-          const uint32_t p = list[k];
-          if (AnyHit && s.best_id[p] != invalid_id) continue;
-          const TriRay tri(rays[s.caller[p]]);
-          Closest c = s.get(p);
-          leaf_ray<AnyHit>(blocks, cur.ref, tri, c);
-          s.template set<AnyHit>(p, c);
-        }
+        for (uint32_t k = 0; k < cur.count; ++k) single(list[k], cur.ref);
       } else {
         const TriangleBlock* leaf = blocks + (cur.ref & ~wide_leaf_bit);
         for (uint32_t i = 0; i < cur.count; i += L) {
@@ -305,8 +307,17 @@ void trace_stream_group(const Bvh8Node* nodes, const TriangleBlock* blocks, cons
       size_t need = top + L;
       for (int q = 0; q < no; ++q) need += count[order[q]];
       if (need > ids_cap) {
-        ids = static_cast<uint32_t*>(
-            scratch.grow(0, need * sizeof(uint32_t), top * sizeof(uint32_t)));
+        void* grown = scratch.grow(0, need * sizeof(uint32_t), top * sizeof(uint32_t));
+        if (!grown) {
+          // This node's rays from the node on as single rays (its list is still in place:
+          // nothing was written over it), and every entry left on the stack after them.
+          for (uint32_t k = 0; k < n; ++k) single(list[k], cur.ref);
+          singles = true;
+          if (sp == stack) return;
+          cur = *--sp;
+          continue;
+        }
+        ids = static_cast<uint32_t*>(grown);
         ids_cap = scratch.bytes[0] / sizeof(uint32_t);
       }
       for (int q = 0; q < no; ++q) {
@@ -326,17 +337,18 @@ template <int L, bool AnyHit>
 void trace_stream_lanes(const Bvh8Node* nodes, const TriangleBlock* blocks, const Ray* rays,
                         Hit* hits, size_t n) {
   static thread_local StreamScratch scratch;
+  // 15 float arrays and two of ids, each with room for a vector load past its end.
+  const size_t stride = n + 16;
+  uint8_t* cls = static_cast<uint8_t*>(scratch.get(2, n));
+  char* mem = static_cast<char*>(scratch.get(3, stride * 17 * sizeof(float)));
+  if (!cls || !mem) return trace_batch<8, AnyHit>(nodes, blocks, rays, hits, n);  // no memory
   // Positions in class order (a counting sort, stable).
   uint32_t start[65] = {};
-  uint8_t* cls = static_cast<uint8_t*>(scratch.get(2, n));
   for (size_t i = 0; i < n; ++i) {
     cls[i] = uint8_t(lane_class(rays[i]));
     ++start[cls[i] + 1];
   }
   for (int c = 0; c < 64; ++c) start[c + 1] += start[c];
-  // 15 float arrays and two of ids, each with room for a vector load past its end.
-  const size_t stride = n + 16;
-  char* mem = static_cast<char*>(scratch.get(3, stride * 17 * sizeof(float)));
   float* f = reinterpret_cast<float*>(mem);
   StreamRays s;
   float** soa[15] = {&s.ox, &s.oy,   &s.oz,   &s.dx,     &s.dy,     &s.dz,     &s.ix,      &s.iy,
