@@ -84,10 +84,11 @@ struct TraceOptions {
   /// Over bvh8 with AVX2 or AVX-512 the sorted rays go as ray streams (16 k rays walk the tree
   /// together, each node's boxes tested for 8 or 16 rays at once) unless `packets` is set;
   /// otherwise as packets unless `packets` is false. Default: on for closest-hit batches of at
-  /// least 2^18 incoherent rays — with ray streams in any order (1.2-1.5x faster than without on
-  /// the shared scenes, docs/benchmarks.md), else only when consecutive origins lie far apart
-  /// over a tree of at least 2 MB; for 2^16 to 2^18 incoherent rays with ray streams, the Accel
-  /// times batches each way and takes the faster; off otherwise (any hit gains nothing).
+  /// least 2^18 incoherent rays whose consecutive origins lie far apart (shuffled, compacted or
+  /// material-sorted bounces: 1.13-1.77x `rtcIntersect1` with ray streams, docs/benchmarks.md;
+  /// without ray streams only over a tree of at least 2 MB); with ray streams, other incoherent
+  /// batches of at least 2^16 rays (smaller, or in pixel order) are timed each way by the Accel,
+  /// which takes the faster; off otherwise (any hit gains nothing).
   std::optional<bool> stream;
 };
 

@@ -103,18 +103,19 @@ bool looks_coherent(std::span<const Ray> rays) {
   return groups > 0 && coherent * 4 >= groups * 3;
 }
 
-// Measured in docs/benchmarks.md. Ray streams (closest hit, 8-wide nodes, AVX2 or AVX-512)
-// pay on every large incoherent batch, in pixel order or not, over small trees too (one
-// thread: Sponza's 908 k bounces in pixel order 3.9 -> 5.9 Mrays/s, the teapot's 729 k 9.0 ->
-// 11.0, the soup's 1.19 M 2.0 -> 2.7), and lose on smaller batches (the soup's 190 k 2.1 -> 1.4).
-// Sorted packets pay only where the tree is larger than the caches and the rays unordered;
-// any hit never.
+// Measured in docs/benchmarks.md. Unordered (shuffled, compacted, material-sorted) batches
+// gain from the order and, where the kernels have them, from ray streams over any tree (one
+// thread, 720p: shuffled diffuse rays 1.13-1.77x `rtcIntersect1` as ray streams on the five
+// scenes with >= 2^18 of them); sorted packets pay only over trees larger than the caches.
+// Batches in pixel order gain from ray streams on some scenes (Sponza's 908 k bounces 3.9 ->
+// 5.9 Mrays/s) and lose on others (the terrain's 543 k 5.9 -> 4.4): trace.cpp times those each
+// way (may_stream). Any hit never takes it by default.
 bool stream_by_default(std::span<const Ray> rays, const Bounds3& box, size_t tree_bytes,
                        bool any_hit, bool ray_streams, const TraceOptions& options) {
   if (options.stream) return *options.stream;
   if (any_hit || options.packets || rays.size() < stream_min_rays || looks_coherent(rays))
     return false;
-  return ray_streams || (tree_bytes >= stream_min_accel_bytes && origins_unordered(rays, box));
+  return (ray_streams || tree_bytes >= stream_min_accel_bytes) && origins_unordered(rays, box);
 }
 
 void for_each_stream_chunk(

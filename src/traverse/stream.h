@@ -35,8 +35,8 @@ inline constexpr size_t stream_group = size_t(1) << 20;
 /// collapse shrank Sponza's tree from 4.26 to 4.00 MB: its shuffled bounces then went
 /// unsorted, 4.05 -> 3.29 Mrays/s, against 4.34 sorted.)
 inline constexpr size_t stream_min_rays = size_t(1) << 18;
-/// Smaller incoherent batches, down to this many rays, go as ray streams where timed batches
-/// find them faster (trace.cpp: may_stream).
+/// Other incoherent batches of at least this many rays (smaller, or in pixel order) go as ray
+/// streams where timed batches find them faster (trace.cpp: may_stream).
 inline constexpr size_t stream_trial_rays = size_t(1) << 16;
 inline constexpr size_t stream_min_accel_bytes = size_t(2) << 20;
 
@@ -138,7 +138,8 @@ namespace detail {
 /// What an Accel has learnt of its coherent batches (AccelNodes::choices).
 struct PacketChoices {
   PacketChoice closest, any;
-  /// Mid-size incoherent batches: ray streams (true) or not (trace.cpp: may_stream).
+  /// Incoherent batches the default does not stream: ray streams (true) or not (trace.cpp:
+  /// may_stream).
   PacketChoice stream{4, true};
 };
 }  // namespace detail
@@ -148,9 +149,10 @@ struct PacketChoices {
 bool looks_coherent(std::span<const Ray> rays);
 
 /// TraceOptions::stream's default for a batch over a tree of `tree_bytes` bounded by `box`:
-/// closest hit, `packets` unset, >= stream_min_rays rays, not coherent; and, unless the
-/// kernels have ray streams for it (`ray_streams`), consecutive origins far apart (unordered)
-/// and a tree of >= stream_min_accel_bytes. An explicit option wins.
+/// closest hit, `packets` unset, >= stream_min_rays rays, not coherent, consecutive origins far
+/// apart (unordered), and a tree of >= stream_min_accel_bytes unless the kernels have ray
+/// streams for it (`ray_streams`). An explicit option wins. (Where this says no, trace.cpp may
+/// still time ray streams against the rest: may_stream.)
 bool stream_by_default(std::span<const Ray> rays, const Bounds3& box, size_t tree_bytes,
                        bool any_hit, bool ray_streams, const TraceOptions& options);
 

@@ -151,15 +151,17 @@ bool use_stream(const Accel& accel, std::span<const Ray> rays, bool any_hit, Isa
                            has_ray_streams(accel, isa), options);
 }
 
-// Mid-size incoherent batches (stream_trial_rays .. stream_min_rays rays, closest hit, ray
-// streams available, neither option set): ray streams win where the scene keeps many rays on
-// each node and lose where they part (one thread: Sponza's 227 k bounces 3.2-3.3 -> 4.1-5.4
-// Mrays/s as streams, the soup's 190 k 1.7-1.9 -> 1.5, the bunny grid's 90 k 2.6-2.7 -> 1.5),
-// so the Accel times batches each way (PacketChoice) and takes the faster.
+// Incoherent batches of >= stream_trial_rays rays that stream_by_default does not stream
+// (closest hit, ray streams available, neither option set: smaller or in pixel order): ray
+// streams win where the scene keeps many rays on each node and lose where they part (one
+// thread: Sponza's 908 k bounces in pixel order 3.9 -> 5.9 Mrays/s as streams, its 227 k at
+// 640x360 3.2-3.3 -> 4.1-5.4; the terrain's 543 k in pixel order 5.9 -> 4.4, the soup's 190 k
+// 1.7-1.9 -> 1.5, the bunny grid's 90 k 2.6-2.7 -> 1.5), so the Accel times batches each way
+// (PacketChoice) and takes the faster. Called after use_stream said no.
 bool may_stream(const Accel& accel, std::span<const Ray> rays, bool any_hit, Isa isa,
                 const TraceOptions& options) {
   return !any_hit && !options.stream && !options.packets && has_ray_streams(accel, isa) &&
-         rays.size() >= stream_trial_rays && rays.size() < stream_min_rays && !looks_coherent(rays);
+         rays.size() >= stream_trial_rays && !looks_coherent(rays);
 }
 
 // Traces a run of rays (traced(packets)) as packets where asked or, unsaid, where the run looks
