@@ -112,6 +112,12 @@ void trace_stream(const Accel& accel, std::span<const Ray> rays, bool any_hit, I
                   const kernels::Table& k, std::optional<bool> packets,
                   FunctionRef<void(size_t caller, const Hit& hit)> put,
                   FunctionRef<void(size_t caller)> prefetch_put) {
+  const auto write_back = [&](const uint32_t* callers, const Hit* local, size_t n) {
+    for (size_t j = 0; j < n; ++j) {
+      if (j + 16 < n) prefetch_put(callers[j + 16]);
+      put(callers[j], local[j]);
+    }
+  };
   if (!packets && has_ray_streams(accel, isa)) {
     const kernels::Bvh8Fn fn = any_hit ? k.any_stream8 : k.stream8;
     const Bvh8& bvh = accel.nodes->bvh8;
@@ -123,10 +129,7 @@ void trace_stream(const Accel& accel, std::span<const Ray> rays, bool any_hit, I
                                           [&](const Ray* rr, Hit* h, size_t m) {
                                             fn(bvh.nodes.data(), bvh.blocks.data(), rr, h, m);
                                           });
-          for (size_t j = 0; j < n; ++j) {
-            if (j + 16 < n) prefetch_put(callers[j + 16]);
-            put(callers[j], local[j]);
-          }
+          write_back(callers, local.data(), n);
         },
         ray_stream_rays);
     return;
@@ -137,10 +140,7 @@ void trace_stream(const Accel& accel, std::span<const Ray> rays, bool any_hit, I
     choice.run(n, [&](bool packets) {
       trace_range(accel, std::span<const Ray>(r, n), std::span(local, n), any_hit, k, packets);
     });
-    for (size_t j = 0; j < n; ++j) {
-      if (j + 16 < n) prefetch_put(callers[j + 16]);
-      put(callers[j], local[j]);
-    }
+    write_back(callers, local, n);
   });
 }
 

@@ -185,6 +185,12 @@ template <int L>
   return ok & (ndd != zero) & (t > r.tmin);
 }
 
+// closer() lane by lane: nearer, or equally near with a smaller id once a hit exists.
+template <class VF, class VI>
+inline VI closer_lanes(VF t, VI id, VF best_t, VI best_id) {
+  return (t < best_t) | ((t == best_t) & (best_id != VI{} - 1) & (id < best_id));
+}
+
 // AnyHit: occlusion; a lane leaves the packet at its first hit (t < tmax), children are not
 // sorted, and the packet ends when every lane is done. `scene` is scene_extent(nodes[0]).
 template <int L, bool AnyHit>
@@ -371,9 +377,7 @@ PacketOutcome trace_packet_lanes(const Bvh8Node* nodes, const TriangleBlock* blo
             done |= f;
             continue;
           }
-          // closer(): nearer, or equally near with a smaller id once a hit exists.
-          const VI better =
-              ok & ((t < best_t) | ((t == best_t) & (best_id != VI{} - 1) & (id < best_id)));
+          const VI better = ok & closer_lanes(t, id, best_t, best_id);
           if (!S::mask(better)) continue;
           best_t = select_lanes(better, t, best_t);
           best_id = select_lanes(better, id, best_id);

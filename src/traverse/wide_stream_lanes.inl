@@ -227,8 +227,7 @@ void trace_stream_group(const Bvh8Node* nodes, const TriangleBlock* blocks, cons
               if (!S::mask(ok)) continue;
               const VI tid = VI{} + int(blk->prim_id[q] & ~block_last_bit);
               const VI better =
-                  AnyHit ? ok & (t < bt) & (bid == VI{} - 1)
-                         : ok & ((t < bt) | ((t == bt) & (bid != VI{} - 1) & (tid < bid)));
+                  AnyHit ? ok & (t < bt) & (bid == VI{} - 1) : ok & closer_lanes(t, tid, bt, bid);
               const unsigned b = S::mask(better);
               if (!b) continue;
               changed |= b;
