@@ -1,10 +1,14 @@
-// The path tracer, wavefront per tile: a tile's paths advance one bounce at a time, so each
-// bounce is one batch for trace() (camera rays as coherent packets) and one for occluded()
-// (the next-event shadow rays). Per-sample random streams are seeded from (seed, frame,
-// pixel, sample), tiles write disjoint pixels, so the image does not depend on threads.
+// The path tracer, wavefront over a wave of tiles: each tile's paths advance one bounce at a
+// time, and each bounce's rays of all the wave's tiles are one batch for trace() (camera rays
+// as coherent packets, bounces as ray streams where the batch API finds them faster) and one
+// for occluded() (the next-event shadow rays); shading runs per tile between the batches.
+// Per-sample random streams are seeded from (seed, frame, pixel, sample), tiles write disjoint
+// pixels and every ray's hit is the same in any batch, so the image does not depend on threads
+// or on how the tiles are grouped.
 #include <algorithm>
 #include <cmath>
 
+#include "core/parallel.h"
 #include "render/bsdf.h"
 #include "render/renderer_impl.h"
 
@@ -231,54 +235,367 @@ static bool first_bounce_survives(uint32_t x, uint32_t y, uint32_t frame, float 
   return ((x & 1u) | ((y & 1u) << 1)) == order[frame & 3u];
 }
 
-// ---- one tile ----------------------------------------------------------------------------------
+// ---- one tile's paths ----------------------------------------------------------------------
 
-void Renderer::Impl::render_tile(const CameraModel& cam, const CameraModel& prev_cam,
-                                 const RenderSettings& s, int tx, int ty, int pass, float jx,
-                                 float jy, const RestirPass* rp,
-                                 std::vector<CacheRecord>* cache_records, Accumulator& acc,
-                                 double& trace_ms, uint64_t ray_counts[3]) const {
-  const bool use_tree = s.light_sampling == LightSampling::tree && !light_tree.empty();
-  const int x0 = tx * tile_size, y0 = ty * tile_size;
-  const int x1 = std::min(x0 + tile_size, s.width), y1 = std::min(y0 + tile_size, s.height);
-  const size_t count = size_t(x1 - x0) * size_t(y1 - y0);
+// One tile's paths through a pass, a bounce at a time: its rays of the bounce, the shadow rays
+// of the bounce's next-event estimation, ReSTIR's reservoirs. Between the steps the wave traces
+// the rays of all its tiles as one batch. The storage is kept from pass to pass.
+struct Renderer::Impl::TilePaths {
+  const WavePass* ctx = nullptr;
+  std::vector<CacheRecord>* cache_records = nullptr;
+  int x0 = 0, y0 = 0, x1 = 0, y1 = 0;
+  size_t count = 0;
   std::vector<Rng> rngs;
-  std::vector<PathState> paths(count);
-  std::vector<PixelSample> px(count);
-  std::vector<Ray> rays(count), next_rays;
-  std::vector<SurfaceHit> hits(count);
-  std::vector<uint32_t> active(count), next_active;
+  std::vector<PathState> paths;
+  std::vector<PixelSample> px;
+  std::vector<Ray> rays, next_rays;
+  std::vector<uint32_t> active, next_active;
   std::vector<RadianceCache::Cell> cells;  // of hits the radiance cache likely answers, else key 0
   std::vector<Ray> shadow_rays;
   std::vector<Shadow> shadows;
-  std::vector<uint8_t> blocked;
-  // ReSTIR: per pixel of the tile, the reservoir, the surface and the history's pixel.
-  std::vector<Reservoir> rres(rp ? count : 0);
-  std::vector<RestirSurface> rsurf(rp ? count : 0);
-  std::vector<int32_t> rprev(rp ? count : 0, -1);
+  // ReSTIR: per pixel of the tile, the reservoir, the surface and the history's pixel; the
+  // visibility rays of the initial reservoirs (biased mode) and their pixels.
+  std::vector<Reservoir> rres;
+  std::vector<RestirSurface> rsurf;
+  std::vector<int32_t> rprev;
+  std::vector<Ray> vis;
+  std::vector<uint32_t> vis_pixel;
+
+  // The tile's camera rays.
+  void begin(const WavePass& wp, int tx, int ty, std::vector<CacheRecord>* records);
+  // Shades the bounce's hits (one per ray, in order): the next bounce's rays, the shadow rays.
+  void shade(const Impl& r, int depth, std::span<const SurfaceHit> hits);
+  // ReSTIR after the first hits: the initial reservoirs and their visibility rays (vis) ...
+  void restir_initial(const Impl& r);
+  // ... whose results (one per vis ray) drop blocked samples before reuse; the shadow rays of
+  // the reservoirs' samples.
+  void restir_final(const Impl& r, std::span<const uint8_t> blocked);
+  // The shadow rays' results (one per ray): the unblocked add their light; the next bounce.
+  void finish_bounce(std::span<const uint8_t> blocked);
+  // Adds the tile's samples to the sums (and the radiance cache's records).
+  void end(Accumulator& acc) const;
+};
+
+void Renderer::Impl::TilePaths::begin(const WavePass& wp, int tx, int ty,
+                                      std::vector<CacheRecord>* records) {
+  ctx = &wp;
+  cache_records = records;
+  const RenderSettings& s = wp.s;
+  x0 = tx * tile_size, y0 = ty * tile_size;
+  x1 = std::min(x0 + tile_size, s.width), y1 = std::min(y0 + tile_size, s.height);
+  count = size_t(x1 - x0) * size_t(y1 - y0);
+  rngs.clear();
+  paths.resize(count);  // each path and pixel sample set at its first hit (shade, depth 0):
+  px.resize(count);     // written where they are read next, not twice
+  rays.resize(count);
+  active.resize(count);
+  const size_t restir_count = wp.rp ? count : 0;
+  rres.assign(restir_count, Reservoir{});
+  rsurf.assign(restir_count, RestirSurface{});
+  rprev.assign(restir_count, -1);
   rngs.reserve(count);
   for (size_t i = 0; i < count; ++i) {
     const int x = x0 + int(i % size_t(x1 - x0)), y = y0 + int(i / size_t(x1 - x0));
     const uint64_t pixel = uint64_t(y) * uint64_t(s.width) + uint64_t(x);
-    rngs.emplace_back(s.seed, s.frame, pixel, uint64_t(pass));
+    rngs.emplace_back(s.seed, s.frame, pixel, uint64_t(wp.pass));
     Rng& rng = rngs.back();
     const float lu = rng.uniform(), lv = rng.uniform();
-    rays[i] = cam.ray(float(x) + jx, float(y) + jy, lu, lv);
-    paths[i].pixel = uint32_t(i);
-    paths[i].train =
-        !cache_records ||
-        (mix64(s.seed ^ mix64(pixel ^ mix64(uint64_t(s.frame) << 20 ^ uint64_t(pass)))) &
-         cache_train_mask) == 0;
+    rays[i] = wp.cam.ray(float(x) + wp.jx, float(y) + wp.jy, lu, lv);
     active[i] = uint32_t(i);
   }
-  auto timed = [&](auto&& fn, int kind, size_t n) {
+}
+
+void Renderer::Impl::TilePaths::shade(const Impl& r, int depth, std::span<const SurfaceHit> hits) {
+  const RenderSettings& s = ctx->s;
+  const CameraModel &cam = ctx->cam, &prev_cam = ctx->prev_cam;
+  const RestirPass* rp = ctx->rp;
+  const bool use_tree = ctx->use_tree;
+  const size_t n = active.size();
+  // A camera ray's path and pixel sample (ray k is pixel k's).
+  const auto start = [&](size_t k) {
+    PathState& ps = paths[k];
+    ps = PathState{};
+    ps.pixel = uint32_t(k);
+    const int x = x0 + int(k % size_t(x1 - x0)), y = y0 + int(k / size_t(x1 - x0));
+    const uint64_t pixel = uint64_t(y) * uint64_t(s.width) + uint64_t(x);
+    ps.train =
+        !cache_records ||
+        (mix64(s.seed ^ mix64(pixel ^ mix64(uint64_t(s.frame) << 20 ^ uint64_t(ctx->pass)))) &
+         cache_train_mask) == 0;
+    px[k] = PixelSample{};
+  };
+  next_rays.clear();
+  next_active.clear();
+  shadow_rays.clear();
+  shadows.clear();
+  // Shading reads scattered vertex data: fetch it ahead, indices first, then the vertices
+  // they name, then texels (misses overlap instead of stalling one hit at a time).
+  for (size_t k = 0; k < std::min(n, index_distance); ++k) r.prefetch_indices(hits[k]);
+  for (size_t k = 0; k < std::min(n, vertex_distance); ++k) r.prefetch_vertices(hits[k]);
+  // Paths the radiance cache likely answers at their second vertex: their cell (its slot
+  // prefetched) instead of texels.
+  const bool cache_stops = cache_records && depth == 1 && depth + 1 < s.max_depth;
+  cells.resize(n);
+  auto ahead = [&](size_t k) {
+    const PathState& q = paths[active[k]];
+    cells[k].key = 0;
+    if (!(cache_stops && q.rough && !q.train && !q.aov_pending))
+      r.prefetch_texels(hits[k]);
+    else if (hits[k].hit())
+      cells[k] = r.cache_cell(hits[k], rays[k]);
+  };
+  for (size_t k = 0; k < std::min(n, texel_distance); ++k) ahead(k);
+  for (size_t k = 0; k < n; ++k) {
+    if (k + index_distance < n) r.prefetch_indices(hits[k + index_distance]);
+    if (k + vertex_distance < n) r.prefetch_vertices(hits[k + vertex_distance]);
+    if (k + texel_distance < n) ahead(k + texel_distance);
+    PathState& ps = paths[active[k]];
+    Rng& rng = rngs[active[k]];
+    if (depth == 0) start(k);
+    PixelSample& out = px[ps.pixel];
+    const Ray& ray = rays[k];
+    const SurfaceHit& h = hits[k];
+    if (!h.hit()) {
+      const Vec3 le = r.env_radiance(ray.dir);
+      float w = 1;
+      if (depth > 0 && r.p_env > 0) {
+        const float lp = r.p_env * r.env_pdf(ray.dir, ps.prev_normal);
+        w = ps.restir && depth == 1
+                ? (lp > 0 ? 0.0f : 1.0f)  // what ReSTIR could sample, it has
+                : ps.bsdf_pdf * ps.bsdf_pdf / (ps.bsdf_pdf * ps.bsdf_pdf + lp * lp);
+      }
+      ps.radiance = ps.radiance + ps.throughput * le * w;
+      if (r.sun_on) {  // a ray that escapes into the sun's disk
+        const Vec3 ls = r.sun_radiance_towards(normalize(ray.dir));
+        if (luminance(ls) > 0) {
+          float ws = 1;
+          if (depth > 0) {
+            const float lp = r.p_sun / r.sun_solid_angle;
+            ws = ps.restir && depth == 1
+                     ? (lp > 0 ? 0.0f : 1.0f)
+                     : ps.bsdf_pdf * ps.bsdf_pdf / (ps.bsdf_pdf * ps.bsdf_pdf + lp * lp);
+          }
+          ps.radiance = ps.radiance + ps.throughput * ls * ws;
+        }
+      }
+      if (ps.aov_pending) {
+        out.albedo = min(le, Vec3{1, 1, 1});
+        out.normal = {0, 0, 0};
+        out.roughness = 0;
+      }
+      continue;
+    }
+    // A path the radiance cache stops at its second vertex needs no more shading.
+    if (cells[k].key != 0) {
+      Vec3 lc;
+      if (r.cache_answer(h, cells[k], lc)) {
+        ps.radiance = ps.radiance + ps.throughput * lc;
+        continue;
+      }
+    }
+    // Surface interaction.
+    const InstanceShade& is = r.instances[h.instance];
+    const Surface sf = r.surface_at(h, ray);
+    const Vec3 &p = sf.p, &ng = sf.ng, &ns = sf.ns, &wo = sf.wo;
+    const Material& mat = *sf.mat;
+    const BsdfParams& bp = sf.bp;
+    if (depth == 0) {
+      out.depth = dot(p - cam.eye, cam.forward);
+      const Vec3 p_prev = is.identity ? p : is.prev_xf.point(sf.p_obj);
+      float fx, fy, gx, gy;
+      if (cam.project(p, fx, fy) && prev_cam.project(p_prev, gx, gy)) {
+        out.mx = gx - fx, out.my = gy - fy;
+        if (rp && !rp->same_camera && gx >= 0 && gy >= 0 && gx < float(s.width) &&
+            gy < float(s.height))
+          rprev[ps.pixel] = int32_t(int(gy) * s.width + int(gx));
+      }
+      if (rp && rp->same_camera) {
+        const size_t i = ps.pixel;
+        rprev[i] = int32_t((y0 + int(i) / (x1 - x0)) * s.width + x0 + int(i) % (x1 - x0));
+      }
+    }
+    const bool specular_surface = bp.metallic >= 0.5f && bp.alpha < specular_alpha;
+    if (ps.aov_pending) {
+      out.albedo = bp.base;
+      out.normal = ns;
+      out.roughness = sf.roughness;
+      if (!specular_surface || depth >= 3) ps.aov_pending = false;
+    }
+    // Emission (two-sided), weighted against light sampling.
+    if (luminance(mat.emission) > 0) {
+      const Vec3 le = r.emission_at(mat, sf.uv);
+      float w = 1;
+      if (depth > 0) {
+        const float lp =
+            r.light_pdf(h.instance, h.prim, h.t * h.t, std::fabs(sf.cos_hit), ray.org, use_tree);
+        w = ps.restir && depth == 1
+                ? (lp > 0 ? 0.0f : 1.0f)
+                : ps.bsdf_pdf * ps.bsdf_pdf / (ps.bsdf_pdf * ps.bsdf_pdf + lp * lp);
+      }
+      ps.radiance = ps.radiance + ps.throughput * le * w;
+    }
+    if (depth + 1 >= s.max_depth) continue;
+    // Radiance cache at the first bounce's surface: stop there with its cell's radiance
+    // (when the bounce is longer than a cell: contact light needs the path), or note the
+    // vertex so this path teaches the cell what it measures from here on.
+    if (cache_records && depth == 1 && ps.rough && bp.alpha >= cache_alpha_second) {
+      const RadianceCache::Cell cell = r.radiance_cache.cell(p, ng);
+      Vec3 lc;
+      if (!ps.train && h.t >= cell.size && r.radiance_cache.lookup(cell.key, lc)) {
+        ps.radiance = ps.radiance + ps.throughput * lc;
+        continue;
+      }
+      ps.cache_key = cell.key, ps.cache_radiance = ps.radiance, ps.cache_throughput = ps.throughput;
+    }
+    const Basis frame(ns);
+    const Vec3 wo_l = frame.to_local(wo);
+    const Vec3 origin = offset_origin(p, ng);
+    // Next-event estimation: one light sample (an emissive triangle or the environment),
+    // or at the first hit ReSTIR's reservoir (shaded once the tile's reuse is done).
+    if (rp && depth == 0 && r.restir_eligible(sf)) {
+      RestirSurface& g = rsurf[ps.pixel];
+      g = {sf.p, ng, ns, wo_l, bp, out.depth, true};
+      ps.restir = true;  // its reservoir comes after the loop, from its block's pool
+    } else if (r.p_env > 0 || r.p_sun > 0 || r.local_light_count() > 0) {
+      Ray shadow;
+      Vec3 contribution;
+      if (r.sample_light(sf, frame, wo_l, origin, ps.throughput, rng, use_tree, shadow,
+                         contribution)) {
+        shadow_rays.push_back(shadow);
+        shadows.push_back({contribution, active[k]});
+      }
+    }
+    // Russian roulette at the first bounce (indirect_rate < 1): the pixels whose turn it is
+    // not stop here with their direct light; mirror-like surfaces always go on.
+    if (depth == 0 && s.indirect_rate < 1.0f && !specular_surface) {
+      const uint32_t px_x = uint32_t(x0 + int(ps.pixel % uint32_t(x1 - x0)));
+      const uint32_t px_y = uint32_t(y0 + int(ps.pixel / uint32_t(x1 - x0)));
+      if (!first_bounce_survives(px_x, px_y, s.frame + uint32_t(ctx->pass), s.indirect_rate))
+        continue;
+      ps.throughput = ps.throughput * (1.0f / s.indirect_rate);
+    }
+    // Continue the path by sampling the BSDF.
+    const float u0 = rng.uniform(), u1 = rng.uniform(), u2 = rng.uniform();
+    BsdfSample bs;
+    if (!bsdf_sample(bp, wo_l, u0, u1, u2, bs)) continue;
+    const Vec3 wi = frame.to_world(bs.wi);
+    if (dot(wi, ng) <= 0) continue;
+    ps.throughput = ps.throughput * bs.weight;
+    ps.bsdf_pdf = bs.pdf;
+    ps.prev_normal = ns;
+    ps.rough = bp.alpha >= cache_alpha_first;
+    if (depth + 1 >= s.rr_depth) {
+      const float q =
+          std::min(0.95f, std::max({ps.throughput.x, ps.throughput.y, ps.throughput.z}));
+      if (!(rng.uniform() < q)) continue;
+      ps.throughput = ps.throughput * (1.0f / q);
+    }
+    next_rays.push_back(Ray{origin, wi, 0.0f, INFINITY});
+    next_active.push_back(active[k]);
+  }
+}
+
+// ReSTIR: visibility reuse (the biased mode drops initial samples that are blocked), temporal
+// and spatial reuse, then one shadow ray per pixel for the reservoir's sample.
+void Renderer::Impl::TilePaths::restir_initial(const Impl& r) {
+  const RenderSettings& s = ctx->s;
+  r.restir_candidates(s, x0, y0, x1 - x0, y1 - y0, ctx->pass, ctx->use_tree, rsurf, rres, rngs);
+  vis.clear();
+  vis_pixel.clear();
+  if (s.direct == DirectLighting::restir)
+    for (size_t i = 0; i < count; ++i) {
+      Ray ray;
+      if (rsurf[i].valid && rres[i].W > 0 &&
+          luminance(r.restir_eval(rsurf[i], rres[i].y, &ray)) > 0)
+        vis.push_back(ray), vis_pixel.push_back(uint32_t(i));
+    }
+}
+
+void Renderer::Impl::TilePaths::restir_final(const Impl& r, std::span<const uint8_t> blocked) {
+  const RenderSettings& s = ctx->s;
+  for (size_t j = 0; j < vis.size(); ++j)
+    if (blocked[j]) rres[vis_pixel[j]].W = 0;
+  r.restir_reuse(*ctx->rp, s, x0, y0, x1 - x0, y1 - y0, rres, rsurf, rprev, rngs);
+  for (size_t i = 0; i < count; ++i) {
+    if (!rsurf[i].valid || !(rres[i].W > 0)) continue;
+    Ray ray;
+    const Vec3 c = r.restir_eval(rsurf[i], rres[i].y, &ray) * rres[i].W;
+    if (luminance(c) > 0 && is_finite(c))
+      shadow_rays.push_back(ray), shadows.push_back({c, uint32_t(i)});
+  }
+}
+
+void Renderer::Impl::TilePaths::finish_bounce(std::span<const uint8_t> blocked) {
+  for (size_t i = 0; i < shadows.size(); ++i)
+    if (!blocked[i])
+      paths[shadows[i].path].radiance = paths[shadows[i].path].radiance + shadows[i].contribution;
+  rays.swap(next_rays);
+  active.swap(next_active);
+}
+
+void Renderer::Impl::TilePaths::end(Accumulator& acc) const {
+  const RenderSettings& s = ctx->s;
+  for (size_t i = 0; i < count; ++i) {
+    const int x = x0 + int(i % size_t(x1 - x0)), y = y0 + int(i / size_t(x1 - x0));
+    add_sample(acc, size_t(y) * size_t(s.width) + size_t(x), paths[i].radiance, px[i], s.clamp);
+    Vec3 lc;
+    if (paths[i].cache_key && cache_sample(paths[i], s.clamp, lc))
+      cache_records->push_back({paths[i].cache_key, lc});
+  }
+}
+
+// ---- a wave of tiles -----------------------------------------------------------------------
+
+// The tiles of a wave and the wave's batches, kept from wave to wave (no page faults frame
+// after frame).
+struct Renderer::Impl::Wave {
+  std::vector<TilePaths> tiles;
+  std::vector<size_t> offsets;  // tile i's rays of a batch: offsets[i] .. offsets[i + 1]
+  std::vector<Ray> rays;
+  std::vector<SurfaceHit> hits;
+  std::vector<uint8_t> blocked;
+
+  // One batch of the tiles' rays (member `which` of each tile) in tile order.
+  template <class Which>
+  std::span<const Ray> gather(size_t n, Which which) {
+    offsets.resize(n + 1);
+    offsets[0] = 0;
+    for (size_t i = 0; i < n; ++i) offsets[i + 1] = offsets[i] + which(tiles[i]).size();
+    rays.resize(offsets[n]);
+    parallel_for(0, n, 8, [&](size_t b, size_t e) {
+      for (size_t i = b; i < e; ++i) {
+        const std::vector<Ray>& r = which(tiles[i]);
+        std::copy(r.begin(), r.end(), rays.begin() + std::ptrdiff_t(offsets[i]));
+      }
+    });
+    return rays;
+  }
+};
+
+void Renderer::Impl::WaveDelete::operator()(Wave* w) const {
+  delete w;
+}
+
+// One pass over a wave of tiles (the tiles `ids`, tile i's radiance cache records at
+// records[i]): the tiles' paths advance a bounce at a time, each bounce's rays of every tile
+// one batch for trace(), their shadow rays one for occluded() — batches large enough for the
+// batch API's ray streams (traverse/stream.h) where it finds them faster.
+void Renderer::Impl::render_wave(const WavePass& wp, std::span<const uint32_t> ids, int tiles_x,
+                                 std::vector<CacheRecord>* records, Accumulator& acc,
+                                 WaveStats& stats) {
+  if (!wave) wave.reset(new Wave);
+  Wave& wv = *wave;
+  const size_t n = ids.size();
+  if (wv.tiles.size() < n) wv.tiles.resize(n);
+  const double threads = double(current_thread_count());
+  auto timed = [&](auto&& fn, int kind, size_t rays) {
     const double t0 = now_ms();
     fn();
-    trace_ms += now_ms() - t0;
-    ray_counts[kind] += n;
+    stats.trace_ms += (now_ms() - t0) * threads;
+    stats.rays[kind] += rays;
   };
   auto capture_batch = [&](int kind, std::span<const Ray> r) {
-    if (!capture) return;
+    if (!capture || r.empty()) return;
     std::vector<Ray>& dst = kind == 0   ? capture->camera
                             : kind == 1 ? capture->bounce
                                         : capture->shadow;
@@ -288,229 +605,52 @@ void Renderer::Impl::render_tile(const CameraModel& cam, const CameraModel& prev
                  : capture->shadow_batches)
         .push_back(r.size());
   };
-
-  for (int depth = 0; !active.empty(); ++depth) {
-    const size_t n = active.size();
-    hits.resize(n);
-    capture_batch(depth == 0 ? 0 : 1, std::span<const Ray>(rays.data(), n));
-    timed([&] { trace(std::span<const Ray>(rays.data(), n), hits); }, depth == 0 ? 0 : 1, n);
-    next_rays.clear();
-    next_active.clear();
-    shadow_rays.clear();
-    shadows.clear();
-    // Shading reads scattered vertex data: fetch it ahead, indices first, then the vertices
-    // they name, then texels (misses overlap instead of stalling one hit at a time).
-    for (size_t k = 0; k < std::min(n, index_distance); ++k) prefetch_indices(hits[k]);
-    for (size_t k = 0; k < std::min(n, vertex_distance); ++k) prefetch_vertices(hits[k]);
-    // Paths the radiance cache likely answers at their second vertex: their cell (its slot
-    // prefetched) instead of texels.
-    const bool cache_stops = cache_records && depth == 1 && depth + 1 < s.max_depth;
-    cells.resize(n);
-    auto ahead = [&](size_t k) {
-      const PathState& q = paths[active[k]];
-      cells[k].key = 0;
-      if (!(cache_stops && q.rough && !q.train && !q.aov_pending))
-        prefetch_texels(hits[k]);
-      else if (hits[k].hit())
-        cells[k] = cache_cell(hits[k], rays[k]);
-    };
-    for (size_t k = 0; k < std::min(n, texel_distance); ++k) ahead(k);
-    for (size_t k = 0; k < n; ++k) {
-      if (k + index_distance < n) prefetch_indices(hits[k + index_distance]);
-      if (k + vertex_distance < n) prefetch_vertices(hits[k + vertex_distance]);
-      if (k + texel_distance < n) ahead(k + texel_distance);
-      PathState& ps = paths[active[k]];
-      Rng& rng = rngs[active[k]];
-      PixelSample& out = px[ps.pixel];
-      const Ray& ray = rays[k];
-      const SurfaceHit& h = hits[k];
-      if (!h.hit()) {
-        const Vec3 le = env_radiance(ray.dir);
-        float w = 1;
-        if (depth > 0 && p_env > 0) {
-          const float lp = p_env * env_pdf(ray.dir, ps.prev_normal);
-          w = ps.restir && depth == 1
-                  ? (lp > 0 ? 0.0f : 1.0f)  // what ReSTIR could sample, it has
-                  : ps.bsdf_pdf * ps.bsdf_pdf / (ps.bsdf_pdf * ps.bsdf_pdf + lp * lp);
-        }
-        ps.radiance = ps.radiance + ps.throughput * le * w;
-        if (sun_on) {  // a ray that escapes into the sun's disk
-          const Vec3 ls = sun_radiance_towards(normalize(ray.dir));
-          if (luminance(ls) > 0) {
-            float ws = 1;
-            if (depth > 0) {
-              const float lp = p_sun / sun_solid_angle;
-              ws = ps.restir && depth == 1
-                       ? (lp > 0 ? 0.0f : 1.0f)
-                       : ps.bsdf_pdf * ps.bsdf_pdf / (ps.bsdf_pdf * ps.bsdf_pdf + lp * lp);
-            }
-            ps.radiance = ps.radiance + ps.throughput * ls * ws;
-          }
-        }
-        if (ps.aov_pending) {
-          out.albedo = min(le, Vec3{1, 1, 1});
-          out.normal = {0, 0, 0};
-          out.roughness = 0;
-        }
-        continue;
-      }
-      // A path the radiance cache stops at its second vertex needs no more shading.
-      if (cells[k].key != 0) {
-        Vec3 lc;
-        if (cache_answer(h, cells[k], lc)) {
-          ps.radiance = ps.radiance + ps.throughput * lc;
-          continue;
-        }
-      }
-      // Surface interaction.
-      const InstanceShade& is = instances[h.instance];
-      const Surface sf = surface_at(h, ray);
-      const Vec3 &p = sf.p, &ng = sf.ng, &ns = sf.ns, &wo = sf.wo;
-      const Material& mat = *sf.mat;
-      const BsdfParams& bp = sf.bp;
-      if (depth == 0) {
-        out.depth = dot(p - cam.eye, cam.forward);
-        const Vec3 p_prev = is.identity ? p : is.prev_xf.point(sf.p_obj);
-        float fx, fy, gx, gy;
-        if (cam.project(p, fx, fy) && prev_cam.project(p_prev, gx, gy)) {
-          out.mx = gx - fx, out.my = gy - fy;
-          if (rp && !rp->same_camera && gx >= 0 && gy >= 0 && gx < float(s.width) &&
-              gy < float(s.height))
-            rprev[ps.pixel] = int32_t(int(gy) * s.width + int(gx));
-        }
-        if (rp && rp->same_camera) {
-          const size_t i = ps.pixel;
-          rprev[i] = int32_t((y0 + int(i) / (x1 - x0)) * s.width + x0 + int(i) % (x1 - x0));
-        }
-      }
-      const bool specular_surface = bp.metallic >= 0.5f && bp.alpha < specular_alpha;
-      if (ps.aov_pending) {
-        out.albedo = bp.base;
-        out.normal = ns;
-        out.roughness = sf.roughness;
-        if (!specular_surface || depth >= 3) ps.aov_pending = false;
-      }
-      // Emission (two-sided), weighted against light sampling.
-      if (luminance(mat.emission) > 0) {
-        const Vec3 le = emission_at(mat, sf.uv);
-        float w = 1;
-        if (depth > 0) {
-          const float lp =
-              light_pdf(h.instance, h.prim, h.t * h.t, std::fabs(sf.cos_hit), ray.org, use_tree);
-          w = ps.restir && depth == 1
-                  ? (lp > 0 ? 0.0f : 1.0f)
-                  : ps.bsdf_pdf * ps.bsdf_pdf / (ps.bsdf_pdf * ps.bsdf_pdf + lp * lp);
-        }
-        ps.radiance = ps.radiance + ps.throughput * le * w;
-      }
-      if (depth + 1 >= s.max_depth) continue;
-      // Radiance cache at the first bounce's surface: stop there with its cell's radiance
-      // (when the bounce is longer than a cell: contact light needs the path), or note the
-      // vertex so this path teaches the cell what it measures from here on.
-      if (cache_records && depth == 1 && ps.rough && bp.alpha >= cache_alpha_second) {
-        const RadianceCache::Cell cell = radiance_cache.cell(p, ng);
-        Vec3 lc;
-        if (!ps.train && h.t >= cell.size && radiance_cache.lookup(cell.key, lc)) {
-          ps.radiance = ps.radiance + ps.throughput * lc;
-          continue;
-        }
-        ps.cache_key = cell.key, ps.cache_radiance = ps.radiance,
-        ps.cache_throughput = ps.throughput;
-      }
-      const Basis frame(ns);
-      const Vec3 wo_l = frame.to_local(wo);
-      const Vec3 origin = offset_origin(p, ng);
-      // Next-event estimation: one light sample (an emissive triangle or the environment),
-      // or at the first hit ReSTIR's reservoir (shaded once the tile's reuse is done).
-      if (rp && depth == 0 && restir_eligible(sf)) {
-        RestirSurface& g = rsurf[ps.pixel];
-        g = {sf.p, ng, ns, wo_l, bp, out.depth, true};
-        ps.restir = true;  // its reservoir comes after the loop, from its block's pool
-      } else if (p_env > 0 || p_sun > 0 || local_light_count() > 0) {
-        Ray shadow;
-        Vec3 contribution;
-        if (sample_light(sf, frame, wo_l, origin, ps.throughput, rng, use_tree, shadow,
-                         contribution)) {
-          shadow_rays.push_back(shadow);
-          shadows.push_back({contribution, active[k]});
-        }
-      }
-      // Russian roulette at the first bounce (indirect_rate < 1): the pixels whose turn it is
-      // not stop here with their direct light; mirror-like surfaces always go on.
-      if (depth == 0 && s.indirect_rate < 1.0f && !specular_surface) {
-        const uint32_t px_x = uint32_t(x0 + int(ps.pixel % uint32_t(x1 - x0)));
-        const uint32_t px_y = uint32_t(y0 + int(ps.pixel / uint32_t(x1 - x0)));
-        if (!first_bounce_survives(px_x, px_y, s.frame + uint32_t(pass), s.indirect_rate)) continue;
-        ps.throughput = ps.throughput * (1.0f / s.indirect_rate);
-      }
-      // Continue the path by sampling the BSDF.
-      const float u0 = rng.uniform(), u1 = rng.uniform(), u2 = rng.uniform();
-      BsdfSample bs;
-      if (!bsdf_sample(bp, wo_l, u0, u1, u2, bs)) continue;
-      const Vec3 wi = frame.to_world(bs.wi);
-      if (dot(wi, ng) <= 0) continue;
-      ps.throughput = ps.throughput * bs.weight;
-      ps.bsdf_pdf = bs.pdf;
-      ps.prev_normal = ns;
-      ps.rough = bp.alpha >= cache_alpha_first;
-      if (depth + 1 >= s.rr_depth) {
-        const float q =
-            std::min(0.95f, std::max({ps.throughput.x, ps.throughput.y, ps.throughput.z}));
-        if (!(rng.uniform() < q)) continue;
-        ps.throughput = ps.throughput * (1.0f / q);
-      }
-      next_rays.push_back(Ray{origin, wi, 0.0f, INFINITY});
-      next_active.push_back(active[k]);
+  // Shadow rays (member `which` of each tile) traced; each tile gets its results.
+  auto shadows = [&](auto which, auto&& then) {
+    const std::span<const Ray> batch = wv.gather(n, which);
+    wv.blocked.resize(batch.size());
+    if (!batch.empty()) {
+      capture_batch(2, batch);
+      timed([&] { occluded(batch, wv.blocked); }, 2, batch.size());
     }
-    if (rp && depth == 0) {
-      // ReSTIR: visibility reuse (the biased mode drops initial samples that are blocked),
-      // temporal and spatial reuse, then one shadow ray per pixel for the reservoir's sample.
-      restir_candidates(s, x0, y0, x1 - x0, y1 - y0, pass, use_tree, rsurf, rres, rngs);
-      std::vector<Ray> vis;
-      std::vector<uint32_t> vis_pixel;
-      if (s.direct == DirectLighting::restir)
-        for (size_t i = 0; i < count; ++i) {
-          Ray r;
-          if (rsurf[i].valid && rres[i].W > 0 &&
-              luminance(restir_eval(rsurf[i], rres[i].y, &r)) > 0)
-            vis.push_back(r), vis_pixel.push_back(uint32_t(i));
-        }
-      if (!vis.empty()) {
-        blocked.resize(vis.size());
-        capture_batch(2, vis);
-        timed([&] { occluded(vis, blocked); }, 2, vis.size());
-        for (size_t j = 0; j < vis.size(); ++j)
-          if (blocked[j]) rres[vis_pixel[j]].W = 0;
-      }
-      restir_reuse(*rp, s, x0, y0, x1 - x0, y1 - y0, rres, rsurf, rprev, rngs);
-      for (size_t i = 0; i < count; ++i) {
-        if (!rsurf[i].valid || !(rres[i].W > 0)) continue;
-        Ray r;
-        const Vec3 c = restir_eval(rsurf[i], rres[i].y, &r) * rres[i].W;
-        if (luminance(c) > 0 && is_finite(c))
-          shadow_rays.push_back(r), shadows.push_back({c, uint32_t(i)});
-      }
+    parallel_for(0, n, 1, [&](size_t b, size_t e) {
+      for (size_t i = b; i < e; ++i)
+        then(wv.tiles[i], std::span<const uint8_t>(wv.blocked.data() + wv.offsets[i],
+                                                   wv.offsets[i + 1] - wv.offsets[i]));
+    });
+  };
+  parallel_for(0, n, 1, [&](size_t b, size_t e) {
+    for (size_t i = b; i < e; ++i)
+      wv.tiles[i].begin(wp, int(ids[i] % uint32_t(tiles_x)), int(ids[i] / uint32_t(tiles_x)),
+                        records ? &records[i] : nullptr);
+  });
+  for (int depth = 0;; ++depth) {
+    const std::span<const Ray> batch =
+        wv.gather(n, [](TilePaths& t) -> const std::vector<Ray>& { return t.rays; });
+    if (batch.empty()) break;
+    wv.hits.resize(batch.size());
+    capture_batch(depth == 0 ? 0 : 1, batch);
+    timed([&] { trace(batch, wv.hits); }, depth == 0 ? 0 : 1, batch.size());
+    parallel_for(0, n, 1, [&](size_t b, size_t e) {
+      for (size_t i = b; i < e; ++i)
+        wv.tiles[i].shade(*this, depth,
+                          std::span<const SurfaceHit>(wv.hits.data() + wv.offsets[i],
+                                                      wv.offsets[i + 1] - wv.offsets[i]));
+    });
+    if (wp.rp && depth == 0) {
+      parallel_for(0, n, 1, [&](size_t b, size_t e) {
+        for (size_t i = b; i < e; ++i) wv.tiles[i].restir_initial(*this);
+      });
+      shadows(
+          [](TilePaths& t) -> const std::vector<Ray>& { return t.vis; },
+          [&](TilePaths& t, std::span<const uint8_t> blocked) { t.restir_final(*this, blocked); });
     }
-    if (!shadow_rays.empty()) {
-      blocked.resize(shadow_rays.size());
-      capture_batch(2, shadow_rays);
-      timed([&] { occluded(shadow_rays, blocked); }, 2, shadow_rays.size());
-      for (size_t i = 0; i < shadows.size(); ++i)
-        if (!blocked[i])
-          paths[shadows[i].path].radiance =
-              paths[shadows[i].path].radiance + shadows[i].contribution;
-    }
-    rays.swap(next_rays);
-    active.swap(next_active);
+    shadows([](TilePaths& t) -> const std::vector<Ray>& { return t.shadow_rays; },
+            [](TilePaths& t, std::span<const uint8_t> blocked) { t.finish_bounce(blocked); });
   }
-
-  for (size_t i = 0; i < count; ++i) {
-    const int x = x0 + int(i % size_t(x1 - x0)), y = y0 + int(i / size_t(x1 - x0));
-    add_sample(acc, size_t(y) * size_t(s.width) + size_t(x), paths[i].radiance, px[i], s.clamp);
-    Vec3 lc;
-    if (paths[i].cache_key && cache_sample(paths[i], s.clamp, lc))
-      cache_records->push_back({paths[i].cache_key, lc});
-  }
+  parallel_for(0, n, 1, [&](size_t b, size_t e) {
+    for (size_t i = b; i < e; ++i) wv.tiles[i].end(acc);
+  });
 }
 
 }  // namespace kestrel

@@ -91,6 +91,10 @@ void RendererTesting::set_capture(Renderer& renderer, RayCapture* capture) {
   renderer.impl_->capture = capture;
 }
 
+void RendererTesting::set_wave_tiles(Renderer& renderer, size_t tiles) {
+  renderer.impl_->wave_tiles = std::max<size_t>(1, tiles);
+}
+
 std::array<double, 3> RendererTesting::retrace(const Renderer& renderer, const RayCapture& c) {
   const Renderer::Impl* impl_ = renderer.impl_.get();
   std::array<double, 3> ms{0, 0, 0};
@@ -200,11 +204,13 @@ void Renderer::Impl::render_passes(const Camera& camera, const RenderSettings& s
   const CameraModel prev(prev_camera ? *prev_camera : camera, s.width, s.height);
   const int tiles_x = (s.width + tile_size - 1) / tile_size;
   const size_t tiles = only ? only->size() : render_tile_count(s.width, s.height);
-  std::vector<double> tile_trace(tiles), tile_total(tiles);
-  std::vector<std::array<uint64_t, 3>> tile_rays(tiles);
   const double start = now_ms();
   int passes = 0;
-  std::atomic<size_t> tiles_done{0};
+  size_t tiles_done = 0;
+  WaveStats stats;
+  double stats_thread_ms = 0;
+  std::vector<uint32_t> ids(std::min(tiles, wave_tiles));
+  const bool use_tree = s.light_sampling == LightSampling::tree && !light_tree.empty();
   const bool restir = s.direct != DirectLighting::nee;
   if (!restir) restir_valid = false;
   if (!s.radiance_cache && cache_valid) radiance_cache.clear(), cache_valid = false;
@@ -237,28 +243,24 @@ void Renderer::Impl::render_passes(const Camera& camera, const RenderSettings& s
       for (auto& r : cache_records) r.clear();
       cache_records.resize(tiles);
     }
-    parallel_for(0, tiles, 1, [&](size_t b, size_t e) {
-      for (size_t i = b; i < e; ++i) {
-        const size_t t = only ? size_t((*only)[i]) : i;
-        const double t0 = now_ms();
-        uint64_t counts[3] = {0, 0, 0};
-        double tms = 0;
-        render_tile(cam, prev, s, int(t % size_t(tiles_x)), int(t / size_t(tiles_x)), pass, jx, jy,
-                    restir ? &rp : nullptr, s.radiance_cache ? &cache_records[i] : nullptr, acc,
-                    tms, counts);
-        tile_trace[i] += tms;
-        tile_total[i] += now_ms() - t0;
-        for (int k = 0; k < 3; ++k) tile_rays[i][size_t(k)] += counts[k];
-        const size_t done = ++tiles_done;
-        if (s.progress && (done % 16 == 0 || done == tiles * size_t(s.spp))) {
-          const double f = double(done) / double(tiles * size_t(s.spp));
-          const int bar = int(f * 40);
-          std::fprintf(stderr, "\rrender [%.*s%*s] %5.1f%%  %.1f s", bar,
-                       "########################################", 40 - bar, "", 100 * f,
-                       (now_ms() - start) / 1000);
-        }
+    // Waves of up to wave_tiles tiles in order (the same waves for any thread count).
+    const WavePass wp{cam, prev, s, restir ? &rp : nullptr, pass, jx, jy, use_tree};
+    for (size_t w0 = 0; w0 < tiles; w0 += wave_tiles) {
+      const size_t w1 = std::min(tiles, w0 + wave_tiles);
+      for (size_t i = w0; i < w1; ++i) ids[i - w0] = only ? (*only)[i] : uint32_t(i);
+      const double t0 = now_ms();
+      render_wave(wp, std::span<const uint32_t>(ids.data(), w1 - w0), tiles_x,
+                  s.radiance_cache ? &cache_records[w0] : nullptr, acc, stats);
+      stats_thread_ms += (now_ms() - t0) * double(current_thread_count());
+      tiles_done += w1 - w0;
+      if (s.progress) {
+        const double f = double(tiles_done) / double(tiles * size_t(s.spp));
+        const int bar = int(f * 40);
+        std::fprintf(stderr, "\rrender [%.*s%*s] %5.1f%%  %.1f s", bar,
+                     "########################################", 40 - bar, "", 100 * f,
+                     (now_ms() - start) / 1000);
       }
-    });
+    }
     passes = pass + 1;
     if (s.radiance_cache) {  // the tiles' samples in tile order: the same for any threads
       for (const auto& r : cache_records) radiance_cache.add(r);
@@ -271,13 +273,11 @@ void Renderer::Impl::render_passes(const Camera& camera, const RenderSettings& s
   if (s.progress) std::fprintf(stderr, "\n");
   frame.stats.ms += now_ms() - start;
   frame.stats.passes = passes;
-  for (size_t t = 0; t < tiles; ++t) {
-    frame.stats.trace_ms += tile_trace[t];
-    frame.stats.total_thread_ms += tile_total[t];
-    frame.stats.camera_rays += tile_rays[t][0];
-    frame.stats.bounce_rays += tile_rays[t][1];
-    frame.stats.shadow_rays += tile_rays[t][2];
-  }
+  frame.stats.trace_ms += stats.trace_ms;
+  frame.stats.total_thread_ms += stats_thread_ms;
+  frame.stats.camera_rays += stats.rays[0];
+  frame.stats.bounce_rays += stats.rays[1];
+  frame.stats.shadow_rays += stats.rays[2];
 }
 
 Frame Renderer::render(const Camera& camera, const RenderSettings& s,

@@ -1,5 +1,5 @@
 // The renderer's private state, shared by its files: renderer.cpp (the Renderer, passes and
-// tiles, scene sync), integrator.cpp (the wavefront path tracer of one tile), lights.cpp
+// tiles, scene sync), integrator.cpp (the wavefront path tracer over a wave of tiles), lights.cpp
 // (materials, area lights), environment.cpp (environment light), texture.cpp (texel fetches).
 #pragma once
 #include <algorithm>
@@ -24,6 +24,10 @@ namespace kestrel {
 namespace render {
 
 constexpr int tile_size = 32;
+// Tiles traced together (render_wave): each bounce of a wave is one batch of up to
+// wave_tiles x tile_size^2 rays. Fixed, so the waves (and the images) are the same for any
+// thread count.
+constexpr size_t wave_tiles = 256;
 constexpr float specular_alpha =
     0.01f;  // surfaces below this alpha (and metallic) are "specular" for the AOVs
 
@@ -121,7 +125,7 @@ struct RestirBuffer {
   std::vector<Reservoir> res;
   std::vector<RestirSurface> surf;
 };
-// What render_tile needs for ReSTIR in one pass.
+// What the path tracer needs for ReSTIR in one pass.
 struct RestirPass {
   const RestirBuffer* prev = nullptr;  // null: no history
   RestirBuffer* cur = nullptr;
@@ -377,10 +381,29 @@ struct Renderer::Impl {
   void prefetch_indices(const SurfaceHit& h) const;
   void prefetch_vertices(const SurfaceHit& h) const;
   void prefetch_texels(const SurfaceHit& h) const;
-  void render_tile(const CameraModel& cam, const CameraModel& prev_cam, const RenderSettings& s,
-                   int tx, int ty, int pass, float jx, float jy, const RestirPass* rp,
-                   std::vector<CacheRecord>* cache_records, Accumulator& acc, double& trace_ms,
-                   uint64_t ray_counts[3]) const;
+  // integrator.cpp: the path tracer over a wave of tiles.
+  struct WavePass {  // what every tile of a wave shares
+    const CameraModel& cam;
+    const CameraModel& prev_cam;
+    const RenderSettings& s;
+    const RestirPass* rp;
+    int pass;
+    float jx, jy;
+    bool use_tree;
+  };
+  struct TilePaths;
+  struct Wave;
+  struct WaveDelete {
+    void operator()(Wave* w) const;
+  };
+  struct WaveStats {
+    double trace_ms = 0;           // in trace()/occluded(), wall time x threads
+    uint64_t rays[3] = {0, 0, 0};  // camera, bounce, shadow
+  };
+  std::unique_ptr<Wave, WaveDelete> wave;  // the wave's storage, kept between renders
+  size_t wave_tiles = render::wave_tiles;  // RendererTesting::set_wave_tiles
+  void render_wave(const WavePass& wp, std::span<const uint32_t> ids, int tiles_x,
+                   std::vector<CacheRecord>* records, Accumulator& acc, WaveStats& stats);
 };
 
 }  // namespace kestrel

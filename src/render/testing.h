@@ -1,5 +1,6 @@
-// Benchmark hooks of the renderer (internal): record every ray batch a render traces, and
-// trace them again alone (bench/render_bench.cpp: in-render against raw ray throughput).
+// Benchmark and test hooks of the renderer (internal): record every ray batch a render traces,
+// and trace them again alone (bench/render_bench.cpp: in-render against raw ray throughput);
+// the number of tiles traced together.
 #pragma once
 #include <array>
 #include <cstddef>
@@ -22,6 +23,9 @@ struct RendererTesting {
   /// Traces captured batches again, alone, with the same batch sizes: ms for camera,
   /// bounce and shadow rays.
   static std::array<double, 3> retrace(const Renderer& renderer, const RayCapture& capture);
+  /// Tiles per wave (each bounce of a wave's tiles one batch); the default is
+  /// render::wave_tiles. The image is the same for any value.
+  static void set_wave_tiles(Renderer& renderer, size_t tiles);
 };
 
 }  // namespace kestrel
