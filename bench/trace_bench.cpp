@@ -5,10 +5,13 @@
 // (any hit) from the primary hits towards a point light, and diffuse bounce rays. Each ray
 // set is traced by kestrel (the library's default choice, and optionally every layout x ISA)
 // and by Embree (rtcIntersect1 / rtcOccluded1, and rtcIntersect16 for packets), runs
-// alternating A B A B; medians of Mrays/s, the ratio, and how many hits agree.
+// alternating A B A B after untimed warm-up calls (--warmup for kestrel, whose Accel learns
+// which way to trace in its first batches; one for Embree); medians of Mrays/s, the ratio,
+// and how many hits agree.
 // With --amortization, also the build-vs-trace curve (see docs/benchmarks.md).
 //
-//   kestrel_trace_bench [--scenes a.obj,...] [--res 1280x720] [--repeat 5] [--all-kernels]
+//   kestrel_trace_bench [--scenes a.obj,...] [--res 1280x720] [--repeat 5] [--warmup 4]
+//                       [--all-kernels]
 //                       [--builder B] [--peer-quality low|medium|high]
 //                       [--json F] [--markdown F] [--amortization F.csv] [--quick]
 #include <fmt/format.h>
@@ -104,7 +107,7 @@ int main(int argc, char** argv) {
   uint32_t max_leaf = 8;
   std::string scenes_arg, json_path = "trace_bench.json", md_path, amort_path, res = "1280x720";
   std::string scene_root = KESTREL_SCENE_ROOT;
-  int repeat = 5;
+  int repeat = 5, warmup_calls = 4;
   bool quick = false, all_kernels = false;
   app.add_option("--scenes", scenes_arg,
                  "comma-separated scene files (path[:view]); default: the shared scenes");
@@ -112,6 +115,10 @@ int main(int argc, char** argv) {
   app.add_option("--res", res, "primary ray resolution WxH");
   app.add_option("--repeat", repeat, "rounds, alternating kestrel and Embree (median reported)")
       ->check(CLI::Range(1, 100));
+  app.add_option("--warmup", warmup_calls,
+                 "untimed kestrel calls per ray set before the timed rounds (its timed choices "
+                 "settle in the first four)")
+      ->check(CLI::Range(0, 100));
   app.add_option("--builder", builder_arg,
                  "kestrel builder for the trace runs (default: the library's default)");
   app.add_option(
@@ -135,7 +142,7 @@ int main(int argc, char** argv) {
   std::vector<SceneSpec> scenes;
   if (quick) {
     scenes = {{"builtin:cornell_box", "front"}};
-    repeat = 1;
+    repeat = 1, warmup_calls = 1;
     width = 160, height = 90;
   } else if (!scenes_arg.empty()) {
     std::stringstream ss(scenes_arg);
@@ -246,6 +253,24 @@ int main(int argc, char** argv) {
           TraceOptions opt = variants[vi].options;
           if (kind.packets) opt.packets = true;
           if (kind.stream) opt.stream = kind.stream;
+            // Untimed first: kestrel's Accel times some batches each way while it learns which
+            // way is faster (packets or single rays, ray streams or not; stream.h's
+            // PacketChoice: the first four whole batches alternate), so the timed rounds see the
+            // choice a renderer's steady state makes; Embree's first call warms its caches.
+#ifdef KESTREL_HAVE_EMBREE
+          const auto peer = [&] {
+            if (kind.any_hit)
+              embree.occluded(rays, occ);
+            else if (kind.packets)
+              embree.intersect16(rays, theirs);
+            else
+              embree.intersect(rays, theirs);
+          };
+#endif
+          for (int w = 0; w < warmup_calls; ++w) trace(accels[vi], rays, ours, kind.any_hit, opt);
+#ifdef KESTREL_HAVE_EMBREE
+          if (vi == 0) peer();
+#endif
           std::vector<double> a_ms, b_ms;
           for (int r = 0; r < repeat; ++r) {
             Timer ta;
@@ -254,12 +279,7 @@ int main(int argc, char** argv) {
 #ifdef KESTREL_HAVE_EMBREE
             if (vi == 0) {
               Timer tb;
-              if (kind.any_hit)
-                embree.occluded(rays, occ);
-              else if (kind.packets)
-                embree.intersect16(rays, theirs);
-              else
-                embree.intersect(rays, theirs);
+              peer();
               b_ms.push_back(tb.ms());
             }
 #endif

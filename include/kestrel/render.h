@@ -216,8 +216,8 @@ int aov_channels(Aov aov);
 
 struct RenderStats {
   double ms = 0;               ///< wall time of the render
-  double trace_ms = 0;         ///< time inside trace/occluded calls (summed over threads)
-  double total_thread_ms = 0;  ///< time inside the render's tiles (summed over threads)
+  double trace_ms = 0;         ///< time inside trace/occluded calls (wall time x threads)
+  double total_thread_ms = 0;  ///< time inside the render's passes (wall time x threads)
   uint64_t camera_rays = 0, bounce_rays = 0, shadow_rays = 0;
   int passes = 0;  ///< samples per pixel done
   uint64_t rays() const { return camera_rays + bounce_rays + shadow_rays; }
