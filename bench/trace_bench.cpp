@@ -253,10 +253,6 @@ int main(int argc, char** argv) {
           TraceOptions opt = variants[vi].options;
           if (kind.packets) opt.packets = true;
           if (kind.stream) opt.stream = kind.stream;
-            // Untimed first: kestrel's Accel times some batches each way while it learns which
-            // way is faster (packets or single rays, ray streams or not; stream.h's
-            // PacketChoice: the first four whole batches alternate), so the timed rounds see the
-            // choice a renderer's steady state makes; Embree's first call warms its caches.
 #ifdef KESTREL_HAVE_EMBREE
           const auto peer = [&] {
             if (kind.any_hit)
@@ -267,6 +263,10 @@ int main(int argc, char** argv) {
               embree.intersect(rays, theirs);
           };
 #endif
+          // Untimed first: kestrel's Accel times some batches each way while it learns which
+          // way is faster (packets or single rays, ray streams or not; stream.h's
+          // PacketChoice: the first four whole batches alternate), so the timed rounds see the
+          // choice a renderer's steady state makes; Embree's first call warms its caches.
           for (int w = 0; w < warmup_calls; ++w) trace(accels[vi], rays, ours, kind.any_hit, opt);
 #ifdef KESTREL_HAVE_EMBREE
           if (vi == 0) peer();
