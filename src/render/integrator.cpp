@@ -128,103 +128,6 @@ RadianceCache::Cell Renderer::Impl::cache_cell(const SurfaceHit& h, const Ray& r
   return cell;
 }
 
-// ---- next-event estimation -------------------------------------------------------------------
-
-bool Renderer::Impl::punctual_light(const Punctual& q, Vec3 origin, Vec3& wi, Vec3& dir, Vec3& le,
-                                    float& tmax) const {
-  if (q.type == Light::Type::directional) {
-    wi = dir = -q.direction;
-    le = q.intensity;  // irradiance
-    tmax = INFINITY;
-    return true;
-  }
-  dir = q.position - origin;
-  const float dist2 = dot(dir, dir);
-  if (!(dist2 > 0)) return false;
-  const float dist = std::sqrt(dist2);
-  wi = dir * (1.0f / dist);
-  float k = 1.0f / dist2;
-  if (q.range > 0) {  // glTF's recommended window: (1 - (d / range)^4)^2, clamped
-    const float x = dist / q.range, x4 = x * x * x * x;
-    const float win = std::clamp(1 - x4, 0.0f, 1.0f);
-    k *= win * win;
-  }
-  if (q.type == Light::Type::spot) {
-    const float a = std::clamp(dot(q.direction, -wi) * q.spot_scale + q.spot_offset, 0.0f, 1.0f);
-    k *= a * a;
-  }
-  le = q.intensity * k;
-  tmax = 1.0f - 1e-3f;
-  return true;
-}
-
-Vec3 Renderer::Impl::sun_sample(float u1, float u2) const {
-  const float cos_t = 1 - u1 * (1 - sun_cos_max),
-              sin_t = std::sqrt(std::max(0.0f, 1 - cos_t * cos_t));
-  float sin_phi, cos_phi;  // of phi = 2 pi u2
-  sincos_2pi(u2, sin_phi, cos_phi);
-  return Basis(sun_dir).to_world({sin_t * cos_phi, sin_t * sin_phi, cos_t});
-}
-
-// One light sample at a surface: the environment, the sun, or a local light (an emissive
-// triangle or a punctual light, by power); MIS weighted against the BSDF except for punctual
-// lights (deltas): the shadow ray to trace and what it adds when unblocked.
-bool Renderer::Impl::sample_light(const Surface& sf, const Basis& frame, Vec3 wo_l, Vec3 origin,
-                                  Vec3 throughput, Rng& rng, bool tree, Ray& shadow,
-                                  Vec3& contribution) const {
-  const Vec3 &ng = sf.ng, &ns = sf.ns;
-  const BsdfParams& bp = sf.bp;
-  const float ul = rng.uniform(), u1 = rng.uniform(), u2 = rng.uniform();
-  Vec3 wi, le;
-  float pdf = 0, tmax = INFINITY;
-  bool delta = false;  // a punctual light: pdf is its pick probability, no MIS
-  Vec3 dir;
-  if (ul < p_env) {
-    float epdf;
-    wi = env_sample(u1, u2, ns, epdf);
-    pdf = p_env * epdf;
-    le = env_radiance(wi);
-    dir = wi;
-  } else if (ul < p_env + p_sun) {  // the sun: uniform in its cone
-    wi = sun_sample(u1, u2);
-    pdf = p_sun / sun_solid_angle;
-    le = sun_radiance;
-    dir = wi;
-  } else {
-    const LightDraw d =
-        local_light_sample(origin, tree, (ul - p_env - p_sun) / (1 - p_env - p_sun), u1, u2);
-    const size_t li = d.y.id;
-    if (li >= lights.size()) {  // a punctual light: a delta, no MIS
-      pdf = d.pdf;              // a probability, not a density
-      delta = true;
-      if (!punctual_light(punctual[li - lights.size()], origin, wi, dir, le, tmax)) return false;
-    } else {
-      const LightTri& l = lights[li];
-      const float lb1 = d.y.v.x, lb2 = d.y.v.y;  // weights of vertices 1 and 2
-      const Vec3 q = l.p0 + l.e1 * lb1 + l.e2 * lb2;
-      dir = q - origin;
-      const float dist2 = dot(dir, dir);
-      wi = dir * (1.0f / std::sqrt(dist2));
-      const float cos_l = std::fabs(dot(l.normal, wi));
-      le = light_emission(l, lb1, lb2);
-      pdf = cos_l > 0 && l.area > 0 ? d.pdf * dist2 / cos_l : 0.0f;  // area -> solid angle
-      tmax = 1.0f - 1e-3f;
-    }
-  }
-  if (!(pdf > 0 && dot(wi, ng) > 0 && luminance(le) > 0)) return false;
-  const Vec3 wi_l = frame.to_local(wi);
-  const Vec3 f = bsdf_eval(bp, wo_l, wi_l);
-  if (!(luminance(f) > 0)) return false;
-  float w = 1;
-  if (!delta) {
-    const float bpdf = bsdf_pdf(bp, wo_l, wi_l);
-    w = pdf * pdf / (pdf * pdf + bpdf * bpdf);
-  }
-  shadow = Ray{origin, dir, 0.0f, tmax};
-  contribution = throughput * f * le * (w / pdf);
-  return true;
-}
-
 // Whether pixel (x, y)'s path goes on after its first hit in frame `frame` at the given
 // indirect rate: 0.5 a checkerboard, 0.25 one pixel of each 2x2 block, both cycling with the
 // frame so that every pixel goes on once in 1 / rate frames.
@@ -583,11 +486,11 @@ void Renderer::Impl::WaveDelete::operator()(Wave* w) const {
 void Renderer::Impl::render_wave(const WavePass& wp, std::span<const uint32_t> ids, int tiles_x,
                                  std::vector<CacheRecord>* records, Accumulator& acc,
                                  WaveStats& stats) {
+  const double start = now_ms(), threads = double(current_thread_count());
   if (!wave) wave.reset(new Wave);
   Wave& wv = *wave;
   const size_t n = ids.size();
   if (wv.tiles.size() < n) wv.tiles.resize(n);
-  const double threads = double(current_thread_count());
   auto timed = [&](auto&& fn, int kind, size_t rays) {
     const double t0 = now_ms();
     fn();
@@ -651,6 +554,7 @@ void Renderer::Impl::render_wave(const WavePass& wp, std::span<const uint32_t> i
   parallel_for(0, n, 1, [&](size_t b, size_t e) {
     for (size_t i = b; i < e; ++i) wv.tiles[i].end(acc);
   });
+  stats.thread_ms += (now_ms() - start) * threads;
 }
 
 }  // namespace kestrel

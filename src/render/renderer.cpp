@@ -91,7 +91,7 @@ void RendererTesting::set_capture(Renderer& renderer, RayCapture* capture) {
 }
 
 void RendererTesting::set_wave_tiles(Renderer& renderer, size_t tiles) {
-  renderer.impl_->wave_tiles = std::max<size_t>(1, tiles);
+  renderer.impl_->tiles_per_wave = std::max<size_t>(1, tiles);
 }
 
 std::array<double, 3> RendererTesting::retrace(const Renderer& renderer, const RayCapture& c) {
@@ -207,8 +207,7 @@ void Renderer::Impl::render_passes(const Camera& camera, const RenderSettings& s
   int passes = 0;
   size_t tiles_done = 0;
   WaveStats stats;
-  double stats_thread_ms = 0;
-  std::vector<uint32_t> ids(std::min(tiles, wave_tiles));
+  std::vector<uint32_t> ids(std::min(tiles, tiles_per_wave));
   const bool use_tree = s.light_sampling == LightSampling::tree && !light_tree.empty();
   const bool restir = s.direct != DirectLighting::nee;
   if (!restir) restir_valid = false;
@@ -242,15 +241,13 @@ void Renderer::Impl::render_passes(const Camera& camera, const RenderSettings& s
       for (auto& r : cache_records) r.clear();
       cache_records.resize(tiles);
     }
-    // Waves of up to wave_tiles tiles in order (the same waves for any thread count).
+    // Waves of up to tiles_per_wave tiles in order (the same waves for any thread count).
     const WavePass wp{cam, prev, s, restir ? &rp : nullptr, pass, jx, jy, use_tree};
-    for (size_t w0 = 0; w0 < tiles; w0 += wave_tiles) {
-      const size_t w1 = std::min(tiles, w0 + wave_tiles);
+    for (size_t w0 = 0; w0 < tiles; w0 += tiles_per_wave) {
+      const size_t w1 = std::min(tiles, w0 + tiles_per_wave);
       for (size_t i = w0; i < w1; ++i) ids[i - w0] = only ? (*only)[i] : uint32_t(i);
-      const double t0 = now_ms();
       render_wave(wp, std::span<const uint32_t>(ids.data(), w1 - w0), tiles_x,
                   s.radiance_cache ? &cache_records[w0] : nullptr, acc, stats);
-      stats_thread_ms += (now_ms() - t0) * double(current_thread_count());
       tiles_done += w1 - w0;
       if (s.progress) {
         const double f = double(tiles_done) / double(tiles * size_t(s.spp));
@@ -273,7 +270,7 @@ void Renderer::Impl::render_passes(const Camera& camera, const RenderSettings& s
   frame.stats.ms += now_ms() - start;
   frame.stats.passes = passes;
   frame.stats.trace_ms += stats.trace_ms;
-  frame.stats.total_thread_ms += stats_thread_ms;
+  frame.stats.total_thread_ms += stats.thread_ms;
   frame.stats.camera_rays += stats.rays[0];
   frame.stats.bounce_rays += stats.rays[1];
   frame.stats.shadow_rays += stats.rays[2];

@@ -1,6 +1,7 @@
 // The renderer's private state, shared by its files: renderer.cpp (the Renderer, passes and
-// tiles, scene sync), integrator.cpp (the wavefront path tracer over a wave of tiles), lights.cpp
-// (materials, area lights), environment.cpp (environment light), texture.cpp (texel fetches).
+// tiles, scene sync), integrator.cpp (the wavefront path tracer over a wave of tiles),
+// lights.cpp (materials, area lights, NEE's light sample), environment.cpp (environment
+// light), texture.cpp (texel fetches).
 #pragma once
 #include <algorithm>
 #include <chrono>
@@ -398,10 +399,11 @@ struct Renderer::Impl {
   };
   struct WaveStats {
     double trace_ms = 0;           // in trace()/occluded(), wall time x threads
+    double thread_ms = 0;          // in render_wave, wall time x threads
     uint64_t rays[3] = {0, 0, 0};  // camera, bounce, shadow
   };
   std::unique_ptr<Wave, WaveDelete> wave;  // the wave's storage, kept between renders
-  size_t wave_tiles = render::wave_tiles;  // RendererTesting::set_wave_tiles
+  size_t tiles_per_wave = wave_tiles;      // RendererTesting::set_wave_tiles
   void render_wave(const WavePass& wp, std::span<const uint32_t> ids, int tiles_x,
                    std::vector<CacheRecord>* records, Accumulator& acc, WaveStats& stats);
 };
