@@ -84,35 +84,6 @@ inline unsigned compress_ids(uint32_t* dst, typename Simd<L>::I ids, unsigned ma
   return k;
 }
 
-// A ray's closest hit so far.
-struct Closest {
-  float t, v, w, det;
-  uint32_t id;
-};
-
-// The blocks of leaf `ref` against one ray (as trace_ray's leaf); any hit: true at the first
-// hit before c.t.
-template <bool AnyHit>
-[[gnu::always_inline]] inline bool leaf_ray(const TriangleBlock* blocks, uint32_t ref,
-                                            const TriRay& tri, Closest& c) {
-  for (const TriangleBlock* blk = blocks + (ref & ~wide_leaf_bit);; ++blk) {
-    const BlockHits h = intersect_block<AnyHit>(tri, *blk);
-    for (unsigned m = h.mask; m; m &= m - 1) {
-      const unsigned i = ctz(m);
-      const uint32_t id = blk->prim_id[i] & ~block_last_bit;
-      if (AnyHit) {
-        if (h.t[i] < c.t) {
-          c.t = h.t[i], c.id = id;
-          return true;
-        }
-      } else if (closer(h.t[i], id, c.t, c.id)) {
-        c = {h.t[i], h.v[i], h.w[i], h.det[i], id};
-      }
-    }
-    if (blk->prim_id[0] & block_last_bit) return false;
-  }
-}
-
 // The stream's rays, by position in the class order, one array per quantity (gathered by lane).
 struct StreamRays {
   float *ox, *oy, *oz, *dx, *dy, *dz, *ix, *iy, *iz, *tmin, *cull;

@@ -114,30 +114,55 @@ struct TriRay {
   }
 };
 
-// Candidate hits of one block: lanes with a hit at t > tmin, and the values the hit needs.
-struct BlockHits {
+// The vertex rows of the triangles tested at once: one block (4 lanes), or with AVX2 two
+// consecutive blocks of a leaf side by side (8 lanes, `Rows8`). row(k, off) is vertex k's
+// row at float offset off (axis * 4) of each block.
+struct Rows4 {
+  static constexpr int lanes = 4;
+  const TriangleBlock* blk;
+  vf4 row(int k, int off) const { return Simd<4>::load(&blk->v[k][0][0] + off); }
+};
+#ifdef __AVX2__
+struct Rows8 {
+  static constexpr int lanes = 8;
+  const TriangleBlock* blk;  // blk[0] and blk[1]
+  vf8 row(int k, int off) const {
+    const vf4 lo = Simd<4>::load(&blk[0].v[k][0][0] + off),
+              hi = Simd<4>::load(&blk[1].v[k][0][0] + off);
+    return __builtin_shufflevector(lo, hi, 0, 1, 2, 3, 4, 5, 6, 7);
+  }
+};
+#endif
+
+// Candidate hits of the triangles tested at once: lanes with a hit at t > tmin, and the
+// values the hit needs.
+template <int L>
+struct HitsOf {
+  using F = typename Simd<L>::F;
   unsigned mask;
-  vf4 t, v, w, det;
+  F t, v, w, det;
 };
+using BlockHits = HitsOf<4>;
 
-// The sheared, permuted vertices of a block relative to the ray's origin: the first step of
-// the watertight test.
+// The sheared, permuted vertices relative to the ray's origin: the first step of the
+// watertight test.
+template <int L>
 struct Sheared {
-  vf4 akx, aky, akz, bkx, bky, bkz, ckx, cky, ckz;
-  vf4 ax, ay, bx, by, cx, cy;
+  using F = typename Simd<L>::F;
+  F akx, aky, akz, bkx, bky, bkz, ckx, cky, ckz;
+  F ax, ay, bx, by, cx, cy;
 };
 
-inline void shear(const TriRay& r, const TriangleBlock& blk, Sheared& s) {
-  using S = Simd<4>;
-  const float* V0 = &blk.v[0][0][0];
-  const float* V1 = &blk.v[1][0][0];
-  const float* V2 = &blk.v[2][0][0];
+template <class Rows>
+inline void shear(const TriRay& r, const Rows& rows, Sheared<Rows::lanes>& s) {
+  using S = Simd<Rows::lanes>;
+  using F = typename S::F;
   const int kx = r.kx * 4, ky = r.ky * 4, kz = r.kz * 4;
-  const vf4 okx = S::splat(r.org[r.kx]), oky = S::splat(r.org[r.ky]), okz = S::splat(r.org[r.kz]);
-  const vf4 sx = S::splat(r.sx), sy = S::splat(r.sy);
-  s.akx = S::load(V0 + kx) - okx, s.aky = S::load(V0 + ky) - oky, s.akz = S::load(V0 + kz) - okz;
-  s.bkx = S::load(V1 + kx) - okx, s.bky = S::load(V1 + ky) - oky, s.bkz = S::load(V1 + kz) - okz;
-  s.ckx = S::load(V2 + kx) - okx, s.cky = S::load(V2 + ky) - oky, s.ckz = S::load(V2 + kz) - okz;
+  const F okx = S::splat(r.org[r.kx]), oky = S::splat(r.org[r.ky]), okz = S::splat(r.org[r.kz]);
+  const F sx = S::splat(r.sx), sy = S::splat(r.sy);
+  s.akx = rows.row(0, kx) - okx, s.aky = rows.row(0, ky) - oky, s.akz = rows.row(0, kz) - okz;
+  s.bkx = rows.row(1, kx) - okx, s.bky = rows.row(1, ky) - oky, s.bkz = rows.row(1, kz) - okz;
+  s.ckx = rows.row(2, kx) - okx, s.cky = rows.row(2, ky) - oky, s.ckz = rows.row(2, kz) - okz;
   s.ax = s.akx - sx * s.akz, s.ay = s.aky - sy * s.akz;
   s.bx = s.bkx - sx * s.bkz, s.by = s.bky - sy * s.bkz;
   s.cx = s.ckx - sx * s.ckz, s.cy = s.cky - sy * s.ckz;
@@ -147,12 +172,13 @@ inline void shear(const TriRay& r, const TriangleBlock& blk, Sheared& s) {
 // recomputed (same operations, same values) and the zero edge functions redone in double.
 // Out of line, so the common path keeps nothing of the shear alive for it. Returns the lanes
 // inside (all ones).
-[[gnu::noinline]] vi4 edges_slow(const TriRay& r, const TriangleBlock& blk, vf4& u, vf4& v, vf4& w,
-                                 vf4& det) {
-  using S = Simd<4>;
-  Sheared s;
-  shear(r, blk, s);
-  const vf4 zero = {};
+template <class Rows, class F = typename Simd<Rows::lanes>::F,
+          class I = typename Simd<Rows::lanes>::I>
+[[gnu::noinline]] I edges_slow(const TriRay& r, Rows rows, F& u, F& v, F& w, F& det) {
+  using S = Simd<Rows::lanes>;
+  Sheared<Rows::lanes> s;
+  shear(r, rows, s);
+  const F zero = {};
   unsigned retry = S::mask((u == zero) | (v == zero) | (w == zero));
   while (retry) {
     const unsigned i = ctz(retry);
@@ -161,34 +187,36 @@ inline void shear(const TriRay& r, const TriangleBlock& blk, Sheared& s) {
     v[i] = float(double(s.ax[i]) * s.cy[i] - double(s.ay[i]) * s.cx[i]);
     w[i] = float(double(s.bx[i]) * s.ay[i] - double(s.by[i]) * s.ax[i]);
   }
-  const vi4 neg = (u < zero) | (v < zero) | (w < zero);
-  const vi4 pos = (u > zero) | (v > zero) | (w > zero);
+  const I neg = (u < zero) | (v < zero) | (w < zero);
+  const I pos = (u > zero) | (v > zero) | (w > zero);
   det = u + v + w;
   return ~(neg & pos);
 }
 
-// The watertight test (watertight_hit) on four triangles at once.
-template <bool Reread = false>
-inline BlockHits intersect_block(const TriRay& r, const TriangleBlock& blk) {
-  using S = Simd<4>;
-  BlockHits out;
-  Sheared s;
-  shear(r, blk, s);
-  vf4 u = s.cx * s.by - s.cy * s.bx;
-  vf4 v = s.ax * s.cy - s.ay * s.cx;
-  vf4 w = s.bx * s.ay - s.by * s.ax;
-  const vf4 zero = {};
-  vf4 det = u + v + w;
+// The watertight test (watertight_hit) on the rows' triangles at once: every lane performs
+// the scalar test's operations in its order, so 4 and 8 lanes give the same values.
+template <bool Reread, class Rows>
+inline HitsOf<Rows::lanes> intersect_rows(const TriRay& r, Rows rows) {
+  using S = Simd<Rows::lanes>;
+  using F = typename S::F;
+  using I = typename S::I;
+  HitsOf<Rows::lanes> out;
+  Sheared<Rows::lanes> s;
+  shear(r, rows, s);
+  F u = s.cx * s.by - s.cy * s.bx;
+  F v = s.ax * s.cy - s.ay * s.cx;
+  F w = s.bx * s.ay - s.by * s.ax;
+  const F zero = {};
+  F det = u + v + w;
   // Exact zeros (the double retry) and NaN (from overflowing products) take the slow path.
   const unsigned slow = S::mask((u == zero) | (v == zero) | (w == zero) | (det != det));
-  vi4 ok;
+  I ok;
   if (__builtin_expect(slow == 0, 1)) {
     // No edge function is zero: the ray is inside when all three signs agree.
-    const vi4 ui = reinterpret_cast<vi4>(u), vi = reinterpret_cast<vi4>(v),
-              wi = reinterpret_cast<vi4>(w);
-    ok = ((ui ^ vi) | (ui ^ wi)) >= vi4{};
+    const I ui = reinterpret_cast<I>(u), vi = reinterpret_cast<I>(v), wi = reinterpret_cast<I>(w);
+    ok = ((ui ^ vi) | (ui ^ wi)) >= I{};
   } else {
-    ok = edges_slow(r, blk, u, v, w, det);
+    ok = edges_slow(r, rows, u, v, w, det);
   }
   ok &= det != zero;
   out.mask = S::mask(ok);
@@ -198,18 +226,17 @@ inline BlockHits intersect_block(const TriRay& r, const TriangleBlock& blk) {
     // The vertices read again (same values): keeping the first reads alive through the edge
     // tests costs registers the traversal needs (any hit: 7-9 % faster on Sponza's diffuse rays;
     // closest hit: 3 % slower).
-    const TriangleBlock* again = &blk;
-    asm("" : "+r"(again));
-    shear(r, *again, s);
+    asm("" : "+r"(rows.blk));
+    shear(r, rows, s);
   }
-  const vf4 e10 = s.bkx - s.akx, e11 = s.bky - s.aky, e12 = s.bkz - s.akz;
-  const vf4 e20 = s.ckx - s.akx, e21 = s.cky - s.aky, e22 = s.ckz - s.akz;
-  const vf4 n0 = e11 * e22 - e12 * e21;
-  const vf4 n1 = e12 * e20 - e10 * e22;
-  const vf4 n2 = e10 * e21 - e11 * e20;
-  const vf4 ndd =
+  const F e10 = s.bkx - s.akx, e11 = s.bky - s.aky, e12 = s.bkz - s.akz;
+  const F e20 = s.ckx - s.akx, e21 = s.cky - s.aky, e22 = s.ckz - s.akz;
+  const F n0 = e11 * e22 - e12 * e21;
+  const F n1 = e12 * e20 - e10 * e22;
+  const F n2 = e10 * e21 - e11 * e20;
+  const F ndd =
       n0 * S::splat(r.dir[r.kx]) + n1 * S::splat(r.dir[r.ky]) + n2 * S::splat(r.dir[r.kz]);
-  const vf4 t = (n0 * s.akx + n1 * s.aky + n2 * s.akz) / ndd;
+  const F t = (n0 * s.akx + n1 * s.aky + n2 * s.akz) / ndd;
   ok &= (ndd != zero) & (t > S::splat(r.tmin));
   out.mask = S::mask(ok);
   out.t = t;
@@ -217,6 +244,12 @@ inline BlockHits intersect_block(const TriRay& r, const TriangleBlock& blk) {
   out.w = w;
   out.det = det;
   return out;
+}
+
+// One block's four triangles.
+template <bool Reread = false>
+inline BlockHits intersect_block(const TriRay& r, const TriangleBlock& blk) {
+  return intersect_rows<Reread>(r, Rows4{&blk});
 }
 
 // Per-ray constants of the box test (SlabRay), splatted to W lanes.
