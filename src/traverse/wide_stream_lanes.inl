@@ -52,7 +52,8 @@ struct StreamScratch {
   }
 };
 
-// base[index[l]] in lane l (the masked forms with a zero source, as gather_rays).
+// base[index[l]] in lane l (the masked forms with a zero source: the plain ones start from an
+// undefined register).
 template <int L>
 inline typename Simd<L>::F gather_floats(const float* base, typename Simd<L>::I index) {
 #ifdef __AVX512F__

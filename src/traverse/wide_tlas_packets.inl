@@ -26,15 +26,13 @@ PacketOutcome trace_tlas_lanes(const Bvh8Node* tlas, const InstanceData* instanc
     if (direction_signs(rays[r]) != signs) return PacketOutcome::split;
   VI lane_index;
   for (int l = 0; l < L; ++l) lane_index[l] = l;
-  const VI last = VI{} + int(n - 1);
-  const VI offsets = (lane_index < last ? lane_index : last) * 8;
-  const VF ox = gather_rays<L>(rays, offsets, 0), oy = gather_rays<L>(rays, offsets, 1),
-           oz = gather_rays<L>(rays, offsets, 2);
+  VF comp[8];
+  load_lane_rays<L>(rays, n, comp);
+  const VF ox = comp[0], oy = comp[1], oz = comp[2];
   const VF one = bcast(1.0f), far_factor = bcast(1.00000072f);  // far_scale
-  const VF ix = one / gather_rays<L>(rays, offsets, 3), iy = one / gather_rays<L>(rays, offsets, 4),
-           iz = one / gather_rays<L>(rays, offsets, 5);
+  const VF ix = one / comp[3], iy = one / comp[4], iz = one / comp[5];
   const VF fx = ix * far_factor, fy = iy * far_factor, fz = iz * far_factor;
-  const VF tmin = gather_rays<L>(rays, offsets, 6);
+  const VF tmin = comp[6];
   const VF inf = bcast(__builtin_inff());
   const int nrx = __builtin_signbit(rays[0].dir.x) ? 1 : 0,
             nry = 2 + (__builtin_signbit(rays[0].dir.y) ? 1 : 0),
