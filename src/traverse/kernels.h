@@ -48,6 +48,9 @@ struct Table {
   Bvh8Fn stream8;
   Bvh4Fn any_stream4;
   Bvh8Fn any_stream8;
+  /// Any hit visiting children nearest first (any4 / any8: slot order); the same answers.
+  Bvh4Fn any_nearest4;
+  Bvh8Fn any_nearest8;
 };
 
 const Table& table_sse2();

@@ -141,6 +141,10 @@ struct PacketChoices {
   /// Incoherent batches the default does not stream: ray streams (true) or not (trace.cpp:
   /// may_stream).
   PacketChoice stream{4, true};
+  /// Single-ray any hit: children nearest first (true) or in slot order, for rays with a
+  /// finite tmax ([0]: segments, e.g. towards a point light) and without ([1]) (trace.cpp:
+  /// any_hit_order).
+  PacketChoice any_order[2];
 };
 }  // namespace detail
 

@@ -67,13 +67,33 @@ Hit intersect_bvh2(const Accel& accel, const Ray& ray) {
   return hit;
 }
 
+// Single-ray occlusion visits a node's children in slot order (largest box first) or nearest
+// first. Neither wins everywhere (2026-12-06, shadow rays towards a point light, kestrel ÷
+// rtcOccluded1: the soup 0.87 slot order against 0.99-1.02 nearest first, its occluders near
+// the rays' origins; the sphere field 1.07 against 0.78-0.80, its occluders the large
+// spheres), so the Accel times chunks both ways (PacketChoice) and takes the faster, apart for
+// segments (finite tmax) and rays; the answers are the same either way.
+template <class Fn>
+void any_hit_order(const Accel& accel, std::span<const Ray> rays, Fn&& traced) {
+  if (rays.size() < 16) return traced(false);  // single queries (intersect_any): untimed
+  const bool segments = std::isfinite(rays[0].tmax);
+  accel.nodes->choices->any_order[segments ? 0 : 1].run(rays.size(), traced);
+}
+
 void trace_range(const Accel& accel, std::span<const Ray> rays, std::span<Hit> hits, bool any_hit,
                  const kernels::Table& k, bool packets) {
   switch (accel.layout) {
     case Layout::bvh4:
       if (accel.nodes->bvh4.empty()) break;
+      if (any_hit && !packets)
+        return any_hit_order(accel, rays, [&](bool nearest) {
+          kernels::for_each_traceable_run(rays, hits.data(), [&](const Ray* r, Hit* h, size_t n) {
+            (nearest ? k.any_nearest4 : k.any4)(accel.nodes->bvh4.nodes.data(),
+                                                accel.nodes->bvh4.blocks.data(), r, h, n);
+          });
+        });
       kernels::for_each_traceable_run(rays, hits.data(), [&](const Ray* r, Hit* h, size_t n) {
-        (any_hit   ? (packets ? k.any_packet4 : k.any4)
+        (any_hit   ? k.any_packet4
          : packets ? k.packet4
                    : k.closest4)(accel.nodes->bvh4.nodes.data(), accel.nodes->bvh4.blocks.data(), r,
                                  h, n);
@@ -81,8 +101,15 @@ void trace_range(const Accel& accel, std::span<const Ray> rays, std::span<Hit> h
       return;
     case Layout::bvh8:
       if (accel.nodes->bvh8.empty()) break;
+      if (any_hit && !packets)
+        return any_hit_order(accel, rays, [&](bool nearest) {
+          kernels::for_each_traceable_run(rays, hits.data(), [&](const Ray* r, Hit* h, size_t n) {
+            (nearest ? k.any_nearest8 : k.any8)(accel.nodes->bvh8.nodes.data(),
+                                                accel.nodes->bvh8.blocks.data(), r, h, n);
+          });
+        });
       kernels::for_each_traceable_run(rays, hits.data(), [&](const Ray* r, Hit* h, size_t n) {
-        (any_hit   ? (packets ? k.any_packet8 : k.any8)
+        (any_hit   ? k.any_packet8
          : packets ? k.packet8
                    : k.closest8)(accel.nodes->bvh8.nodes.data(), accel.nodes->bvh8.blocks.data(), r,
                                  h, n);

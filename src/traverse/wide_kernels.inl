@@ -48,15 +48,26 @@ namespace {
 // clang-format on
 
 const Table table = {
-    &trace_batch<4, false, Bvh4Node>,   &trace_batch<4, true, Bvh4Node>,
-    &trace_packets<4, Bvh4Node>,        &trace_batch<8, false, Bvh8Node>,
-    &trace_batch<8, true, Bvh8Node>,    &trace_packets<8, Bvh8Node>,
-    &trace_tlas<4, false, Bvh4Node>,    &trace_tlas<4, true, Bvh4Node>,
-    &trace_tlas<8, false, Bvh8Node>,    &trace_tlas<8, true, Bvh8Node>,
-    &occlusion_packets<4, Bvh4Node>,    &occlusion_packets<8, Bvh8Node>,
-    &trace_tlas_packets<false>,         &trace_tlas_packets<true>,
-    &trace_streams<4, false, Bvh4Node>, &trace_streams<8, false, Bvh8Node>,
-    &trace_streams<4, true, Bvh4Node>,  &trace_streams<8, true, Bvh8Node>,
+    &trace_batch<4, false, Bvh4Node>,
+    &trace_batch<4, true, Bvh4Node>,
+    &trace_packets<4, Bvh4Node>,
+    &trace_batch<8, false, Bvh8Node>,
+    &trace_batch<8, true, Bvh8Node>,
+    &trace_packets<8, Bvh8Node>,
+    &trace_tlas<4, false, Bvh4Node>,
+    &trace_tlas<4, true, Bvh4Node>,
+    &trace_tlas<8, false, Bvh8Node>,
+    &trace_tlas<8, true, Bvh8Node>,
+    &occlusion_packets<4, Bvh4Node>,
+    &occlusion_packets<8, Bvh8Node>,
+    &trace_tlas_packets<false>,
+    &trace_tlas_packets<true>,
+    &trace_streams<4, false, Bvh4Node>,
+    &trace_streams<8, false, Bvh8Node>,
+    &trace_streams<4, true, Bvh4Node>,
+    &trace_streams<8, true, Bvh8Node>,
+    &trace_batch<4, true, Bvh4Node, true>,
+    &trace_batch<8, true, Bvh8Node, true>,
 };
 
 }  // namespace

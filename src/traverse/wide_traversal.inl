@@ -79,10 +79,12 @@ inline constexpr int stack_size = 256 * (W - 1) + 1 + 8;
 // 0, the tree's root, unless a ray stream hands the ray over below it). leaf(ref) handles a
 // leaf reference: it may lower best_t (closest hit) and returns true to stop (any hit). Node
 // is Bvh4Node or Bvh8Node.
+// Any hit visits a node's children in slot order (largest box first), or with Nearest, as
+// closest hit does, nearest first (trace.cpp times both orders).
 // Inlined into its caller, where the ray's constants and the hit being kept are locals the
 // compiler can tell apart: as a function of its own, every store of a closer hit could alias
 // the ray and forced the triangle test to reload it per block (4 % slower on diffuse rays).
-template <int W, bool AnyHit, class Node, class LeafFn>
+template <int W, bool AnyHit, class Node, class LeafFn, bool Nearest = false>
 [[gnu::always_inline]] inline void traverse(const Node* nodes, const BoxRay<W>& box, float tmin_s,
                                             float& best_t, LeafFn&& leaf, uint32_t root = 0) {
   using S = Simd<W>;
@@ -102,7 +104,7 @@ template <int W, bool AnyHit, class Node, class LeafFn>
       unsigned m = box.test(node.bounds, tmin, tmax, tnear);
       KSTAT(++stat_hist[__builtin_popcount(m)]);
       if (!m) goto pop;
-      if constexpr (AnyHit) {
+      if constexpr (AnyHit && !Nearest) {
         // Occlusion: no sorting; slot order, which is largest box first (build_wide_nodes).
         // The first hit slot now, the others pushed last first so they pop in slot order.
         cur = node.child[ctz(m)];
@@ -248,15 +250,15 @@ template <bool AnyHit>
   }
 }
 
-// The closest (or any) triangle hit of one ray in one wide BVH.
-template <int W, bool AnyHit, class Node>
+// The closest (or any) triangle hit of one ray in one wide BVH (any hit: Nearest as traverse).
+template <int W, bool AnyHit, class Node, bool Nearest = false>
 inline void trace_ray(const Node* nodes, const TriangleBlock* blocks, const Ray& ray, Hit& hit) {
   const BoxRay<W> box(ray);
   const TriRay tri(ray);
   KSTAT(++stat_rays);
   Closest c = {ray.tmax, 0, 0, 1, invalid_id};
-  traverse<W, AnyHit>(nodes, box, ray.tmin, c.t,
-                      [&](uint32_t ref) { return leaf_ray<AnyHit>(blocks, ref, tri, c); });
+  const auto leaf = [&](uint32_t ref) { return leaf_ray<AnyHit>(blocks, ref, tri, c); };
+  traverse<W, AnyHit, Node, decltype(leaf) const&, Nearest>(nodes, box, ray.tmin, c.t, leaf);
   if (c.id != invalid_id) {
     hit.t = c.t;
     hit.prim_id = c.id;
@@ -334,8 +336,9 @@ void trace_tlas(const void* tlas_nodes, const InstanceData* instances, const Ray
   }
 }
 
-template <int W, bool AnyHit, class Node>
+template <int W, bool AnyHit, class Node, bool Nearest = false>
 void trace_batch(const Node* nodes, const TriangleBlock* blocks, const Ray* rays, Hit* hits,
                  size_t n) {
-  for (size_t i = 0; i < n; ++i) trace_ray<W, AnyHit>(nodes, blocks, rays[i], hits[i]);
+  for (size_t i = 0; i < n; ++i)
+    trace_ray<W, AnyHit, Node, Nearest>(nodes, blocks, rays[i], hits[i]);
 }

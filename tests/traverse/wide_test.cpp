@@ -16,6 +16,8 @@
 #include "kestrel/kestrel.h"
 #include "support/oracles.h"
 #include "traverse/accel_nodes.h"
+#include "traverse/batches.h"
+#include "traverse/kernels.h"
 #include "traverse/stream.h"
 #include "traverse/wide_bvh.h"
 
@@ -84,6 +86,22 @@ void expect_same_as_reference(const Scene& scene, std::span<const Ray> rays, Bui
           ASSERT_EQ(bool(occ[i]), want_any[i].hit())
               << "ray " << i << " packets " << (packets ? int(*packets) : -1) << " stream "
               << stream;
+      }
+      // Both orders of single-ray occlusion (occluded() times them and takes the faster), each
+      // called directly: children in slot order and nearest first.
+      const kernels::Table& k = kernels::table_for(isa);
+      for (bool nearest : {false, true}) {
+        std::vector<Hit> got(rays.size());
+        kernels::for_each_traceable_run(rays, got.data(), [&](const Ray* r, Hit* h, size_t n) {
+          if (layout == Layout::bvh4)
+            (nearest ? k.any_nearest4 : k.any4)(wide.nodes->bvh4.nodes.data(),
+                                                wide.nodes->bvh4.blocks.data(), r, h, n);
+          else
+            (nearest ? k.any_nearest8 : k.any8)(wide.nodes->bvh8.nodes.data(),
+                                                wide.nodes->bvh8.blocks.data(), r, h, n);
+        });
+        for (size_t i = 0; i < rays.size(); ++i)
+          ASSERT_EQ(got[i].hit(), want_any[i].hit()) << "ray " << i << " nearest " << nearest;
       }
     }
   }
