@@ -224,8 +224,10 @@ template <bool AnyHit, class Hits>
   return false;
 }
 
-// The blocks of leaf `ref` against one ray; any hit: true at the first hit before c.t. With
-// AVX2 two blocks at a time (a leaf of 5-8 triangles in one test of eight lanes).
+// The blocks of leaf `ref` against one ray; any hit: true at the first hit before c.t. Closest
+// hit with AVX2 tests two blocks at a time (a leaf of 5-8 triangles in one test of eight
+// lanes); any hit one at a time, so a hit in the first ends the query before the second is
+// read (pairs measured equal or slower for occlusion, docs/benchmarks.md).
 template <bool AnyHit>
 [[gnu::always_inline]] inline bool leaf_ray(const TriangleBlock* blocks, uint32_t ref,
                                             const TriRay& tri, Closest& c) {
