@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <map>
@@ -284,6 +285,19 @@ std::vector<Isa> supported_isas() {
   for (Isa isa : {Isa::sse2, Isa::avx2, Isa::avx512})
     if (isa_supported(isa)) out.push_back(isa);
   return out;
+}
+
+Accel build_layout(const Scene& scene, Builder builder, Layout layout) {
+  BuildConfig c;
+  c.builder = builder;
+  c.layout = layout;
+  return build_accel(scene, c);
+}
+
+uint32_t float_bits(float f) {
+  uint32_t u;
+  std::memcpy(&u, &f, 4);
+  return u;
 }
 
 }  // namespace kestrel::test

@@ -44,6 +44,12 @@ Scene closed_box(Vec3 lo, Vec3 hi);
 /// axis-parallel directions (exact zeros), some with finite tmax, some with tmin > 0.
 std::vector<Ray> random_rays(size_t n, uint64_t seed);
 
+/// build_accel with this builder and layout, the rest default.
+Accel build_layout(const Scene& scene, Builder builder, Layout layout);
+
+/// A float's bits (for tests that ask for the same value bit for bit).
+uint32_t float_bits(float f);
+
 /// Path of a shared scene (../shared/scenes/REL), or nullopt when the folder is absent.
 std::optional<std::string> shared_scene(const std::string& rel);
 

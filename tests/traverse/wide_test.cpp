@@ -24,30 +24,20 @@
 namespace kestrel {
 namespace {
 
-Accel build(const Scene& scene, Builder builder, Layout layout) {
-  BuildConfig c;
-  c.builder = builder;
-  c.layout = layout;
-  return build_accel(scene, c);
-}
-
-uint32_t bits(float f) {
-  uint32_t u;
-  std::memcpy(&u, &f, 4);
-  return u;
-}
+using test::build_layout;
+using test::float_bits;
 
 // Traces rays through every (layout, ISA) and compares with the Bvh2 reference.
 void expect_same_as_reference(const Scene& scene, std::span<const Ray> rays, Builder builder,
                               const std::string& what) {
-  const Accel ref = build(scene, builder, Layout::bvh2);
+  const Accel ref = build_layout(scene, builder, Layout::bvh2);
   std::vector<Hit> want(rays.size()), want_any(rays.size());
   trace(ref, rays, want, false);
   trace(ref, rays, want_any, true);
   size_t hits = 0;
   for (const Hit& h : want) hits += h.hit();
   for (Layout layout : {Layout::bvh4, Layout::bvh8}) {
-    const Accel wide = build(scene, builder, layout);
+    const Accel wide = build_layout(scene, builder, layout);
     for (Isa isa : test::supported_isas()) {
       SCOPED_TRACE(what + " " + layout_name(layout) + " " + isa_name(isa) + " " +
                    builder_name(builder));
@@ -66,7 +56,7 @@ void expect_same_as_reference(const Scene& scene, std::span<const Ray> rays, Bui
           ASSERT_EQ(got[i].prim_id, want[i].prim_id)
               << "ray " << i << " packets " << (packets ? int(*packets) : -1) << " stream "
               << stream;
-          ASSERT_EQ(bits(got[i].t), bits(want[i].t))
+          ASSERT_EQ(float_bits(got[i].t), float_bits(want[i].t))
               << "ray " << i << " t " << got[i].t << " vs " << want[i].t;
           ASSERT_EQ(got[i].u, want[i].u) << "ray " << i;
           ASSERT_EQ(got[i].v, want[i].v) << "ray " << i;
@@ -149,7 +139,7 @@ TEST(WideKernels, UntraceableRaysMissInEveryKernel) {
                                  {{0.5f, 0.5f, -1}, {0, 0, 1}, 2.0f, 1.0f},  // tmin > tmax
                                  {{0.5f, 0.5f, -1}, {0, 0, 1}, 0.0f, nan}};
   for (Layout layout : {Layout::bvh2, Layout::bvh4, Layout::bvh8}) {
-    const Accel a = build(scene, Builder::binned, layout);
+    const Accel a = build_layout(scene, Builder::binned, layout);
     for (Isa isa : test::supported_isas()) {
       std::vector<Hit> hits(rays.size());
       trace(a, rays, hits, false, TraceOptions{isa, std::nullopt});
@@ -169,8 +159,8 @@ TEST(WideKernels, EmptySceneAndSingleTriangle) {
   one.meshes.push_back(m);
   const Ray r{{0.2f, 0.2f, -1}, {0, 0, 1}};
   for (Layout layout : {Layout::bvh2, Layout::bvh4, Layout::bvh8}) {
-    EXPECT_FALSE(intersect(build(empty, Builder::binned, layout), r).hit());
-    const Hit h = intersect(build(one, Builder::binned, layout), r);
+    EXPECT_FALSE(intersect(build_layout(empty, Builder::binned, layout), r).hit());
+    const Hit h = intersect(build_layout(one, Builder::binned, layout), r);
     EXPECT_EQ(h.prim_id, 0u);
     EXPECT_FLOAT_EQ(h.t, 1.0f);
   }
@@ -263,7 +253,7 @@ TEST(WideLayout, EveryPrimitiveInExactlyOneLeafAndBoxesEnclose) {
   const Scene scene = test::random_soup(5000, 0.1f, 21);
   const test::Soup soup = test::flatten(scene);
   for (Layout layout : {Layout::bvh4, Layout::bvh8}) {
-    const Accel a = build(scene, Builder::binned, layout);
+    const Accel a = build_layout(scene, Builder::binned, layout);
     const int W = layout == Layout::bvh4 ? 4 : 8;
     std::vector<int> seen(soup.triangles.size(), 0);
     const size_t node_count = W == 4 ? a.nodes->bvh4.nodes.size() : a.nodes->bvh8.nodes.size();
@@ -464,11 +454,11 @@ TEST(Refit, MatchesFreshBuildOnEveryLayout) {
   const std::vector<Ray> rays = test::random_rays(2000, 6);
   for (Layout layout : {Layout::bvh2, Layout::bvh4, Layout::bvh8}) {
     Scene moving = scene;
-    Accel accel = build(moving, Builder::binned, layout);
+    Accel accel = build_layout(moving, Builder::binned, layout);
     for (Vec3& p : moving.meshes[0].positions)
       p = {p.x + 0.3f * p.y * p.y, p.y * 0.8f + 0.1f, p.z - 0.2f * p.x};
     refit_accel(accel, moving);
-    const Accel fresh = build(moving, Builder::binned, Layout::bvh2);
+    const Accel fresh = build_layout(moving, Builder::binned, Layout::bvh2);
     const test::Soup soup = test::flatten(moving);
     std::vector<Hit> got(rays.size()), want(rays.size());
     trace(accel, rays, got, false);
@@ -476,7 +466,7 @@ TEST(Refit, MatchesFreshBuildOnEveryLayout) {
     size_t hits = 0;
     for (size_t i = 0; i < rays.size(); ++i) {
       ASSERT_EQ(got[i].prim_id, want[i].prim_id) << layout_name(layout) << " ray " << i;
-      ASSERT_EQ(bits(got[i].t), bits(want[i].t));
+      ASSERT_EQ(float_bits(got[i].t), float_bits(want[i].t));
       const Hit brute = intersect_brute_force(soup.triangles, soup.valid, rays[i], false);
       ASSERT_EQ(got[i].prim_id, brute.prim_id);
       hits += got[i].hit();
@@ -490,7 +480,7 @@ TEST(Refit, MatchesFreshBuildOnEveryLayout) {
 
 TEST(Refit, ChangedTopologyOrInvalidVertexIsAClearError) {
   Scene scene = test::random_soup(100, 0.2f, 2);
-  Accel accel = build(scene, Builder::binned, Layout::bvh8);
+  Accel accel = build_layout(scene, Builder::binned, Layout::bvh8);
   Scene more = scene;
   more.meshes[0].indices.insert(more.meshes[0].indices.end(), {0, 1, 2});
   EXPECT_THROW(refit_accel(accel, more), Error);
@@ -509,7 +499,7 @@ TEST(Dispatch, IsaNamesAndUnsupportedIsaIsAnError) {
   EXPECT_FALSE(isa_from_name("avx3").has_value());
   EXPECT_TRUE(isa_supported(Isa::sse2));
   EXPECT_TRUE(isa_supported(host_isa()));
-  const Accel a = build(test::random_soup(10, 0.3f, 1), Builder::binned, Layout::bvh8);
+  const Accel a = build_layout(test::random_soup(10, 0.3f, 1), Builder::binned, Layout::bvh8);
   std::vector<Ray> rays(3);
   std::vector<Hit> hits(2);
   EXPECT_THROW(trace(a, rays, hits), Error);  // sizes differ
@@ -522,7 +512,8 @@ TEST(Refit, ReturnsTheSahCostAndIsThreadCountIndependent) {
   for (Layout layout : {Layout::bvh4, Layout::bvh8}) {
     Scene moving = scene;
     for (Vec3& p : moving.meshes[0].positions) p = {p.x * 1.1f, p.y + 0.05f * p.x * p.z, p.z};
-    Accel one = build(scene, Builder::binned, layout), two = build(scene, Builder::binned, layout);
+    Accel one = build_layout(scene, Builder::binned, layout),
+          two = build_layout(scene, Builder::binned, layout);
     double cost_one, cost_two;
     {
       ThreadLimit limit(1);
@@ -547,147 +538,6 @@ TEST(Refit, ReturnsTheSahCostAndIsThreadCountIndependent) {
     }
     EXPECT_GT(cost_one, 1.0);
   }
-}
-
-// Stream mode: the same hits, in the caller's
-// order, as single rays, for closest and any hit, on 1 and 2 threads, with untraceable rays
-// and origins outside the scene box.
-TEST(StreamMode, IncoherentBatchesGetTheSameHitsInTheCallersOrder) {
-  const Scene scene = test::random_soup(4000, 0.1f, 21);
-  std::vector<Ray> rays = test::random_rays(60000, 22);
-  for (size_t i = 0; i < rays.size(); i += 997) rays[i].org.x = std::nanf("");
-  for (size_t i = 5; i < rays.size(); i += 1009) rays[i].org = rays[i].org * 40.0f;
-  for (size_t i = 7; i < rays.size(); i += 1013) rays[i].dir = {0, 0, 0};
-  const Accel accel = build(scene, Builder::binned, Layout::bvh8);
-  TraceOptions single;
-  single.stream = false;
-  single.packets = false;
-  std::vector<Hit> want(rays.size()), want_any(rays.size());
-  trace(accel, rays, want, false, single);
-  trace(accel, rays, want_any, true, single);
-  size_t hits = 0;
-  for (const Hit& h : want) hits += h.hit();
-  EXPECT_GT(hits, rays.size() / 20);
-  for (int threads : {1, 2}) {
-    ThreadLimit limit(threads);
-    TraceOptions stream;
-    stream.stream = true;
-    std::vector<Hit> got(rays.size());
-    trace(accel, rays, got, stream);
-    std::vector<uint8_t> occ(rays.size());
-    occluded(accel, rays, occ, stream);
-    for (size_t i = 0; i < rays.size(); ++i) {
-      ASSERT_EQ(got[i].prim_id, want[i].prim_id) << "ray " << i << " threads " << threads;
-      ASSERT_EQ(bits(got[i].t), bits(want[i].t)) << "ray " << i;
-      ASSERT_EQ(bits(got[i].u), bits(want[i].u)) << "ray " << i;
-      ASSERT_EQ(bool(occ[i]), want_any[i].hit()) << "ray " << i;
-    }
-  }
-}
-
-// Ray streams (stream on, packets unset) where many rays share every list and hit shared
-// edges and vertices exactly: ties at equal distance resolve to the smallest prim id as for
-// single rays, closest and any hit, segments and tmin > 0 included.
-TEST(StreamMode, RayStreamsResolveTiesAsSingleRays) {
-  const Scene scene = test::closed_sphere(5, {0, 0, 0}, 1.0f);
-  const std::vector<Vec3>& vertices = scene.meshes[0].positions;
-  test::Rng rng{11};
-  std::vector<Ray> rays;
-  for (int i = 0; i < 40000; ++i) {
-    const Vec3 target = vertices[size_t(rng.next() % vertices.size())];
-    // Origins in a small cluster, so the lists stay long down the tree.
-    const Vec3 o = Vec3{2.5f, 0.3f, -0.2f} + rng.on_sphere() * 0.05f;
-    Ray r{o, target - o};
-    if (i % 5 == 1) r.tmax = 0.9f;  // a segment that may stop short of the sphere
-    if (i % 7 == 2) r.tmin = 0.5f;  // starts inside it: the far side
-    rays.push_back(r);
-  }
-  const Accel accel = build(scene, Builder::binned, Layout::bvh8);
-  TraceOptions single, stream;
-  single.stream = false;
-  single.packets = false;
-  stream.stream = true;
-  for (Isa isa : test::supported_isas()) {
-    single.isa = stream.isa = isa;
-    std::vector<Hit> want(rays.size()), got(rays.size());
-    trace(accel, rays, want, single);
-    trace(accel, rays, got, stream);
-    std::vector<uint8_t> want_occ(rays.size()), occ(rays.size());
-    occluded(accel, rays, want_occ, single);
-    occluded(accel, rays, occ, stream);
-    size_t hits = 0;
-    for (size_t i = 0; i < rays.size(); ++i) {
-      ASSERT_EQ(got[i].prim_id, want[i].prim_id) << isa_name(isa) << " ray " << i;
-      ASSERT_EQ(bits(got[i].t), bits(want[i].t)) << isa_name(isa) << " ray " << i;
-      ASSERT_EQ(bits(got[i].u), bits(want[i].u)) << isa_name(isa) << " ray " << i;
-      ASSERT_EQ(bits(got[i].v), bits(want[i].v)) << isa_name(isa) << " ray " << i;
-      ASSERT_EQ(occ[i], want_occ[i]) << isa_name(isa) << " ray " << i;
-      hits += got[i].hit();
-    }
-    EXPECT_GT(hits, rays.size() / 2);
-  }
-}
-
-// Mid-size incoherent batches with the default options: the Accel times batches as ray streams
-// and not (PacketChoice), then takes the faster; every batch gets the single-ray hits.
-TEST(StreamMode, MidSizeBatchesTimedEachWayGetTheSameHits) {
-  const Scene scene = test::random_soup(4000, 0.1f, 31);
-  const std::vector<Ray> rays = test::random_rays(stream_trial_rays + 3000, 32);
-  const Accel accel = build(scene, Builder::binned, Layout::bvh8);
-  TraceOptions single;
-  single.stream = false;
-  single.packets = false;
-  std::vector<Hit> want(rays.size());
-  trace(accel, rays, want, single);
-  for (int round = 0; round < 6; ++round) {  // the first four are trials, two each way
-    std::vector<Hit> got(rays.size());
-    trace(accel, rays, got);
-    for (size_t i = 0; i < rays.size(); ++i) {
-      ASSERT_EQ(got[i].prim_id, want[i].prim_id) << "round " << round << " ray " << i;
-      ASSERT_EQ(bits(got[i].t), bits(want[i].t)) << "round " << round << " ray " << i;
-    }
-  }
-}
-
-// More rays than one sort group holds: the second group's hits land in their own slots.
-TEST(StreamMode, BatchesLargerThanOneGroup) {
-  const Scene scene = test::random_soup(64, 0.3f, 4);
-  const std::vector<Ray> rays = test::random_rays(stream_group + 40000, 6);
-  const Accel accel = build(scene, Builder::binned, Layout::bvh8);
-  TraceOptions single, stream;
-  single.stream = false;
-  stream.stream = true;
-  std::vector<Hit> want(rays.size()), got(rays.size());
-  trace(accel, rays, want, single);
-  trace(accel, rays, got, stream);
-  size_t hits = 0;
-  for (size_t i = 0; i < rays.size(); ++i) {
-    ASSERT_EQ(got[i].prim_id, want[i].prim_id) << "ray " << i;
-    ASSERT_EQ(bits(got[i].t), bits(want[i].t)) << "ray " << i;
-    hits += got[i].hit();
-  }
-  EXPECT_GT(hits, rays.size() / 50);
-}
-
-TEST(StreamMode, OrderIsAPermutationGroupingOctants) {
-  const std::vector<Ray> rays = test::random_rays(50000, 5);
-  Bounds3 box{{-1, -1, -1}, {1, 1, 1}};
-  RawArray<uint32_t> order;
-  RawArray<uint64_t> scratch;
-  stream_order(rays, box, order, scratch);
-  ASSERT_EQ(order.size(), rays.size());
-  std::vector<uint8_t> seen(rays.size());
-  int octant_changes = 0, last = -1;
-  for (uint32_t i : order) {
-    ASSERT_LT(i, rays.size());
-    ASSERT_FALSE(seen[i]) << "index " << i << " twice";
-    seen[i] = 1;
-    const Vec3& d = rays[i].dir;
-    const int oct = std::signbit(d.x) | std::signbit(d.y) << 1 | std::signbit(d.z) << 2;
-    octant_changes += oct != last;
-    last = oct;
-  }
-  EXPECT_LE(octant_changes, 8);  // octant is the key's top field
 }
 
 }  // namespace

@@ -1,0 +1,141 @@
+// The renderer's determinism: the same bits for one and two threads, for any wave of tiles
+// (NEE, ReSTIR, the radiance cache), for a render into a kept frame and for tiles rendered
+// apart.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstring>
+
+#include "kestrel/render.h"
+#include "render/testing.h"
+#include "support/oracles.h"
+#include "support/scene_renderer.h"
+
+namespace kestrel {
+namespace {
+
+using test::SceneRenderer;
+
+TEST(Determinism, SameBitsForOneAndTwoThreads) {
+  SceneRenderer r(load_scene("builtin:cornell_box"));
+  RenderSettings rs;
+  rs.width = 72, rs.height = 56, rs.spp = 3, rs.seed = 42;
+  const Camera cam = *find_view(load_scene("builtin:cornell_box"), "front");
+  rs.threads = 1;
+  const Frame a = r.render(cam, rs);
+  rs.threads = 2;
+  const Frame b = r.render(cam, rs);
+  for (int k = 0; k < aov_count; ++k)
+    EXPECT_EQ(a.aov[k].pixels, b.aov[k].pixels) << aov_name(Aov(k));
+  rs.seed = 43;
+  const Frame c = r.render(cam, rs);
+  EXPECT_NE(a[Aov::color].pixels, c[Aov::color].pixels);
+}
+
+// The path tracer traces a wave of tiles together: each bounce of the wave's paths is one
+// batch, here large enough for the batch API's ray streams (checked through the ray capture).
+// Waves of one tile, of five tiles and the default give the same bits on one and two threads,
+// with NEE, ReSTIR and the radiance cache, over frames that reuse ReSTIR's and the cache's
+// history: a tile reading another's hits or results would show.
+TEST(Determinism, SameBitsForAnyWaveOfTiles) {
+  SceneRenderer plain(load_scene("builtin:cornell_box"));
+  const Camera cam = *find_view(load_scene("builtin:cornell_box"), "front");
+  RenderSettings rs;
+  rs.width = 400, rs.height = 300, rs.max_depth = 4, rs.seed = 7;
+  RayCapture capture;
+  RendererTesting::set_capture(plain, &capture);
+  plain.render(cam, rs);
+  RendererTesting::set_capture(plain, nullptr);
+  ASSERT_FALSE(capture.bounce_batches.empty());
+  EXPECT_GE(*std::max_element(capture.bounce_batches.begin(), capture.bounce_batches.end()),
+            size_t(1) << 16);
+  auto frames = [&](size_t wave, int threads) {
+    SceneRenderer r(load_scene("builtin:cornell_box"));
+    if (wave > 0) RendererTesting::set_wave_tiles(r, wave);
+    std::vector<std::vector<float>> out;
+    RenderSettings s = rs;
+    s.threads = threads;
+    for (uint32_t f = 0; f < 4; ++f) {
+      s.frame = f;
+      s.direct = f < 2 ? DirectLighting::restir : DirectLighting::nee;
+      s.radiance_cache = f >= 1;
+      s.spp = f == 3 ? 2 : 1;
+      const Frame fr = r.render(cam, s, cam);
+      for (int k = 0; k < aov_count; ++k) out.push_back(fr.aov[k].pixels);
+    }
+    return out;
+  };
+  const auto reference = frames(1, 1);
+  EXPECT_EQ(frames(0, 1), reference);
+  EXPECT_EQ(frames(0, 2), reference);
+  EXPECT_EQ(frames(5, 2), reference);
+}
+
+TEST(Determinism, RenderIntoAKeptFrameIsAFreshRender) {
+  // What the frame loop relies on: a Frame kept from frame to frame (last holding another
+  // size, seed and sample count) gets the fresh render's bits and stats, in the same storage
+  // when the size repeats.
+  SceneRenderer r(load_scene("builtin:cornell_box"));
+  const Camera cam = *find_view(load_scene("builtin:cornell_box"), "front");
+  RenderSettings big;
+  big.width = 80, big.height = 60, big.spp = 2, big.seed = 5;
+  RenderSettings rs;
+  rs.width = 72, rs.height = 56, rs.spp = 3, rs.seed = 42;
+  Frame kept;
+  r.render(cam, big, std::nullopt, kept);
+  r.render(cam, rs, std::nullopt, kept);
+  const Frame fresh = r.render(cam, rs);
+  ASSERT_EQ(kept.width, 72);
+  ASSERT_EQ(kept.height, 56);
+  for (int k = 0; k < aov_count; ++k) {
+    EXPECT_EQ(kept.aov[k].pixels, fresh.aov[k].pixels) << aov_name(Aov(k));
+    EXPECT_EQ(kept.aov[k].channels, fresh.aov[k].channels) << aov_name(Aov(k));
+  }
+  EXPECT_EQ(kept.stats.camera_rays, fresh.stats.camera_rays);
+  EXPECT_EQ(kept.stats.bounce_rays, fresh.stats.bounce_rays);
+  const float* storage = kept[Aov::color].pixels.data();
+  r.render(cam, rs, std::nullopt, kept);
+  EXPECT_EQ(kept[Aov::color].pixels.data(), storage);
+  EXPECT_EQ(kept[Aov::color].pixels, fresh[Aov::color].pixels);
+}
+
+TEST(Determinism, TilesRenderedApartEqualOneRender) {
+  // What distributed rendering relies on: any split of the tiles, in any order, over several
+  // calls gives render()'s bits for every pixel (72x56: edge tiles of 8 and 24 pixels).
+  SceneRenderer r(load_scene("builtin:cornell_box"));
+  RenderSettings rs;
+  rs.width = 72, rs.height = 56, rs.spp = 3, rs.seed = 7;
+  const Camera cam = *find_view(load_scene("builtin:cornell_box"), "front");
+  Camera prev = cam;
+  prev.eye.x += 0.01f;
+  const Frame whole = r.render(cam, rs, prev);
+  const size_t tiles = render_tile_count(rs.width, rs.height);
+  ASSERT_EQ(tiles, 6u);
+  Frame parts;
+  const std::vector<uint32_t> first = {5, 0, 3}, second = {1, 4}, third = {2};
+  for (const auto* list : {&first, &second, &third}) r.render_tiles(cam, rs, *list, parts, prev);
+  for (int k = 0; k < aov_count; ++k)
+    EXPECT_EQ(whole.aov[k].pixels, parts.aov[k].pixels) << aov_name(Aov(k));
+  EXPECT_EQ(parts.stats.camera_rays, whole.stats.camera_rays);
+  // A tile rendered again (another frame's settings in between) is the same again.
+  RenderSettings other = rs;
+  other.seed = 8;
+  Frame scratch;
+  r.render_tiles(cam, other, first, scratch, prev);
+  r.render_tiles(cam, rs, first, scratch, prev);
+  for (int k = 0; k < aov_count; ++k) {
+    const FloatImage& a = whole.aov[k];
+    const FloatImage& b = scratch.aov[k];
+    for (int y = 0; y < 32; ++y)
+      for (int x = 0; x < 32; ++x)
+        for (int c = 0; c < a.channels; ++c)
+          ASSERT_EQ(a.at(x, y)[c], b.at(x, y)[c]) << aov_name(Aov(k));
+  }
+  EXPECT_THROW(r.render_tiles(cam, rs, std::vector<uint32_t>{6}, parts), Error);
+  rs.time_limit_s = 1;
+  EXPECT_THROW(r.render_tiles(cam, rs, first, parts), Error);
+}
+
+}  // namespace
+}  // namespace kestrel
