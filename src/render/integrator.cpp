@@ -17,11 +17,7 @@ namespace kestrel {
 using namespace render;
 
 void Renderer::Impl::trace(std::span<const Ray> rays, std::span<SurfaceHit> hits) const {
-  thread_local std::vector<InstanceHit> h;  // scratch, reused by every batch of this thread
-  h.resize(rays.size());
-  scene->trace(rays, std::span<InstanceHit>(h.data(), rays.size()));
-  for (size_t i = 0; i < rays.size(); ++i)
-    hits[i] = {h[i].t, h[i].instance_id, h[i].prim_id, h[i].u, h[i].v};
+  scene->trace(rays, hits);
 }
 
 void Renderer::Impl::occluded(std::span<const Ray> rays, std::span<uint8_t> out) const {
@@ -111,11 +107,11 @@ bool cache_sample(const PathState& ps, float clamp, Vec3& out) {
 // `cell`: the hit's cell (cache_cell), found a few hits ahead so its slot is prefetched.
 bool Renderer::Impl::cache_answer(const SurfaceHit& h, const RadianceCache::Cell& cell,
                                   Vec3& lc) const {
-  const TriangleMesh& mesh = *instances[h.instance].mesh;
-  const Material& mat = material_of(mesh, h.prim);
+  const TriangleMesh& mesh = *instances[h.instance_id].mesh;
+  const Material& mat = material_of(mesh, h.prim_id);
   if (luminance(mat.emission) > 0) return false;
   float metallic;
-  const float roughness = roughness_at(mat, uv_at(mesh, h.prim, h.u, h.v), metallic);
+  const float roughness = roughness_at(mat, uv_at(mesh, h.prim_id, h.u, h.v), metallic);
   if (!(std::max(roughness * roughness, min_alpha) >= cache_alpha_second)) return false;
   return h.t >= cell.size && radiance_cache.lookup(cell.key, lc);
 }
@@ -297,7 +293,7 @@ void Renderer::Impl::TilePaths::shade(const Impl& r, int depth, std::span<const 
       }
     }
     // Surface interaction.
-    const InstanceShade& is = r.instances[h.instance];
+    const InstanceShade& is = r.instances[h.instance_id];
     const Surface sf = r.surface_at(h, ray);
     const Vec3 &p = sf.p, &ng = sf.ng, &ns = sf.ns, &wo = sf.wo;
     const Material& mat = *sf.mat;
@@ -329,8 +325,8 @@ void Renderer::Impl::TilePaths::shade(const Impl& r, int depth, std::span<const 
       const Vec3 le = r.emission_at(mat, sf.uv);
       float w = 1;
       if (depth > 0) {
-        const float lp =
-            r.light_pdf(h.instance, h.prim, h.t * h.t, std::fabs(sf.cos_hit), ray.org, use_tree);
+        const float lp = r.light_pdf(h.instance_id, h.prim_id, h.t * h.t, std::fabs(sf.cos_hit),
+                                     ray.org, use_tree);
         w = ps.restir && depth == 1
                 ? (lp > 0 ? 0.0f : 1.0f)
                 : ps.bsdf_pdf * ps.bsdf_pdf / (ps.bsdf_pdf * ps.bsdf_pdf + lp * lp);

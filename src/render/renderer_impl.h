@@ -159,14 +159,9 @@ struct Accumulator {
   }
 };
 
-/// A hit as the shading code sees it: the instance (static scenes: the mesh) and the
-/// triangle's index in that instance's mesh.
-struct SurfaceHit {
-  float t = INFINITY;
-  uint32_t instance = invalid_id, prim = invalid_id;
-  float u = 0, v = 0;
-  bool hit() const { return instance != invalid_id; }
-};
+/// A hit as the shading code sees it: the scene's own InstanceHit (the instance; static scenes:
+/// the mesh), so the trace batches write the shading's records directly.
+using SurfaceHit = InstanceHit;
 
 struct Renderer::Impl {
   struct InstanceShade {

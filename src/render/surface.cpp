@@ -15,15 +15,15 @@ using namespace render;
 
 void Renderer::Impl::prefetch_indices(const SurfaceHit& h) const {
   if (!h.hit()) return;
-  const TriangleMesh& m = *instances[h.instance].mesh;
-  __builtin_prefetch(&m.indices[3 * size_t(h.prim)]);
-  if (!m.material_ids.empty()) __builtin_prefetch(&m.material_ids[h.prim]);
+  const TriangleMesh& m = *instances[h.instance_id].mesh;
+  __builtin_prefetch(&m.indices[3 * size_t(h.prim_id)]);
+  if (!m.material_ids.empty()) __builtin_prefetch(&m.material_ids[h.prim_id]);
 }
 void Renderer::Impl::prefetch_vertices(const SurfaceHit& h) const {
   if (!h.hit()) return;
-  const TriangleMesh& m = *instances[h.instance].mesh;
+  const TriangleMesh& m = *instances[h.instance_id].mesh;
   for (int c = 0; c < 3; ++c) {
-    const uint32_t i = m.indices[3 * size_t(h.prim) + size_t(c)];
+    const uint32_t i = m.indices[3 * size_t(h.prim_id) + size_t(c)];
     __builtin_prefetch(&m.positions[i]);
     if (!m.normals.empty()) __builtin_prefetch(&m.normals[i]);
     if (!m.uvs.empty()) __builtin_prefetch(&m.uvs[i]);
@@ -32,11 +32,11 @@ void Renderer::Impl::prefetch_vertices(const SurfaceHit& h) const {
 // The base colour texels, once the uvs are near.
 void Renderer::Impl::prefetch_texels(const SurfaceHit& h) const {
   if (!h.hit()) return;
-  const TriangleMesh& m = *instances[h.instance].mesh;
+  const TriangleMesh& m = *instances[h.instance_id].mesh;
   if (m.uvs.empty()) return;
-  const Texture* t = texture(material_of(m, h.prim).base_color_texture);
+  const Texture* t = texture(material_of(m, h.prim_id).base_color_texture);
   if (!t) return;
-  const Vec2 uv = uv_at(m, h.prim, h.u, h.v);
+  const Vec2 uv = uv_at(m, h.prim_id, h.u, h.v);
   const float u = uv.x, v = uv.y;
   const float x = (u - std::floor(u)) * float(t->width), y = (v - std::floor(v)) * float(t->height);
   if (!(x >= 0 && x < float(t->width) && y >= 0 && y < float(t->height))) return;
@@ -51,10 +51,10 @@ void Renderer::Impl::prefetch_texels(const SurfaceHit& h) const {
 // surface_at's first part: the world position (and the object-space one, for motion
 // vectors), the geometric normal facing the ray, the material.
 void Renderer::Impl::surface_geometry(const SurfaceHit& h, const Ray& ray, Surface& sf) const {
-  const InstanceShade& is = instances[h.instance];
+  const InstanceShade& is = instances[h.instance_id];
   const TriangleMesh& mesh = *is.mesh;
-  const uint32_t i0 = mesh.indices[3 * h.prim], i1 = mesh.indices[3 * h.prim + 1],
-                 i2 = mesh.indices[3 * h.prim + 2];
+  const uint32_t i0 = mesh.indices[3 * h.prim_id], i1 = mesh.indices[3 * h.prim_id + 1],
+                 i2 = mesh.indices[3 * h.prim_id + 2];
   const float b0 = 1 - h.u - h.v;
   Vec3 p0 = mesh.positions[i0], p1 = mesh.positions[i1], p2 = mesh.positions[i2];
   sf.p_obj = p0 * b0 + p1 * h.u + p2 * h.v;
@@ -66,7 +66,7 @@ void Renderer::Impl::surface_geometry(const SurfaceHit& h, const Ray& ray, Surfa
   ng = ng_len > 0 ? ng * (1.0f / ng_len) : -wo;
   sf.cos_hit = dot(ng, wo);
   sf.ng = sf.cos_hit < 0 ? -ng : ng;
-  sf.mat = &material_of(mesh, h.prim);
+  sf.mat = &material_of(mesh, h.prim_id);
 }
 
 // The material's roughness in [0, 1] at uv (its metallic-roughness texture's G scales it) and
@@ -89,14 +89,14 @@ float Renderer::Impl::roughness_at(const Material& mat, Vec2 uv, float& metallic
 Renderer::Impl::Surface Renderer::Impl::surface_at(const SurfaceHit& h, const Ray& ray) const {
   Surface sf;
   surface_geometry(h, ray, sf);
-  const InstanceShade& is = instances[h.instance];
+  const InstanceShade& is = instances[h.instance_id];
   const TriangleMesh& mesh = *is.mesh;
   const float b0 = 1 - h.u - h.v;
   const Vec3 ng = sf.ng, wo = sf.wo;
   Vec3 ns = ng;
   if (!mesh.normals.empty()) {
-    const uint32_t i0 = mesh.indices[3 * h.prim], i1 = mesh.indices[3 * h.prim + 1],
-                   i2 = mesh.indices[3 * h.prim + 2];
+    const uint32_t i0 = mesh.indices[3 * h.prim_id], i1 = mesh.indices[3 * h.prim_id + 1],
+                   i2 = mesh.indices[3 * h.prim_id + 2];
     Vec3 nn = mesh.normals[i0] * b0 + mesh.normals[i1] * h.u + mesh.normals[i2] * h.v;
     if (!is.identity) nn = normal_transform(is.nrm, nn);
     const float len = length(nn);
@@ -106,7 +106,7 @@ Renderer::Impl::Surface Renderer::Impl::surface_at(const SurfaceHit& h, const Ra
       if (dot(nn, wo) > 1e-4f) ns = nn;
     }
   }
-  const Vec2 uv = sf.uv = uv_at(mesh, h.prim, h.u, h.v);
+  const Vec2 uv = sf.uv = uv_at(mesh, h.prim_id, h.u, h.v);
   const Material& mat = *sf.mat;
   BsdfParams& bp = sf.bp;
   bp.base = mat.base_color;
