@@ -276,6 +276,23 @@ void Renderer::Impl::render_passes(const Camera& camera, const RenderSettings& s
   frame.stats.shadow_rays += stats.rays[2];
 }
 
+void Accumulator::reset(int w, int h) {
+  width = w, height = h;
+  const size_t p = size_t(w) * size_t(h);
+  for (auto* v : {&color, &albedo, &normal}) v->resize(3 * p);
+  for (auto* v : {&depth, &rough}) v->resize(p);
+  motion.resize(2 * p), lum_mean.resize(p), lum_m2.resize(p), n.resize(p);
+  parallel_for(0, p, 16384, [&](size_t b, size_t e) {
+    for (auto* v : {&color, &albedo, &normal})
+      std::fill(v->data() + 3 * b, v->data() + 3 * e, 0.0f);
+    for (auto* v : {&depth, &rough}) std::fill(v->data() + b, v->data() + e, 0.0f);
+    std::fill(motion.data() + 2 * b, motion.data() + 2 * e, 0.0f);
+    std::fill(lum_mean.data() + b, lum_mean.data() + e, 0.0);
+    std::fill(lum_m2.data() + b, lum_m2.data() + e, 0.0);
+    std::fill(n.data() + b, n.data() + e, 0);
+  });
+}
+
 Frame Renderer::render(const Camera& camera, const RenderSettings& s,
                        std::optional<Camera> prev_camera) {
   Frame frame;
