@@ -80,41 +80,40 @@ void any_hit_order(const Accel& accel, std::span<const Ray> rays, Fn&& traced) {
   accel.nodes->choices->any_order[segments ? 0 : 1].run(rays.size(), traced);
 }
 
+// A wide layout's kernels (kernels::Table's, for Bvh4Fn or Bvh8Fn).
+template <class Fn>
+struct WideFns {
+  Fn closest, any, any_nearest, packet, any_packet;
+};
+
+// The traceable runs of `rays` through one wide tree's kernels: packets or single rays as
+// asked, and single-ray occlusion in the order any_hit_order picks.
+template <class Bvh, class Fn>
+void trace_wide(const Accel& accel, const Bvh& bvh, std::span<const Ray> rays, std::span<Hit> hits,
+                bool any_hit, bool packets, const WideFns<Fn>& f) {
+  const auto run = [&](Fn fn) {
+    kernels::for_each_traceable_run(rays, hits.data(), [&](const Ray* r, Hit* h, size_t n) {
+      fn(bvh.nodes.data(), bvh.blocks.data(), r, h, n);
+    });
+  };
+  if (any_hit && !packets)
+    return any_hit_order(accel, rays, [&](bool nearest) { run(nearest ? f.any_nearest : f.any); });
+  run(any_hit ? f.any_packet : packets ? f.packet : f.closest);
+}
+
 void trace_range(const Accel& accel, std::span<const Ray> rays, std::span<Hit> hits, bool any_hit,
                  const kernels::Table& k, bool packets) {
   switch (accel.layout) {
     case Layout::bvh4:
       if (accel.nodes->bvh4.empty()) break;
-      if (any_hit && !packets)
-        return any_hit_order(accel, rays, [&](bool nearest) {
-          kernels::for_each_traceable_run(rays, hits.data(), [&](const Ray* r, Hit* h, size_t n) {
-            (nearest ? k.any_nearest4 : k.any4)(accel.nodes->bvh4.nodes.data(),
-                                                accel.nodes->bvh4.blocks.data(), r, h, n);
-          });
-        });
-      kernels::for_each_traceable_run(rays, hits.data(), [&](const Ray* r, Hit* h, size_t n) {
-        (any_hit   ? k.any_packet4
-         : packets ? k.packet4
-                   : k.closest4)(accel.nodes->bvh4.nodes.data(), accel.nodes->bvh4.blocks.data(), r,
-                                 h, n);
-      });
-      return;
+      return trace_wide(
+          accel, accel.nodes->bvh4, rays, hits, any_hit, packets,
+          WideFns<kernels::Bvh4Fn>{k.closest4, k.any4, k.any_nearest4, k.packet4, k.any_packet4});
     case Layout::bvh8:
       if (accel.nodes->bvh8.empty()) break;
-      if (any_hit && !packets)
-        return any_hit_order(accel, rays, [&](bool nearest) {
-          kernels::for_each_traceable_run(rays, hits.data(), [&](const Ray* r, Hit* h, size_t n) {
-            (nearest ? k.any_nearest8 : k.any8)(accel.nodes->bvh8.nodes.data(),
-                                                accel.nodes->bvh8.blocks.data(), r, h, n);
-          });
-        });
-      kernels::for_each_traceable_run(rays, hits.data(), [&](const Ray* r, Hit* h, size_t n) {
-        (any_hit   ? k.any_packet8
-         : packets ? k.packet8
-                   : k.closest8)(accel.nodes->bvh8.nodes.data(), accel.nodes->bvh8.blocks.data(), r,
-                                 h, n);
-      });
-      return;
+      return trace_wide(
+          accel, accel.nodes->bvh8, rays, hits, any_hit, packets,
+          WideFns<kernels::Bvh8Fn>{k.closest8, k.any8, k.any_nearest8, k.packet8, k.any_packet8});
     default:
       if (any_hit) {
         for (size_t i = 0; i < rays.size(); ++i) hits[i] = intersect_bvh2<true>(accel, rays[i]);

@@ -84,7 +84,7 @@ inline constexpr int stack_size = 256 * (W - 1) + 1 + 8;
 // Inlined into its caller, where the ray's constants and the hit being kept are locals the
 // compiler can tell apart: as a function of its own, every store of a closer hit could alias
 // the ray and forced the triangle test to reload it per block (4 % slower on diffuse rays).
-template <int W, bool AnyHit, class Node, class LeafFn, bool Nearest = false>
+template <int W, bool AnyHit, class Node, bool Nearest = false, class LeafFn>
 [[gnu::always_inline]] inline void traverse(const Node* nodes, const BoxRay<W>& box, float tmin_s,
                                             float& best_t, LeafFn&& leaf, uint32_t root = 0) {
   using S = Simd<W>;
@@ -259,8 +259,9 @@ inline void trace_ray(const Node* nodes, const TriangleBlock* blocks, const Ray&
   const TriRay tri(ray);
   KSTAT(++stat_rays);
   Closest c = {ray.tmax, 0, 0, 1, invalid_id};
-  const auto leaf = [&](uint32_t ref) { return leaf_ray<AnyHit>(blocks, ref, tri, c); };
-  traverse<W, AnyHit, Node, decltype(leaf) const&, Nearest>(nodes, box, ray.tmin, c.t, leaf);
+  traverse<W, AnyHit, Node, Nearest>(nodes, box, ray.tmin, c.t, [&](uint32_t ref) {
+    return leaf_ray<AnyHit>(blocks, ref, tri, c);
+  });
   if (c.id != invalid_id) {
     hit.t = c.t;
     hit.prim_id = c.id;

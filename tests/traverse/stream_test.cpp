@@ -5,11 +5,9 @@
 
 #include <algorithm>
 #include <cmath>
-#include <cstring>
 
 #include "kestrel/kestrel.h"
 #include "support/oracles.h"
-#include "traverse/accel_nodes.h"
 #include "traverse/stream.h"
 
 namespace kestrel {

@@ -18,7 +18,6 @@
 #include "traverse/accel_nodes.h"
 #include "traverse/batches.h"
 #include "traverse/kernels.h"
-#include "traverse/stream.h"
 #include "traverse/wide_bvh.h"
 
 namespace kestrel {
