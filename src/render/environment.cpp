@@ -88,6 +88,7 @@ void Renderer::Impl::setup_environment() {
     const double one_minus_cos =
         2 * std::sin(radius / 2) * std::sin(radius / 2);  // 1 - cos, exactly
     sun_dir = normalize(sun.direction);
+    sun_frame = Basis(sun_dir);
     sun_cos_max = float(1 - one_minus_cos);
     sun_solid_angle = float(2 * 3.14159265358979 * one_minus_cos);
     sun_radiance = sun.irradiance * (1.0f / sun_solid_angle);

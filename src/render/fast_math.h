@@ -17,12 +17,21 @@ inline float polynomial(float x, const float (&c)[N]) {
   return p;
 }
 
+/// std::nearbyint in the default rounding mode (to nearest, ties to even) without a libm call
+/// (baseline x86-64 has no rounding instruction): |x| + 2^23 is rounded to an integer by the
+/// addition itself and the subtraction is exact; floats of at least 2^23 are integers.
+inline float round_even(float x) {
+  const float a = std::fabs(x);
+  if (!(a < 0x1p23f)) return x;  // also NaN and the infinities
+  return std::copysign((a + 0x1p23f) - 0x1p23f, x);
+}
+
 /// sin and cos of 2 pi u, for any finite u: reduced to a quarter turn around 0 and evaluated
 /// by the Taylor series to the 9th (sin) and 10th (cos) power, whose remainder is below 2e-9
 /// there; the quadrant's swap and signs are then exact.
 inline void sincos_2pi(float u, float& s, float& c) {
-  const float r = u - std::nearbyint(u);          // [-1/2, 1/2] turns
-  const float q = std::nearbyint(4.0f * r);       // quadrant -2 .. 2
+  const float r = u - round_even(u);              // [-1/2, 1/2] turns
+  const float q = round_even(4.0f * r);           // quadrant -2 .. 2
   const float t = (r - 0.25f * q) * 6.28318531f;  // [-pi/4, pi/4]
   const float t2 = t * t;
   const float sn =

@@ -78,7 +78,8 @@ void add_sample(Accumulator& acc, size_t p, Vec3 L, const PixelSample& o, float 
   acc.lum_m2[p] += delta * (lum - acc.lum_mean[p]);
 }
 
-constexpr size_t index_distance = 48, vertex_distance = 24, texel_distance = 12;
+constexpr size_t index_distance = 48, vertex_distance = 24, texel_distance = 12,
+                 state_distance = 16;
 
 // Radiance cache: the first surface must be this rough (GGX alpha) for its bounce to stop at
 // the cache (sharper reflections would show the cells), the second this rough for its
@@ -248,6 +249,16 @@ void Renderer::Impl::TilePaths::shade(const Impl& r, int depth, std::span<const 
     if (k + index_distance < n) r.prefetch_indices(hits[k + index_distance]);
     if (k + vertex_distance < n) r.prefetch_vertices(hits[k + vertex_distance]);
     if (k + texel_distance < n) ahead(k + texel_distance);
+    // The path's state a few paths ahead (the wave's trace between bounces evicted the
+    // tile's arrays; a path's pixel sample has the path's index).
+    if (k + state_distance < n) {
+      const uint32_t a = active[k + state_distance];
+      const char* q = reinterpret_cast<const char*>(&paths[a]);
+      __builtin_prefetch(q, 1);
+      __builtin_prefetch(q + sizeof(PathState) - 1, 1);
+      __builtin_prefetch(&rngs[a], 1);
+      __builtin_prefetch(&px[a], 1);
+    }
     PathState& ps = paths[active[k]];
     Rng& rng = rngs[active[k]];
     if (depth == 0) start(k);

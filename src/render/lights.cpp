@@ -161,7 +161,7 @@ Vec3 Renderer::Impl::sun_sample(float u1, float u2) const {
               sin_t = std::sqrt(std::max(0.0f, 1 - cos_t * cos_t));
   float sin_phi, cos_phi;  // of phi = 2 pi u2
   sincos_2pi(u2, sin_phi, cos_phi);
-  return Basis(sun_dir).to_world({sin_t * cos_phi, sin_t * sin_phi, cos_t});
+  return sun_frame.to_world({sin_t * cos_phi, sin_t * sin_phi, cos_t});
 }
 
 // One light sample at a surface: the environment, the sun, or a local light (an emissive

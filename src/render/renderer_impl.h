@@ -210,6 +210,7 @@ struct Renderer::Impl {
   // The sun (env.sun): a cone of directions sampled uniformly, radiance irradiance / solid angle.
   bool sun_on = false;
   Vec3 sun_dir, sun_radiance;
+  Basis sun_frame{Vec3{0, 0, 1}};  // around sun_dir (sun_sample)
   float sun_cos_max = 1, sun_solid_angle = 0;
   float p_sun = 0;           // probability NEE samples the sun
   float env_irradiance = 0;  // luminance of the environment's irradiance on an upward surface

@@ -4,7 +4,9 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <bit>
 #include <cmath>
+#include <limits>
 #include <random>
 #include <vector>
 
@@ -200,6 +202,38 @@ TEST(FastMath, SinCosOfTurnsMatchDoublePrecision) {
   sincos_2pi(0.25f, s, c);
   EXPECT_EQ(s, 1.0f);
   EXPECT_EQ(c, 0.0f);
+}
+
+// round_even is std::nearbyint (default rounding mode) bit for bit: ties to even, the sign of
+// zero, the largest non-integers, integers beyond 2^23, infinities and NaN.
+TEST(FastMath, RoundEvenIsNearbyint) {
+  const auto bits = [](float x) { return std::bit_cast<uint32_t>(x); };
+  std::vector<float> xs = {0.0f,
+                           -0.0f,
+                           0.5f,
+                           -0.5f,
+                           1.5f,
+                           -1.5f,
+                           2.5f,
+                           -2.5f,
+                           0.49999997f,
+                           -0.49999997f,
+                           0x1p23f - 0.5f,
+                           0x1p23f,
+                           -0x1p23f,
+                           0x1p23f + 1,
+                           1e30f,
+                           -1e30f,
+                           std::numeric_limits<float>::infinity(),
+                           -std::numeric_limits<float>::infinity(),
+                           std::numeric_limits<float>::denorm_min(),
+                           -1e-40f};
+  std::mt19937 rng(5);
+  std::uniform_real_distribution<float> wide(-1e7f, 1e7f), narrow(-4.0f, 4.0f);
+  for (int i = 0; i < 100000; ++i) xs.push_back(wide(rng)), xs.push_back(narrow(rng));
+  for (int i = -4096; i <= 4096; ++i) xs.push_back(float(i) * 0.25f);  // halves and quarters
+  for (const float x : xs) EXPECT_EQ(bits(round_even(x)), bits(std::nearbyint(x))) << x;
+  EXPECT_TRUE(std::isnan(round_even(std::numeric_limits<float>::quiet_NaN())));
 }
 
 TEST(FastMath, Atan2AndAcosMatchDoublePrecision) {
