@@ -133,6 +133,27 @@ void run(RunArgs& a) {
       "render's thread time inside trace / occluded (median), the rest shading.\n",
       rays(&RenderStats::camera_rays), rays(&RenderStats::bounce_rays),
       rays(&RenderStats::shadow_rays), 100.0 * median_of(trace_share));
+  // The render's wall time by step (medians of each; "other": the rest of the render's median,
+  // e.g. the radiance cache's merge and the frame's AOVs).
+  using Steps = RenderStats::Steps;
+  const std::pair<const char*, double Steps::*> steps[] = {
+      {"camera rays", &Steps::camera},
+      {"trace camera rays", &Steps::trace_camera},
+      {"shade first hits", &Steps::shade_first},
+      {"their shadow rays", &Steps::shadows_first},
+      {"trace bounces", &Steps::trace_bounces},
+      {"shade bounces", &Steps::shade_bounces},
+      {"bounce shadow rays", &Steps::shadows_bounces},
+      {"add to film", &Steps::film}};
+  md += "\nRender steps (median ms):";
+  double stepped = 0;
+  for (const auto& [name, m] : steps) {
+    const double v = median_of([m](const RenderStats& st) { return st.steps.*m; });
+    stepped += v;
+    md += fmt::format(" {} {:.1f},", name, v);
+  }
+  md += fmt::format(" other {:.1f}.\n",
+                    std::max(0.0, percentile(column(&PipelineTimes::render), 0.5) - stepped));
   write_text_file((std::filesystem::path(a.out) / "timings.csv").string(), csv);
   write_text_file((std::filesystem::path(a.out) / "timings.md").string(), md);
   fmt::print("\n{}", md);

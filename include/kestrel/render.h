@@ -219,6 +219,15 @@ struct RenderStats {
   double trace_ms = 0;         ///< time inside trace/occluded calls (wall time x threads)
   double total_thread_ms = 0;  ///< time inside the render's passes (wall time x threads)
   uint64_t camera_rays = 0, bounce_rays = 0, shadow_rays = 0;
+  /// Where the wall time went, by step of the wavefront (ms; summed over passes): camera rays
+  /// made; traced; the first hits shaded (surface, texels, AOVs, light and BSDF samples);
+  /// their shadow rays (and ReSTIR's reuse) traced and applied; the later bounces traced,
+  /// shaded, their shadow rays traced; the samples added to the film. Steps that trace
+  /// include gathering the tiles' rays into one batch.
+  struct Steps {
+    double camera = 0, trace_camera = 0, shade_first = 0, shadows_first = 0;
+    double trace_bounces = 0, shade_bounces = 0, shadows_bounces = 0, film = 0;
+  } steps;
   int passes = 0;  ///< samples per pixel done
   uint64_t rays() const { return camera_rays + bounce_rays + shadow_rays; }
 };

@@ -123,7 +123,7 @@ class CameraPath:
     def at(self, time: float) -> Camera: ...
 
 class Renderer:
-    last_stats: dict[str, float]
+    last_stats: dict[str, Any]  # counts and ms; "steps": ms by step of the wavefront
     last_jitter: Tuple[float, float]
     light_count: int
     @overload

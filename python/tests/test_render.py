@@ -265,6 +265,9 @@ def test_radiance_cache_matches_the_cli(cli, tmp_path, cornell):
     cached_rays = rays()
     r.render(cam, res=RES, spp=4, seed=3, max_depth=5)
     assert cached_rays < rays()
+    steps = r.last_stats["steps"]  # the wall time by step: within the render's
+    assert steps["shade_first"] > 0 and steps["trace_bounces"] > 0
+    assert 0 < sum(steps.values()) <= r.last_stats["ms"] + 1e-6
     cli("render", "builtin:cornell_box", "--res", f"{RES[0]}x{RES[1]}", "--spp", 4, "--seed", 3,
         "--max-depth", 5, "--radiance-cache", "--quiet", "-o", tmp_path / "f.exr",
         "--pfm", tmp_path / "pfm")

@@ -529,11 +529,19 @@ void Renderer::Impl::render_wave(const WavePass& wp, std::span<const uint32_t> i
                                                    wv.offsets[i + 1] - wv.offsets[i]));
     });
   };
+  RenderStats::Steps& steps = stats.steps;
+  double mark = start;
+  const auto step = [&](double& into) {  // the wall time since the last step, into a step
+    const double t = now_ms();
+    into += t - mark;
+    mark = t;
+  };
   parallel_for(0, n, 1, [&](size_t b, size_t e) {
     for (size_t i = b; i < e; ++i)
       wv.tiles[i].begin(wp, int(ids[i] % uint32_t(tiles_x)), int(ids[i] / uint32_t(tiles_x)),
                         records ? &records[i] : nullptr);
   });
+  step(steps.camera);
   for (int depth = 0;; ++depth) {
     const std::span<const Ray> batch =
         wv.gather(n, [](TilePaths& t) -> const std::vector<Ray>& { return t.rays; });
@@ -541,12 +549,14 @@ void Renderer::Impl::render_wave(const WavePass& wp, std::span<const uint32_t> i
     wv.hits.resize(batch.size());
     capture_batch(depth == 0 ? 0 : 1, batch);
     timed([&] { trace(batch, wv.hits); }, depth == 0 ? 0 : 1, batch.size());
+    step(depth == 0 ? steps.trace_camera : steps.trace_bounces);
     parallel_for(0, n, 1, [&](size_t b, size_t e) {
       for (size_t i = b; i < e; ++i)
         wv.tiles[i].shade(*this, depth,
                           std::span<const SurfaceHit>(wv.hits.data() + wv.offsets[i],
                                                       wv.offsets[i + 1] - wv.offsets[i]));
     });
+    step(depth == 0 ? steps.shade_first : steps.shade_bounces);
     if (wp.rp && depth == 0) {
       parallel_for(0, n, 1, [&](size_t b, size_t e) {
         for (size_t i = b; i < e; ++i) wv.tiles[i].restir_initial(*this);
@@ -557,10 +567,12 @@ void Renderer::Impl::render_wave(const WavePass& wp, std::span<const uint32_t> i
     }
     shadows([](TilePaths& t) -> const std::vector<Ray>& { return t.shadow_rays; },
             [](TilePaths& t, std::span<const uint8_t> blocked) { t.finish_bounce(blocked); });
+    step(depth == 0 ? steps.shadows_first : steps.shadows_bounces);
   }
   parallel_for(0, n, 1, [&](size_t b, size_t e) {
     for (size_t i = b; i < e; ++i) wv.tiles[i].end(acc);
   });
+  step(steps.film);
   stats.thread_ms += (now_ms() - start) * threads;
 }
 

@@ -392,6 +392,7 @@ struct Renderer::Impl {
     double trace_ms = 0;           // in trace()/occluded(), wall time x threads
     double thread_ms = 0;          // in render_wave, wall time x threads
     uint64_t rays[3] = {0, 0, 0};  // camera, bounce, shadow
+    RenderStats::Steps steps;      // wall ms
   };
   std::unique_ptr<Wave, WaveDelete> wave;  // the wave's storage, kept between renders
   size_t tiles_per_wave = wave_tiles;      // RendererTesting::set_wave_tiles

@@ -1,6 +1,6 @@
 // The renderer's determinism: the same bits for one and two threads, for any wave of tiles
 // (NEE, ReSTIR, the radiance cache), for a render into a kept frame and for tiles rendered
-// apart.
+// apart; and the render's own account of where its time went.
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -135,6 +135,37 @@ TEST(Determinism, TilesRenderedApartEqualOneRender) {
   EXPECT_THROW(r.render_tiles(cam, rs, std::vector<uint32_t>{6}, parts), Error);
   rs.time_limit_s = 1;
   EXPECT_THROW(r.render_tiles(cam, rs, first, parts), Error);
+}
+
+// RenderStats::steps splits the render's wall time by step of the wavefront: each step that
+// ran took time, the steps add up to most of the render (the rest: the film's reset and the
+// frame's AOVs) and never to more, and a render without bounces spends nothing on them.
+TEST(RenderStats, StepsAccountForTheRender) {
+  SceneRenderer r(load_scene("builtin:cornell_box"));
+  const Camera cam = *find_view(load_scene("builtin:cornell_box"), "front");
+  RenderSettings rs;
+  rs.width = 320, rs.height = 240, rs.spp = 2, rs.max_depth = 4;
+  const RenderStats s = r.render(cam, rs).stats;
+  const RenderStats::Steps& t = s.steps;
+  const double all[] = {t.camera,        t.trace_camera,  t.shade_first,     t.shadows_first,
+                        t.trace_bounces, t.shade_bounces, t.shadows_bounces, t.film};
+  double sum = 0;
+  for (const double v : all) {
+    EXPECT_GE(v, 0.0);
+    sum += v;
+  }
+  EXPECT_GT(t.trace_camera, 0.0);
+  EXPECT_GT(t.shade_first, 0.0);
+  EXPECT_GT(s.bounce_rays, 0u);
+  EXPECT_GT(t.trace_bounces, 0.0);
+  EXPECT_GT(t.shade_bounces, 0.0);
+  EXPECT_LE(sum, s.ms + 1e-6);
+  EXPECT_GE(sum, 0.5 * s.ms);
+  rs.max_depth = 1;  // camera rays and their hits' light only
+  const RenderStats direct = r.render(cam, rs).stats;
+  EXPECT_EQ(direct.bounce_rays, 0u);
+  EXPECT_EQ(direct.steps.shade_bounces, 0.0);
+  EXPECT_GT(direct.steps.shade_first, 0.0);
 }
 
 }  // namespace
