@@ -149,6 +149,28 @@ TEST(WideKernels, UntraceableRaysMissInEveryKernel) {
   }
 }
 
+// The batch scan's is_traceable_fast is is_traceable: every combination of a normal, zero,
+// negative zero, infinite and NaN value in each of the ray's eight floats.
+TEST(WideKernels, FastTraceableTestIsTheDefinition) {
+  const float nan = std::nanf(""), inf = INFINITY;
+  const float values[] = {0.5f, 0.0f, -0.0f, -2.0f, inf, -inf, nan};
+  size_t traceable = 0, checked = 0;
+  for (int slot = 0; slot < 8; ++slot)
+    for (int other = 0; other < 8; ++other)
+      for (const float v : values)
+        for (const float w : values) {
+          float f[8] = {0.5f, -1.0f, 2.0f, 0.0f, 0.0f, 1.0f, 0.0f, inf};
+          f[slot] = v, f[other] = w;
+          Ray r;
+          std::memcpy(&r, f, sizeof f);
+          ASSERT_EQ(kernels::is_traceable_fast(r), is_traceable(r))
+              << "slot " << slot << " = " << v << ", slot " << other << " = " << w;
+          traceable += is_traceable(r), ++checked;
+        }
+  EXPECT_GT(traceable, checked / 4);  // both answers occur
+  EXPECT_LT(traceable, checked);
+}
+
 TEST(WideKernels, EmptySceneAndSingleTriangle) {
   Scene empty;
   Scene one;
