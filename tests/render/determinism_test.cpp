@@ -138,8 +138,9 @@ TEST(Determinism, TilesRenderedApartEqualOneRender) {
 }
 
 // RenderStats::steps splits the render's wall time by step of the wavefront: each step that
-// ran took time, the steps add up to most of the render (the rest: the film's reset and the
-// frame's AOVs) and never to more, and a render without bounces spends nothing on them.
+// ran took time, the steps add up to most of the render (the rest: each pass's setup and the
+// radiance cache's merge) and never to more, and a render without bounces spends nothing on
+// them.
 TEST(RenderStats, StepsAccountForTheRender) {
   SceneRenderer r(load_scene("builtin:cornell_box"));
   const Camera cam = *find_view(load_scene("builtin:cornell_box"), "front");
