@@ -503,8 +503,12 @@ TEST(ToneMap, Srgb8IsTheDocumentedCurveForEveryValue) {
           const float x = img.pixels[p * size_t(channels) + c];
           const double want = 255.0 * tonemap_aces_srgb(x * std::exp2(stops));
           EXPECT_NEAR(out[3 * p + c], want, 1.0) << "value " << x << " stops " << stops;
-          if (!(x > 0)) EXPECT_EQ(out[3 * p + c], 0) << x;
-          if (x == INFINITY) EXPECT_EQ(out[3 * p + c], 255);
+          if (!(x > 0)) {
+            EXPECT_EQ(out[3 * p + c], 0) << x;
+          }
+          if (x == INFINITY) {
+            EXPECT_EQ(out[3 * p + c], 255);
+          }
         }
     }
 }
