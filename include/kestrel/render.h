@@ -223,7 +223,8 @@ struct RenderStats {
   /// made; traced; the first hits shaded (surface, texels, AOVs, light and BSDF samples);
   /// their shadow rays (and ReSTIR's reuse) traced and applied; the later bounces traced,
   /// shaded, their shadow rays traced; the samples added to the film. Steps that trace
-  /// include gathering the tiles' rays into one batch.
+  /// include gathering the tiles' rays into one batch. A distributed render sums each step
+  /// over its ranks (as it sums trace_ms).
   struct Steps {
     double camera = 0, trace_camera = 0, shade_first = 0, shadows_first = 0;
     double trace_bounces = 0, shade_bounces = 0, shadows_bounces = 0, film = 0;

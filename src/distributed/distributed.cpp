@@ -258,28 +258,37 @@ Frame render(Renderer& renderer, const Camera& camera, const RenderSettings& s,
   }
   mine.wall_ms = wall.ms();
   mine.rays = frame.stats.rays();
-  // Every rank's figures to rank 0: the frame's stats are the sums.
-  double local_figures[8] = {mine.busy_ms,
-                             mine.wall_ms,
-                             double(mine.tiles),
-                             double(frame.stats.camera_rays),
-                             double(frame.stats.bounce_rays),
-                             double(frame.stats.shadow_rays),
-                             frame.stats.trace_ms,
-                             frame.stats.total_thread_ms};
-  std::vector<double> all(world_rank == 0 ? 8 * size_t(world_size) : 0);
-  MPI_Gather(local_figures, 8, MPI_DOUBLE, all.data(), 8, MPI_DOUBLE, 0, MPI_COMM_WORLD);
+  // Every rank's figures to rank 0: the frame's stats are the sums (the steps too).
+  RenderStats::Steps& st = frame.stats.steps;
+  double* const step_ms[] = {&st.camera,          &st.trace_camera,  &st.shade_first,
+                             &st.shadows_first,   &st.trace_bounces, &st.shade_bounces,
+                             &st.shadows_bounces, &st.film};
+  constexpr int steps = int(sizeof step_ms / sizeof step_ms[0]), figures = 8 + steps;
+  double local_figures[figures] = {mine.busy_ms,
+                                   mine.wall_ms,
+                                   double(mine.tiles),
+                                   double(frame.stats.camera_rays),
+                                   double(frame.stats.bounce_rays),
+                                   double(frame.stats.shadow_rays),
+                                   frame.stats.trace_ms,
+                                   frame.stats.total_thread_ms};
+  for (int k = 0; k < steps; ++k) local_figures[8 + k] = *step_ms[k];
+  std::vector<double> all(world_rank == 0 ? figures * size_t(world_size) : 0);
+  MPI_Gather(local_figures, figures, MPI_DOUBLE, all.data(), figures, MPI_DOUBLE, 0,
+             MPI_COMM_WORLD);
   if (world_rank != 0) return Frame{};
   frame.stats.camera_rays = frame.stats.bounce_rays = frame.stats.shadow_rays = 0;
   frame.stats.trace_ms = frame.stats.total_thread_ms = 0;
+  st = RenderStats::Steps{};
   if (per_rank) per_rank->clear();
   for (int r = 0; r < world_size; ++r) {
-    const double* v = &all[8 * size_t(r)];
+    const double* v = &all[figures * size_t(r)];
     frame.stats.camera_rays += uint64_t(v[3]);
     frame.stats.bounce_rays += uint64_t(v[4]);
     frame.stats.shadow_rays += uint64_t(v[5]);
     frame.stats.trace_ms += v[6];
     frame.stats.total_thread_ms += v[7];
+    for (int k = 0; k < steps; ++k) *step_ms[k] += v[8 + k];
     if (per_rank)
       per_rank->push_back(RankStats{v[0], v[1], uint64_t(v[2]), uint64_t(v[3] + v[4] + v[5])});
   }
