@@ -135,22 +135,18 @@ void run(RunArgs& a) {
       rays(&RenderStats::shadow_rays), 100.0 * median_of(trace_share));
   // The render's wall time by step (medians of each; "other": the rest of the render's median,
   // e.g. the radiance cache's merge and the frame's AOVs).
-  using Steps = RenderStats::Steps;
-  const std::pair<const char*, double Steps::*> steps[] = {
-      {"camera rays", &Steps::camera},
-      {"trace camera rays", &Steps::trace_camera},
-      {"shade first hits", &Steps::shade_first},
-      {"their shadow rays", &Steps::shadows_first},
-      {"trace bounces", &Steps::trace_bounces},
-      {"shade bounces", &Steps::shade_bounces},
-      {"bounce shadow rays", &Steps::shadows_bounces},
-      {"add to film", &Steps::film}};
+  constexpr auto fields = RenderStats::Steps::fields();
+  constexpr const char* labels[] = {"camera rays",        "trace camera rays", "shade first hits",
+                                    "their shadow rays",  "trace bounces",     "shade bounces",
+                                    "bounce shadow rays", "add to film"};
+  static_assert(std::size(labels) == fields.size());
   md += "\nRender steps (median ms):";
   double stepped = 0;
-  for (const auto& [name, m] : steps) {
+  for (size_t k = 0; k < fields.size(); ++k) {
+    const auto m = fields[k].second;
     const double v = median_of([m](const RenderStats& st) { return st.steps.*m; });
     stepped += v;
-    md += fmt::format(" {} {:.1f},", name, v);
+    md += fmt::format(" {} {:.1f},", labels[k], v);
   }
   md += fmt::format(" other {:.1f}.\n",
                     std::max(0.0, percentile(column(&PipelineTimes::render), 0.5) - stepped));

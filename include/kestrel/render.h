@@ -12,6 +12,7 @@
 #include <optional>
 #include <span>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "kestrel/asset.h"
@@ -228,6 +229,21 @@ struct RenderStats {
   struct Steps {
     double camera = 0, trace_camera = 0, shade_first = 0, shadows_first = 0;
     double trace_bounces = 0, shade_bounces = 0, shadows_bounces = 0, film = 0;
+    /// Every step's name and member, in order (for sums, printing and sending).
+    static constexpr std::array<std::pair<const char*, double Steps::*>, 8> fields() {
+      return {{{"camera", &Steps::camera},
+               {"trace_camera", &Steps::trace_camera},
+               {"shade_first", &Steps::shade_first},
+               {"shadows_first", &Steps::shadows_first},
+               {"trace_bounces", &Steps::trace_bounces},
+               {"shade_bounces", &Steps::shade_bounces},
+               {"shadows_bounces", &Steps::shadows_bounces},
+               {"film", &Steps::film}}};
+    }
+    Steps& operator+=(const Steps& o) {
+      for (const auto& [name, m] : fields()) this->*m += o.*m;
+      return *this;
+    }
   } steps;
   int passes = 0;  ///< samples per pixel done
   uint64_t rays() const { return camera_rays + bounce_rays + shadow_rays; }

@@ -47,12 +47,8 @@ py::dict stats_dict(const RenderStats& s) {
   d["shadow_rays"] = s.shadow_rays;
   d["passes"] = s.passes;
   // Where the wall time went, by step (RenderStats::Steps, ms).
-  const RenderStats::Steps& t = s.steps;
   py::dict steps;
-  steps["camera"] = t.camera, steps["trace_camera"] = t.trace_camera;
-  steps["shade_first"] = t.shade_first, steps["shadows_first"] = t.shadows_first;
-  steps["trace_bounces"] = t.trace_bounces, steps["shade_bounces"] = t.shade_bounces;
-  steps["shadows_bounces"] = t.shadows_bounces, steps["film"] = t.film;
+  for (const auto& [name, m] : RenderStats::Steps::fields()) steps[name] = s.steps.*m;
   d["steps"] = steps;
   return d;
 }

@@ -260,10 +260,8 @@ Frame render(Renderer& renderer, const Camera& camera, const RenderSettings& s,
   mine.rays = frame.stats.rays();
   // Every rank's figures to rank 0: the frame's stats are the sums (the steps too).
   RenderStats::Steps& st = frame.stats.steps;
-  double* const step_ms[] = {&st.camera,          &st.trace_camera,  &st.shade_first,
-                             &st.shadows_first,   &st.trace_bounces, &st.shade_bounces,
-                             &st.shadows_bounces, &st.film};
-  constexpr int steps = int(sizeof step_ms / sizeof step_ms[0]), figures = 8 + steps;
+  constexpr auto step_fields = RenderStats::Steps::fields();
+  constexpr int steps = int(step_fields.size()), figures = 8 + steps;
   double local_figures[figures] = {mine.busy_ms,
                                    mine.wall_ms,
                                    double(mine.tiles),
@@ -272,7 +270,7 @@ Frame render(Renderer& renderer, const Camera& camera, const RenderSettings& s,
                                    double(frame.stats.shadow_rays),
                                    frame.stats.trace_ms,
                                    frame.stats.total_thread_ms};
-  for (int k = 0; k < steps; ++k) local_figures[8 + k] = *step_ms[k];
+  for (int k = 0; k < steps; ++k) local_figures[8 + k] = st.*step_fields[size_t(k)].second;
   std::vector<double> all(world_rank == 0 ? figures * size_t(world_size) : 0);
   MPI_Gather(local_figures, figures, MPI_DOUBLE, all.data(), figures, MPI_DOUBLE, 0,
              MPI_COMM_WORLD);
@@ -288,7 +286,7 @@ Frame render(Renderer& renderer, const Camera& camera, const RenderSettings& s,
     frame.stats.shadow_rays += uint64_t(v[5]);
     frame.stats.trace_ms += v[6];
     frame.stats.total_thread_ms += v[7];
-    for (int k = 0; k < steps; ++k) *step_ms[k] += v[8 + k];
+    for (int k = 0; k < steps; ++k) st.*step_fields[size_t(k)].second += v[8 + k];
     if (per_rank)
       per_rank->push_back(RankStats{v[0], v[1], uint64_t(v[2]), uint64_t(v[3] + v[4] + v[5])});
   }

@@ -274,12 +274,7 @@ void Renderer::Impl::render_passes(const Camera& camera, const RenderSettings& s
   frame.stats.camera_rays += stats.rays[0];
   frame.stats.bounce_rays += stats.rays[1];
   frame.stats.shadow_rays += stats.rays[2];
-  RenderStats::Steps& to = frame.stats.steps;
-  const RenderStats::Steps& from = stats.steps;
-  to.camera += from.camera, to.trace_camera += from.trace_camera;
-  to.shade_first += from.shade_first, to.shadows_first += from.shadows_first;
-  to.trace_bounces += from.trace_bounces, to.shade_bounces += from.shade_bounces;
-  to.shadows_bounces += from.shadows_bounces, to.film += from.film;
+  frame.stats.steps += stats.steps;
 }
 
 void Accumulator::reset(int w, int h) {

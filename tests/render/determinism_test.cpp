@@ -148,12 +148,10 @@ TEST(RenderStats, StepsAccountForTheRender) {
   rs.width = 320, rs.height = 240, rs.spp = 2, rs.max_depth = 4;
   const RenderStats s = r.render(cam, rs).stats;
   const RenderStats::Steps& t = s.steps;
-  const double all[] = {t.camera,        t.trace_camera,  t.shade_first,     t.shadows_first,
-                        t.trace_bounces, t.shade_bounces, t.shadows_bounces, t.film};
   double sum = 0;
-  for (const double v : all) {
-    EXPECT_GE(v, 0.0);
-    sum += v;
+  for (const auto& [name, m] : RenderStats::Steps::fields()) {
+    EXPECT_GE(t.*m, 0.0) << name;
+    sum += t.*m;
   }
   EXPECT_GT(t.trace_camera, 0.0);
   EXPECT_GT(t.shade_first, 0.0);
