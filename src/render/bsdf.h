@@ -83,58 +83,96 @@ inline float specular_probability(const BsdfParams& p, Vec3 wo) {
   return std::clamp(ws / (ws + wd), 0.1f, 0.9f);
 }
 
-/// f(wo, wi) * cos(wi); zero below the surface.
-inline Vec3 bsdf_eval(const BsdfParams& p, Vec3 wo, Vec3 wi) {
-  if (wo.z <= 0 || wi.z <= 0) return {0, 0, 0};
-  Vec3 f{0, 0, 0};
-  if (p.metallic < 1.0f) {
-    const float fd = (1.0f - p.specular * (0.04f + 0.96f * schlick_weight(wi.z))) *
-                     (1.0f - p.specular * (0.04f + 0.96f * schlick_weight(wo.z)));
-    f = p.base * ((1.0f - p.metallic) * fd / pi * wi.z);
-  }
-  if (p.metallic > 0 || p.specular > 0) {
-    const Vec3 h = normalize(wo + wi);
-    const float g2 = 1.0f / (1.0f + ggx_lambda(p.alpha, wo) + ggx_lambda(p.alpha, wi));
-    f = f + fresnel(p, dot(wi, h)) * (ggx_d(p.alpha, h) * g2 / (4.0f * wo.z));
-  }
-  return f;
-}
-
-inline float bsdf_pdf(const BsdfParams& p, Vec3 wo, Vec3 wi) {
-  if (wo.z <= 0 || wi.z <= 0) return 0;
-  const float ps = specular_probability(p, wo);
-  float pdf = (1.0f - ps) * wi.z / pi;
-  if (ps > 0) {
-    const Vec3 h = normalize(wo + wi);
-    pdf += ps * ggx_g1(p.alpha, wo) * ggx_d(p.alpha, h) / (4.0f * wo.z);
-  }
-  return pdf;
-}
-
 struct BsdfSample {
   Vec3 wi;
   Vec3 weight;  ///< f * cos / pdf
   float pdf = 0;
 };
 
+/// The BSDF at one shading point: what its value and pdf share for one wo (the diffuse
+/// lobe's Fresnel factor, Smith's Lambda, the specular lobe's probability) is computed once,
+/// and a light sample and a BSDF sample there reuse it. The free functions below are the same
+/// function for one call.
+struct BsdfAt {
+  const BsdfParams& p;
+  Vec3 wo;
+  bool above = false;    ///< not wo.z <= 0 (otherwise everything is zero)
+  bool glossy = false;   ///< the specular lobe has a value (metallic or a dielectric coat)
+  float fd_o = 0;        ///< the diffuse lobe's Fresnel factor at wo
+  float lambda_o = 0;    ///< Smith's Lambda at wo
+  float four_cos_o = 0;  ///< 4 wo.z
+  float ps = 0;          ///< specular_probability(p, wo), when with_pdf
+
+  BsdfAt(const BsdfParams& params, Vec3 w, bool with_pdf = true) : p(params), wo(w) {
+    above = !(wo.z <= 0);
+    if (!above) return;
+    fd_o = 1.0f - p.specular * (0.04f + 0.96f * schlick_weight(wo.z));
+    glossy = p.metallic > 0 || p.specular > 0;
+    lambda_o = ggx_lambda(p.alpha, wo);
+    four_cos_o = 4.0f * wo.z;
+    if (with_pdf) ps = specular_probability(p, wo);
+  }
+
+  /// f(wo, wi) * cos(wi) and, when `pdf` is given, the pdf of sampling wi (the mixture of the
+  /// cosine and the visible-normal lobes); zero below the surface.
+  void eval(Vec3 wi, Vec3& f, float* pdf) const {
+    f = {0, 0, 0};
+    if (pdf) *pdf = 0;
+    if (!above || wi.z <= 0) return;
+    if (p.metallic < 1.0f) {
+      const float fd = (1.0f - p.specular * (0.04f + 0.96f * schlick_weight(wi.z))) * fd_o;
+      f = p.base * ((1.0f - p.metallic) * fd / pi * wi.z);
+    }
+    if (pdf) *pdf = (1.0f - ps) * wi.z / pi;
+    const bool spec_pdf = pdf && ps > 0;
+    if (!glossy && !spec_pdf) return;
+    const Vec3 h = normalize(wo + wi);
+    const float d = ggx_d(p.alpha, h);
+    if (glossy) {
+      const float g2 = 1.0f / (1.0f + lambda_o + ggx_lambda(p.alpha, wi));
+      f = f + fresnel(p, dot(wi, h)) * (d * g2 / four_cos_o);
+    }
+    if (spec_pdf) *pdf += ps * (1.0f / (1.0f + lambda_o)) * d / four_cos_o;
+  }
+
+  /// Samples wi; false when the sample leaves no contribution (below the surface).
+  bool sample(float u0, float u1, float u2, BsdfSample& s) const {
+    if (!above) return false;
+    if (u0 < ps) {
+      const Vec3 h = sample_ggx_vndf(p.alpha, wo, u1, u2);
+      s.wi = h * (2.0f * dot(wo, h)) - wo;
+    } else {
+      const float r = std::sqrt(u1);
+      float sin_phi, cos_phi;  // of phi = 2 pi u2
+      sincos_2pi(u2, sin_phi, cos_phi);
+      s.wi = Vec3{r * cos_phi, r * sin_phi, std::sqrt(std::max(0.0f, 1.0f - u1))};
+    }
+    if (s.wi.z <= 0) return false;
+    Vec3 f;
+    eval(s.wi, f, &s.pdf);
+    if (!(s.pdf > 0)) return false;
+    s.weight = f * (1.0f / s.pdf);
+    return true;
+  }
+};
+
+/// f(wo, wi) * cos(wi); zero below the surface.
+inline Vec3 bsdf_eval(const BsdfParams& p, Vec3 wo, Vec3 wi) {
+  Vec3 f;
+  BsdfAt(p, wo, false).eval(wi, f, nullptr);
+  return f;
+}
+
+inline float bsdf_pdf(const BsdfParams& p, Vec3 wo, Vec3 wi) {
+  Vec3 f;
+  float pdf;
+  BsdfAt(p, wo).eval(wi, f, &pdf);
+  return pdf;
+}
+
 /// Samples wi; false when the sample leaves no contribution (below the surface).
 inline bool bsdf_sample(const BsdfParams& p, Vec3 wo, float u0, float u1, float u2, BsdfSample& s) {
-  if (wo.z <= 0) return false;
-  const float ps = specular_probability(p, wo);
-  if (u0 < ps) {
-    const Vec3 h = sample_ggx_vndf(p.alpha, wo, u1, u2);
-    s.wi = h * (2.0f * dot(wo, h)) - wo;
-  } else {
-    const float r = std::sqrt(u1);
-    float sin_phi, cos_phi;  // of phi = 2 pi u2
-    sincos_2pi(u2, sin_phi, cos_phi);
-    s.wi = Vec3{r * cos_phi, r * sin_phi, std::sqrt(std::max(0.0f, 1.0f - u1))};
-  }
-  if (s.wi.z <= 0) return false;
-  s.pdf = bsdf_pdf(p, wo, s.wi);
-  if (!(s.pdf > 0)) return false;
-  s.weight = bsdf_eval(p, wo, s.wi) * (1.0f / s.pdf);
-  return true;
+  return BsdfAt(p, wo).sample(u0, u1, u2, s);
 }
 
 /// An orthonormal basis around n (Duff et al. 2017).

@@ -359,6 +359,7 @@ void Renderer::Impl::TilePaths::shade(const Impl& r, int depth, std::span<const 
     }
     const Basis frame(ns);
     const Vec3 wo_l = frame.to_local(wo);
+    const BsdfAt bsdf(bp, wo_l);
     const Vec3 origin = offset_origin(p, ng);
     // Next-event estimation: one light sample (an emissive triangle or the environment),
     // or at the first hit ReSTIR's reservoir (shaded once the tile's reuse is done).
@@ -369,7 +370,7 @@ void Renderer::Impl::TilePaths::shade(const Impl& r, int depth, std::span<const 
     } else if (r.p_env > 0 || r.p_sun > 0 || r.local_light_count() > 0) {
       Ray shadow;
       Vec3 contribution;
-      if (r.sample_light(sf, frame, wo_l, origin, ps.throughput, rng, use_tree, shadow,
+      if (r.sample_light(sf, frame, bsdf, origin, ps.throughput, rng, use_tree, shadow,
                          contribution)) {
         shadow_rays.push_back(shadow);
         shadows.push_back({contribution, active[k]});
@@ -387,7 +388,7 @@ void Renderer::Impl::TilePaths::shade(const Impl& r, int depth, std::span<const 
     // Continue the path by sampling the BSDF.
     const float u0 = rng.uniform(), u1 = rng.uniform(), u2 = rng.uniform();
     BsdfSample bs;
-    if (!bsdf_sample(bp, wo_l, u0, u1, u2, bs)) continue;
+    if (!bsdf.sample(u0, u1, u2, bs)) continue;
     const Vec3 wi = frame.to_world(bs.wi);
     if (dot(wi, ng) <= 0) continue;
     ps.throughput = ps.throughput * bs.weight;

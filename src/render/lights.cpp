@@ -167,11 +167,10 @@ Vec3 Renderer::Impl::sun_sample(float u1, float u2) const {
 // One light sample at a surface: the environment, the sun, or a local light (an emissive
 // triangle or a punctual light, by power); MIS weighted against the BSDF except for punctual
 // lights (deltas): the shadow ray to trace and what it adds when unblocked.
-bool Renderer::Impl::sample_light(const Surface& sf, const Basis& frame, Vec3 wo_l, Vec3 origin,
-                                  Vec3 throughput, Rng& rng, bool tree, Ray& shadow,
+bool Renderer::Impl::sample_light(const Surface& sf, const Basis& frame, const BsdfAt& bsdf,
+                                  Vec3 origin, Vec3 throughput, Rng& rng, bool tree, Ray& shadow,
                                   Vec3& contribution) const {
   const Vec3 &ng = sf.ng, &ns = sf.ns;
-  const BsdfParams& bp = sf.bp;
   const float ul = rng.uniform(), u1 = rng.uniform(), u2 = rng.uniform();
   Vec3 wi, le;
   float pdf = 0, tmax = INFINITY;
@@ -210,14 +209,11 @@ bool Renderer::Impl::sample_light(const Surface& sf, const Basis& frame, Vec3 wo
     }
   }
   if (!(pdf > 0 && dot(wi, ng) > 0 && luminance(le) > 0)) return false;
-  const Vec3 wi_l = frame.to_local(wi);
-  const Vec3 f = bsdf_eval(bp, wo_l, wi_l);
+  Vec3 f;
+  float bpdf;
+  bsdf.eval(frame.to_local(wi), f, delta ? nullptr : &bpdf);
   if (!(luminance(f) > 0)) return false;
-  float w = 1;
-  if (!delta) {
-    const float bpdf = bsdf_pdf(bp, wo_l, wi_l);
-    w = pdf * pdf / (pdf * pdf + bpdf * bpdf);
-  }
+  const float w = delta ? 1.0f : pdf * pdf / (pdf * pdf + bpdf * bpdf);
   shadow = Ray{origin, dir, 0.0f, tmax};
   contribution = throughput * f * le * (w / pdf);
   return true;

@@ -342,8 +342,8 @@ struct Renderer::Impl {
   float roughness_at(const Material& mat, Vec2 uv, float& metallic) const;
   bool cache_answer(const SurfaceHit& h, const RadianceCache::Cell& cell, Vec3& lc) const;
   RadianceCache::Cell cache_cell(const SurfaceHit& h, const Ray& ray) const;
-  bool sample_light(const Surface& sf, const Basis& frame, Vec3 wo_l, Vec3 origin, Vec3 throughput,
-                    Rng& rng, bool tree, Ray& shadow, Vec3& contribution) const;
+  bool sample_light(const Surface& sf, const Basis& frame, const BsdfAt& bsdf, Vec3 origin,
+                    Vec3 throughput, Rng& rng, bool tree, Ray& shadow, Vec3& contribution) const;
   // A punctual light seen from origin: direction, the ray's vector and end, radiance x falloff.
   bool punctual_light(const Punctual& q, Vec3 origin, Vec3& wi, Vec3& dir, Vec3& le,
                       float& tmax) const;

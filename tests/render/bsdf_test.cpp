@@ -236,6 +236,63 @@ TEST(FastMath, RoundEvenIsNearbyint) {
   EXPECT_TRUE(std::isnan(round_even(std::numeric_limits<float>::quiet_NaN())));
 }
 
+// One shading point serves a light sample and a BSDF sample (BsdfAt keeps what depends on wo):
+// its value and pdf for many directions against the formulas of the header comment evaluated
+// in double precision, term by term, and the value the same bits with or without the pdf.
+TEST(Bsdf, OnePointServesManyDirectionsAsTheFormulasSay) {
+  const auto schlick = [](double c) { return std::pow(std::clamp(1.0 - c, 0.0, 1.0), 5.0); };
+  const auto lambda = [](double a, double z) {
+    return 0.5 * (-1.0 + std::sqrt(1.0 + a * a * std::max(0.0, 1.0 - z * z) / (z * z)));
+  };
+  const auto d_ggx = [](double a, double z) {
+    const double t = z * z * (a * a - 1.0) + 1.0;
+    return a * a / (M_PI * t * t);
+  };
+  std::mt19937 rng(11);
+  std::uniform_real_distribution<float> u(0.0f, 1.0f);
+  double worst_f = 0, worst_pdf = 0;
+  for (const Case& c : cases())
+    for (const float cos_o : {0.05f, 0.3f, 0.7f, 1.0f, -0.4f}) {
+      const Vec3 wo = normalize(Vec3{std::sqrt(std::max(0.0f, 1 - cos_o * cos_o)), 0.2f, cos_o});
+      const BsdfAt at(c.p, wo);
+      const double a = c.p.alpha, s = c.p.specular, m = c.p.metallic;
+      for (int i = 0; i < 2000; ++i) {
+        const Vec3 wi = normalize(Vec3{2 * u(rng) - 1, 2 * u(rng) - 1, 2 * u(rng) - 1.2f});
+        Vec3 f, f_alone;
+        float pdf;
+        at.eval(wi, f, &pdf);
+        at.eval(wi, f_alone, nullptr);
+        ASSERT_EQ(std::bit_cast<uint32_t>(f.y), std::bit_cast<uint32_t>(f_alone.y));
+        ASSERT_EQ(pdf, bsdf_pdf(c.p, wo, wi));
+        if (wo.z <= 0 || wi.z <= 0) {
+          EXPECT_EQ(luminance(f), 0.0f);
+          EXPECT_EQ(pdf, 0.0f);
+          continue;
+        }
+        const double ox = wo.x, oy = wo.y, oz = wo.z, ix = wi.x, iy = wi.y, iz = wi.z;
+        const double hx = ox + ix, hy = oy + iy, hz = oz + iz,
+                     hl = std::sqrt(hx * hx + hy * hy + hz * hz);
+        const double hdi = (ix * hx + iy * hy + iz * hz) / hl, hzn = hz / hl;
+        const double fd =
+            (1 - s * (0.04 + 0.96 * schlick(iz))) * (1 - s * (0.04 + 0.96 * schlick(oz)));
+        const double w = schlick(hdi), fr_d = s * (0.04 + 0.96 * w) * (1 - m);
+        const double fr = fr_d + (c.p.base.y + (1 - c.p.base.y) * w) * m;
+        const double glossy = (m > 0 || s > 0) ? 1.0 : 0.0;
+        const double expect_f =
+            c.p.base.y * (1 - m) * fd / M_PI * iz +
+            glossy * fr * d_ggx(a, hzn) / (1 + lambda(a, oz) + lambda(a, iz)) / (4 * oz);
+        const double ps = at.ps;
+        EXPECT_FLOAT_EQ(float(ps), specular_probability(c.p, wo));
+        const double expect_pdf =
+            (1 - ps) * iz / M_PI + ps * d_ggx(a, hzn) / (1 + lambda(a, oz)) / (4 * oz);
+        worst_f = std::max(worst_f, std::fabs(f.y - expect_f) / std::max(expect_f, 1e-3));
+        worst_pdf = std::max(worst_pdf, std::fabs(pdf - expect_pdf) / std::max(expect_pdf, 1e-3));
+      }
+    }
+  EXPECT_LT(worst_f, 2e-4);
+  EXPECT_LT(worst_pdf, 2e-4);
+}
+
 TEST(FastMath, Atan2AndAcosMatchDoublePrecision) {
   double worst_atan = 0, worst_acos = 0;
   std::mt19937 rng(3);
