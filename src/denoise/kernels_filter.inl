@@ -15,13 +15,26 @@ struct AtrousRow {
   float fy, gy;                           // gy = 1 - fy
   long off[8];
   float lh[8];  // log2 of the tap's spline weight (the centre's 1 left out): -1 or -2
+  // Clamped taps (kClamp): tap t's row (index of its first pixel) and column offset; a lane
+  // reads column clamp(i + lane + dx[t], 0, w - 1) of that row.
+  long tap_row[8];
+  int dx[8];
+  int w = 0;
 };
 
 // Pixels p .. p + width(T) - 1 (column i of the row): the taps, the accumulation and the mix,
 // with T = float or vfloat (every operation lane by lane, so both give the same values).
-template <class T, bool kGuide, bool kClass>
+template <class T, bool kGuide, bool kClass, bool kClamp = false>
 static inline void atrous_lanes(const AtrousRow& r, size_t p, int i) {
   const T zero = T{} + 0.0f;
+  // Tap t's value of a plane: at p + off[t], or (kClamp, vector lanes) at each lane's clamped
+  // column, the pixels a border pixel's taps read (the same addresses as its scalar form).
+  const auto tap = [&](const float* plane, int t, size_t q) -> T {
+    if constexpr (kClamp)
+      return ld_clamped(T{}, plane + r.tap_row[t], i + r.dx[t], r.w);
+    else
+      return ld<T>(plane + q);
+  };
   const T x0 = ld<T>(r.x0 + p), x1 = ld<T>(r.x1 + p), x2 = ld<T>(r.x2 + p);
   const T g0 = ld<T>(r.g0 + p), g1 = ld<T>(r.g1 + p), g2 = ld<T>(r.g2 + p);
   const T n0 = ld<T>(r.n0 + p), n1 = ld<T>(r.n1 + p), n2 = ld<T>(r.n2 + p), z = ld<T>(r.z + p);
@@ -36,16 +49,16 @@ static inline void atrous_lanes(const AtrousRow& r, size_t p, int i) {
 #pragma GCC unroll 8
   for (int t = 0; t < 8; ++t) {
     const size_t q = size_t(long(p) + r.off[t]);
-    const T d0 = g0 - ld<T>(r.g0 + q), d1 = g1 - ld<T>(r.g1 + q), d2 = g2 - ld<T>(r.g2 + q);
-    const T dot = n0 * ld<T>(r.n0 + q) + n1 * ld<T>(r.n1 + q) + n2 * ld<T>(r.n2 + q);
+    const T d0 = g0 - tap(r.g0, t, q), d1 = g1 - tap(r.g1, t, q), d2 = g2 - tap(r.g2, t, q);
+    const T dot = n0 * tap(r.n0, t, q) + n1 * tap(r.n1, t, q) + n2 * tap(r.n2, t, q);
     const T nd0 = nn - dot, nd = nd0 > zero ? nd0 : zero;
-    const T dz = vabs(z - ld<T>(r.z + q));
+    const T dz = vabs(z - tap(r.z, t, q));
     const T e = sc * (d0 * d0 + d1 * d1 + d2 * d2) + sn * nd + sz * dz;
     T wq = vexp2(r.lh[t] - e);
-    if constexpr (kClass) wq = kp == ld<T>(r.k + q) ? wq : zero;
-    acc0 += wq * ld<T>(r.x0 + q);
-    acc1 += wq * ld<T>(r.x1 + q);
-    acc2 += wq * ld<T>(r.x2 + q);
+    if constexpr (kClass) wq = kp == tap(r.k, t, q) ? wq : zero;
+    acc0 += wq * tap(r.x0, t, q);
+    acc1 += wq * tap(r.x1, t, q);
+    acc2 += wq * tap(r.x2, t, q);
     wsum += wq;
   }
   const T inv = 1.0f / wsum, beta = ld<T>(r.beta_top + i) * r.gy + ld<T>(r.beta_bot + i) * r.fy;
@@ -59,19 +72,32 @@ static inline void atrous_lanes(const AtrousRow& r, size_t p, int i) {
   }
 }
 
-// Columns [i0, i1) of row `row`: kLanes pixels at a time, the rest one by one.
-template <bool kGuide, bool kClass>
-static void atrous_span(const AtrousRow& r, size_t row, int i0, int i1) {
-  int i = i0;
-  for (; i + kLanes <= i1; i += kLanes) atrous_lanes<vfloat, kGuide, kClass>(r, row + size_t(i), i);
-  for (; i < i1; ++i) atrous_lanes<float, kGuide, kClass>(r, row + size_t(i), i);
+// Row `row`, kLanes pixels at a time: where every tap of the lanes lies inside the image
+// (columns [i0, i1)) with plain loads, elsewhere with each lane's taps clamped; the last
+// columns by a vector ending at the row's end, which recomputes some of the one before
+// (the same values: the level reads other planes than it writes). Rows narrower than a vector:
+// pixel by pixel, taps clamped per pixel (border_px).
+template <bool kGuide, bool kClass, class Border>
+static void atrous_row(const AtrousRow& r, size_t row, int i0, int i1, Border&& border_px) {
+  const int w = r.w;
+  if (w < kLanes) {
+    for (int i = 0; i < w; ++i) border_px(i);
+    return;
+  }
+  const auto at = [&](int i) {
+    if (i >= i0 && i + kLanes <= i1)
+      atrous_lanes<vfloat, kGuide, kClass>(r, row + size_t(i), i);
+    else
+      atrous_lanes<vfloat, kGuide, kClass, true>(r, row + size_t(i), i);
+  };
+  int i = 0;
+  for (; i + kLanes <= w; i += kLanes) at(i);
+  if (i < w) at(w - kLanes);
 }
 
-static void atrous_span(const AtrousRow& r, size_t row, int i0, int i1, bool cls) {
-  if (r.go0)
-    cls ? atrous_span<true, true>(r, row, i0, i1) : atrous_span<true, false>(r, row, i0, i1);
-  else
-    cls ? atrous_span<false, true>(r, row, i0, i1) : atrous_span<false, false>(r, row, i0, i1);
+template <bool kGuide, bool kClass>
+static void atrous_px(const AtrousRow& r, size_t row, int i) {
+  atrous_lanes<float, kGuide, kClass>(r, row + size_t(i), i);
 }
 
 static void atrous_rows(const AtrousArgs& a, int row0, int row1) {
@@ -81,6 +107,7 @@ static void atrous_rows(const AtrousArgs& a, int row0, int row1) {
   r.n0 = a.n[0], r.n1 = a.n[1], r.n2 = a.n[2], r.z = a.z, r.k = a.black;
   r.o0 = a.out[0], r.o1 = a.out[1], r.o2 = a.out[2];
   r.go0 = a.gout[0], r.go1 = a.gout[1], r.go2 = a.gout[2];
+  r.w = w;
   for (int y = row0; y < row1; ++y) {
     const size_t row = size_t(y) * size_t(w);
     // Taps in PyTorch's order (dy, dx), centre left out; rows clamped to the image.
@@ -108,8 +135,14 @@ static void atrous_rows(const AtrousArgs& a, int row0, int row1) {
     r.sn_top = a.param[1] + top, r.sn_bot = a.param[1] + bot;
     r.sz_top = a.param[2] + top, r.sz_bot = a.param[2] + bot;
     r.beta_top = a.param[3] + top, r.beta_bot = a.param[3] + bot;
+    for (int ty = -1, k = 0; ty <= 1; ++ty)
+      for (int tx = -1; tx <= 1; ++tx) {
+        if (tx == 0 && ty == 0) continue;
+        r.tap_row[k] = long(row) + row_off[ty + 1];
+        r.dx[k++] = tx * d;
+      }
     const int i0 = d < w ? d : w, i1 = w - d > i0 ? w - d : i0;
-    auto border = [&](int i) {  // columns clamped per pixel
+    auto border = [&](int i) {  // a row narrower than a vector: columns clamped per pixel
       AtrousRow c = r;
       int k = 0;
       for (int ty = -1; ty <= 1; ++ty)
@@ -119,10 +152,16 @@ static void atrous_rows(const AtrousArgs& a, int row0, int row1) {
           qx = qx < 0 ? 0 : (qx >= w ? w - 1 : qx);
           c.off[k++] = row_off[ty + 1] + long(qx - i);
         }
-      atrous_span(c, row, i, i + 1, cls);
+      if (r.go0)
+        cls ? atrous_px<true, true>(c, row, i) : atrous_px<true, false>(c, row, i);
+      else
+        cls ? atrous_px<false, true>(c, row, i) : atrous_px<false, false>(c, row, i);
     };
-    for (int i = 0; i < i0; ++i) border(i);
-    atrous_span(r, row, i0, i1, cls);
-    for (int i = i1; i < w; ++i) border(i);
+    if (r.go0)
+      cls ? atrous_row<true, true>(r, row, i0, i1, border)
+          : atrous_row<true, false>(r, row, i0, i1, border);
+    else
+      cls ? atrous_row<false, true>(r, row, i0, i1, border)
+          : atrous_row<false, false>(r, row, i0, i1, border);
   }
 }

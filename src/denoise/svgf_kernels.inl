@@ -22,6 +22,56 @@ struct SvgfTaps {
   long boff[9];     // the variance blur's offsets (+-1 pixel)
   float bw[9];      // its weights, 0 outside the image
   float bnorm = 1;  // 1 / sum of bw
+
+  // svgf_pixels' view: tap t's and blur tap b's weights and values for the pixels at p.
+  float lh_of(int t) const { return lh[t]; }
+  float bw_of(int b) const { return bw[b]; }
+  float bnorm_of() const { return bnorm; }
+  template <class T>
+  T tap(const float* plane, int t, size_t p) const {
+    return ld<T>(plane + size_t(long(p) + off[t]));
+  }
+  template <class T>
+  T blur(const float* plane, int b, size_t p) const {
+    return ld<T>(plane + size_t(long(p) + boff[b]));
+  }
+};
+
+// A vector of pixels at the image's left or right edge (columns x .. x + kLanes - 1, all
+// inside the row): per lane, a tap or blur tap whose column leaves the image weighs 0 (as in
+// SvgfTaps for one pixel) and reads the row's edge pixel instead (any finite value adds 0).
+struct SvgfEdgeTaps {
+  vfloat lh[9], bw[9], bnorm;
+  long trow[9], brow[9];  // the taps' rows (index of their first pixel)
+  int dx[9], bdx[9], x = 0, width = 0;
+
+  // From the row's taps (their rows already chosen) for the vector at column x.
+  SvgfEdgeTaps(const SvgfTaps& row_taps, long row, int x0, int w, int d) : x(x0), width(w) {
+    const vint col = lane_iota(vint{}) + x0;
+    vfloat sum = vfloat{};
+    for (int t = 0; t < 9; ++t) {
+      const int i = t % 3 - 1;
+      dx[t] = i * d, bdx[t] = i;
+      trow[t] = row + row_taps.off[t] - dx[t], brow[t] = row + row_taps.boff[t] - bdx[t];
+      const vint in = (col + dx[t] >= 0) & (col + dx[t] < w);
+      const vint bin = (col + bdx[t] >= 0) & (col + bdx[t] < w);
+      lh[t] = in ? vfloat{} + row_taps.lh[t] : vfloat{} - INFINITY;
+      bw[t] = bin ? vfloat{} + row_taps.bw[t] : vfloat{};
+      sum += bw[t];
+    }
+    bnorm = 1.0f / sum;
+  }
+  vfloat lh_of(int t) const { return lh[t]; }
+  vfloat bw_of(int b) const { return bw[b]; }
+  vfloat bnorm_of() const { return bnorm; }
+  template <class T>
+  T tap(const float* plane, int t, size_t) const {
+    return ld_clamped(T{}, plane + trow[t], x + dx[t], width);
+  }
+  template <class T>
+  T blur(const float* plane, int b, size_t) const {
+    return ld_clamped(T{}, plane + brow[b], x + bdx[b], width);
+  }
 };
 
 // Which of |gx|, |gy|, |gx + gy|, |gx - gy| (times the dilation) predicts tap t's depth change.
@@ -29,12 +79,12 @@ static constexpr int kSvgfSlope[9] = {2, 1, 3, 0, 0, 0, 3, 1, 2};
 
 // Pixels p .. p + width(T) - 1 of an SVGF pass over the taps; kClass: the black-flag test
 // (rows whose taps read no black pixel skip it: every flag is 0 there).
-template <class T, bool kClass>
-static inline void svgf_pixels(const SvgfPass& a, size_t p, const SvgfTaps& taps) {
+template <class T, bool kClass, class Taps>
+static inline void svgf_pixels(const SvgfPass& a, size_t p, const Taps& taps) {
   const T zero = T{} + 0.0f, one = T{} + 1.0f;
   T g = zero;  // the 3x3 Gaussian blur of the variance
-  for (int b = 0; b < 9; ++b) g += taps.bw[b] * ld<T>(a.var + size_t(long(p) + taps.boff[b]));
-  const T il = kLog2e / (a.sigma_l * vsqrt(g * taps.bnorm) + 1e-4f);
+  for (int b = 0; b < 9; ++b) g += taps.bw_of(b) * taps.template blur<T>(a.var, b, p);
+  const T il = kLog2e / (a.sigma_l * vsqrt(g * taps.bnorm_of()) + 1e-4f);
   const T l = ld<T>(a.lum + p), z = ld<T>(a.z + p);
   const T gx = ld<T>(a.gx + p), gy = ld<T>(a.gy + p);
   const T zc = 1e-3f * vmax(z, zero + kMinDepth), sz = zero + a.sigma_z * float(a.dilation);
@@ -50,18 +100,17 @@ static inline void svgf_pixels(const SvgfPass& a, size_t p, const SvgfTaps& taps
 #pragma GCC unroll 9
   for (int t = 0; t < 9; ++t) {
     if (t == 4) continue;
-    const size_t q = size_t(long(p) + taps.off[t]);
-    const T wl = vabs(l - ld<T>(a.lum + q)) * il;
-    const T wz = vabs(z - ld<T>(a.z + q)) * rden[kSvgfSlope[t]];
-    const T c =
-        vmax(n0 * ld<T>(a.n[0] + q) + n1 * ld<T>(a.n[1] + q) + n2 * ld<T>(a.n[2] + q), floor);
-    T w = vexp2(kSigmaN2 * c + taps.lh[t] - wl - wz);  // lh holds the normal stop's -kSigmaN2
-    if constexpr (kClass) w = kp == ld<T>(a.black + q) ? w : zero;  // radiance, irradiance
-    a0 += w * ld<T>(a.x[0] + q);
-    a1 += w * ld<T>(a.x[1] + q);
-    a2 += w * ld<T>(a.x[2] + q);
+    const auto at = [&](const float* plane) { return taps.template tap<T>(plane, t, p); };
+    const T wl = vabs(l - at(a.lum)) * il;
+    const T wz = vabs(z - at(a.z)) * rden[kSvgfSlope[t]];
+    const T c = vmax(n0 * at(a.n[0]) + n1 * at(a.n[1]) + n2 * at(a.n[2]), floor);
+    T w = vexp2(kSigmaN2 * c + taps.lh_of(t) - wl - wz);     // lh holds the normal stop's -kSigmaN2
+    if constexpr (kClass) w = kp == at(a.black) ? w : zero;  // radiance, irradiance
+    a0 += w * at(a.x[0]);
+    a1 += w * at(a.x[1]);
+    a2 += w * at(a.x[2]);
     ws += w;
-    va += w * w * ld<T>(a.var + q);
+    va += w * w * at(a.var);
   }
   const auto any = ws > zero;
   const T inv = one / (any ? ws : one);
@@ -72,16 +121,29 @@ static inline void svgf_pixels(const SvgfPass& a, size_t p, const SvgfTaps& taps
   st(a.var_out + p, any ? va * (inv * inv) : ld<T>(a.var + p));
 }
 
-template <bool kClass>
-static void svgf_span(const SvgfPass& a, size_t row, int i0, int i1, const SvgfTaps& taps) {
-  int i = i0;
-  for (; i + kLanes <= i1; i += kLanes) svgf_pixels<vfloat, kClass>(a, row + size_t(i), taps);
-  for (; i < i1; ++i) svgf_pixels<float, kClass>(a, row + size_t(i), taps);
-}
-
-static void svgf_span(const SvgfPass& a, size_t row, int i0, int i1, const SvgfTaps& taps,
-                      bool cls) {
-  cls ? svgf_span<true>(a, row, i0, i1, taps) : svgf_span<false>(a, row, i0, i1, taps);
+// Row `row`, kLanes pixels at a time: where every tap of the lanes lies inside the image
+// (columns [i0, i1)) with the row's taps, at the edges with each lane's (SvgfEdgeTaps); the
+// last columns by a vector ending at the row's end, which recomputes some of the one before
+// (the same values: a pass reads other planes than it writes). Rows narrower than a vector:
+// pixel by pixel (border_px).
+template <bool kClass, class Border>
+static void svgf_row(const SvgfPass& a, size_t row, int i0, int i1, const SvgfTaps& taps,
+                     Border&& border_px) {
+  const int w = a.width;
+  if (w < kLanes) {
+    for (int x = 0; x < w; ++x) border_px(x);
+    return;
+  }
+  const auto at = [&](int x) {
+    if (x >= i0 && x + kLanes <= i1)
+      svgf_pixels<vfloat, kClass>(a, row + size_t(x), taps);
+    else
+      svgf_pixels<vfloat, kClass>(a, row + size_t(x),
+                                  SvgfEdgeTaps(taps, long(row), x, w, a.dilation));
+  };
+  int x = 0;
+  for (; x + kLanes <= w; x += kLanes) at(x);
+  if (x < w) at(w - kLanes);
 }
 
 static void svgf_pass_rows(const SvgfPass& a, int y0, int y1) {
@@ -116,11 +178,11 @@ static void svgf_pass_rows(const SvgfPass& a, int y0, int y1) {
         s += c.bw[t];
       }
       c.bnorm = 1.0f / s;
-      svgf_span(a, row, x, x + 1, c, cls);
+      cls ? svgf_pixels<float, true>(a, row + size_t(x), c)
+          : svgf_pixels<float, false>(a, row + size_t(x), c);
     };
-    for (int x = 0; x < i0; ++x) border(x);
-    svgf_span(a, row, i0, i1, taps, cls);
-    for (int x = i1; x < W; ++x) border(x);
+    cls ? svgf_row<true>(a, row, i0, i1, taps, border)
+        : svgf_row<false>(a, row, i0, i1, taps, border);
   }
 }
 

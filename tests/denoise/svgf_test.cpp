@@ -74,34 +74,38 @@ double max_rel_diff(const Planes& a, const Planes& b, int channels) {
 }
 
 TEST(Svgf, EveryIsaMatchesTheScalarDefinition) {
-  const int W = 97, H = 61;  // not a multiple of any vector width
-  for (Isa isa : {Isa::sse2, Isa::avx2, Isa::avx512}) {
-    if (!isa_supported(isa)) continue;
-    SCOPED_TRACE(isa_name(isa));
-    const Isa before = default_isa();
-    set_default_isa(isa);
-    std::mt19937 rng(7);
-    Svgf fast;
-    SvgfReference ref;
-    for (int t = 0; t < 7; ++t) {
-      SCOPED_TRACE(t);
-      const Planes g = frame(W, H, t, rng);
-      const Planes& a = fast.run(g);
-      const Planes b = ref.run(g);
-      ASSERT_EQ(a.width, W);
-      ASSERT_EQ(a.height, H);
-      // The fast form differs by its exp (a polynomial in base 2, 8e-8), its reciprocals (one
-      // per pixel for the luminance stop, four for the depth stop's slopes) and its summation
-      // order (measured: 5.6e-7 to 3.4e-6 on SSE2); with AVX2 / AVX-512 also by fused
-      // multiply-adds, which the luminance edge stop (|l - l'| / sqrt(variance), steep where the
-      // variance is small) amplifies over the passes (measured: 4e-4 to 1.1e-2). A wrong tap,
-      // slope, border, gather or history test shows as 0.1 and more on some frame (on AVX2: a
-      // swapped depth slope 0.17-0.27; a border pixel's blur not renormalised 0.03-0.14; the
-      // reprojection's gathers one pixel off 0.09-0.27).
-      EXPECT_LT(max_rel_diff(a, b, 3), isa == Isa::sse2 ? 1e-5 : 2e-2);
+  // 97: not a multiple of any vector width (edge vectors, an overlapping last vector); 3: a
+  // row narrower than every vector (pixel by pixel); 19: one AVX-512 vector and three columns
+  // (its edge vectors overlap each other).
+  for (auto [W, H] : {std::pair{97, 61}, {3, 11}, {19, 23}})
+    for (Isa isa : {Isa::sse2, Isa::avx2, Isa::avx512}) {
+      if (!isa_supported(isa)) continue;
+      SCOPED_TRACE(isa_name(isa));
+      SCOPED_TRACE(W);
+      const Isa before = default_isa();
+      set_default_isa(isa);
+      std::mt19937 rng(7);
+      Svgf fast;
+      SvgfReference ref;
+      for (int t = 0; t < 7; ++t) {
+        SCOPED_TRACE(t);
+        const Planes g = frame(W, H, t, rng);
+        const Planes& a = fast.run(g);
+        const Planes b = ref.run(g);
+        ASSERT_EQ(a.width, W);
+        ASSERT_EQ(a.height, H);
+        // The fast form differs by its exp (a polynomial in base 2, 8e-8), its reciprocals (one
+        // per pixel for the luminance stop, four for the depth stop's slopes) and its summation
+        // order (measured: 5.6e-7 to 3.4e-6 on SSE2); with AVX2 / AVX-512 also by fused
+        // multiply-adds, which the luminance edge stop (|l - l'| / sqrt(variance), steep where the
+        // variance is small) amplifies over the passes (measured: 4e-4 to 1.1e-2). A wrong tap,
+        // slope, border, gather or history test shows as 0.1 and more on some frame (on AVX2: a
+        // swapped depth slope 0.17-0.27; a border pixel's blur not renormalised 0.03-0.14; the
+        // reprojection's gathers one pixel off 0.09-0.27).
+        EXPECT_LT(max_rel_diff(a, b, 3), isa == Isa::sse2 ? 1e-5 : 2e-2);
+      }
+      set_default_isa(before);
     }
-    set_default_isa(before);
-  }
 }
 
 // AVX-512 reprojects a moving camera's history by permutes within two loaded vectors where

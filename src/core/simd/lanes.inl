@@ -315,6 +315,32 @@ static inline vint lane_iota(vint) {
   for (int l = 0; l < kLanes; ++l) v[l] = l;
   return v;
 }
+// Lane l: row[clamp(col + l, 0, w - 1)] (an image row's pixels, its edge pixels repeated
+// beyond it; w >= 1). Masked loads read only the lanes inside the row (no gather).
+static inline float ld_clamped(const float* row, int col, int w) {
+  return row[col < 0 ? 0 : (col >= w ? w - 1 : col)];
+}
+static inline vfloat ld_clamped(vfloat, const float* row, int col, int w) {
+  if (col >= 0 && col + kLanes <= w) return ld<vfloat>(row + col);
+#if defined(__AVX512F__)
+  const unsigned all = 0xFFFFu;
+  const unsigned below = col >= 0 ? 0u : (-col >= kLanes ? all : (1u << -col) - 1u);
+  const unsigned above =
+      w - col >= kLanes ? 0u : (w - col <= 0 ? all : all & ~((1u << (w - col)) - 1u));
+  __m512 v = _mm512_set1_ps(row[0]);
+  v = _mm512_mask_mov_ps(v, __mmask16(above), _mm512_set1_ps(row[w - 1]));
+  return (vfloat)_mm512_mask_loadu_ps(v, __mmask16(all & ~below & ~above), row + col);
+#elif defined(__AVX2__)
+  const vint c = lane_iota(vint{}) + col;
+  const vint in = (c >= 0) & (c < w);
+  const vfloat loaded = (vfloat)_mm256_maskload_ps(row + col, (__m256i)in);
+  return in ? loaded : (c < 0 ? vfloat{} + row[0] : vfloat{} + row[w - 1]);
+#else
+  vfloat v;
+  for (int l = 0; l < kLanes; ++l) v[l] = ld_clamped(row, col + l, w);
+  return v;
+#endif
+}
 // Channels-last RGB from three planes' lanes: dst[3 l + c] = lane l of channel c.
 static inline void st_rgb(float* dst, float r, float g, float b) {
   dst[0] = r, dst[1] = g, dst[2] = b;
