@@ -149,4 +149,46 @@ uint64_t* radix_sort_packed(uint64_t* a, uint64_t* b, size_t n, int first_bit, i
   return a;
 }
 
+uint64_t* radix_sort_packed_parallel(uint64_t* a, uint64_t* b, size_t n, int first_bit,
+                                     int key_bits) {
+  constexpr size_t chunk = size_t(1) << 15;
+  const size_t chunks = chunk_count(n, chunk);
+  if (current_thread_count() == 1 || chunks == 1)
+    return radix_sort_packed(a, b, n, first_bit, key_bits);
+  std::vector<std::array<uint32_t, 256>> count(chunks);
+  for (int shift = first_bit; shift < first_bit + key_bits; shift += 8) {
+    parallel_for(0, chunks, 1, [&](size_t cb, size_t ce) {
+      for (size_t c = cb; c < ce; ++c) {
+        std::array<uint32_t, 256>& h = count[c];
+        h.fill(0);
+        for (size_t i = c * chunk, e = std::min(n, i + chunk); i < e; ++i)
+          ++h[(a[i] >> shift) & 0xFF];
+      }
+    });
+    // Exclusive scan in (digit, chunk) order: chunk c's records of digit d follow those of
+    // every earlier chunk, so the sort stays stable.
+    uint32_t running = 0;
+    bool one_digit = false;
+    for (size_t d = 0; d < 256; ++d) {
+      const uint32_t first = running;
+      for (size_t c = 0; c < chunks; ++c) {
+        const uint32_t v = count[c][d];
+        count[c][d] = running;
+        running += v;
+      }
+      one_digit |= running - first == n;
+    }
+    if (one_digit) continue;  // every record has the same digit: the pass would move nothing
+    parallel_for(0, chunks, 1, [&](size_t cb, size_t ce) {
+      for (size_t c = cb; c < ce; ++c) {
+        std::array<uint32_t, 256>& offset = count[c];
+        for (size_t i = c * chunk, e = std::min(n, i + chunk); i < e; ++i)
+          b[offset[(a[i] >> shift) & 0xFF]++] = a[i];
+      }
+    });
+    std::swap(a, b);
+  }
+  return a;
+}
+
 }  // namespace kestrel

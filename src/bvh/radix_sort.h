@@ -19,5 +19,9 @@ void radix_sort_packed_pairs(RawArray<uint64_t>& records, int key_bits);
 /// returns the array that holds the result (records or tmp).
 uint64_t* radix_sort_packed(uint64_t* records, uint64_t* tmp, size_t n, int first_bit,
                             int key_bits);
+/// The same sort on the thread pool (per pass: each fixed chunk's digit counts, then each
+/// chunk's scatter), for large batches; the same result as radix_sort_packed.
+uint64_t* radix_sort_packed_parallel(uint64_t* records, uint64_t* tmp, size_t n, int first_bit,
+                                     int key_bits);
 
 }  // namespace kestrel

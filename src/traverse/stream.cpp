@@ -53,9 +53,11 @@ void stream_order(std::span<const Ray> rays, const Bounds3& box, RawArray<uint32
   parallel_for(0, n, 8192, [&](size_t i0, size_t i1) {
     for (size_t i = i0; i < i1; ++i) a[i] = key(rays[i]) << index_bits | i;
   });
-  a = radix_sort_packed(a, b, n, index_bits, key_bits);
+  a = radix_sort_packed_parallel(a, b, n, index_bits, key_bits);
   order.resize(n);
-  for (size_t i = 0; i < n; ++i) order[i] = uint32_t(a[i] & ((1u << index_bits) - 1));
+  parallel_for(0, n, 16384, [&](size_t i0, size_t i1) {
+    for (size_t i = i0; i < i1; ++i) order[i] = uint32_t(a[i] & ((1u << index_bits) - 1));
+  });
 }
 
 namespace {

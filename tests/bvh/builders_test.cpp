@@ -364,26 +364,31 @@ TEST(AutoQuality, PicksFastBuildsForFewRaysAndGoodTreesForMany) {
   EXPECT_THROW(check_build_config(c), Error);
 }
 
-// The packed 8-bit sort against std::stable_sort (the oracle): sizes around its edges,
-// keys with few distinct digits (the pass-skipping path), payload bits outside the key.
+// The packed 8-bit sort, serial and on the thread pool, against std::stable_sort (the oracle):
+// sizes around their edges (the parallel form's chunks are 2^15 records), keys with few
+// distinct digits (the pass-skipping path), payload bits outside the key.
 TEST(RadixSortPacked, MatchesStableSortOnTheKeyBits) {
   test::Rng rng{77};
-  for (size_t n : {size_t(0), size_t(1), size_t(2), size_t(255), size_t(4096), size_t(70001)})
-    for (int variant = 0; variant < 3; ++variant) {
-      std::vector<uint64_t> a(n), tmp(n);
-      for (size_t i = 0; i < n; ++i) {
-        const uint64_t key = variant == 0   ? rng.next() & 0x3FFFFFFF
-                             : variant == 1 ? (rng.next() % 3) << 20  // one digit differs
-                                            : uint64_t(7);            // all equal
-        a[i] = key << 32 | uint64_t(i);
+  for (const bool parallel : {false, true})
+    for (size_t n :
+         {size_t(0), size_t(1), size_t(2), size_t(255), size_t(4096), size_t(32768), size_t(70001)})
+      for (int variant = 0; variant < 3; ++variant) {
+        std::vector<uint64_t> a(n), tmp(n);
+        for (size_t i = 0; i < n; ++i) {
+          const uint64_t key = variant == 0   ? rng.next() & 0x3FFFFFFF
+                               : variant == 1 ? (rng.next() % 3) << 20  // one digit differs
+                                              : uint64_t(7);            // all equal
+          a[i] = key << 32 | uint64_t(i);
+        }
+        std::vector<uint64_t> want = a;
+        std::stable_sort(want.begin(), want.end(),
+                         [](uint64_t x, uint64_t y) { return (x >> 32) < (y >> 32); });
+        const uint64_t* got = parallel ? radix_sort_packed_parallel(a.data(), tmp.data(), n, 32, 30)
+                                       : radix_sort_packed(a.data(), tmp.data(), n, 32, 30);
+        for (size_t i = 0; i < n; ++i)
+          ASSERT_EQ(got[i], want[i]) << "n " << n << " variant " << variant << " at " << i
+                                     << (parallel ? " (parallel)" : "");
       }
-      std::vector<uint64_t> want = a;
-      std::stable_sort(want.begin(), want.end(),
-                       [](uint64_t x, uint64_t y) { return (x >> 32) < (y >> 32); });
-      const uint64_t* got = radix_sort_packed(a.data(), tmp.data(), n, 32, 30);
-      for (size_t i = 0; i < n; ++i)
-        ASSERT_EQ(got[i], want[i]) << "n " << n << " variant " << variant << " at " << i;
-    }
 }
 
 // The large-block pool behind build buffers: blocks come back whole (every byte writable and
