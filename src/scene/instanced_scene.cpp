@@ -339,10 +339,13 @@ void InstancedScene::trace(std::span<const Ray> rays, std::span<InstanceHit> hit
     thread_local std::vector<Hit> scratch;
     scratch.resize(rays.size());
     kestrel::trace(*direct, rays, std::span<Hit>(scratch.data(), rays.size()), options);
-    for (size_t i = 0; i < rays.size(); ++i) {
-      const Hit& h = scratch[i];
-      hits[i] = h.hit() ? InstanceHit{h.t, h.prim_id, s.direct_id, h.u, h.v} : InstanceHit{};
-    }
+    const Hit* found = scratch.data();  // scratch is this thread's: the workers see its pointer
+    parallel_for(0, rays.size(), 16384, [&](size_t b, size_t e) {
+      for (size_t i = b; i < e; ++i) {
+        const Hit& h = found[i];
+        hits[i] = h.hit() ? InstanceHit{h.t, h.prim_id, s.direct_id, h.u, h.v} : InstanceHit{};
+      }
+    });
     return;
   }
   const auto run = [&](std::span<const Ray> r, InstanceHit* h, kernels::TlasFn fn) {
