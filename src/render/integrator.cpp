@@ -62,6 +62,21 @@ Vec3 clamped(Vec3 L, float clamp) {
 void add_sample(Accumulator& acc, size_t p, Vec3 L, const PixelSample& o, float clamp) {
   if (!is_finite(L)) L = {0, 0, 0};
   L = clamped(L, clamp);
+  if (float* const* aov = acc.direct[0] ? acc.direct.data() : nullptr) {
+    // The mean of one sample, as the sums give it: 0 + x, times 1.
+    for (int c = 0; c < 3; ++c) {
+      aov[int(Aov::color)][3 * p + size_t(c)] = 0.0f + L[c];
+      aov[int(Aov::albedo)][3 * p + size_t(c)] = 0.0f + o.albedo[c];
+      aov[int(Aov::normal)][3 * p + size_t(c)] = 0.0f + o.normal[c];
+    }
+    aov[int(Aov::depth)][p] = 0.0f + o.depth;
+    aov[int(Aov::roughness)][p] = 0.0f + o.roughness;
+    aov[int(Aov::motion)][2 * p] = 0.0f + o.mx;
+    aov[int(Aov::motion)][2 * p + 1] = 0.0f + o.my;
+    aov[int(Aov::spp)][p] = 1.0f;
+    aov[int(Aov::variance)][p] = 0.0f;
+    return;
+  }
   for (int c = 0; c < 3; ++c) {
     acc.color[3 * p + size_t(c)] += L[c];
     acc.albedo[3 * p + size_t(c)] += o.albedo[c];

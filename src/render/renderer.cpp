@@ -306,12 +306,22 @@ void Renderer::render(const Camera& camera, const RenderSettings& s,
   check_render_settings(camera, s, prev_camera);
   if (impl_->scene->generation() != impl_->generation) impl_->sync();
   Accumulator& acc = impl_->acc;
-  acc.reset(s.width, s.height);
   frame.stats = RenderStats{};
-  impl_->render_passes(camera, s, prev_camera, nullptr, acc, frame);
-  // Means of the sums (every pixel of every AOV written: the images' storage is reused).
+  // Every pixel of every AOV is written: the images' storage is reused.
   frame.width = s.width, frame.height = s.height;
   for (int a = 0; a < aov_count; ++a) frame.aov[a].reshape(s.width, s.height, aov_channels(Aov(a)));
+  if (s.spp == 1) {  // one pass: the samples straight into the frame (the real-time loop)
+    for (int a = 0; a < aov_count; ++a) acc.direct[size_t(a)] = frame.aov[a].pixels.data();
+    struct Off {
+      Accumulator& acc;
+      ~Off() { acc.direct.fill(nullptr); }
+    } off{acc};
+    impl_->render_passes(camera, s, prev_camera, nullptr, acc, frame);
+    return;
+  }
+  acc.reset(s.width, s.height);
+  impl_->render_passes(camera, s, prev_camera, nullptr, acc, frame);
+  // Means of the sums.
   parallel_for(0, size_t(s.height), 8, [&](size_t y0, size_t y1) {
     for (size_t p = y0 * size_t(s.width); p < y1 * size_t(s.width); ++p)
       finish_pixel(acc, frame, p);

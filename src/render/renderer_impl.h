@@ -4,6 +4,7 @@
 // light), texture.cpp (texel fetches).
 #pragma once
 #include <algorithm>
+#include <array>
 #include <chrono>
 #include <cmath>
 #include <memory>
@@ -148,6 +149,10 @@ struct Accumulator {
   std::vector<float> color, albedo, normal, depth, rough, motion;  // sums
   std::vector<double> lum_mean, lum_m2;                            // Welford on luminance
   std::vector<int> n;
+  /// A render of one pass: each pixel's sample goes straight into the frame's AOV images
+  /// (their pixels here) as the mean of one sample (the same values; no sums to clear and
+  /// divide). Empty otherwise.
+  std::array<float*, aov_count> direct{};
   Accumulator(int w, int h) { reset(w, h); }
   /// Sums of w x h pixels at 0 (the storage kept: no page faults frame after frame; zeroed in
   /// parallel, 72 bytes a pixel, where it was the frame's serial part). renderer.cpp.
