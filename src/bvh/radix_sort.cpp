@@ -14,23 +14,52 @@ constexpr int digit_bits = 11;
 constexpr size_t bucket_count = size_t(1) << digit_bits;
 constexpr size_t sort_chunk = 1u << 16;
 
-// Turns per-chunk digit counts into write offsets: an exclusive scan in (digit, chunk)
-// order. Returns true when one digit holds every key (the pass would move nothing).
-bool scan_offsets(std::vector<uint32_t>& hist, size_t chunks, size_t n) {
-  for (size_t d = 0; d < bucket_count; ++d) {
+// Turns per-chunk digit counts (`buckets` per chunk) into write offsets: an exclusive scan in
+// (digit, chunk) order. Returns true when one digit holds every key (the pass would move
+// nothing).
+bool scan_offsets(std::vector<uint32_t>& hist, size_t chunks, size_t n,
+                  size_t buckets = bucket_count) {
+  for (size_t d = 0; d < buckets; ++d) {
     uint32_t total = 0;
-    for (size_t c = 0; c < chunks; ++c) total += hist[c * bucket_count + d];
+    for (size_t c = 0; c < chunks; ++c) total += hist[c * buckets + d];
     if (total == n) return true;
     if (total != 0) break;
   }
   uint32_t running = 0;
-  for (size_t d = 0; d < bucket_count; ++d)
+  for (size_t d = 0; d < buckets; ++d)
     for (size_t c = 0; c < chunks; ++c) {
-      const uint32_t v = hist[c * bucket_count + d];
-      hist[c * bucket_count + d] = running;
+      const uint32_t v = hist[c * buckets + d];
+      hist[c * buckets + d] = running;
       running += v;
     }
   return false;
+}
+
+// One stable LSD pass on the thread pool over fixed chunks of `chunk` records: each chunk's
+// counts of the digit (Bits wide) at `shift`, the (digit, chunk) scan, then each chunk's
+// scatter from src to dst. Returns false (nothing moved) when one digit holds every record.
+template <int Bits, class Record, class KeyOf>
+bool parallel_pass(const Record* src, Record* dst, size_t n, size_t chunk, int shift,
+                   std::vector<uint32_t>& hist, KeyOf key_of) {
+  constexpr size_t buckets = size_t(1) << Bits;
+  const size_t chunks = chunk_count(n, chunk);
+  hist.assign(chunks * buckets, 0u);
+  auto digit = [&](const Record& r) { return size_t(key_of(r) >> shift) & (buckets - 1); };
+  parallel_for(0, chunks, 1, [&](size_t cb, size_t ce) {
+    for (size_t c = cb; c < ce; ++c) {
+      uint32_t* h = &hist[c * buckets];
+      for (size_t i = c * chunk, e = std::min(n, i + chunk); i < e; ++i) h[digit(src[i])]++;
+    }
+  });
+  if (scan_offsets(hist, chunks, n, buckets)) return false;
+  parallel_for(0, chunks, 1, [&](size_t cb, size_t ce) {
+    for (size_t c = cb; c < ce; ++c) {
+      uint32_t* offset = &hist[c * buckets];
+      for (size_t i = c * chunk, e = std::min(n, i + chunk); i < e; ++i)
+        dst[offset[digit(src[i])]++] = src[i];
+    }
+  });
+  return true;
 }
 
 // LSD radix sort of records on the key bits [first_bit, first_bit + key_bits) that
@@ -63,27 +92,10 @@ void lsd_sort(RawArray<Record>& records, int first_bit, int key_bits, KeyOf key_
     }
     return;
   }
-  std::vector<uint32_t> hist(chunks * bucket_count);
-  for (int shift = first_bit; shift < first_bit + key_bits; shift += digit_bits) {
-    std::fill(hist.begin(), hist.end(), 0u);
-    parallel_for(0, chunks, 1, [&](size_t cb, size_t ce) {
-      for (size_t c = cb; c < ce; ++c) {
-        uint32_t* h = &hist[c * bucket_count];
-        const size_t e = std::min(n, (c + 1) * sort_chunk);
-        for (size_t i = c * sort_chunk; i < e; ++i) h[digit(records[i], shift)]++;
-      }
-    });
-    if (scan_offsets(hist, chunks, n)) continue;
-    parallel_for(0, chunks, 1, [&](size_t cb, size_t ce) {
-      for (size_t c = cb; c < ce; ++c) {
-        uint32_t* offset = &hist[c * bucket_count];
-        const size_t e = std::min(n, (c + 1) * sort_chunk);
-        for (size_t i = c * sort_chunk; i < e; ++i)
-          tmp[offset[digit(records[i], shift)]++] = records[i];
-      }
-    });
-    records.swap(tmp);
-  }
+  std::vector<uint32_t> hist;
+  for (int shift = first_bit; shift < first_bit + key_bits; shift += digit_bits)
+    if (parallel_pass<digit_bits>(records.data(), tmp.data(), n, sort_chunk, shift, hist, key_of))
+      records.swap(tmp);
 }
 
 // Sorts (key, value) pairs through records that carry both, so each pass moves one record.
@@ -152,42 +164,12 @@ uint64_t* radix_sort_packed(uint64_t* a, uint64_t* b, size_t n, int first_bit, i
 uint64_t* radix_sort_packed_parallel(uint64_t* a, uint64_t* b, size_t n, int first_bit,
                                      int key_bits) {
   constexpr size_t chunk = size_t(1) << 15;
-  const size_t chunks = chunk_count(n, chunk);
-  if (current_thread_count() == 1 || chunks == 1)
+  if (current_thread_count() == 1 || chunk_count(n, chunk) == 1)
     return radix_sort_packed(a, b, n, first_bit, key_bits);
-  std::vector<std::array<uint32_t, 256>> count(chunks);
-  for (int shift = first_bit; shift < first_bit + key_bits; shift += 8) {
-    parallel_for(0, chunks, 1, [&](size_t cb, size_t ce) {
-      for (size_t c = cb; c < ce; ++c) {
-        std::array<uint32_t, 256>& h = count[c];
-        h.fill(0);
-        for (size_t i = c * chunk, e = std::min(n, i + chunk); i < e; ++i)
-          ++h[(a[i] >> shift) & 0xFF];
-      }
-    });
-    // Exclusive scan in (digit, chunk) order: chunk c's records of digit d follow those of
-    // every earlier chunk, so the sort stays stable.
-    uint32_t running = 0;
-    bool one_digit = false;
-    for (size_t d = 0; d < 256; ++d) {
-      const uint32_t first = running;
-      for (size_t c = 0; c < chunks; ++c) {
-        const uint32_t v = count[c][d];
-        count[c][d] = running;
-        running += v;
-      }
-      one_digit |= running - first == n;
-    }
-    if (one_digit) continue;  // every record has the same digit: the pass would move nothing
-    parallel_for(0, chunks, 1, [&](size_t cb, size_t ce) {
-      for (size_t c = cb; c < ce; ++c) {
-        std::array<uint32_t, 256>& offset = count[c];
-        for (size_t i = c * chunk, e = std::min(n, i + chunk); i < e; ++i)
-          b[offset[(a[i] >> shift) & 0xFF]++] = a[i];
-      }
-    });
-    std::swap(a, b);
-  }
+  std::vector<uint32_t> hist;
+  for (int shift = first_bit; shift < first_bit + key_bits; shift += 8)
+    if (parallel_pass<8>(a, b, n, chunk, shift, hist, [](uint64_t r) { return r; }))
+      std::swap(a, b);
   return a;
 }
 

@@ -14,26 +14,28 @@ struct AtrousRow {
   float *o0, *o1, *o2, *go0, *go1, *go2;  // go*: the next level's guide, or null
   float fy, gy;                           // gy = 1 - fy
   long off[8];
-  float lh[8];  // log2 of the tap's spline weight (the centre's 1 left out): -1 or -2
-  // Clamped taps (kClamp): tap t's row (index of its first pixel) and column offset; a lane
-  // reads column clamp(i + lane + dx[t], 0, w - 1) of that row.
-  long tap_row[8];
-  int dx[8];
-  int w = 0;
+  float lh[8];       // log2 of the tap's spline weight (the centre's 1 left out): -1 or -2
+  int w = 0, d = 1;  // the row's width and the level's dilation (for clamped taps)
 };
+
+// Tap t's column step (times the dilation), in the taps' order (dy, dx), the centre left out.
+static constexpr int kTapDx[8] = {-1, 0, 1, -1, 1, -1, 0, 1};
 
 // Pixels p .. p + width(T) - 1 (column i of the row): the taps, the accumulation and the mix,
 // with T = float or vfloat (every operation lane by lane, so both give the same values).
 template <class T, bool kGuide, bool kClass, bool kClamp = false>
 static inline void atrous_lanes(const AtrousRow& r, size_t p, int i) {
   const T zero = T{} + 0.0f;
-  // Tap t's value of a plane: at p + off[t], or (kClamp, vector lanes) at each lane's clamped
-  // column, the pixels a border pixel's taps read (the same addresses as its scalar form).
+  // Tap t's value of a plane: at p + off[t], or (kClamp, vector lanes) at each lane's column
+  // clamped to its row (off[t] holds the row's offset plus dx), the pixels a border pixel's
+  // taps read (the same addresses as its scalar form).
   const auto tap = [&](const float* plane, int t, size_t q) -> T {
-    if constexpr (kClamp)
-      return ld_clamped(T{}, plane + r.tap_row[t], i + r.dx[t], r.w);
-    else
+    if constexpr (kClamp) {
+      const int dx = kTapDx[t] * r.d;
+      return ld_clamped(T{}, plane + (long(q) - i - dx), i + dx, r.w);
+    } else {
       return ld<T>(plane + q);
+    }
   };
   const T x0 = ld<T>(r.x0 + p), x1 = ld<T>(r.x1 + p), x2 = ld<T>(r.x2 + p);
   const T g0 = ld<T>(r.g0 + p), g1 = ld<T>(r.g1 + p), g2 = ld<T>(r.g2 + p);
@@ -107,7 +109,7 @@ static void atrous_rows(const AtrousArgs& a, int row0, int row1) {
   r.n0 = a.n[0], r.n1 = a.n[1], r.n2 = a.n[2], r.z = a.z, r.k = a.black;
   r.o0 = a.out[0], r.o1 = a.out[1], r.o2 = a.out[2];
   r.go0 = a.gout[0], r.go1 = a.gout[1], r.go2 = a.gout[2];
-  r.w = w;
+  r.w = w, r.d = d;
   for (int y = row0; y < row1; ++y) {
     const size_t row = size_t(y) * size_t(w);
     // Taps in PyTorch's order (dy, dx), centre left out; rows clamped to the image.
@@ -135,12 +137,6 @@ static void atrous_rows(const AtrousArgs& a, int row0, int row1) {
     r.sn_top = a.param[1] + top, r.sn_bot = a.param[1] + bot;
     r.sz_top = a.param[2] + top, r.sz_bot = a.param[2] + bot;
     r.beta_top = a.param[3] + top, r.beta_bot = a.param[3] + bot;
-    for (int ty = -1, k = 0; ty <= 1; ++ty)
-      for (int tx = -1; tx <= 1; ++tx) {
-        if (tx == 0 && ty == 0) continue;
-        r.tap_row[k] = long(row) + row_off[ty + 1];
-        r.dx[k++] = tx * d;
-      }
     const int i0 = d < w ? d : w, i1 = w - d > i0 ? w - d : i0;
     auto border = [&](int i) {  // a row narrower than a vector: columns clamped per pixel
       AtrousRow c = r;

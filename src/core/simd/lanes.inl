@@ -322,22 +322,17 @@ static inline float ld_clamped(const float* row, int col, int w) {
 }
 static inline vfloat ld_clamped(vfloat, const float* row, int col, int w) {
   if (col >= 0 && col + kLanes <= w) return ld<vfloat>(row + col);
-#if defined(__AVX512F__)
-  const unsigned all = 0xFFFFu;
-  const unsigned below = col >= 0 ? 0u : (-col >= kLanes ? all : (1u << -col) - 1u);
-  const unsigned above =
-      w - col >= kLanes ? 0u : (w - col <= 0 ? all : all & ~((1u << (w - col)) - 1u));
-  __m512 v = _mm512_set1_ps(row[0]);
-  v = _mm512_mask_mov_ps(v, __mmask16(above), _mm512_set1_ps(row[w - 1]));
-  return (vfloat)_mm512_mask_loadu_ps(v, __mmask16(all & ~below & ~above), row + col);
-#elif defined(__AVX2__)
   const vint c = lane_iota(vint{}) + col;
   const vint in = (c >= 0) & (c < w);
-  const vfloat loaded = (vfloat)_mm256_maskload_ps(row + col, (__m256i)in);
-  return in ? loaded : (c < 0 ? vfloat{} + row[0] : vfloat{} + row[w - 1]);
+  const vfloat edge = c < 0 ? vfloat{} + row[0] : vfloat{} + row[w - 1];
+#if defined(__AVX512F__)
+  const __mmask16 m = _mm512_cmpneq_epi32_mask((__m512i)in, _mm512_setzero_si512());
+  return (vfloat)_mm512_mask_loadu_ps((__m512)edge, m, row + col);
+#elif defined(__AVX2__)
+  return in ? (vfloat)_mm256_maskload_ps(row + col, (__m256i)in) : edge;
 #else
   vfloat v;
-  for (int l = 0; l < kLanes; ++l) v[l] = ld_clamped(row, col + l, w);
+  for (int l = 0; l < kLanes; ++l) v[l] = in[l] ? row[col + l] : edge[l];
   return v;
 #endif
 }
