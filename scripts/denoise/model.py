@@ -59,14 +59,17 @@ The filter averages *linear* irradiance (no log-domain bias) with weights from l
   car window among white paint took the paint's irradiance, x 1, and came out grey)
   (n_p.n_p rather than 1: the centre tap weighs exactly 1 even where there is no normal, so
   the sum of weights never vanishes)
-  ro = min(r_4, max(m4, yw valid))                the output's isolated bright pixels: m4 = the
+  ro = min(r_4, max(m4, yw [n >= 2]))             the output's isolated bright pixels: m4 = the
        second largest of r_4's 8 neighbours (inside the image, as for rc), so a pixel that
        the edge stops kept brighter than all but one of its neighbours, and than its valid
        history, comes out at that level (since 2026-12-06, a fixed rule added after the
        weights were trained: fireflies on edges and in disocclusions survived the filter,
        up to 7x the reference's brightest pixel on held-out clips); a line or a blob keeps
-       its level, a pixel that was as bright in the history (a small lamp) keeps it after
-       its first frame; the state is r_1, before this step
+       its level, a pixel that was as bright in a history of at least HISTORY_EVIDENCE = 2
+       frames (the warped length n: a small lamp) keeps it; the state is r_1, before this
+       step. (Earlier on 2026-12-06 any valid history counted: a history of one frame is
+       one sample, no more evidence than the pixel's own, and a held-out gallery clip's
+       sparse light kept a 1-spp sample at 2.2x the reference's brightest pixel through it.)
 The output colour is max(ro, 0) * d; (r_1, z, n, black) is the recurrent state: the first level's
 output, as SVGF's first pass (architecture 3 fed back r_4, filtered at dilations up to 8,
 which blurs more every frame, so the network had kept its weight small; r0 itself converged
@@ -91,6 +94,7 @@ SN_MIN, SZ_MIN = 2.0, 3.0  # the weakest normal and depth edge stops: geometry e
 REDISTRIBUTE_CAP = 1.0  # the cut energy spread over a window raises its mean at most this much (x its cut mean)
 HISTORY_MAX_CELLS = 5  # the history's upper clamp: the brightest sample of a 20x20 window (5x5 cells)
 HISTORY_ALLOWANCE = 4.0  # a sample up to 4x its (valid) history is never cut as a firefly
+HISTORY_EVIDENCE = 2.0  # the output's last step takes a history as evidence from this length (frames)
 # 3x3 a-trous taps (dy, dx, h): h = (1/4, 1/2, 1/4) x (1/4, 1/2, 1/4), times 4 (centre 1).
 TAPS = [(dy, dx, (2.0 if dy == 0 else 1.0) * (2.0 if dx == 0 else 1.0) / 4.0) for dy in (-1, 0, 1) for dx in (-1, 0, 1)]
 
@@ -210,7 +214,8 @@ def neighbour_top2(r, size=None):
 
 def output_clamp(r, size=None, history=None):
     """min(r, max(m, history)): m the second largest of the 8 neighbours inside the image
-    (neighbour_top2), history the warped history where valid, 0 elsewhere (None: none). A
+    (neighbour_top2), history the warped history where valid and at least HISTORY_EVIDENCE
+    frames long, 0 elsewhere (None: none). A
     pixel brighter than all but one of its neighbours and than its history -- a firefly the
     edge stops kept -- comes out at its neighbours' level."""
     bound = neighbour_top2(r, size)[1]
@@ -335,7 +340,8 @@ class Denoiser(nn.Module):
             xi = xi + beta * (acc / wsum - xi)
             if l == 0:
                 h_new = xi
-        out = output_clamp(xi, size, yw_lin * valid).clamp(min=0) * dm
+        trusted = yw_lin * valid * (nw >= HISTORY_EVIDENCE).to(xi.dtype)
+        out = output_clamp(xi, size, trusted).clamp(min=0) * dm
         return out, (h_new, z, n_new, bk)
 
 

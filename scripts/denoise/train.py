@@ -3,7 +3,7 @@
   weights/denoiser.kdw           the weights (format: docs/denoiser.md)
   weights/denoiser.json          provenance: dataset, command, steps, seed, final losses
   weights/denoiser_loss.png      the loss curve
-  tests/data/denoise/            a parity fixture: three small frames and this model's output
+  tests/data/denoise/            a parity fixture: four small frames and this model's output
 
     train.py [--data out/denoise_dataset] [--steps 2500] [--seed 1] [--threads 2]
 """
@@ -105,16 +105,27 @@ def load_weights(model, path, architecture=ARCHITECTURE):
     kestrel_nn.load_kdw(model, path, b"KSTRLDNW", architecture, partial=architecture != ARCHITECTURE)
 
 
+def fixture_still_frame(ins):
+    """The fixture's fourth frame: its third again at the clip's brightness, the camera still
+    (no motion), so the history is valid everywhere and long enough (HISTORY_EVIDENCE) for the
+    output's last step to take it."""
+    f = ins[2].copy()
+    f[:, :, 0:3] *= 4
+    f[:, :, 11:13] = 0
+    return np.concatenate([ins[:3], f[None]])
+
+
 def write_fixture(model, clip, out_dir):
-    """Three frames of a 44 x 30 crop (not a multiple of 8: exercises the padding) from the
+    """Four frames of a 44 x 30 crop (not a multiple of 8: exercises the padding) from the
     middle of a clip (it must show content), the second 4x brighter and the third 4x darker
-    than the clip (both history clamps act), their inputs as PFMs and the model's outputs."""
+    than the clip (both history clamps act), the fourth the third again, still and at the
+    clip's brightness (fixture_still_frame); their inputs as PFMs and the model's outputs."""
     T, H, W, _ = clip.shape
     y0, x0 = H // 2 - 15, W // 2 - 22
     ins = clip[:3, y0:y0 + 30, x0:x0 + 44].copy()  # T,H,W,13
     ins[1, :, :, 0:3] *= 4  # a light comes on: the history's lower clamp acts where all is lit
     ins[2, :, :, 0:3] /= 4  # and dims: the upper clamp acts (its 20x20 window, not 12x12)
-    write_fixture_frames(model, ins, out_dir)
+    write_fixture_frames(model, fixture_still_frame(ins), out_dir)
 
 
 def write_frame_pfms(d, f, expected):
@@ -256,6 +267,8 @@ def main():
         load_weights(model, os.path.join(args.out, "denoiser.kdw"))
         frames = sorted(d for d in os.listdir(args.fixture) if d.startswith("frame_"))
         ins = np.stack([load_frame(os.path.join(args.fixture, d)) for d in frames])
+        if len(ins) == 3:  # a three-frame fixture (before 2026-12-06, sixth session): its fourth frame added
+            ins = fixture_still_frame(ins)
         write_fixture_frames(model, ins, args.fixture)
         print("refreshed", args.fixture)
         return

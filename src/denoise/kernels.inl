@@ -495,7 +495,8 @@ static const Planes& network(const NeuralWeights& nw, const Planes& in, Planes& 
   }
   lap(&stage.filter);
   // The output: model.py's output_clamp (a pixel brighter than all but one of its neighbours
-  // inside the image and than its valid history comes out at that level), times d.
+  // inside the image and than its valid history of two frames or more comes out at that
+  // level), times d.
   ensure(ws.out, W, H, 3);
   const int image_w = in.image_width > 0 ? in.image_width : W;
   const int image_h = in.image_height > 0 ? in.image_height : H;
@@ -504,6 +505,7 @@ static const Planes& network(const NeuralWeights& nw, const Planes& in, Planes& 
       const size_t row = size_t(y) * size_t(W);
       const bool inner_row = y >= 1 && y + 1 < image_h;
       const float* valid = ws.valid.data() + row;
+      const float* n = ws.nw.data() + row;
       for (int c = 0; c < 3; ++c) {
         const float* x = ws.xi.ch(c);
         const float* b = x + row;
@@ -514,11 +516,11 @@ static const Planes& network(const NeuralWeights& nw, const Planes& in, Planes& 
         auto checked = [&](int i) {
           float top1, top2;
           neighbours_top2_checked(x, W, i, y, image_w, image_h, top1, top2);
-          o[i] = output_cut(b[i], top2, yw[i], valid[i], dm[i]);
+          o[i] = output_cut(b[i], top2, yw[i], valid[i], n[i], dm[i]);
         };
         const int i1 = inner_row ? std::min(image_w - 1, W) : 0;
         if (i1 > 0) checked(0);
-        if (i1 > 1) output_row(1, i1, a, b, d, yw, valid, dm, o);
+        if (i1 > 1) output_row(1, i1, a, b, d, yw, valid, n, dm, o);
         for (int i = i1 > 0 ? i1 : 0; i < W; ++i) checked(i);
       }
     }

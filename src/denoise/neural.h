@@ -67,6 +67,9 @@ constexpr float kMaxHistory = 32.0f;    ///< the longest history (frames) the st
 constexpr float kMinNormalStop = 2.0f;  ///< sn >= 2, sz >= 3: geometry edges always hold
 constexpr float kMinDepthStop = 3.0f;
 constexpr float kHistoryAllowance = 4.0f;  ///< never cut as a firefly: up to 4x the history
+/// The output's last step takes a history as evidence of a bright pixel from this length on
+/// (frames): a history of one frame is one sample, no more than the pixel's own.
+constexpr float kHistoryEvidence = 2.0f;
 /// The history's upper clamp reaches this many quarter-res cells around a pixel's (5x5: a
 /// 20x20 window), its lower clamp one (3x3).
 constexpr int kHistoryMaxReach = 2;
