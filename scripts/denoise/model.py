@@ -340,7 +340,7 @@ class Denoiser(nn.Module):
             xi = xi + beta * (acc / wsum - xi)
             if l == 0:
                 h_new = xi
-        trusted = yw_lin * valid * (nw >= HISTORY_EVIDENCE).to(xi.dtype)
+        trusted = yw_lin * (nw >= HISTORY_EVIDENCE).to(xi.dtype)  # nw is 0 where not valid
         out = output_clamp(xi, size, trusted).clamp(min=0) * dm
         return out, (h_new, z, n_new, bk)
 

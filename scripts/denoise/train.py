@@ -267,8 +267,6 @@ def main():
         load_weights(model, os.path.join(args.out, "denoiser.kdw"))
         frames = sorted(d for d in os.listdir(args.fixture) if d.startswith("frame_"))
         ins = np.stack([load_frame(os.path.join(args.fixture, d)) for d in frames])
-        if len(ins) == 3:  # a three-frame fixture (before 2026-12-06, sixth session): its fourth frame added
-            ins = fixture_still_frame(ins)
         write_fixture_frames(model, ins, args.fixture)
         print("refreshed", args.fixture)
         return

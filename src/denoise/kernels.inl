@@ -504,8 +504,7 @@ static const Planes& network(const NeuralWeights& nw, const Planes& in, Planes& 
     for (int y = r0; y < r1; ++y) {
       const size_t row = size_t(y) * size_t(W);
       const bool inner_row = y >= 1 && y + 1 < image_h;
-      const float* valid = ws.valid.data() + row;
-      const float* n = ws.nw.data() + row;
+      const float* n = ws.nw.data() + row;  // 0 where the history is not valid
       for (int c = 0; c < 3; ++c) {
         const float* x = ws.xi.ch(c);
         const float* b = x + row;
@@ -516,11 +515,11 @@ static const Planes& network(const NeuralWeights& nw, const Planes& in, Planes& 
         auto checked = [&](int i) {
           float top1, top2;
           neighbours_top2_checked(x, W, i, y, image_w, image_h, top1, top2);
-          o[i] = output_cut(b[i], top2, yw[i], valid[i], n[i], dm[i]);
+          o[i] = output_cut(b[i], top2, yw[i], n[i], dm[i]);
         };
         const int i1 = inner_row ? std::min(image_w - 1, W) : 0;
         if (i1 > 0) checked(0);
-        if (i1 > 1) output_row(1, i1, a, b, d, yw, valid, n, dm, o);
+        if (i1 > 1) output_row(1, i1, a, b, d, yw, n, dm, o);
         for (int i = i1 > 0 ? i1 : 0; i < W; ++i) checked(i);
       }
     }

@@ -135,24 +135,24 @@ static void firefly_row(int i0, int i1, const float* __restrict a, const float* 
 }
 
 // model.py's output_clamp and the remodulation over pixels [i0, i1) of a row whose neighbours
-// are all inside the image: o = max(min(r, max(m, yw valid [n >= kHistoryEvidence])), 0) d, m
-// the second largest of r's 8 neighbours (a, b, d the rows above, at and below), yw the warped
-// history, n its warped length (0 where not valid), d the demodulation; restrict-qualified so
-// that it vectorises.
-static inline float output_cut(float r, float m, float yw, float valid, float n, float dm) {
-  const float hist = n >= kHistoryEvidence ? yw * valid : 0.0f;
+// are all inside the image: o = max(min(r, max(m, yw [n >= kHistoryEvidence])), 0) d, m the
+// second largest of r's 8 neighbours (a, b, d the rows above, at and below), yw the warped
+// history, n its warped length (0 where the history is not valid, so the bar also tests
+// validity), d the demodulation; restrict-qualified so that it vectorises.
+static inline float output_cut(float r, float m, float yw, float n, float dm) {
+  const float hist = n >= kHistoryEvidence ? yw : 0.0f;
   const float bound = m > hist ? m : hist, v = r < bound ? r : bound;
   return (v > 0.0f ? v : 0.0f) * dm;
 }
 
 static void output_row(int i0, int i1, const float* __restrict a, const float* __restrict b,
                        const float* __restrict d, const float* __restrict yw,
-                       const float* __restrict valid, const float* __restrict n,
-                       const float* __restrict dm, float* __restrict out) {
+                       const float* __restrict n, const float* __restrict dm,
+                       float* __restrict out) {
   for (int i = i0; i < i1; ++i) {
     float top1, top2;
     neighbours_top2(a, b, d, i, top1, top2);
-    out[i] = output_cut(b[i], top2, yw[i], valid[i], n[i], dm[i]);
+    out[i] = output_cut(b[i], top2, yw[i], n[i], dm[i]);
   }
 }
 
