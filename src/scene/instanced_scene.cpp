@@ -12,7 +12,6 @@
 #include "kestrel/instances.h"
 #include "scene/instance_tree.h"
 #include "scene/transforms.h"
-#include "traverse/batches.h"
 #include "traverse/kernels.h"
 #include "traverse/stream.h"
 #include "traverse/wide_bvh.h"
@@ -299,7 +298,7 @@ struct TlasQuery {
   void run(std::span<const Ray> rays, const TraceOptions& options, PacketChoice& choice,
            bool sorted, Fn&& traced) const {
     if (!packet_fn) return traced(fn);
-    choice.run(options.packets, sorted || looks_coherent(rays), rays.size(),
+    choice.run(options.packets, !options.packets && (sorted || looks_coherent(rays)), rays.size(),
                [&](bool packets) { traced(packets ? packet_fn : fn); });
   }
 };
@@ -348,10 +347,9 @@ void InstancedScene::trace(std::span<const Ray> rays, std::span<InstanceHit> hit
     });
     return;
   }
+  // The kernels give untraceable rays a miss themselves (traverse/kernels.h).
   const auto run = [&](std::span<const Ray> r, InstanceHit* h, kernels::TlasFn fn) {
-    kernels::for_each_traceable_run(r, h, [&](const Ray* rr, InstanceHit* hh, size_t n) {
-      fn(q.tlas, s.data.data(), rr, hh, n, ray_mask);
-    });
+    fn(q.tlas, s.data.data(), r.data(), h, r.size(), ray_mask);
   };
   const size_t bytes = rays.size() >= stream_min_rays ? memory_bytes() : 0;  // walks the meshes
   if (stream_by_default(rays, s.world, bytes, false, false, options)) {      // traverse/stream.h
@@ -389,9 +387,7 @@ void InstancedScene::occluded(std::span<const Ray> rays, std::span<uint8_t> out,
     InstanceHit local[stream_chunk];
     q.run(r, options, callers ? stream_choice : s.any_choice, callers != nullptr,
           [&](kernels::TlasFn fn) {
-            kernels::for_each_traceable_run(r, local, [&](const Ray* rr, InstanceHit* h, size_t m) {
-              fn(q.tlas, s.data.data(), rr, h, m, ray_mask);
-            });
+            fn(q.tlas, s.data.data(), r.data(), local, r.size(), ray_mask);
           });
     for (size_t j = 0; j < r.size(); ++j) out[callers ? callers[j] : first + j] = local[j].hit();
   };

@@ -9,8 +9,9 @@
 namespace kestrel::kernels {
 
 /// Calls fn(rays, out, n) on each run of traceable rays (finite, non-zero direction,
-/// tmin <= tmax) and writes a default Out (a miss) for every other ray: kernels only ever
-/// see rays that can hit.
+/// tmin <= tmax) and writes a default Out (a miss) for every other ray: for the ray-stream
+/// kernels, which only ever see rays that can hit (the others test each ray as they load it:
+/// a separate pass over a batch read its rays from memory twice).
 template <class Out, class Fn>
 void for_each_traceable_run(std::span<const Ray> rays, Out* out, Fn&& fn) {
   size_t i = 0;

@@ -12,8 +12,10 @@
 
 namespace kestrel::kernels {
 
-/// Traces rays[0..n) into hits[0..n). Rays must be traceable (the caller filters the
-/// rest). Closest-hit kernels fill t, prim_id, u, v; any-hit kernels fill t and prim_id.
+/// Traces rays[0..n) into hits[0..n); an untraceable ray (batches.h) gets a miss, except in
+/// the ray-stream kernels (stream*, any_stream*), whose rays must be traceable (the caller
+/// filters the rest). Closest-hit kernels fill t, prim_id, u, v; any-hit kernels fill t and
+/// prim_id.
 using Bvh4Fn = void (*)(const Bvh4Node* nodes, const TriangleBlock* blocks, const Ray* rays,
                         Hit* hits, size_t n);
 using Bvh8Fn = void (*)(const Bvh8Node* nodes, const TriangleBlock* blocks, const Ray* rays,
@@ -29,7 +31,8 @@ struct InstanceData {
 };
 
 /// Two-level: TLAS leaves are wide_leaf_bit | index into `instances`. Closest-hit kernels
-/// fill every field of InstanceHit; any-hit kernels fill t, prim_id and instance_id.
+/// fill every field of InstanceHit; any-hit kernels fill t, prim_id and instance_id. An
+/// untraceable ray gets a miss.
 using TlasFn = void (*)(const void* tlas_nodes, const InstanceData* instances, const Ray* rays,
                         InstanceHit* hits, size_t n, uint32_t ray_mask);
 

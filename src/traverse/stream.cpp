@@ -89,7 +89,11 @@ bool origins_unordered(std::span<const Ray> rays, const Bounds3& box) {
 // axis (random bounce directions almost never do); packets are used when 3 groups in 4 are.
 bool looks_coherent(std::span<const Ray> rays) {
   size_t groups = 0, coherent = 0;
-  for (size_t g = 0; g + 8 <= rays.size(); g += 64) {
+  // A group every 64 rays, at most coherent_samples groups spread over the batch: the groups
+  // of a large batch are far apart in memory, so each one read is a cache miss (reading one in
+  // 64 of 921 600 camera rays cost ~3 % of tracing them as packets).
+  const size_t stride = std::max<size_t>(64, rays.size() / coherent_samples / 8 * 8);
+  for (size_t g = 0; g + 8 <= rays.size(); g += stride) {
     ++groups;
     const Ray& a = rays[g];
     const int axis = dominant_axis(a.dir);

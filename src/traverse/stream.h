@@ -149,8 +149,10 @@ struct PacketChoices {
 }  // namespace detail
 
 /// Whether a batch looks coherent (camera rays, shadow rays towards one light): groups of 8
-/// consecutive rays whose directions share signs and dominant axis, in 3 of 4 sampled groups.
+/// consecutive rays whose directions share signs and dominant axis, in 3 of 4 sampled groups
+/// (one every 64 rays, at most coherent_samples spread over the batch).
 bool looks_coherent(std::span<const Ray> rays);
+inline constexpr size_t coherent_samples = 256;
 
 /// TraceOptions::stream's default for a batch over a tree of `tree_bytes` bounded by `box`:
 /// closest hit, `packets` unset, >= stream_min_rays rays, not coherent, consecutive origins far

@@ -91,10 +91,9 @@ struct WideFns {
 template <class Bvh, class Fn>
 void trace_wide(const Accel& accel, const Bvh& bvh, std::span<const Ray> rays, std::span<Hit> hits,
                 bool any_hit, bool packets, const WideFns<Fn>& f) {
+  // The kernels give untraceable rays a miss themselves (kernels.h).
   const auto run = [&](Fn fn) {
-    kernels::for_each_traceable_run(rays, hits.data(), [&](const Ray* r, Hit* h, size_t n) {
-      fn(bvh.nodes.data(), bvh.blocks.data(), r, h, n);
-    });
+    fn(bvh.nodes.data(), bvh.blocks.data(), rays.data(), hits.data(), rays.size());
   };
   if (any_hit && !packets)
     return any_hit_order(accel, rays, [&](bool nearest) { run(nearest ? f.any_nearest : f.any); });
@@ -198,7 +197,8 @@ template <class Fn>
 void traced_as(const Accel& accel, std::span<const Ray> rays, const TraceOptions& options,
                bool any_hit, Fn&& traced) {
   (any_hit ? accel.nodes->choices->any : accel.nodes->choices->closest)
-      .run(options.packets, accel.layout != Layout::bvh2 && looks_coherent(rays), rays.size(),
+      .run(options.packets,
+           !options.packets && accel.layout != Layout::bvh2 && looks_coherent(rays), rays.size(),
            traced);
 }
 

@@ -169,7 +169,9 @@ inline void load_lane_rays(const Ray* rays, unsigned n, typename Simd<L>::F c[8]
 
 // What became of a lane packet: traced, or not because its rays disagree on the near planes
 // or the axis permutation (split it).
-enum class PacketOutcome { traced, split };
+// split: the rays disagree on their direction signs or axis permutation (the caller splits
+// them by class); untraceable: some ray cannot hit (the caller traces the others).
+enum class PacketOutcome { traced, split, untraceable };
 
 // The scene's largest extent along an axis, from the root's child boxes (for
 // PacketFrustum::tight): once per batch.
@@ -268,6 +270,15 @@ PacketOutcome trace_packet_lanes(const Bvh8Node* nodes, const TriangleBlock* blo
   const VF ox = comp[0], oy = comp[1], oz = comp[2];
   const VF dx = comp[3], dy = comp[4], dz = comp[5];
   const VF tmin = comp[6];
+  {
+    // Every ray traceable (batches.h's is_traceable, lane by lane, on the registers the rays
+    // were just transposed into): the packet kernels take whole batches unscanned, since a
+    // separate pass over a batch read its rays from memory twice.
+    const VF big = bcast(__builtin_inff());
+    VI ok = (comp[6] <= comp[7]) & ((dx != VF{}) | (dy != VF{}) | (dz != VF{}));
+    for (int c = 0; c < 6; ++c) ok &= (comp[c] < VF{} ? -comp[c] : comp[c]) < big;
+    if (S::mask(~ok)) return PacketOutcome::untraceable;
+  }
   // The packet needs one set of near planes and one axis permutation of the watertight test
   // (TriRay::init's, lane by lane): every lane as the first ray, else the caller splits.
   const TriRay tr0(rays[0]);

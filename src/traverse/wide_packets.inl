@@ -138,6 +138,36 @@ done:
   }
 }
 
+// trace(rays, hits, k) on the traceable ones of rays[0..n) (n <= 16), gathered; misses for
+// the others.
+// (Storage without Ray's and Hit's constructors, as HitStorage.)
+template <class Fn>
+void trace_traceable(const Ray* rays, Hit* hits, unsigned n, Fn&& trace) {
+  union Storage {
+    Ray rays[16];
+    Hit hits[16];
+    Storage() {}
+  } sub, sub_hits;
+  unsigned index[16], k = 0;
+  for (unsigned r = 0; r < n; ++r) {
+    if (traceable(rays[r])) {
+      index[k] = r;
+      sub.rays[k++] = rays[r];
+    } else {
+      set_miss(hits[r]);
+    }
+  }
+  if (k) trace(sub.rays, sub_hits.hits, k);
+  for (unsigned i = 0; i < k; ++i) hits[index[i]] = sub_hits.hits[i];
+}
+
+// Whether every ray of rays[0..n) is traceable.
+inline bool all_traceable(const Ray* rays, unsigned n) {
+  bool all = true;
+  for (unsigned r = 0; r < n; ++r) all &= traceable(rays[r]);
+  return all;
+}
+
 #ifdef __AVX512F__
 constexpr int packet_lanes = 16;  // one zmm per ray quantity
 #else
@@ -165,6 +195,10 @@ void trace_lane_packet(const Bvh8Node* nodes, const TriangleBlock* blocks, const
   const PacketOutcome outcome =
       trace_packet_lanes<packet_lanes, AnyHit>(nodes, blocks, rays, hits, n, scene);
   if (outcome == PacketOutcome::traced) return;
+  if (outcome == PacketOutcome::untraceable)
+    return trace_traceable(rays, hits, n, [&](const Ray* r, Hit* h, unsigned k) {
+      trace_lane_packet<AnyHit>(nodes, blocks, r, h, k, scene);
+    });
   unsigned cls[packet_lanes];
   for (unsigned r = 0; r < n; ++r) cls[r] = lane_class(rays[r]);
   Ray sub[packet_lanes];
@@ -202,8 +236,15 @@ void trace_packets(const Node* nodes, const TriangleBlock* blocks, const Ray* ra
     return;
   }
 #endif
-  for (size_t i = 0; i < n; i += 8)
-    trace_packet<W>(nodes, blocks, rays + i, hits + i, unsigned(n - i < 8 ? n - i : 8));
+  for (size_t i = 0; i < n; i += 8) {
+    const unsigned m = unsigned(n - i < 8 ? n - i : 8);
+    if (all_traceable(rays + i, m))
+      trace_packet<W>(nodes, blocks, rays + i, hits + i, m);
+    else
+      trace_traceable(rays + i, hits + i, m, [&](const Ray* r, Hit* h, unsigned k) {
+        trace_packet<W>(nodes, blocks, r, h, k);
+      });
+  }
 }
 
 // Occlusion packets: lane packets where the rays agree, single rays otherwise.

@@ -165,8 +165,10 @@ void trace_tlas_packets(const void* tlas_nodes, const InstanceData* instances, c
   const Bvh8Node* tlas = static_cast<const Bvh8Node*>(tlas_nodes);
   for (size_t i = 0; i < n; i += packet_lanes) {
     const unsigned m = unsigned(n - i < size_t(packet_lanes) ? n - i : size_t(packet_lanes));
-    if (trace_tlas_lanes<AnyHit>(tlas, instances, rays + i, hits + i, m, ray_mask) !=
-        PacketOutcome::traced)
+    // A packet with an untraceable ray goes as single rays (which give it a miss).
+    if (!all_traceable(rays + i, m) ||
+        trace_tlas_lanes<AnyHit>(tlas, instances, rays + i, hits + i, m, ray_mask) !=
+            PacketOutcome::traced)
       trace_tlas<8, AnyHit, Bvh8Node>(tlas_nodes, instances, rays + i, hits + i, m, ray_mask);
   }
 #else

@@ -2,6 +2,27 @@
 // and any hit, and the two-level walk (TLAS leaves enter a BLAS in object space).
 // Part of wide_kernels.inl: included inside namespace kestrel::kernels::KESTREL_ISA_NS (an
 // anonymous namespace within it), once per instruction set.
+// batches.h's is_traceable: the kernels of this file and of the packets take whole batches
+// unscanned and give the untraceable rays a miss (a separate pass over a batch read its rays
+// from memory twice: 5-8 % of tracing camera rays as packets). Here, with internal linkage,
+// since an inline function shared with the baseline-ISA callers could be linked from an ISA
+// file. (Ray streams take their runs from the scan: wide_stream_lanes.inl.)
+inline bool traceable(const Ray& r) {
+  const float big = __builtin_inff();
+  const float c[6] = {r.org.x, r.org.y, r.org.z, r.dir.x, r.dir.y, r.dir.z};
+  bool finite = true;
+  for (float v : c) finite &= (v < 0.0f ? -v : v) < big;
+  return finite && r.tmin <= r.tmax && (r.dir.x != 0.0f || r.dir.y != 0.0f || r.dir.z != 0.0f);
+}
+
+// An untraceable ray's result (Hit's defaults, written field by field: Hit's implicit
+// constructor is an inline function the linker could share with code for other ISAs).
+inline void set_miss(Hit& h) {
+  h.t = __builtin_inff();
+  h.prim_id = invalid_id;
+  h.u = h.v = 0;
+}
+
 struct StackEntry {
   uint32_t ref;
   float dist;
@@ -304,6 +325,13 @@ void trace_tlas(const void* tlas_nodes, const InstanceData* instances, const Ray
   const Node* tlas = static_cast<const Node*>(tlas_nodes);
   for (size_t k = 0; k < n; ++k) {
     const Ray& ray = rays[k];
+    if (!traceable(ray)) {
+      InstanceHit& miss = hits[k];
+      miss.t = __builtin_inff();
+      miss.prim_id = miss.instance_id = invalid_id;
+      miss.u = miss.v = 0;
+      continue;
+    }
     const BoxRay<W> box(ray);
     // Public types are copied, never default-constructed here: their implicit constructors
     // are inline functions the linker could share with code for other ISAs.
@@ -342,6 +370,10 @@ void trace_tlas(const void* tlas_nodes, const InstanceData* instances, const Ray
 template <int W, bool AnyHit, class Node, bool Nearest = false>
 void trace_batch(const Node* nodes, const TriangleBlock* blocks, const Ray* rays, Hit* hits,
                  size_t n) {
-  for (size_t i = 0; i < n; ++i)
-    trace_ray<W, AnyHit, Node, Nearest>(nodes, blocks, rays[i], hits[i]);
+  for (size_t i = 0; i < n; ++i) {
+    if (traceable(rays[i]))
+      trace_ray<W, AnyHit, Node, Nearest>(nodes, blocks, rays[i], hits[i]);
+    else
+      set_miss(hits[i]);
+  }
 }

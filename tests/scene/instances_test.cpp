@@ -140,6 +140,39 @@ TEST(Instances, PacketsGiveTheSingleRaysHits) {
     EXPECT_GT(duplicates, 20u) << isa_name(isa);  // the tie is exercised
     EXPECT_GT(blocked, (rays.size() - camera) / 20) << isa_name(isa);
     EXPECT_LT(blocked, rays.size() - camera) << isa_name(isa);
+    // Untraceable rays among them (the kernels take batches unscanned): misses, every other
+    // ray's hit unchanged, both ways. The results start as hits, so every slot must be written.
+    std::vector<Ray> bad = rays;
+    const float nan = std::nanf(""), inf = INFINITY;
+    for (size_t i = 3; i < bad.size(); i += 7) {
+      switch (i % 4) {
+        case 0:
+          bad[i].org.x = inf;
+          break;
+        case 1:
+          bad[i].dir.y = nan;
+          break;
+        case 2:
+          bad[i].tmin = 2.0f, bad[i].tmax = 1.0f;
+          break;
+        default:
+          bad[i].dir = {0, 0, 0};
+          break;
+      }
+    }
+    for (const TraceOptions& o : {single, packets, unsaid}) {
+      std::vector<InstanceHit> b(bad.size(), InstanceHit{1.0f, 7, 3, 0.0f, 0.0f});
+      std::vector<uint8_t> bo(bad.size(), 1);
+      f.scene.trace(bad, b, 0xFFFFFFFFu, o);
+      f.scene.occluded(bad, bo, 0xFFFFFFFFu, o);
+      for (size_t i = 0; i < bad.size(); ++i) {
+        const bool untraceable = i >= 3 && (i - 3) % 7 == 0;
+        ASSERT_EQ(b[i].instance_id, untraceable ? invalid_id : want[i].instance_id)
+            << isa_name(isa) << " ray " << i;
+        ASSERT_EQ(b[i].prim_id, untraceable ? invalid_id : want[i].prim_id) << " ray " << i;
+        ASSERT_EQ(bo[i], untraceable ? 0 : want_occ[i]) << isa_name(isa) << " ray " << i;
+      }
+    }
   }
 }
 
