@@ -167,10 +167,9 @@ inline void load_lane_rays(const Ray* rays, unsigned n, typename Simd<L>::F c[8]
   }
 }
 
-// What became of a lane packet: traced, or not because its rays disagree on the near planes
-// or the axis permutation (split it).
-// split: the rays disagree on their direction signs or axis permutation (the caller splits
-// them by class); untraceable: some ray cannot hit (the caller traces the others).
+// What became of a lane packet: traced; or not, because its rays disagree on the near planes
+// or the axis permutation (split: the caller splits them by class) or some ray cannot hit
+// (untraceable: the caller traces the others and gives it a miss).
 enum class PacketOutcome { traced, split, untraceable };
 
 // The scene's largest extent along an axis, from the root's child boxes (for

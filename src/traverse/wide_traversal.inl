@@ -2,9 +2,10 @@
 // and any hit, and the two-level walk (TLAS leaves enter a BLAS in object space).
 // Part of wide_kernels.inl: included inside namespace kestrel::kernels::KESTREL_ISA_NS (an
 // anonymous namespace within it), once per instruction set.
+
 // batches.h's is_traceable: the kernels of this file and of the packets take whole batches
 // unscanned and give the untraceable rays a miss (a separate pass over a batch read its rays
-// from memory twice: 5-8 % of tracing camera rays as packets). Here, with internal linkage,
+// from memory twice: ~6 % of tracing camera rays as packets). Here, with internal linkage,
 // since an inline function shared with the baseline-ISA callers could be linked from an ISA
 // file. (Ray streams take their runs from the scan: wide_stream_lanes.inl.)
 inline bool traceable(const Ray& r) {
