@@ -140,13 +140,14 @@ done:
 
 // trace(rays, hits, k) on the traceable ones of rays[0..n) (n <= 16), gathered; misses for
 // the others.
-// (Storage without Ray's and Hit's constructors, as HitStorage.)
+// (Storage without Ray's and Hit's constructors, as HitStorage; zeroed, since the compiler
+// cannot tell that trace() writes the results read back.)
 template <class Fn>
 void trace_traceable(const Ray* rays, Hit* hits, unsigned n, Fn&& trace) {
   union Storage {
     Ray rays[16];
     Hit hits[16];
-    Storage() {}
+    Storage() { __builtin_memset(static_cast<void*>(this), 0, sizeof(*this)); }
   } sub, sub_hits;
   unsigned index[16], k = 0;
   for (unsigned r = 0; r < n; ++r) {
