@@ -93,9 +93,9 @@ inline bool closer_hit(float t, uint32_t id, float best_t, uint32_t best_id) {
 
 /// A ray is traceable when every component is finite (tmin and tmax may be infinite, not NaN),
 /// the direction is non-zero and tmin <= tmax. In SSE compares and one test rather than a chain
-/// of branches: the batch scan runs it on every ray of every batch. The ray's floats are read
-/// as [org.x org.y org.z dir.x] and [dir.y dir.z tmin tmax]. (Included by baseline-ISA files
-/// only, as every inline function the kernels' callers share.)
+/// of branches: the ray-stream scan (batches.h) runs it on every ray of its batches. The ray's
+/// floats are read as [org.x org.y org.z dir.x] and [dir.y dir.z tmin tmax]. (Included by
+/// baseline-ISA files only, as every inline function the kernels' callers share.)
 inline bool is_traceable(const Ray& r) {
   static_assert(sizeof(Ray) == 8 * sizeof(float), "Ray: org, dir, tmin, tmax");
   const float* f = &r.org.x;

@@ -298,8 +298,9 @@ struct TlasQuery {
   void run(std::span<const Ray> rays, const TraceOptions& options, PacketChoice& choice,
            bool sorted, Fn&& traced) const {
     if (!packet_fn) return traced(fn);
-    choice.run(options.packets, !options.packets && (sorted || looks_coherent(rays)), rays.size(),
-               [&](bool packets) { traced(packets ? packet_fn : fn); });
+    choice.run(
+        options.packets, [&] { return sorted || looks_coherent(rays); }, rays.size(),
+        [&](bool packets) { traced(packets ? packet_fn : fn); });
   }
 };
 

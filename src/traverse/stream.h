@@ -111,11 +111,12 @@ class PacketChoice {
          rays);
   }
   /// The same for a caller's chunk: as `fixed` says when set (TraceOptions::packets), single
-  /// rays where the chunk is no candidate for packets, else as above.
-  template <class Fn>
-  void run(std::optional<bool> fixed, bool candidate, size_t rays, Fn&& traced) {
+  /// rays where the chunk is no candidate for packets (candidate(), asked only when `fixed`
+  /// is unset: it reads the rays), else as above.
+  template <class Candidate, class Fn>
+  void run(std::optional<bool> fixed, Candidate&& candidate, size_t rays, Fn&& traced) {
     if (fixed) return traced(*fixed);
-    if (!candidate) return traced(false);
+    if (!candidate()) return traced(false);
     run(rays, traced);
   }
   /// Forgets what was measured (the scene changed).

@@ -197,9 +197,9 @@ template <class Fn>
 void traced_as(const Accel& accel, std::span<const Ray> rays, const TraceOptions& options,
                bool any_hit, Fn&& traced) {
   (any_hit ? accel.nodes->choices->any : accel.nodes->choices->closest)
-      .run(options.packets,
-           !options.packets && accel.layout != Layout::bvh2 && looks_coherent(rays), rays.size(),
-           traced);
+      .run(
+          options.packets, [&] { return accel.layout != Layout::bvh2 && looks_coherent(rays); },
+          rays.size(), traced);
 }
 
 void check_sizes(size_t rays, size_t out) {

@@ -16,11 +16,17 @@ inline bool traceable(const Ray& r) {
   return finite && r.tmin <= r.tmax && (r.dir.x != 0.0f || r.dir.y != 0.0f || r.dir.z != 0.0f);
 }
 
-// An untraceable ray's result (Hit's defaults, written field by field: Hit's implicit
-// constructor is an inline function the linker could share with code for other ISAs).
+// An untraceable ray's result (the defaults, written field by field: Hit's and InstanceHit's
+// implicit constructors are inline functions the linker could share with code for other
+// ISAs).
 inline void set_miss(Hit& h) {
   h.t = __builtin_inff();
   h.prim_id = invalid_id;
+  h.u = h.v = 0;
+}
+inline void set_miss(InstanceHit& h) {
+  h.t = __builtin_inff();
+  h.prim_id = h.instance_id = invalid_id;
   h.u = h.v = 0;
 }
 
@@ -327,10 +333,7 @@ void trace_tlas(const void* tlas_nodes, const InstanceData* instances, const Ray
   for (size_t k = 0; k < n; ++k) {
     const Ray& ray = rays[k];
     if (!traceable(ray)) {
-      InstanceHit& miss = hits[k];
-      miss.t = __builtin_inff();
-      miss.prim_id = miss.instance_id = invalid_id;
-      miss.u = miss.v = 0;
+      set_miss(hits[k]);
       continue;
     }
     const BoxRay<W> box(ray);
