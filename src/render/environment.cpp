@@ -125,10 +125,13 @@ Vec3 Renderer::Impl::env_smooth_radiance(float u, float v, bool upper) const {
   const float fx = u * float(w) - 0.5f;
   const float fy = std::clamp(v * float(h) - 0.5f, upper ? 0.0f : float(half),
                               upper ? float(half - 1) : float(h - 1));
-  const float x0f = std::floor(fx), y0f = std::floor(fy);
+  const float x0f = floor_exact(fx), y0f = floor_exact(fy);
   const float tx = fx - x0f, ty = fy - y0f;
-  int x0 = int(x0f) % w;
-  if (x0 < 0) x0 += w;
+  int x0 = int(x0f);
+  if (x0 < 0 || x0 >= w) {  // u outside [0, 1]: wrapped (no division in the common case)
+    x0 %= w;
+    if (x0 < 0) x0 += w;
+  }
   const int x1 = x0 + 1 == w ? 0 : x0 + 1;
   const int y0 = int(y0f), y1 = std::min(y0 + 1, upper ? half - 1 : h - 1);
   const float* r0 = &env_small[size_t(y0) * size_t(w) * 3];

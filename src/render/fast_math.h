@@ -26,6 +26,16 @@ inline float round_even(float x) {
   return std::copysign((a + 0x1p23f) - 0x1p23f, x);
 }
 
+/// std::floor without a libm call (baseline x86-64 has no rounding instruction), the same
+/// value for every float: the truncation, one lower where it rounded up (negative
+/// non-integers); floats of at least 2^23 are integers; -0 stays -0.
+inline float floor_exact(float x) {
+  if (!(std::fabs(x) < 0x1p23f)) return x;  // also NaN and the infinities
+  float t = float(int(x));
+  if (t > x) t -= 1.0f;
+  return std::copysign(t, x);
+}
+
 /// sin and cos of 2 pi u, for any finite u: reduced to a quarter turn around 0 and evaluated
 /// by the Taylor series to the 9th (sin) and 10th (cos) power, whose remainder is below 2e-9
 /// there; the quadrant's swap and signs are then exact.

@@ -96,12 +96,6 @@ void add_sample(Accumulator& acc, size_t p, Vec3 L, const PixelSample& o, float 
 constexpr size_t index_distance = 48, vertex_distance = 24, texel_distance = 12,
                  state_distance = 16;
 
-// Radiance cache: the first surface must be this rough (GGX alpha) for its bounce to stop at
-// the cache (sharper reflections would show the cells), the second this rough for its
-// radiance to be taken as the same towards every direction; 1 path in 16 trains the cache.
-constexpr float cache_alpha_first = 0.1f, cache_alpha_second = 0.02f;
-constexpr uint64_t cache_train_mask = 15;
-
 // The outgoing radiance a path measured at its cached vertex, clamped as samples are.
 bool cache_sample(const PathState& ps, float clamp, Vec3& out) {
   const Vec3 t = ps.cache_throughput, d = ps.radiance - ps.cache_radiance;
@@ -113,32 +107,6 @@ bool cache_sample(const PathState& ps, float clamp, Vec3& out) {
 }
 
 }  // namespace
-
-// ---- the radiance cache's early answer ------------------------------------------------------
-
-// The radiance cache's answer at a path's second vertex, ahead of the full shading: the
-// cell's mean where the shading below would stop the path there (a rough, non-emissive
-// surface, a bounce longer than the cell, a cell with enough samples), without the shading
-// normal and base colour texel that such a path never uses. The same cell, the same test.
-// `cell`: the hit's cell (cache_cell), found a few hits ahead so its slot is prefetched.
-bool Renderer::Impl::cache_answer(const SurfaceHit& h, const RadianceCache::Cell& cell,
-                                  Vec3& lc) const {
-  const TriangleMesh& mesh = *instances[h.instance_id].mesh;
-  const Material& mat = material_of(mesh, h.prim_id);
-  if (luminance(mat.emission) > 0) return false;
-  float metallic;
-  const float roughness = roughness_at(mat, uv_at(mesh, h.prim_id, h.u, h.v), metallic);
-  if (!(std::max(roughness * roughness, min_alpha) >= cache_alpha_second)) return false;
-  return h.t >= cell.size && radiance_cache.lookup(cell.key, lc);
-}
-
-RadianceCache::Cell Renderer::Impl::cache_cell(const SurfaceHit& h, const Ray& ray) const {
-  Surface sf;
-  surface_geometry(h, ray, sf);
-  const RadianceCache::Cell cell = radiance_cache.cell(sf.p, sf.ng);
-  radiance_cache.prefetch(cell.key);
-  return cell;
-}
 
 // Whether pixel (x, y)'s path goes on after its first hit in frame `frame` at the given
 // indirect rate: 0.5 a checkerboard, 0.25 one pixel of each 2x2 block, both cycling with the
@@ -166,8 +134,10 @@ struct Renderer::Impl::TilePaths {
   std::vector<Ray> rays, next_rays;
   std::vector<uint32_t> active, next_active;
   std::vector<RadianceCache::Cell> cells;  // of hits the radiance cache likely answers, else key 0
-  std::vector<Ray> shadow_rays;
-  std::vector<Shadow> shadows;
+  // Next-event shadow rays: towards the sun (and other directional lights: one direction, so
+  // the wave traces them as packets) apart from the rest, each with what it adds when unblocked.
+  std::vector<Ray> sun_rays, shadow_rays;
+  std::vector<Shadow> sun_shadows, shadows;
   // ReSTIR: per pixel of the tile, the reservoir, the surface and the history's pixel; the
   // visibility rays of the initial reservoirs (biased mode) and their pixels.
   std::vector<Reservoir> rres;
@@ -185,8 +155,9 @@ struct Renderer::Impl::TilePaths {
   // ... whose results (one per vis ray) drop blocked samples before reuse; the shadow rays of
   // the reservoirs' samples.
   void restir_final(const Impl& r, std::span<const uint8_t> blocked);
-  // The shadow rays' results (one per ray): the unblocked add their light; the next bounce.
-  void finish_bounce(std::span<const uint8_t> blocked);
+  // The shadow rays' results (one per ray of sun_rays, then of shadow_rays): the unblocked
+  // add their light; the next bounce.
+  void finish_bounce(std::span<const uint8_t> sun_blocked, std::span<const uint8_t> blocked);
   // Adds the tile's samples to the sums (and the radiance cache's records).
   void end(Accumulator& acc) const;
 };
@@ -241,6 +212,8 @@ void Renderer::Impl::TilePaths::shade(const Impl& r, int depth, std::span<const 
   };
   next_rays.clear();
   next_active.clear();
+  sun_rays.clear();
+  sun_shadows.clear();
   shadow_rays.clear();
   shadows.clear();
   // Shading reads scattered vertex data: fetch it ahead, indices first, then the vertices
@@ -387,8 +360,12 @@ void Renderer::Impl::TilePaths::shade(const Impl& r, int depth, std::span<const 
       Vec3 contribution;
       if (r.sample_light(sf, frame, bsdf, origin, ps.throughput, rng, use_tree, shadow,
                          contribution)) {
-        shadow_rays.push_back(shadow);
-        shadows.push_back({contribution, active[k]});
+        // Towards one direction at infinity (the sun's cone, a directional light): with the
+        // tile's others of its kind, a run of near-parallel rays from neighbouring points.
+        const bool parallel =
+            shadow.tmax == INFINITY && r.sun_on && dot(shadow.dir, r.sun_dir) >= r.sun_cos_max;
+        (parallel ? sun_rays : shadow_rays).push_back(shadow);
+        (parallel ? sun_shadows : shadows).push_back({contribution, active[k]});
       }
     }
     // Russian roulette at the first bounce (indirect_rate < 1): the pixels whose turn it is
@@ -451,7 +428,13 @@ void Renderer::Impl::TilePaths::restir_final(const Impl& r, std::span<const uint
   }
 }
 
-void Renderer::Impl::TilePaths::finish_bounce(std::span<const uint8_t> blocked) {
+void Renderer::Impl::TilePaths::finish_bounce(std::span<const uint8_t> sun_blocked,
+                                              std::span<const uint8_t> blocked) {
+  // A path has at most one shadow ray per bounce: the order of the two lists changes no sum.
+  for (size_t i = 0; i < sun_shadows.size(); ++i)
+    if (!sun_blocked[i])
+      paths[sun_shadows[i].path].radiance =
+          paths[sun_shadows[i].path].radiance + sun_shadows[i].contribution;
   for (size_t i = 0; i < shadows.size(); ++i)
     if (!blocked[i])
       paths[shadows[i].path].radiance = paths[shadows[i].path].radiance + shadows[i].contribution;
@@ -481,18 +464,30 @@ struct Renderer::Impl::Wave {
   std::vector<SurfaceHit> hits;
   std::vector<uint8_t> blocked;
 
-  // One batch of the tiles' rays (member `which` of each tile) in tile order.
+  // One batch of the tiles' rays in tile order: member `which` of each tile, or with two
+  // members, `first` of every tile, then `second` of every tile (tile i's rays of member m at
+  // offsets[m n + i] .. offsets[m n + i + 1]).
   template <class Which>
   std::span<const Ray> gather(size_t n, Which which) {
-    offsets.resize(n + 1);
+    return gather(n, which, [](TilePaths&) -> const std::vector<Ray>* { return nullptr; });
+  }
+  template <class First, class Second>
+  std::span<const Ray> gather(size_t n, First first, Second second) {
+    const auto member = [&](size_t j) -> const std::vector<Ray>* {
+      if (j < n) return &first(tiles[j]);
+      return second(tiles[j - n]);
+    };
+    offsets.resize(2 * n + 1);
     offsets[0] = 0;
-    for (size_t i = 0; i < n; ++i) offsets[i + 1] = offsets[i] + which(tiles[i]).size();
-    rays.resize(offsets[n]);
-    parallel_for(0, n, 8, [&](size_t b, size_t e) {
-      for (size_t i = b; i < e; ++i) {
-        const std::vector<Ray>& r = which(tiles[i]);
-        std::copy(r.begin(), r.end(), rays.begin() + std::ptrdiff_t(offsets[i]));
-      }
+    for (size_t j = 0; j < 2 * n; ++j) {
+      const std::vector<Ray>* r = member(j);
+      offsets[j + 1] = offsets[j] + (r ? r->size() : 0);
+    }
+    rays.resize(offsets[2 * n]);
+    parallel_for(0, 2 * n, 8, [&](size_t b, size_t e) {
+      for (size_t j = b; j < e; ++j)
+        if (const std::vector<Ray>* r = member(j))
+          std::copy(r->begin(), r->end(), rays.begin() + std::ptrdiff_t(offsets[j]));
     });
     return rays;
   }
@@ -531,18 +526,21 @@ void Renderer::Impl::render_wave(const WavePass& wp, std::span<const uint32_t> i
                  : capture->shadow_batches)
         .push_back(r.size());
   };
-  // Shadow rays (member `which` of each tile) traced; each tile gets its results.
-  auto shadows = [&](auto which, auto&& then) {
-    const std::span<const Ray> batch = wv.gather(n, which);
+  // Shadow rays (members `first` and `second` of each tile, as Wave::gather) traced as one
+  // batch; each tile gets the results of its two lists.
+  auto shadows = [&](auto first, auto second, auto&& then) {
+    const std::span<const Ray> batch = wv.gather(n, first, second);
     wv.blocked.resize(batch.size());
     if (!batch.empty()) {
       capture_batch(2, batch);
       timed([&] { occluded(batch, wv.blocked); }, 2, batch.size());
     }
+    const auto results = [&](size_t j) {
+      return std::span<const uint8_t>(wv.blocked.data() + wv.offsets[j],
+                                      wv.offsets[j + 1] - wv.offsets[j]);
+    };
     parallel_for(0, n, 1, [&](size_t b, size_t e) {
-      for (size_t i = b; i < e; ++i)
-        then(wv.tiles[i], std::span<const uint8_t>(wv.blocked.data() + wv.offsets[i],
-                                                   wv.offsets[i + 1] - wv.offsets[i]));
+      for (size_t i = b; i < e; ++i) then(wv.tiles[i], results(i), results(n + i));
     });
   };
   RenderStats::Steps& steps = stats.steps;
@@ -577,12 +575,19 @@ void Renderer::Impl::render_wave(const WavePass& wp, std::span<const uint32_t> i
       parallel_for(0, n, 1, [&](size_t b, size_t e) {
         for (size_t i = b; i < e; ++i) wv.tiles[i].restir_initial(*this);
       });
-      shadows(
-          [](TilePaths& t) -> const std::vector<Ray>& { return t.vis; },
-          [&](TilePaths& t, std::span<const uint8_t> blocked) { t.restir_final(*this, blocked); });
+      shadows([](TilePaths& t) -> const std::vector<Ray>& { return t.vis; },
+              [](TilePaths&) -> const std::vector<Ray>* { return nullptr; },
+              [&](TilePaths& t, std::span<const uint8_t> blocked, std::span<const uint8_t>) {
+                t.restir_final(*this, blocked);
+              });
     }
-    shadows([](TilePaths& t) -> const std::vector<Ray>& { return t.shadow_rays; },
-            [](TilePaths& t, std::span<const uint8_t> blocked) { t.finish_bounce(blocked); });
+    // The rays towards the sun of every tile first, so they meet as runs the batch API
+    // traces as packets; then every tile's others.
+    shadows([](TilePaths& t) -> const std::vector<Ray>& { return t.sun_rays; },
+            [](TilePaths& t) -> const std::vector<Ray>* { return &t.shadow_rays; },
+            [](TilePaths& t, std::span<const uint8_t> sun, std::span<const uint8_t> other) {
+              t.finish_bounce(sun, other);
+            });
     step(depth == 0 ? steps.shadows_first : steps.shadows_bounces);
   }
   parallel_for(0, n, 1, [&](size_t b, size_t e) {

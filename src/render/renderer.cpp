@@ -199,6 +199,13 @@ void Renderer::Impl::render_passes(const Camera& camera, const RenderSettings& s
                                    Frame& frame) {
   std::optional<ThreadLimit> limit;
   if (s.threads > 0 || capture) limit.emplace(capture ? 1 : s.threads);
+  // The materials' textures, resolved for this render: the scene's textures are replaced
+  // by set_materials at once, its materials (our copy) at the next commit.
+  maps.assign(materials.size(), MaterialMaps{});
+  for (size_t i = 0; i < materials.size(); ++i)
+    maps[i] = {texture(materials[i].base_color_texture),
+               texture(materials[i].metallic_roughness_texture),
+               texture(materials[i].emission_texture)};
   const CameraModel cam(camera, s.width, s.height);
   const CameraModel prev(prev_camera ? *prev_camera : camera, s.width, s.height);
   const int tiles_x = (s.width + tile_size - 1) / tile_size;

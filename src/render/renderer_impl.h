@@ -32,9 +32,14 @@ constexpr int tile_size = 32;
 constexpr size_t wave_tiles = 256;
 constexpr float specular_alpha =
     0.01f;  // surfaces below this alpha (and metallic) are "specular" for the AOVs
+// Radiance cache: the first surface must be this rough (GGX alpha) for its bounce to stop at
+// the cache (sharper reflections would show the cells), the second this rough for its
+// radiance to be taken as the same towards every direction; 1 path in 16 trains the cache.
+constexpr float cache_alpha_first = 0.1f, cache_alpha_second = 0.02f;
+constexpr uint64_t cache_train_mask = 15;
 
 /// Bilinear, repeat-wrapped texture fetch; sRGB-decoded per texel when `srgb` (texture.cpp).
-void sample_texture(const Texture& tex, Vec2 uv, bool srgb, float out[4]);
+void sample_texture(const Texture& tex, Vec2 uv, bool srgb, float out[3]);
 /// Texture coordinates at barycentrics (1 - b1 - b2, b1, b2) of a triangle; (0, 0) without uvs.
 Vec2 uv_at(const TriangleMesh& m, uint32_t prim, float b1, float b2);
 
@@ -189,6 +194,15 @@ struct Renderer::Impl {
   const InstancedScene* scene = nullptr;  // referenced: it outlives the renderer
   uint64_t generation = 0;                // the scene's commit the shading data are of
   std::vector<Material> materials;        // the scene's, plus a trailing "default"
+  // Per material, its textures resolved (nullptr: none or unusable), so shading a hit does
+  // not look them up: base colour, metallic-roughness, emission.
+  struct MaterialMaps {
+    const Texture *base = nullptr, *metallic_roughness = nullptr, *emission = nullptr;
+  };
+  std::vector<MaterialMaps> maps;  // maps[i] of materials[i] (sync)
+  const MaterialMaps& maps_of(const Material& m) const {
+    return maps[size_t(&m - materials.data())];
+  }
   std::vector<InstanceShade> instances;
   std::vector<std::vector<int32_t>> emissive_rank;  // per mesh key, per triangle: rank or -1
   std::vector<LightTri> lights;  // emissive triangles: local lights 0 .. lights.size() - 1
@@ -250,7 +264,7 @@ struct Renderer::Impl {
   }
   Vec3 emission_at(const Material& m, Vec2 uv) const {
     Vec3 e = m.emission;
-    if (const Texture* t = texture(m.emission_texture)) {
+    if (const Texture* t = maps_of(m).emission) {
       float px[4];
       sample_texture(*t, uv, true, px);
       e = e * Vec3{px[0], px[1], px[2]};
@@ -344,7 +358,21 @@ struct Renderer::Impl {
   Surface surface_at(const SurfaceHit& h, const Ray& ray) const;
   // surface_at's first part: p, p_obj, wo, ng (facing wo), cos_hit, the material.
   void surface_geometry(const SurfaceHit& h, const Ray& ray, Surface& sf) const;
-  float roughness_at(const Material& mat, Vec2 uv, float& metallic) const;
+  // The material's roughness in [0, 1] at uv (its metallic-roughness texture's G scales it)
+  // and its metallic factor (the texture's B); uv_of() is asked only where there is a texture.
+  template <class Uv>
+  float roughness_at(const Material& mat, Uv&& uv_of, float& metallic) const {
+    float roughness = mat.roughness;
+    metallic = mat.metallic;
+    if (const Texture* t = maps_of(mat).metallic_roughness) {
+      float c[3];
+      sample_texture(*t, uv_of(), false, c);
+      roughness *= c[1];
+      metallic *= c[2];
+    }
+    metallic = std::clamp(metallic, 0.0f, 1.0f);
+    return std::clamp(roughness, 0.0f, 1.0f);
+  }
   bool cache_answer(const SurfaceHit& h, const RadianceCache::Cell& cell, Vec3& lc) const;
   RadianceCache::Cell cache_cell(const SurfaceHit& h, const Ray& ray) const;
   bool sample_light(const Surface& sf, const Basis& frame, const BsdfAt& bsdf, Vec3 origin,

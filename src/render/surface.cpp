@@ -1,6 +1,6 @@
 // The surface at a hit, as the path tracer's shading reads it: prefetching what it reads
 // ahead of the shading loop (indices, vertices, texels), the hit's geometry, its material's
-// roughness and its full BSDF parameters.
+// roughness and its full BSDF parameters; the radiance cache's early answer at a hit.
 #include <algorithm>
 #include <cmath>
 
@@ -34,11 +34,12 @@ void Renderer::Impl::prefetch_texels(const SurfaceHit& h) const {
   if (!h.hit()) return;
   const TriangleMesh& m = *instances[h.instance_id].mesh;
   if (m.uvs.empty()) return;
-  const Texture* t = texture(material_of(m, h.prim_id).base_color_texture);
+  const Texture* t = maps_of(material_of(m, h.prim_id)).base;
   if (!t) return;
   const Vec2 uv = uv_at(m, h.prim_id, h.u, h.v);
   const float u = uv.x, v = uv.y;
-  const float x = (u - std::floor(u)) * float(t->width), y = (v - std::floor(v)) * float(t->height);
+  const float x = (u - floor_exact(u)) * float(t->width),
+              y = (v - floor_exact(v)) * float(t->height);
   if (!(x >= 0 && x < float(t->width) && y >= 0 && y < float(t->height))) return;
   const size_t row = size_t(y) * size_t(t->width);
   __builtin_prefetch(&t->rgba[(row + size_t(x)) * 4]);
@@ -58,8 +59,12 @@ void Renderer::Impl::surface_geometry(const SurfaceHit& h, const Ray& ray, Surfa
   const float b0 = 1 - h.u - h.v;
   Vec3 p0 = mesh.positions[i0], p1 = mesh.positions[i1], p2 = mesh.positions[i2];
   sf.p_obj = p0 * b0 + p1 * h.u + p2 * h.v;
-  if (!is.identity) p0 = is.xf.point(p0), p1 = is.xf.point(p1), p2 = is.xf.point(p2);
-  sf.p = p0 * b0 + p1 * h.u + p2 * h.v;
+  if (is.identity) {
+    sf.p = sf.p_obj;
+  } else {
+    p0 = is.xf.point(p0), p1 = is.xf.point(p1), p2 = is.xf.point(p2);
+    sf.p = p0 * b0 + p1 * h.u + p2 * h.v;
+  }
   const Vec3 wo = sf.wo = -ray.dir;
   Vec3 ng = cross(p1 - p0, p2 - p0);
   const float ng_len = length(ng);
@@ -67,21 +72,6 @@ void Renderer::Impl::surface_geometry(const SurfaceHit& h, const Ray& ray, Surfa
   sf.cos_hit = dot(ng, wo);
   sf.ng = sf.cos_hit < 0 ? -ng : ng;
   sf.mat = &material_of(mesh, h.prim_id);
-}
-
-// The material's roughness in [0, 1] at uv (its metallic-roughness texture's G scales it) and
-// its metallic factor (the texture's B).
-float Renderer::Impl::roughness_at(const Material& mat, Vec2 uv, float& metallic) const {
-  float roughness = mat.roughness;
-  metallic = mat.metallic;
-  if (const Texture* t = texture(mat.metallic_roughness_texture)) {
-    float c[4];
-    sample_texture(*t, uv, false, c);
-    roughness *= c[1];
-    metallic *= c[2];
-  }
-  metallic = std::clamp(metallic, 0.0f, 1.0f);
-  return std::clamp(roughness, 0.0f, 1.0f);
 }
 
 // World position (and object-space position, for motion vectors), geometric and shading
@@ -110,17 +100,45 @@ Renderer::Impl::Surface Renderer::Impl::surface_at(const SurfaceHit& h, const Ra
   const Material& mat = *sf.mat;
   BsdfParams& bp = sf.bp;
   bp.base = mat.base_color;
-  if (const Texture* t = texture(mat.base_color_texture)) {
-    float c[4];
+  if (const Texture* t = maps_of(mat).base) {
+    float c[3];
     sample_texture(*t, uv, true, c);
     bp.base = bp.base * Vec3{c[0], c[1], c[2]};
   }
   bp.base = min(max(bp.base, Vec3{0, 0, 0}), Vec3{1, 1, 1});
-  const float roughness = roughness_at(mat, uv, bp.metallic);
+  const float roughness = roughness_at(
+      mat, [uv] { return uv; }, bp.metallic);
   bp.alpha = std::max(roughness * roughness, min_alpha);
   bp.specular = std::clamp(mat.specular, 0.0f, 1.0f);
   sf.ns = ns, sf.roughness = roughness;
   return sf;
+}
+
+// ---- the radiance cache's early answer ------------------------------------------------------
+
+// The radiance cache's answer at a path's second vertex, ahead of the full shading: the
+// cell's mean where the shading below would stop the path there (a rough, non-emissive
+// surface, a bounce longer than the cell, a cell with enough samples), without the shading
+// normal and base colour texel that such a path never uses. The same cell, the same test.
+// `cell`: the hit's cell (cache_cell), found a few hits ahead so its slot is prefetched.
+bool Renderer::Impl::cache_answer(const SurfaceHit& h, const RadianceCache::Cell& cell,
+                                  Vec3& lc) const {
+  const TriangleMesh& mesh = *instances[h.instance_id].mesh;
+  const Material& mat = material_of(mesh, h.prim_id);
+  if (luminance(mat.emission) > 0) return false;
+  float metallic;
+  const float roughness = roughness_at(
+      mat, [&] { return uv_at(mesh, h.prim_id, h.u, h.v); }, metallic);
+  if (!(std::max(roughness * roughness, min_alpha) >= cache_alpha_second)) return false;
+  return h.t >= cell.size && radiance_cache.lookup(cell.key, lc);
+}
+
+RadianceCache::Cell Renderer::Impl::cache_cell(const SurfaceHit& h, const Ray& ray) const {
+  Surface sf;
+  surface_geometry(h, ray, sf);
+  const RadianceCache::Cell cell = radiance_cache.cell(sf.p, sf.ng);
+  radiance_cache.prefetch(cell.key);
+  return cell;
 }
 
 }  // namespace kestrel

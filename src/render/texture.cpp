@@ -1,6 +1,7 @@
 // Texel fetches: bilinear, repeat-wrapped, sRGB decoded through a table.
 #include <cmath>
 
+#include "render/fast_math.h"
 #include "render/renderer_impl.h"
 
 namespace kestrel::render {
@@ -20,12 +21,13 @@ const SrgbTable srgb_table;
 
 }  // namespace
 
-void sample_texture(const Texture& tex, Vec2 uv, bool srgb, float out[4]) {
-  float x = (uv.x - std::floor(uv.x)) * float(tex.width) - 0.5f;
-  float y = (uv.y - std::floor(uv.y)) * float(tex.height) - 0.5f;
+void sample_texture(const Texture& tex, Vec2 uv, bool srgb, float out[3]) {
+  float x = (uv.x - floor_exact(uv.x)) * float(tex.width) - 0.5f;
+  float y = (uv.y - floor_exact(uv.y)) * float(tex.height) - 0.5f;
   if (!(x >= -1.0f && x < float(tex.width)) || !(y >= -1.0f && y < float(tex.height)))
     x = 0, y = 0;  // NaN uv
-  const float fx = std::floor(x), fy = std::floor(y);
+  // x, y in [-1, size): floor is the truncation, one lower below zero.
+  const float fx = x < 0.0f ? -1.0f : float(int(x)), fy = y < 0.0f ? -1.0f : float(int(y));
   const float wx = x - fx, wy = y - fy;
   // x in [-0.5, w - 0.5): the left texel is -1 (wraps to w - 1) .. w - 1, the right one 0 .. w.
   int x0 = int(fx), y0 = int(fy);
@@ -51,8 +53,6 @@ void sample_texture(const Texture& tex, Vec2 uv, bool srgb, float out[4]) {
           (float(t00[c]) * w00 + float(t10[c]) * w10 + float(t01[c]) * w01 + float(t11[c]) * w11) *
           (1.0f / 255.0f);
   }
-  out[3] = (float(t00[3]) * w00 + float(t10[3]) * w10 + float(t01[3]) * w01 + float(t11[3]) * w11) *
-           (1.0f / 255.0f);
 }
 
 Vec2 uv_at(const TriangleMesh& m, uint32_t prim, float b1, float b2) {

@@ -236,6 +236,37 @@ TEST(FastMath, RoundEvenIsNearbyint) {
   EXPECT_TRUE(std::isnan(round_even(std::numeric_limits<float>::quiet_NaN())));
 }
 
+// floor_exact is std::floor bit for bit: negative non-integers, the sign of zero, the largest
+// non-integers, integers beyond 2^23, infinities and NaN.
+TEST(FastMath, FloorExactIsFloor) {
+  const auto bits = [](float x) { return std::bit_cast<uint32_t>(x); };
+  std::vector<float> xs = {0.0f,
+                           -0.0f,
+                           0.5f,
+                           -0.5f,
+                           1.0f,
+                           -1.0f,
+                           0.99999994f,
+                           -0.99999994f,
+                           1e-40f,
+                           -1e-40f,
+                           0x1p23f - 0.5f,
+                           -(0x1p23f - 0.5f),
+                           0x1p23f,
+                           -0x1p23f,
+                           0x1p23f + 1,
+                           1e30f,
+                           -1e30f,
+                           std::numeric_limits<float>::infinity(),
+                           -std::numeric_limits<float>::infinity()};
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<float> wide(-1e7f, 1e7f), narrow(-4.0f, 4.0f);
+  for (int i = 0; i < 100000; ++i) xs.push_back(wide(rng)), xs.push_back(narrow(rng));
+  for (int i = -4096; i <= 4096; ++i) xs.push_back(float(i) * 0.25f);
+  for (const float x : xs) EXPECT_EQ(bits(floor_exact(x)), bits(std::floor(x))) << x;
+  EXPECT_TRUE(std::isnan(floor_exact(std::numeric_limits<float>::quiet_NaN())));
+}
+
 // One shading point serves a light sample and a BSDF sample (BsdfAt keeps what depends on wo):
 // its value and pdf for many directions against the formulas of the header comment evaluated
 // in double precision, term by term, and the value the same bits with or without the pdf.
