@@ -360,10 +360,11 @@ void Renderer::Impl::TilePaths::shade(const Impl& r, int depth, std::span<const 
       Vec3 contribution;
       if (r.sample_light(sf, frame, bsdf, origin, ps.throughput, rng, use_tree, shadow,
                          contribution)) {
-        // Towards one direction at infinity (the sun's cone, a directional light): with the
-        // tile's others of its kind, a run of near-parallel rays from neighbouring points.
-        const bool parallel =
-            shadow.tmax == INFINITY && r.sun_on && dot(shadow.dir, r.sun_dir) >= r.sun_cos_max;
+        // From a first hit towards the sun's cone: with the tile's others of its kind, a run
+        // of near-parallel rays from neighbouring points (from bounce hits, whose points are
+        // scattered, they stay with the rest: as packets they were no faster).
+        const bool parallel = depth == 0 && shadow.tmax == INFINITY && r.sun_on &&
+                              dot(shadow.dir, r.sun_dir) >= r.sun_cos_max;
         (parallel ? sun_rays : shadow_rays).push_back(shadow);
         (parallel ? sun_shadows : shadows).push_back({contribution, active[k]});
       }
