@@ -180,15 +180,26 @@ void Renderer::Impl::TilePaths::begin(const WavePass& wp, int tx, int ty,
   rsurf.assign(restir_count, RestirSurface{});
   rprev.assign(restir_count, -1);
   rngs.reserve(count);
+  const int tw = x1 - x0, th = y1 - y0;
   for (size_t i = 0; i < count; ++i) {
-    const int x = x0 + int(i % size_t(x1 - x0)), y = y0 + int(i / size_t(x1 - x0));
+    const int x = x0 + int(i % size_t(tw)), y = y0 + int(i / size_t(tw));
     const uint64_t pixel = uint64_t(y) * uint64_t(s.width) + uint64_t(x);
     rngs.emplace_back(s.seed, s.frame, pixel, uint64_t(wp.pass));
-    Rng& rng = rngs.back();
-    const float lu = rng.uniform(), lv = rng.uniform();
-    rays[i] = wp.cam.ray(float(x) + wp.jx, float(y) + wp.jy, lu, lv);
-    active[i] = uint32_t(i);
   }
+  // The camera rays in 4 x 4 blocks of pixels (row-major within a block and over the blocks),
+  // so that a packet of 16 consecutive rays is a square of the image, not half a row: a
+  // narrower frustum. Path k of the first bounce is pixel active[k].
+  size_t k = 0;
+  for (int by = 0; by < th; by += 4)
+    for (int bx = 0; bx < tw; bx += 4)
+      for (int y = by; y < std::min(by + 4, th); ++y)
+        for (int x = bx; x < std::min(bx + 4, tw); ++x, ++k) {
+          const size_t i = size_t(y) * size_t(tw) + size_t(x);
+          Rng& rng = rngs[i];
+          const float lu = rng.uniform(), lv = rng.uniform();
+          rays[k] = wp.cam.ray(float(x0 + x) + wp.jx, float(y0 + y) + wp.jy, lu, lv);
+          active[k] = uint32_t(i);
+        }
 }
 
 void Renderer::Impl::TilePaths::shade(const Impl& r, int depth, std::span<const SurfaceHit> hits) {
@@ -197,7 +208,7 @@ void Renderer::Impl::TilePaths::shade(const Impl& r, int depth, std::span<const 
   const RestirPass* rp = ctx->rp;
   const bool use_tree = ctx->use_tree;
   const size_t n = active.size();
-  // A camera ray's path and pixel sample (ray k is pixel k's).
+  // A camera ray's path and pixel sample (of pixel k of the tile).
   const auto start = [&](size_t k) {
     PathState& ps = paths[k];
     ps = PathState{};
@@ -249,7 +260,7 @@ void Renderer::Impl::TilePaths::shade(const Impl& r, int depth, std::span<const 
     }
     PathState& ps = paths[active[k]];
     Rng& rng = rngs[active[k]];
-    if (depth == 0) start(k);
+    if (depth == 0) start(active[k]);
     PixelSample& out = px[ps.pixel];
     const Ray& ray = rays[k];
     const SurfaceHit& h = hits[k];
