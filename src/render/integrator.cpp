@@ -41,57 +41,10 @@ struct PathState {
   Vec3 cache_radiance, cache_throughput;
 };
 
-struct PixelSample {
-  Vec3 albedo{0, 0, 0}, normal{0, 0, 0};
-  float depth = 0, roughness = 0, mx = 0, my = 0;
-};
-
 struct Shadow {
   Vec3 contribution;
   uint32_t path;
 };
-
-// Radiance scaled so that its largest component is at most `clamp` (0: off).
-Vec3 clamped(Vec3 L, float clamp) {
-  const float m = std::max({L.x, L.y, L.z});
-  return clamp > 0 && m > clamp ? L * (clamp / m) : L;
-}
-
-// One sample of a pixel into the sums: a NaN/Inf radiance is dropped (not smeared), then
-// clamped when asked; the luminance's running mean and M2 (Welford) give the variance AOV.
-void add_sample(Accumulator& acc, size_t p, Vec3 L, const PixelSample& o, float clamp) {
-  if (!is_finite(L)) L = {0, 0, 0};
-  L = clamped(L, clamp);
-  if (float* const* aov = acc.direct[0] ? acc.direct.data() : nullptr) {
-    // The mean of one sample, as the sums give it: 0 + x, times 1.
-    for (int c = 0; c < 3; ++c) {
-      aov[int(Aov::color)][3 * p + size_t(c)] = 0.0f + L[c];
-      aov[int(Aov::albedo)][3 * p + size_t(c)] = 0.0f + o.albedo[c];
-      aov[int(Aov::normal)][3 * p + size_t(c)] = 0.0f + o.normal[c];
-    }
-    aov[int(Aov::depth)][p] = 0.0f + o.depth;
-    aov[int(Aov::roughness)][p] = 0.0f + o.roughness;
-    aov[int(Aov::motion)][2 * p] = 0.0f + o.mx;
-    aov[int(Aov::motion)][2 * p + 1] = 0.0f + o.my;
-    aov[int(Aov::spp)][p] = 1.0f;
-    aov[int(Aov::variance)][p] = 0.0f;
-    return;
-  }
-  for (int c = 0; c < 3; ++c) {
-    acc.color[3 * p + size_t(c)] += L[c];
-    acc.albedo[3 * p + size_t(c)] += o.albedo[c];
-    acc.normal[3 * p + size_t(c)] += o.normal[c];
-  }
-  acc.depth[p] += o.depth;
-  acc.rough[p] += o.roughness;
-  acc.motion[2 * p] += o.mx;
-  acc.motion[2 * p + 1] += o.my;
-  const double lum = luminance(L);
-  const int n = ++acc.n[p];
-  const double delta = lum - acc.lum_mean[p];
-  acc.lum_mean[p] += delta / n;
-  acc.lum_m2[p] += delta * (lum - acc.lum_mean[p]);
-}
 
 constexpr size_t index_distance = 48, vertex_distance = 24, texel_distance = 12,
                  state_distance = 16;
@@ -458,7 +411,7 @@ void Renderer::Impl::TilePaths::end(Accumulator& acc) const {
   const RenderSettings& s = ctx->s;
   for (size_t i = 0; i < count; ++i) {
     const int x = x0 + int(i % size_t(x1 - x0)), y = y0 + int(i / size_t(x1 - x0));
-    add_sample(acc, size_t(y) * size_t(s.width) + size_t(x), paths[i].radiance, px[i], s.clamp);
+    acc.add(size_t(y) * size_t(s.width) + size_t(x), paths[i].radiance, px[i], s.clamp);
     Vec3 lc;
     if (paths[i].cache_key && cache_sample(paths[i], s.clamp, lc))
       cache_records->push_back({paths[i].cache_key, lc});

@@ -284,6 +284,42 @@ void Renderer::Impl::render_passes(const Camera& camera, const RenderSettings& s
   frame.stats.steps += stats.steps;
 }
 
+// One sample of a pixel into the sums: a NaN/Inf radiance is dropped (not smeared), then
+// clamped when asked; the luminance's running mean and M2 (Welford) give the variance AOV.
+void Accumulator::add(size_t p, Vec3 L, const PixelSample& o, float clamp) {
+  if (!is_finite(L)) L = {0, 0, 0};
+  L = clamped(L, clamp);
+  if (float* const* aov = direct[0] ? direct.data() : nullptr) {
+    // The mean of one sample, as the sums give it: 0 + x, times 1.
+    for (int c = 0; c < 3; ++c) {
+      aov[int(Aov::color)][3 * p + size_t(c)] = 0.0f + L[c];
+      aov[int(Aov::albedo)][3 * p + size_t(c)] = 0.0f + o.albedo[c];
+      aov[int(Aov::normal)][3 * p + size_t(c)] = 0.0f + o.normal[c];
+    }
+    aov[int(Aov::depth)][p] = 0.0f + o.depth;
+    aov[int(Aov::roughness)][p] = 0.0f + o.roughness;
+    aov[int(Aov::motion)][2 * p] = 0.0f + o.mx;
+    aov[int(Aov::motion)][2 * p + 1] = 0.0f + o.my;
+    aov[int(Aov::spp)][p] = 1.0f;
+    aov[int(Aov::variance)][p] = 0.0f;
+    return;
+  }
+  for (int c = 0; c < 3; ++c) {
+    color[3 * p + size_t(c)] += L[c];
+    albedo[3 * p + size_t(c)] += o.albedo[c];
+    normal[3 * p + size_t(c)] += o.normal[c];
+  }
+  depth[p] += o.depth;
+  rough[p] += o.roughness;
+  motion[2 * p] += o.mx;
+  motion[2 * p + 1] += o.my;
+  const double lum = luminance(L);
+  const int count = ++n[p];
+  const double delta = lum - lum_mean[p];
+  lum_mean[p] += delta / count;
+  lum_m2[p] += delta * (lum - lum_mean[p]);
+}
+
 void Accumulator::reset(int w, int h) {
   width = w, height = h;
   const size_t p = size_t(w) * size_t(h);

@@ -149,6 +149,18 @@ inline double now_ms() {
 
 using namespace render;  // this private header's users are the renderer's own files
 
+// What a path's first hit gives its pixel's AOVs.
+struct PixelSample {
+  Vec3 albedo{0, 0, 0}, normal{0, 0, 0};
+  float depth = 0, roughness = 0, mx = 0, my = 0;
+};
+
+// Radiance scaled so that its largest component is at most `clamp` (0: off).
+inline Vec3 clamped(Vec3 L, float clamp) {
+  const float m = std::max({L.x, L.y, L.z});
+  return clamp > 0 && m > clamp ? L * (clamp / m) : L;
+}
+
 struct Accumulator {
   int width, height;
   std::vector<float> color, albedo, normal, depth, rough, motion;  // sums
@@ -162,6 +174,8 @@ struct Accumulator {
   /// Sums of w x h pixels at 0 (the storage kept: no page faults frame after frame; zeroed in
   /// parallel, 72 bytes a pixel, where it was the frame's serial part). renderer.cpp.
   void reset(int w, int h);
+  /// One sample of pixel p (renderer.cpp).
+  void add(size_t p, Vec3 L, const PixelSample& o, float clamp);
 };
 
 /// A hit as the shading code sees it: the scene's own InstanceHit (the instance; static scenes:
