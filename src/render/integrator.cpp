@@ -87,8 +87,8 @@ struct Renderer::Impl::TilePaths {
   std::vector<Ray> rays, next_rays;
   std::vector<uint32_t> active, next_active;
   std::vector<RadianceCache::Cell> cells;  // of hits the radiance cache likely answers, else key 0
-  // Next-event shadow rays: towards the sun (and other directional lights: one direction, so
-  // the wave traces them as packets) apart from the rest, each with what it adds when unblocked.
+  // Next-event shadow rays, each with what it adds when unblocked: the first hits' towards the
+  // sun's cone (near-parallel: the wave traces them as packets) apart from the rest.
   std::vector<Ray> sun_rays, shadow_rays;
   std::vector<Shadow> sun_shadows, shadows;
   // ReSTIR: per pixel of the tile, the reservoir, the surface and the history's pixel; the
