@@ -32,6 +32,9 @@ struct PathState {
   float bsdf_pdf = 0;         // pdf of the direction that led here (solid angle)
   Vec3 prev_normal{0, 0, 1};  // shading normal where that direction was sampled
   bool aov_pending = true;
+  // Whether NEE at the vertex this ray left could pick the environment (env_left_to_bsdf):
+  // the MIS weights of what the ray hits use that vertex's light choice.
+  bool env_nee = true;
   bool restir = false;  // the first hit's direct light came from ReSTIR: BSDF rays skip it
   // Radiance cache: a training path never stops at the cache; rough: the surface the last
   // bounce left may use it; cache_key: the first bounce's cell, with the path's radiance and
@@ -221,7 +224,7 @@ void Renderer::Impl::TilePaths::shade(const Impl& r, int depth, std::span<const 
       const Vec3 le = r.env_radiance(ray.dir);
       float w = 1;
       if (depth > 0 && r.p_env > 0) {
-        const float lp = r.p_env * r.env_pdf(ray.dir, ps.prev_normal);
+        const float lp = ps.env_nee ? r.p_env * r.env_pdf(ray.dir, ps.prev_normal) : 0.0f;
         w = ps.restir && depth == 1
                 ? (lp > 0 ? 0.0f : 1.0f)  // what ReSTIR could sample, it has
                 : ps.bsdf_pdf * ps.bsdf_pdf / (ps.bsdf_pdf * ps.bsdf_pdf + lp * lp);
@@ -232,7 +235,7 @@ void Renderer::Impl::TilePaths::shade(const Impl& r, int depth, std::span<const 
         if (luminance(ls) > 0) {
           float ws = 1;
           if (depth > 0) {
-            const float lp = r.p_sun / r.sun_solid_angle;
+            const float lp = r.p_sun / r.sun_solid_angle * r.nee_scale(ps.env_nee);
             ws = ps.restir && depth == 1
                      ? (lp > 0 ? 0.0f : 1.0f)
                      : ps.bsdf_pdf * ps.bsdf_pdf / (ps.bsdf_pdf * ps.bsdf_pdf + lp * lp);
@@ -289,7 +292,8 @@ void Renderer::Impl::TilePaths::shade(const Impl& r, int depth, std::span<const 
       float w = 1;
       if (depth > 0) {
         const float lp = r.light_pdf(h.instance_id, h.prim_id, h.t * h.t, std::fabs(sf.cos_hit),
-                                     ray.org, use_tree);
+                                     ray.org, use_tree) *
+                         r.nee_scale(ps.env_nee);
         w = ps.restir && depth == 1
                 ? (lp > 0 ? 0.0f : 1.0f)
                 : ps.bsdf_pdf * ps.bsdf_pdf / (ps.bsdf_pdf * ps.bsdf_pdf + lp * lp);
@@ -312,6 +316,7 @@ void Renderer::Impl::TilePaths::shade(const Impl& r, int depth, std::span<const 
     const Basis frame(ns);
     const Vec3 wo_l = frame.to_local(wo);
     const BsdfAt bsdf(bp, wo_l);
+    const bool env_nee = !r.env_left_to_bsdf(bp);
     const Vec3 origin = offset_origin(p, ng);
     // Next-event estimation: one light sample (an emissive triangle or the environment),
     // or at the first hit ReSTIR's reservoir (shaded once the tile's reuse is done).
@@ -322,7 +327,7 @@ void Renderer::Impl::TilePaths::shade(const Impl& r, int depth, std::span<const 
     } else if (r.p_env > 0 || r.p_sun > 0 || r.local_light_count() > 0) {
       Ray shadow;
       Vec3 contribution;
-      if (r.sample_light(sf, frame, bsdf, origin, ps.throughput, rng, use_tree, shadow,
+      if (r.sample_light(sf, frame, bsdf, origin, ps.throughput, rng, use_tree, env_nee, shadow,
                          contribution)) {
         // From a first hit towards the sun's cone: with the tile's others of its kind, a run
         // of near-parallel rays from neighbouring points (from bounce hits, whose points are
@@ -351,6 +356,7 @@ void Renderer::Impl::TilePaths::shade(const Impl& r, int depth, std::span<const 
     ps.throughput = ps.throughput * bs.weight;
     ps.bsdf_pdf = bs.pdf;
     ps.prev_normal = ns;
+    ps.env_nee = env_nee;
     ps.rough = bp.alpha >= cache_alpha_first;
     if (depth + 1 >= s.rr_depth) {
       const float q =

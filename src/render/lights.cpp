@@ -168,10 +168,14 @@ Vec3 Renderer::Impl::sun_sample(float u1, float u2) const {
 // triangle or a punctual light, by power); MIS weighted against the BSDF except for punctual
 // lights (deltas): the shadow ray to trace and what it adds when unblocked.
 bool Renderer::Impl::sample_light(const Surface& sf, const Basis& frame, const BsdfAt& bsdf,
-                                  Vec3 origin, Vec3 throughput, Rng& rng, bool tree, Ray& shadow,
-                                  Vec3& contribution) const {
+                                  Vec3 origin, Vec3 throughput, Rng& rng, bool tree, bool env,
+                                  Ray& shadow, Vec3& contribution) const {
   const Vec3 &ng = sf.ng, &ns = sf.ns;
-  const float ul = rng.uniform(), u1 = rng.uniform(), u2 = rng.uniform();
+  float ul = rng.uniform();
+  const float u1 = rng.uniform(), u2 = rng.uniform();
+  // Without the environment: ul in [p_env, 1), each other light's pick scaled by `scale`.
+  const float scale = nee_scale(env);
+  if (!env) ul = std::min(p_env + ul * (1.0f - p_env), 0x1.fffffep-1f);
   Vec3 wi, le;
   float pdf = 0, tmax = INFINITY;
   bool delta = false;  // a punctual light: pdf is its pick probability, no MIS
@@ -184,12 +188,13 @@ bool Renderer::Impl::sample_light(const Surface& sf, const Basis& frame, const B
     dir = wi;
   } else if (ul < p_env + p_sun) {  // the sun: uniform in its cone
     wi = sun_sample(u1, u2);
-    pdf = p_sun / sun_solid_angle;
+    pdf = p_sun / sun_solid_angle * scale;
     le = sun_radiance;
     dir = wi;
   } else {
-    const LightDraw d =
+    LightDraw d =
         local_light_sample(origin, tree, (ul - p_env - p_sun) / (1 - p_env - p_sun), u1, u2);
+    d.pdf *= scale;
     const size_t li = d.y.id;
     if (li >= lights.size()) {  // a punctual light: a delta, no MIS
       pdf = d.pdf;              // a probability, not a density

@@ -3,6 +3,7 @@
 // light gives it; the glTF KHR_lights_punctual loader; every bad light a clear error.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
@@ -96,6 +97,45 @@ TEST(Lights, SunAndEnvironmentSharedByIrradianceStayUnbiased) {
     const double expected = kAlbedo / kPi * (sun * mean_cos + kPi * 0.3);
     const double got = radiance_at(plane(), env, 16384);
     EXPECT_NEAR(got, expected, 0.01 * expected) << "sun " << sun;
+  }
+}
+
+// Where the sun outshines the environment, NEE at a Lambertian surface picks among the sun and
+// the local lights alone (the cosine-sampled environment is left to the BSDF sample, whose
+// density it shares): the sun's, the sky's and an area light's shares are still exact. The
+// plane's point under the camera, a 2 x 2 emitter off to the side (it hides a part of the sky):
+// rho / pi x (E_sun mean_cos + L_sky (pi - F) + L_e F), F the emitter's cosine-weighted solid
+// angle by Lambert's polygon formula. The sun about as bright as the sky, so that NEE's picks
+// change most (checked to fail when a BSDF-sampled hit weighs the lamp or the sky as NEE picks
+// them elsewhere).
+TEST(Lights, EnvironmentLeftToTheBsdfStaysUnbiased) {
+  const float r = 2 * kPi / 180, mean_cos = 1 - (1 - std::cos(r)) / 2;
+  const Vec3 quad[4] = {{0.5f, -1, -3.5f}, {2.5f, -1, -3.5f}, {2.5f, 1, -3.5f}, {0.5f, 1, -3.5f}};
+  double f = 0;  // sum over edges of angle x (n . unit normal of the edge's plane), n = +z
+  for (int i = 0; i < 4; ++i) {
+    const Vec3 a = normalize(quad[i] - Vec3{0, 0, -5}),
+               b = normalize(quad[(i + 1) % 4] - Vec3{0, 0, -5});
+    const Vec3 c = cross(a, b);
+    f += std::acos(std::clamp(double(dot(a, b)), -1.0, 1.0)) * c.z / length(c);
+  }
+  const double form = std::fabs(f) / 2;
+  for (const bool with_lamp : {false, true}) {
+    Scene s = plane();
+    if (with_lamp) {
+      s.materials.push_back(
+          Material{.name = "lamp", .base_color = {0, 0, 0}, .emission = {10, 10, 10}});
+      TriangleMesh m;
+      m.positions.assign(quad, quad + 4);
+      m.indices = {0, 1, 2, 0, 2, 3};
+      m.material_ids = {1, 1};
+      s.meshes.push_back(m);
+    }
+    Environment env = Environment::parse("constant:0.3,0.3,0.3");
+    env.sun = Sun{.direction = {0, 0, 1}, .irradiance = {1, 1, 1}, .angular_radius_degrees = 2};
+    const double sky = with_lamp ? 0.3 * (kPi - form) + 10 * form : 0.3 * kPi;
+    const double expected = kAlbedo / kPi * (1 * mean_cos + sky);
+    const double got = radiance_at(std::move(s), env, 16384);
+    EXPECT_NEAR(got, expected, 0.01 * expected) << (with_lamp ? "with" : "without") << " lamp";
   }
 }
 
