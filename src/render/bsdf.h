@@ -108,6 +108,7 @@ struct BsdfAt {
     if (!above) return;
     fd_o = 1.0f - p.specular * (0.04f + 0.96f * schlick_weight(wo.z));
     glossy = p.metallic > 0 || p.specular > 0;
+    if (!glossy) return;  // Lambertian: no specular lobe, ps = 0 (what the lines below give)
     lambda_o = ggx_lambda(p.alpha, wo);
     four_cos_o = 4.0f * wo.z;
     if (with_pdf) ps = specular_probability(p, wo);
