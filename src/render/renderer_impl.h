@@ -213,7 +213,7 @@ struct Renderer::Impl {
   struct MaterialMaps {
     const Texture *base = nullptr, *metallic_roughness = nullptr, *emission = nullptr;
   };
-  std::vector<MaterialMaps> maps;  // maps[i] of materials[i] (sync)
+  std::vector<MaterialMaps> maps;  // maps[i] of materials[i] (each render_passes)
   const MaterialMaps& maps_of(const Material& m) const {
     return maps[size_t(&m - materials.data())];
   }

@@ -26,8 +26,7 @@ void sample_texture(const Texture& tex, Vec2 uv, bool srgb, float out[3]) {
   float y = (uv.y - floor_exact(uv.y)) * float(tex.height) - 0.5f;
   if (!(x >= -1.0f && x < float(tex.width)) || !(y >= -1.0f && y < float(tex.height)))
     x = 0, y = 0;  // NaN uv
-  // x, y in [-1, size): floor is the truncation, one lower below zero.
-  const float fx = x < 0.0f ? -1.0f : float(int(x)), fy = y < 0.0f ? -1.0f : float(int(y));
+  const float fx = floor_exact(x), fy = floor_exact(y);
   const float wx = x - fx, wy = y - fy;
   // x in [-0.5, w - 0.5): the left texel is -1 (wraps to w - 1) .. w - 1, the right one 0 .. w.
   int x0 = int(fx), y0 = int(fy);

@@ -172,6 +172,19 @@ inline void load_lane_rays(const Ray* rays, unsigned n, typename Simd<L>::F c[8]
 // (untraceable: the caller traces the others and gives it a miss).
 enum class PacketOutcome { traced, split, untraceable };
 
+// Whether every lane's ray is traceable (batches.h's is_traceable, lane by lane, on the
+// registers load_lane_rays transposed them into): the lane kernels take whole batches
+// unscanned, since a separate pass over a batch read its rays from memory twice.
+template <int L>
+inline bool lanes_traceable(const typename Simd<L>::F comp[8]) {
+  using VF = typename Simd<L>::F;
+  using VI = typename Simd<L>::I;
+  const VF big = Simd<L>::splat(__builtin_inff());
+  VI ok = (comp[6] <= comp[7]) & ((comp[3] != VF{}) | (comp[4] != VF{}) | (comp[5] != VF{}));
+  for (int c = 0; c < 6; ++c) ok &= (comp[c] < VF{} ? -comp[c] : comp[c]) < big;
+  return !Simd<L>::mask(~ok);
+}
+
 // The scene's largest extent along an axis, from the root's child boxes (for
 // PacketFrustum::tight): once per batch.
 inline float scene_extent(const Bvh8Node& root) {
@@ -269,15 +282,7 @@ PacketOutcome trace_packet_lanes(const Bvh8Node* nodes, const TriangleBlock* blo
   const VF ox = comp[0], oy = comp[1], oz = comp[2];
   const VF dx = comp[3], dy = comp[4], dz = comp[5];
   const VF tmin = comp[6];
-  {
-    // Every ray traceable (batches.h's is_traceable, lane by lane, on the registers the rays
-    // were just transposed into): the packet kernels take whole batches unscanned, since a
-    // separate pass over a batch read its rays from memory twice.
-    const VF big = bcast(__builtin_inff());
-    VI ok = (comp[6] <= comp[7]) & ((dx != VF{}) | (dy != VF{}) | (dz != VF{}));
-    for (int c = 0; c < 6; ++c) ok &= (comp[c] < VF{} ? -comp[c] : comp[c]) < big;
-    if (S::mask(~ok)) return PacketOutcome::untraceable;
-  }
+  if (!lanes_traceable<L>(comp)) return PacketOutcome::untraceable;
   // The packet needs one set of near planes and one axis permutation of the watertight test
   // (TriRay::init's, lane by lane): every lane as the first ray, else the caller splits.
   const TriRay tr0(rays[0]);

@@ -28,6 +28,7 @@ PacketOutcome trace_tlas_lanes(const Bvh8Node* tlas, const InstanceData* instanc
   for (int l = 0; l < L; ++l) lane_index[l] = l;
   VF comp[8];
   load_lane_rays<L>(rays, n, comp);
+  if (!lanes_traceable<L>(comp)) return PacketOutcome::untraceable;
   const VF ox = comp[0], oy = comp[1], oz = comp[2];
   const VF one = bcast(1.0f), far_factor = bcast(1.00000072f);  // far_scale
   const VF ix = one / comp[3], iy = one / comp[4], iz = one / comp[5];
@@ -165,10 +166,10 @@ void trace_tlas_packets(const void* tlas_nodes, const InstanceData* instances, c
   const Bvh8Node* tlas = static_cast<const Bvh8Node*>(tlas_nodes);
   for (size_t i = 0; i < n; i += packet_lanes) {
     const unsigned m = unsigned(n - i < size_t(packet_lanes) ? n - i : size_t(packet_lanes));
-    // A packet with an untraceable ray goes as single rays (which give it a miss).
-    if (!all_traceable(rays + i, m) ||
-        trace_tlas_lanes<AnyHit>(tlas, instances, rays + i, hits + i, m, ray_mask) !=
-            PacketOutcome::traced)
+    // Split packets, and those with an untraceable ray, go as single rays (which give it a
+    // miss).
+    if (trace_tlas_lanes<AnyHit>(tlas, instances, rays + i, hits + i, m, ray_mask) !=
+        PacketOutcome::traced)
       trace_tlas<8, AnyHit, Bvh8Node>(tlas_nodes, instances, rays + i, hits + i, m, ray_mask);
   }
 #else
