@@ -37,7 +37,8 @@ void run(RunArgs& a) {
                 fmt::format("run: --frames must be positive, got {}", a.frames));
   if (a.out.empty()) throw Error(ErrorCode::invalid_argument, "run: -o DIR is required");
   const PipelineSettings settings = a.p.settings();
-  Pipeline pipeline(a.p.scene, settings, a.p.env);
+  const std::unique_ptr<Pipeline> owned = a.p.pipeline(settings);
+  Pipeline& pipeline = *owned;
   const std::string lighting = fmt::format(
       "{} ({}{}{})",
       pipeline.direct_lighting() == DirectLighting::nee      ? "NEE"

@@ -97,7 +97,7 @@ const std::vector<uint8_t>& stage_pixels(const PipelineFrame& f, int stage, floa
 void view(ViewArgs& a) {
   PipelineSettings settings = a.p.settings();
   std::string scene_path = a.p.scene;
-  std::unique_ptr<Pipeline> pipeline = std::make_unique<Pipeline>(scene_path, settings, a.p.env);
+  std::unique_ptr<Pipeline> pipeline = a.p.pipeline(settings);
   std::optional<CameraPath> path;
   if (!a.path.empty()) path = camera_path_for(pipeline->asset(), a.path, a.view);
   FlyCamera fly =

@@ -7,6 +7,7 @@
 #include <string>
 
 #include "commands.h"
+#include "kestrel/asset.h"
 #include "kestrel/error.h"
 #include "kestrel/parallel.h"
 #include "kestrel/pipeline.h"
@@ -16,11 +17,11 @@ namespace kestrel::cli {
 
 struct PipelineArgs {
   std::string scene = "builtin:cornell_box", res = "1280x720", internal, env, denoise = "neural",
-              upscale = "neural", sun, light_sampling = "power", direct = "auto",
+              upscale = "neural", sun, lights, light_sampling = "power", direct = "auto",
               radiance_cache = "on";
   bool sky = false, auto_exposure = false;
   int factor = 2, spp = 1, max_depth = 4, threads = 0;
-  float clamp = 16, exposure = 0, indirect_rate = 1;
+  float clamp = 16, exposure = 0, indirect_rate = 0.5f;
   double target_ms = 0;
   uint64_t seed = 0;
   std::shared_ptr<ThreadLimit> limit;
@@ -45,7 +46,8 @@ struct PipelineArgs {
     cmd.add_option("--clamp", clamp, "Sample radiance clamp (0 = off)")->capture_default_str();
     cmd.add_option("--indirect-rate", indirect_rate,
                    "Share of pixels that trace a first bounce each frame: 1 | 0.5 (a "
-                   "checkerboard) | 0.25; the others keep their direct light (unbiased, noisier)")
+                   "checkerboard; the loop's default, for its frame budget) | 0.25; the others "
+                   "keep their direct light (unbiased, noisier)")
         ->capture_default_str();
     cmd.add_option("--env", env, "Environment: none | sky | constant:R,G,B | image file");
     cmd.add_option("--exposure", exposure, "Tone-map exposure, stops")->capture_default_str();
@@ -56,6 +58,9 @@ struct PipelineArgs {
     cmd.add_flag(
         "--sky", sky,
         "The physical sky (Preetham) for the sun (default sun: azimuth 135, elevation 45)");
+    cmd.add_option("--lights", lights,
+                   "A lights file (JSON: point / spot / directional lights, docs/renderer.md) "
+                   "added to the scene's");
     cmd.add_option("--light-sampling", light_sampling,
                    "How NEE picks a local light: power | tree (a light tree: many lights)")
         ->capture_default_str();
@@ -76,6 +81,13 @@ struct PipelineArgs {
     cmd.add_option("--threads", threads, "Worker threads (0 = all)")
         ->capture_default_str()
         ->check(CLI::Range(0, 1024));
+  }
+
+  // The scene (its warnings printed) with the --lights file's lights added, as a pipeline.
+  std::unique_ptr<Pipeline> pipeline(const PipelineSettings& s) const {
+    Asset asset = load_asset_reporting(scene);
+    if (!lights.empty()) asset.add_lights(load_lights(lights));
+    return std::make_unique<Pipeline>(std::move(asset), s, env);
   }
 
   PipelineSettings settings() {

@@ -495,7 +495,7 @@ void bind_render(py::module_& m) {
            py::arg("target_ms") = 0.0, py::arg("seed") = 0, py::arg("environment") = "",
            py::arg("sun") = "", py::arg("sky") = false, py::arg("auto_exposure") = false,
            py::arg("light_sampling") = "power", py::arg("direct") = "auto",
-           py::arg("radiance_cache") = true, py::arg("indirect_rate") = 1.0f,
+           py::arg("radiance_cache") = true, py::arg("indirect_rate") = 0.5f,
            "radiance_cache: paths stop at their first bounce's surface and take a world-space "
            "cache's radiance there (biased; as `kestrel run`); "
            "direct: 'auto' (ReSTIR over the light tree for >= 64 lights, else light_sampling "
@@ -504,7 +504,8 @@ void bind_render(py::module_& m) {
            "environment is "
            "given); sky: the physical sky; auto_exposure: the tone map follows the image; "
            "indirect_rate: 1, 0.5 or 0.25 of the pixels trace a first bounce each frame "
-           "(target_ms lowers it before it coarsens the factor).")
+           "(0.5, a checkerboard, as `kestrel run`: the loop's frame budget; target_ms lowers "
+           "it before it coarsens the factor).")
       .def(
           "frame",
           [](Pipeline& p, const Camera& camera, double time) {

@@ -394,5 +394,35 @@ TEST(Cli, RunWritesFramesAndAStageTable) {
   EXPECT_NE(bad.out.find("fancy"), std::string::npos) << bad.out;
 }
 
+// `run` (and `view`, the same options) take a lights file as `render` does: its point light
+// brightens the loop's frame, and a bad light is an error naming the file and the light.
+TEST(Cli, RunTakesALightsFile) {
+  const auto dir = test::test_temp_dir() / "cli_run_lights";
+  std::filesystem::remove_all(dir);
+  const std::string lights = test::write_temp_file(
+      "run.lights.json",
+      R"({"lights": [{"name": "bulb", "type": "point", "position": [0.28, 0.3, 0.28], "intensity": 0.5}]})");
+  const std::string common =
+      "run builtin:cornell_box --path orbit:0 --frames 1 --res 32x24 --factor 1 --denoise none "
+      "--max-depth 2 --quiet --no-png --exr ";
+  ASSERT_EQ(run(common + "-o " + (dir / "off").string()).status, 0);
+  const CliRun on = run(common + "--lights " + lights + " -o " + (dir / "on").string());
+  ASSERT_EQ(on.status, 0) << on.out;
+  const auto mean = [&](const char* sub) {
+    const FloatImage img = read_exr((dir / sub / "frame_0000.exr").string())[0].image;
+    double sum = 0;
+    for (int y = 0; y < img.height; ++y)
+      for (int x = 0; x < img.width; ++x) sum += img.at(x, y)[0] + img.at(x, y)[1];
+    return sum / double(img.width * img.height);
+  };
+  EXPECT_GT(mean("on"), 1.5 * mean("off"));
+  const std::string bad = test::write_temp_file(
+      "bad_run.lights.json", R"({"lights": [{"name": "dim", "type": "point", "intensity": -1}]})");
+  const CliRun r = run(common + "--lights " + bad + " -o " + (dir / "bad").string());
+  EXPECT_EQ(r.status, 1);
+  EXPECT_NE(r.out.find("bad_run.lights.json"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("dim"), std::string::npos) << r.out;
+}
+
 }  // namespace
 }  // namespace kestrel
