@@ -289,21 +289,25 @@ void bind_render(py::module_& m) {
       "The path tracer (NEE + MIS, every AOV) over a Scene (copied: each mesh one identity "
       "instance) or a committed InstancedScene (referenced: each render sees its last commit).")
       .def(py::init([](std::shared_ptr<Scene> scene, std::optional<std::string> environment,
-                       std::optional<std::string> sun, bool sky) {
+                       std::optional<std::string> sun, bool sky,
+                       std::optional<std::filesystem::path> lights) {
              const std::optional<Environment> env =
                  make_lighting(environment.value_or(""), sun.value_or(""), sky);
              auto r = std::make_unique<PyRenderer>();
              Scene copy = *scene;
              py::gil_scoped_release release;
              r->asset.emplace(Asset::from_scene(std::move(copy)));
+             if (lights) r->asset->add_lights(load_lights(lights->string()));
              r->renderer = std::make_unique<Renderer>(r->asset->scene(), env);
              return r;
            }),
            py::arg("scene"), py::arg("environment") = py::none(), py::arg("sun") = py::none(),
-           py::arg("sky") = false,
+           py::arg("sky") = false, py::arg("lights") = py::none(),
            "environment: None = the scene's default (a sky without emitters), 'none', 'sky', "
            "'constant:R,G,B' or an image file; sun: 'AZIMUTH,ELEVATION[,INTENSITY]' (with the "
-           "physical sky unless environment is given); sky: the physical sky.")
+           "physical sky unless environment is given); sky: the physical sky; lights: a lights "
+           "file (point / spot / directional lights, as `kestrel render --lights`) added to the "
+           "scene's.")
       .def(py::init([](std::shared_ptr<PyInstancedScene> scene,
                        std::optional<std::string> environment, std::optional<std::string> sun,
                        bool sky) {
@@ -476,7 +480,8 @@ void bind_render(py::module_& m) {
                        int max_depth, float clamp, float exposure, double target_ms, uint64_t seed,
                        const std::string& environment, const std::string& sun, bool sky,
                        bool auto_exposure, const std::string& light_sampling,
-                       const std::string& direct, bool radiance_cache, float indirect_rate) {
+                       const std::string& direct, bool radiance_cache, float indirect_rate,
+                       std::optional<std::filesystem::path> lights) {
              PipelineSettings s =
                  pipeline_settings(resolution(res), factor, denoiser, upscaler, spp, max_depth,
                                    clamp, exposure, target_ms, seed);
@@ -487,7 +492,10 @@ void bind_render(py::module_& m) {
              s.radiance_cache = radiance_cache;
              s.indirect_rate = indirect_rate;
              py::gil_scoped_release release;
-             return std::make_unique<Pipeline>(scene.string(), s, environment);
+             if (!lights) return std::make_unique<Pipeline>(scene.string(), s, environment);
+             Asset asset = Asset::load(scene.string());
+             asset.add_lights(load_lights(lights->string()));
+             return std::make_unique<Pipeline>(std::move(asset), s, environment);
            }),
            py::arg("scene"), py::arg("res") = py::make_tuple(1280, 720), py::arg("factor") = 2,
            py::arg("denoiser") = "neural", py::arg("upscaler") = "neural", py::arg("spp") = 1,
@@ -496,6 +504,7 @@ void bind_render(py::module_& m) {
            py::arg("sun") = "", py::arg("sky") = false, py::arg("auto_exposure") = false,
            py::arg("light_sampling") = "power", py::arg("direct") = "auto",
            py::arg("radiance_cache") = true, py::arg("indirect_rate") = 0.5f,
+           py::arg("lights") = py::none(),
            "radiance_cache: paths stop at their first bounce's surface and take a world-space "
            "cache's radiance there (biased; as `kestrel run`); "
            "direct: 'auto' (ReSTIR over the light tree for >= 64 lights, else light_sampling "
@@ -505,7 +514,7 @@ void bind_render(py::module_& m) {
            "given); sky: the physical sky; auto_exposure: the tone map follows the image; "
            "indirect_rate: 1, 0.5 or 0.25 of the pixels trace a first bounce each frame "
            "(0.5, a checkerboard, as `kestrel run`: the loop's frame budget; target_ms lowers "
-           "it before it coarsens the factor).")
+           "it before it coarsens the factor); lights: a lights file added to the scene's.")
       .def(
           "frame",
           [](Pipeline& p, const Camera& camera, double time) {

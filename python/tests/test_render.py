@@ -301,6 +301,36 @@ def test_indirect_rate_matches_the_cli(cli, tmp_path, cornell):
         kestrel.Pipeline("builtin:cornell_box", res=(32, 24), indirect_rate=2)
 
 
+def test_lights_file_matches_the_cli(cli, tmp_path, cornell):
+    """A lights file from Python (Renderer and Pipeline), as `kestrel render --lights`: the
+    CLI's bits, a brighter image; a bad light is an error naming the file and the light."""
+    lights = tmp_path / "bulb.lights.json"
+    lights.write_text('{"lights": [{"name": "bulb", "type": "point", '
+                      '"position": [0.28, 0.3, 0.28], "intensity": 0.5}]}')
+    cam = kestrel.view(cornell)
+    plain = kestrel.Renderer(cornell)
+    dark = plain.render(cam, res=RES, spp=4, seed=5)["color"]
+    r = kestrel.Renderer(cornell, lights=lights)
+    assert r.light_count == plain.light_count + 1
+    mine = r.render(cam, res=RES, spp=4, seed=5)["color"]
+    assert mine.mean() > 1.5 * dark.mean()
+    cli("render", "builtin:cornell_box", "--res", f"{RES[0]}x{RES[1]}", "--spp", 4, "--seed", 5,
+        "--lights", lights, "--quiet", "-o", tmp_path / "f.exr", "--pfm", tmp_path / "pfm")
+    pfm = kestrel.read_pfm(str(tmp_path / "pfm" / "color.pfm"))
+    assert np.array_equal(bits(mine), bits(pfm[..., :3]))
+    loops = [kestrel.Pipeline("builtin:cornell_box", res=(32, 24), factor=1, denoiser=None,
+                              **extra) for extra in ({}, {"lights": str(lights)})]
+    dim, lit = (loop.frame(cam)["rgb8"].astype(np.float64).mean() for loop in loops)
+    assert lit > dim
+    bad = tmp_path / "bad.lights.json"
+    bad.write_text('{"lights": [{"name": "dim", "type": "point", "intensity": -1}]}')
+    for make in (lambda: kestrel.Renderer(cornell, lights=bad),
+                 lambda: kestrel.Pipeline("builtin:cornell_box", res=(32, 24), lights=bad)):
+        with pytest.raises(Exception, match="bad.lights.json") as e:
+            make()
+        assert "dim" in str(e.value)
+
+
 def test_restir_matches_the_cli(cli, tmp_path):
     """ReSTIR DI from Python: the CLI's bits for the same settings; bad names are errors."""
     hall = kestrel.load_scene("builtin:lamp_hall")
