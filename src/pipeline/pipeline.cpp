@@ -273,6 +273,7 @@ const PipelineFrame& Pipeline::accumulate(const Camera& camera, double time) {
   rs.seed = s.seed + 1000003;
   rs.direct = DirectLighting::nee;  // the reference: unbiased, no reuse between samples
   rs.radiance_cache = false;
+  rs.indirect_rate = 1.0f;  // every pixel's bounce in every sample (the loop's budget is not its)
   const Frame f = m.renderer->render(camera, rs);
   const double t2 = clock.ms();
   if (m.samples == 0) m.sum.assign(size_t(s.width) * size_t(s.height) * 3, 0.0);

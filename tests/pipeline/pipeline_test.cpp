@@ -172,12 +172,15 @@ TEST(Pipeline, ProgressiveReferenceAccumulatesAtRestAndConverges) {
   EXPECT_LT(mse(ref48, other), 0.5 * mse(one, other));
 }
 
-TEST(Pipeline, ProgressiveReferenceIgnoresTheRadianceCache) {
-  // The reference at rest is unbiased: the loop's (biased) radiance cache stays out of it.
+TEST(Pipeline, ProgressiveReferenceIgnoresTheRadianceCacheAndTheIndirectRate) {
+  // The reference at rest is unbiased: the loop's (biased) radiance cache stays out of it, and
+  // it traces every pixel's first bounce whatever the loop's frame budget (indirect_rate).
   PipelineSettings s = small(2);
   s.radiance_cache = true;
+  s.indirect_rate = 0.5f;
   Pipeline cached("builtin:cornell_box", s);
   s.radiance_cache = false;
+  s.indirect_rate = 1.0f;
   Pipeline plain("builtin:cornell_box", s);
   const Camera c = front();
   for (int i = 0; i < 3; ++i) cached.accumulate(c, 0.0), plain.accumulate(c, 0.0);
