@@ -177,6 +177,14 @@ void Renderer::Impl::TilePaths::shade(const Impl& r, int depth, std::span<const 
          cache_train_mask) == 0;
     px[k] = PixelSample{};
   };
+  // The MIS weight (power heuristic) of light a BSDF-sampled ray found, against the density
+  // lp with which NEE at the vertex it left could have sampled it; after a first hit whose
+  // direct light was ReSTIR's, what ReSTIR could sample it has (weight 0).
+  const auto bsdf_weight = [depth](const PathState& ps, float lp) {
+    return ps.restir && depth == 1
+               ? (lp > 0 ? 0.0f : 1.0f)
+               : ps.bsdf_pdf * ps.bsdf_pdf / (ps.bsdf_pdf * ps.bsdf_pdf + lp * lp);
+  };
   next_rays.clear();
   next_active.clear();
   sun_rays.clear();
@@ -225,9 +233,7 @@ void Renderer::Impl::TilePaths::shade(const Impl& r, int depth, std::span<const 
       float w = 1;
       if (depth > 0 && r.p_env > 0) {
         const float lp = ps.env_nee ? r.p_env * r.env_pdf(ray.dir, ps.prev_normal) : 0.0f;
-        w = ps.restir && depth == 1
-                ? (lp > 0 ? 0.0f : 1.0f)  // what ReSTIR could sample, it has
-                : ps.bsdf_pdf * ps.bsdf_pdf / (ps.bsdf_pdf * ps.bsdf_pdf + lp * lp);
+        w = bsdf_weight(ps, lp);
       }
       ps.radiance = ps.radiance + ps.throughput * le * w;
       if (r.sun_on) {  // a ray that escapes into the sun's disk
@@ -236,9 +242,7 @@ void Renderer::Impl::TilePaths::shade(const Impl& r, int depth, std::span<const 
           float ws = 1;
           if (depth > 0) {
             const float lp = r.p_sun / r.sun_solid_angle * r.nee_scale(ps.env_nee);
-            ws = ps.restir && depth == 1
-                     ? (lp > 0 ? 0.0f : 1.0f)
-                     : ps.bsdf_pdf * ps.bsdf_pdf / (ps.bsdf_pdf * ps.bsdf_pdf + lp * lp);
+            ws = bsdf_weight(ps, lp);
           }
           ps.radiance = ps.radiance + ps.throughput * ls * ws;
         }
@@ -294,9 +298,7 @@ void Renderer::Impl::TilePaths::shade(const Impl& r, int depth, std::span<const 
         const float lp = r.light_pdf(h.instance_id, h.prim_id, h.t * h.t, std::fabs(sf.cos_hit),
                                      ray.org, use_tree) *
                          r.nee_scale(ps.env_nee);
-        w = ps.restir && depth == 1
-                ? (lp > 0 ? 0.0f : 1.0f)
-                : ps.bsdf_pdf * ps.bsdf_pdf / (ps.bsdf_pdf * ps.bsdf_pdf + lp * lp);
+        w = bsdf_weight(ps, lp);
       }
       ps.radiance = ps.radiance + ps.throughput * le * w;
     }
