@@ -97,44 +97,81 @@ int32_t LightTree::build(std::vector<uint32_t>& ids, size_t begin, size_t end,
   return index;
 }
 
-// importance_k = power_k / max(|x - centre_k|^2, r2_k) (an unused slot has power 0).
+// importance_k = power_k / max(|x - centre_k|^2, r2_k) (an unused slot has power 0), the
+// four children at once (each lane's operations in the order of one child's), summed in
+// child order.
 float LightTree::importances(const Wide& w, Vec3 x, float imp[4]) const {
-  float sum = 0;
-  for (int k = 0; k < 4; ++k) {
-    const float dx = x.x - w.cx[k], dy = x.y - w.cy[k], dz = x.z - w.cz[k];
-    const float d = std::max(dx * dx + dy * dy + dz * dz, w.r2[k]);
-    imp[k] = d > 0 ? w.power[k] / d : w.power[k] * 1e30f;
-    sum += imp[k];
+  typedef float v4 __attribute__((vector_size(16)));
+  typedef float v4u __attribute__((vector_size(16), aligned(4)));
+  const auto load = [](const float* p) { return *reinterpret_cast<const v4u*>(p); };
+  const v4 dx = x.x - load(w.cx), dy = x.y - load(w.cy), dz = x.z - load(w.cz);
+  const v4 d2 = dx * dx + dy * dy + dz * dz, r2 = load(w.r2), power = load(w.power);
+  const v4 d = d2 < r2 ? r2 : d2;  // std::max(d2, r2)
+  const v4 q = d > 0 ? power / d : power * 1e30f;
+  *reinterpret_cast<v4u*>(imp) = q;
+  return ((q[0] + q[1]) + q[2]) + q[3];
+}
+
+// The child is the first whose running sum of importances passes u's share of their sum (at
+// most the last), found without a branch per child: the running sums never decrease, so it
+// is the count of those that do not pass it.
+inline int32_t LightTree::step(const Wide& w, Vec3 x, float& u, float& pmf) const {
+  float imp[4];
+  const float sum = importances(w, x, imp);
+  const int n = w.count;
+  int k = 0;
+  float share = 0;
+  if (sum > 0 && sum < INFINITY) {
+    const float target = u * sum;
+    const float before_k[4] = {0.0f, imp[0], imp[0] + imp[1], (imp[0] + imp[1]) + imp[2]};
+    k = int(before_k[1] <= target) + (int(before_k[2] <= target) & int(n > 2)) +
+        (int(before_k[3] <= target) & int(n > 3));
+    float before = before_k[k];
+    while (imp[k] <= 0 && k > 0) before -= imp[--k];  // rounding past the last nonzero one
+    share = imp[k] / sum;
+    u = std::clamp((target - before) / imp[k], 0.0f, 0.99999994f);
+  } else {  // degenerate importances: uniform over the children
+    k = std::min(int(u * float(n)), n - 1);
+    share = 1.0f / float(n);
+    u = std::min(u * float(n) - float(k), 0.99999994f);
   }
-  return sum;
+  pmf *= share;
+  return w.child[k];
 }
 
 size_t LightTree::sample(Vec3 x, float u, float& pmf) const {
   pmf = 1;
   if (wide_.empty()) return size_t(nodes_[0].light);
   for (size_t at = 0;;) {
-    const Wide& w = wide_[at];
-    float imp[4];
-    const float sum = importances(w, x, imp);
-    const int n = w.count;
-    int k = 0;
-    float share = 0;
-    if (sum > 0 && sum < INFINITY) {
-      const float target = u * sum;
-      float before = 0;
-      while (k < n - 1 && before + imp[k] <= target) before += imp[k++];
-      while (imp[k] <= 0 && k > 0) before -= imp[--k];  // rounding past the last nonzero one
-      share = imp[k] / sum;
-      u = std::clamp((target - before) / imp[k], 0.0f, 0.99999994f);
-    } else {  // degenerate importances: uniform over the children
-      k = std::min(int(u * float(n)), n - 1);
-      share = 1.0f / float(n);
-      u = std::min(u * float(n) - float(k), 0.99999994f);
-    }
-    pmf *= share;
-    const int32_t c = w.child[k];
+    const int32_t c = step(wide_[at], x, u, pmf);
     if (c < 0) return size_t(-1 - c);
     at = size_t(c);
+  }
+}
+
+void LightTree::sample(Vec3 x, const float* u, size_t n, uint32_t* light, float* pmf) const {
+  for (size_t i0 = 0; i0 < n; i0 += 4) {
+    const size_t m = std::min<size_t>(4, n - i0);
+    if (wide_.empty()) {
+      for (size_t j = 0; j < m; ++j) light[i0 + j] = uint32_t(nodes_[0].light), pmf[i0 + j] = 1;
+      continue;
+    }
+    int32_t at[4] = {0, 0, 0, 0};
+    float uj[4] = {0, 0, 0, 0}, pj[4] = {1, 1, 1, 1};
+    unsigned walking = (1u << m) - 1;
+    for (size_t j = 0; j < m; ++j) uj[j] = u[i0 + j];
+    while (walking) {
+      for (unsigned j = 0; j < 4; ++j) {
+        if (!(walking >> j & 1u)) continue;
+        const int32_t c = step(wide_[size_t(at[j])], x, uj[j], pj[j]);
+        if (c >= 0) {
+          at[j] = c;
+        } else {
+          light[i0 + j] = uint32_t(-1 - c), pmf[i0 + j] = pj[j];
+          walking &= ~(1u << j);
+        }
+      }
+    }
   }
 }
 

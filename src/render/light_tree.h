@@ -25,6 +25,10 @@ class LightTree {
   bool empty() const { return nodes_.empty(); }
   /// A light for point x and u in [0, 1), and the probability it had of being picked.
   size_t sample(Vec3 x, float u, float& pmf) const;
+  /// sample(x, u[i], pmf[i]) into light[i] for each of n values of u at one point: the walks
+  /// advance together, four at a time, so that their chains of dependent loads and divisions
+  /// overlap (the same lights and probabilities as one at a time).
+  void sample(Vec3 x, const float* u, size_t n, uint32_t* light, float* pmf) const;
   /// The probability that sample() picks light i at x.
   float pmf(Vec3 x, size_t i) const;
 
@@ -46,6 +50,9 @@ class LightTree {
   };
   // Importances of a wide node's children at x; returns their sum.
   float importances(const Wide& w, Vec3 x, float imp[4]) const;
+  // One step of a walk at x: the child of w that u picks (a wide node, or -1 - light), u
+  // rescaled to the child's share and pmf multiplied by it.
+  int32_t step(const Wide& w, Vec3 x, float& u, float& pmf) const;
   int32_t make_wide(int32_t node, int32_t parent, int32_t slot);
   int32_t build(std::vector<uint32_t>& ids, size_t begin, size_t end,
                 const std::vector<Item>& items, int32_t parent);

@@ -114,22 +114,37 @@ void RadianceCache::end_pass() {
 
 void RadianceCache::evict() {
   if (cells_.empty()) return;
-  std::vector<Slot> old;
-  old.swap(cells_);
-  cells_.assign(capacity, Slot{});
+  // The oldest age kept: max_age, or less when that would keep more than keep_at cells
+  // (ages 0 .. limit are kept; the cells sampled this pass at least).
+  uint32_t limit = max_age;
+  if (live_ >= evict_at) {
+    size_t count[max_age + 2] = {};
+    for (const Slot& c : cells_)
+      if (c.key != 0) ++count[std::min(pass_ - c.last, max_age + 1)];
+    size_t kept = count[0];
+    limit = 0;
+    while (limit < max_age && kept + count[limit + 1] <= keep_at) kept += count[++limit];
+  }
+  if (spare_.size() != capacity)
+    spare_.assign(capacity, Slot{});
+  else
+    std::fill(spare_.begin(), spare_.end(), Slot{});
   live_ = 0;
-  for (const Slot& c : old) {
-    if (c.key == 0 || pass_ - c.last > max_age) continue;
+  for (const Slot& c : cells_) {
+    if (c.key == 0 || pass_ - c.last > limit) continue;
     size_t i = c.key & (capacity - 1);
-    while (cells_[i].key != 0) i = (i + 1) & (capacity - 1);
-    cells_[i] = c;
+    while (spare_[i].key != 0) i = (i + 1) & (capacity - 1);
+    spare_[i] = c;
     ++live_;
   }
+  cells_.swap(spare_);
 }
 
 void RadianceCache::clear() {
   cells_.clear();
   cells_.shrink_to_fit();
+  spare_.clear();
+  spare_.shrink_to_fit();
   pending_.clear();
   pending_.shrink_to_fit();
   touched_.clear();

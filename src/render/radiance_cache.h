@@ -31,10 +31,13 @@ class RadianceCache {
   static constexpr float min_samples = 4;       ///< a cell answers once it has this many
   static constexpr uint32_t half_life = 16;     ///< passes after which the history weighs half
   static constexpr uint32_t max_age = 64;       ///< passes without a sample before eviction
-  static constexpr size_t capacity = 1u << 17;  ///< cells (open addressing; 6 MB in all)
+  static constexpr size_t capacity = 1u << 17;  ///< cells (open addressing; 10 MB in all)
   /// New cells are refused beyond half the capacity; an eviction runs every 16 passes, and
-  /// as soon as this many cells live.
+  /// as soon as this many cells live ...
   static constexpr size_t evict_at = capacity / 2 - capacity / 32;
+  /// ... when it keeps at most this many: the most recently sampled (a table full of cells
+  /// younger than max_age would otherwise refuse new cells and evict nothing pass after pass).
+  static constexpr size_t keep_at = capacity * 3 / 8;
 
   /// The camera the cells are sized for: its eye and the angle one pixel subtends.
   void set_view(Vec3 eye, float pixel_angle) { eye_ = eye, pixel_angle_ = pixel_angle; }
@@ -71,6 +74,7 @@ class RadianceCache {
   size_t insert(uint64_t key);      // its slot (new or found), or capacity when full
   void evict();                     // drops cells older than max_age, rehashing the rest
   std::vector<Slot> cells_;
+  std::vector<Slot> spare_;  // evict()'s new table, kept between evictions (no page faults)
   std::vector<Pending> pending_;
   std::vector<uint32_t> touched_;  // slots with pending samples, in order of first touch
   size_t live_ = 0;

@@ -126,6 +126,17 @@ struct RestirSurface {
   float depth = 0;
   bool valid = false;
 };
+// What evaluating a light sample at a RestirSurface needs of it, computed once per surface
+// rather than per sample (restir_eval): the shadow ray's origin, the shading frame and the
+// BSDF at the view.
+struct RestirShading {
+  const RestirSurface& g;
+  Vec3 origin;
+  Basis frame;
+  BsdfAt bsdf;
+  explicit RestirShading(const RestirSurface& s)
+      : g(s), origin(offset_origin(s.p, s.ng)), frame(s.n), bsdf(s.bp, s.wo_l, false) {}
+};
 // One pass's reservoirs and surfaces, image-wide: the next pass's (or frame's) history.
 struct RestirBuffer {
   int width = 0, height = 0;
@@ -419,10 +430,19 @@ struct Renderer::Impl {
   };
   // One local light by NEE's choice (tree or power) at origin, a point on it by u1, u2.
   LightDraw local_light_sample(Vec3 origin, bool tree, float u, float u1, float u2) const;
+  // local_light_sample(origin, tree, u[i], u1[i], u2[i]) into out[i] for n draws at one
+  // origin (the light tree's walks advance together).
+  void local_light_samples(Vec3 origin, bool tree, const float* u, const float* u1, const float* u2,
+                           size_t n, LightDraw* out) const;
+  // Local light li, picked with probability pick, and a point on it by u1, u2.
+  LightDraw local_light_draw(size_t li, float pick, float u1, float u2) const;
   // Unshadowed f * Le * G of y at g, in the measure y was sampled in (area for emissive
   // triangles, solid angle for directions, counting for punctual lights); the shadow ray.
-  Vec3 restir_eval(const RestirSurface& g, const LightRef& y, Ray* shadow) const;
-  // The initial reservoirs of a tile's pixels: per 8 x 8 block, a pool of samples of NEE's
+  Vec3 restir_eval(const RestirShading& g, const LightRef& y, Ray* shadow) const;
+  Vec3 restir_eval(const RestirSurface& g, const LightRef& y, Ray* shadow) const {
+    return restir_eval(RestirShading(g), y, shadow);
+  }
+  // The initial reservoirs of a tile's pixels: per 4 x 4 block, a pool of samples of NEE's
   // strategies at one surface of the block (light presampling); each pixel resamples
   // s.restir_candidates of its block's pool by p_hat.
   void restir_candidates(const RenderSettings& s, int x0, int y0, int w, int h, int pass, bool tree,

@@ -10,6 +10,7 @@
 #include <algorithm>
 #include <cmath>
 
+#include "render/fast_math.h"
 #include "render/renderer_impl.h"
 
 namespace kestrel {
@@ -22,6 +23,7 @@ constexpr float min_restir_alpha = 0.04f;  // roughness 0.2: sharper lobes keep 
 constexpr float history_cap = 20;          // temporal M is capped at 20 x the new candidates
 constexpr float spatial_radius = 16;       // pixels
 constexpr int block = 4;                   // light presampling: one pool per 4 x 4 pixels
+constexpr int max_candidates = 64;         // RenderSettings::restir_candidates at most
 
 bool similar(const RestirSurface& a, const RestirSurface& b) {
   return b.valid && dot(a.n, b.n) > 0.9f && std::fabs(a.depth - b.depth) <= 0.1f * a.depth;
@@ -45,8 +47,9 @@ bool Renderer::Impl::restir_eligible(const Surface& sf) const {
   return sf.bp.alpha >= min_restir_alpha && (p_env > 0 || p_sun > 0 || local_light_count() > 0);
 }
 
-Vec3 Renderer::Impl::restir_eval(const RestirSurface& g, const LightRef& y, Ray* shadow) const {
-  const Vec3 origin = offset_origin(g.p, g.ng);
+Vec3 Renderer::Impl::restir_eval(const RestirShading& s, const LightRef& y, Ray* shadow) const {
+  const RestirSurface& g = s.g;
+  const Vec3 origin = s.origin;
   Vec3 wi, le, dir;
   float geometry = 1, tmax = INFINITY;
   if (y.id == LightRef::env) {
@@ -73,7 +76,8 @@ Vec3 Renderer::Impl::restir_eval(const RestirSurface& g, const LightRef& y, Ray*
     return {0, 0, 0};
   }
   if (!(dot(wi, g.ng) > 0) || !(luminance(le) > 0) || !(geometry > 0)) return {0, 0, 0};
-  const Vec3 f = bsdf_eval(g.bp, g.wo_l, Basis(g.n).to_local(wi));
+  Vec3 f;
+  s.bsdf.eval(s.frame.to_local(wi), f, nullptr);
   if (shadow) *shadow = Ray{origin, dir, 0.0f, tmax};
   return f * le * geometry;
 }
@@ -89,6 +93,30 @@ Renderer::Impl::LightDraw Renderer::Impl::local_light_sample(Vec3 origin, bool t
     li = light_dist.sample(u);
     pick = light_dist.pmf(li);
   }
+  return local_light_draw(li, pick, u1, u2);
+}
+
+void Renderer::Impl::local_light_samples(Vec3 origin, bool tree, const float* u, const float* u1,
+                                         const float* u2, size_t n, LightDraw* out) const {
+  if (!tree) {
+    for (size_t i = 0; i < n; ++i) out[i] = local_light_sample(origin, false, u[i], u1[i], u2[i]);
+    return;
+  }
+  constexpr size_t chunk = 16;
+  float uc[chunk], pick[chunk];
+  uint32_t li[chunk];
+  for (size_t i0 = 0; i0 < n; i0 += chunk) {
+    const size_t m = std::min(chunk, n - i0);
+    for (size_t j = 0; j < m; ++j)
+      uc[j] = std::min(local_light_count() == 1 ? 0.5f : u[i0 + j], 0x1.fffffep-1f);
+    light_tree.sample(origin, uc, m, li, pick);
+    for (size_t j = 0; j < m; ++j)
+      out[i0 + j] = local_light_draw(li[j], pick[j], u1[i0 + j], u2[i0 + j]);
+  }
+}
+
+Renderer::Impl::LightDraw Renderer::Impl::local_light_draw(size_t li, float pick, float u1,
+                                                           float u2) const {
   LightDraw e{{uint32_t(li), {0, 0, 0}}, (1 - p_env - p_sun) * pick};
   if (li < lights.size()) {  // uniform on the triangle: an area density
     const float su = std::sqrt(u1);
@@ -103,6 +131,12 @@ void Renderer::Impl::restir_candidates(const RenderSettings& s, int x0, int y0, 
                                        std::span<Reservoir> res, std::span<Rng> rngs) const {
   using Entry = LightDraw;
   Entry pool[block * block];
+  // A pixel's candidates (their resampling uniforms), and the walks of those drawn at its own
+  // surface: kept across pixels (not filled per pixel).
+  const int m = std::clamp(s.restir_candidates, 1, max_candidates);
+  Entry cand[max_candidates], drawn[max_candidates];
+  float us[max_candidates], ou[max_candidates], ou1[max_candidates], ou2[max_candidates];
+  int own_of[max_candidates];
   for (int by = 0; by < h; by += block)
     for (int bx = 0; bx < w; bx += block) {
       const int bw = std::min(block, w - bx), bh = std::min(block, h - by);
@@ -120,11 +154,11 @@ void Renderer::Impl::restir_candidates(const RenderSettings& s, int x0, int y0, 
       // The pool holds local lights only: the environment and the sun are sampled per pixel
       // (cheap, and the environment's strategy depends on the pixel's normal).
       const Vec3 origin = offset_origin(g->p, g->ng);
-      int n = 0;
-      for (int c = 0; c < block * block && local_light_count() > 0; ++c, ++n) {
-        const float u = rng.uniform(), u1 = rng.uniform(), u2 = rng.uniform();
-        pool[n] = local_light_sample(origin, tree, u, u1, u2);
-      }
+      const int n = local_light_count() > 0 ? block * block : 0;
+      float pu[block * block], pu1[block * block], pu2[block * block];
+      for (int c = 0; c < n; ++c)
+        pu[c] = rng.uniform(), pu1[c] = rng.uniform(), pu2[c] = rng.uniform();
+      local_light_samples(origin, tree, pu, pu1, pu2, size_t(n), pool);
       // Each pixel: M candidates of NEE's mixture, a local light being one drawn uniformly
       // from the pool (each entry is distributed as the pool's strategy, which is all RIS
       // needs), resampled by the target at its surface. A pixel whose surface is not like
@@ -135,12 +169,17 @@ void Renderer::Impl::restir_candidates(const RenderSettings& s, int x0, int y0, 
           const size_t i = size_t(y) * size_t(w) + size_t(x);
           if (!surf[i].valid) continue;
           const bool own = tree && !similar(surf[i], *g);  // power: the same everywhere
-          const Vec3 own_origin = offset_origin(surf[i].p, surf[i].ng);
+          const RestirShading at(surf[i]);
+          const Vec3 own_origin = at.origin;
           Reservoir r;
           Rng& pr = rngs[i];
-          for (int c = 0; c < s.restir_candidates; ++c) {
-            const float ul = pr.uniform(), u1 = pr.uniform(), u2 = pr.uniform(), us = pr.uniform();
-            Entry e{{}, 0};
+          // The candidates, then their own lights' walks together, then resampling.
+          int owns = 0;
+          for (int c = 0; c < m; ++c) {
+            const float ul = pr.uniform(), u1 = pr.uniform(), u2 = pr.uniform();
+            us[c] = pr.uniform();
+            Entry& e = cand[c];
+            e = Entry{{}, 0};
             if (ul < p_env) {
               float epdf = 0;
               e.y = {LightRef::env, env_sample(u1, u2, surf[i].n, epdf)};
@@ -149,18 +188,25 @@ void Renderer::Impl::restir_candidates(const RenderSettings& s, int x0, int y0, 
               e.y = {LightRef::sun, sun_sample(u1, u2)};
               e.pdf = p_sun / sun_solid_angle;
             } else if (own && n > 0) {
-              const float u = (ul - p_env - p_sun) / (1 - p_env - p_sun);
-              e = local_light_sample(own_origin, tree, u, u1, u2);
+              ou[owns] = (ul - p_env - p_sun) / (1 - p_env - p_sun), ou1[owns] = u1, ou2[owns] = u2;
+              own_of[owns++] = c;
             } else if (n > 0) {
               e = pool[std::min(int(u1 * float(n)), n - 1)];
             }
+          }
+          if (owns > 0) {
+            local_light_samples(own_origin, tree, ou, ou1, ou2, size_t(owns), drawn);
+            for (int j = 0; j < owns; ++j) cand[own_of[j]] = drawn[j];
+          }
+          for (int c = 0; c < m; ++c) {
+            const Entry& e = cand[c];
             r.M += 1;
             if (!(e.pdf > 0) || !std::isfinite(e.pdf)) continue;
-            const float p_hat = luminance(restir_eval(surf[i], e.y, nullptr));
+            const float p_hat = luminance(restir_eval(at, e.y, nullptr));
             const float wgt = p_hat / e.pdf;
             if (!(wgt > 0) || !std::isfinite(wgt)) continue;
             r.w_sum += wgt;
-            if (us * r.w_sum < wgt) r.y = e.y, r.p_hat = p_hat;
+            if (us[c] * r.w_sum < wgt) r.y = e.y, r.p_hat = p_hat;
           }
           r.W = r.p_hat > 0 ? r.w_sum / (r.M * r.p_hat) : 0.0f;
           res[i] = r;
@@ -184,9 +230,10 @@ void Renderer::Impl::restir_reuse(const RestirPass& rp, const RenderSettings& s,
   auto combine = [&](const RestirSurface& x, int n, Rng& rng) {
     Reservoir out;
     int chosen = -1;
+    const RestirShading xs(x);
     for (int j = 0; j < n; ++j) {
       const Reservoir& r = in[j].r;
-      const float p_hat = j == 0 ? r.p_hat : luminance(restir_eval(x, r.y, nullptr));
+      const float p_hat = j == 0 ? r.p_hat : luminance(restir_eval(xs, r.y, nullptr));
       if (stream(out, r, p_hat, rng)) chosen = j;
     }
     if (chosen < 0 || !(out.p_hat > 0)) return Reservoir{{}, 0, out.M, 0, 0};
@@ -245,9 +292,11 @@ void Renderer::Impl::restir_reuse(const RestirPass& rp, const RenderSettings& s,
     in[0] = {temporal[i], &x};
     int n = 1;
     for (int j = 0; j < k; ++j) {
-      const float r = spatial_radius * std::sqrt(rng.uniform()), phi = 2 * pi * rng.uniform();
-      const int nx = px + int(std::lround(r * std::cos(phi))),
-                ny = py + int(std::lround(r * std::sin(phi)));
+      // A point of the disk (uniform in area), rounded to the nearest pixel offset.
+      const float r = spatial_radius * std::sqrt(rng.uniform());
+      float sin_phi, cos_phi;  // of phi = 2 pi u
+      sincos_2pi(rng.uniform(), sin_phi, cos_phi);
+      const int nx = px + int(round_even(r * cos_phi)), ny = py + int(round_even(r * sin_phi));
       if (nx < 0 || ny < 0 || nx >= w || ny >= h || (nx == px && ny == py)) continue;
       const size_t q = size_t(ny) * size_t(w) + size_t(nx);
       if (!similar(x, surf[q])) continue;

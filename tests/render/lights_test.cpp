@@ -364,6 +364,18 @@ TEST(LightTree, ProbabilitiesAreConsistentAndSumToOne) {
     }
     for (size_t i = 0; i < items.size(); ++i)  // stratified u: frequencies within a count or two
       EXPECT_NEAR(count[i], tree.pmf(x, i) * n, 2.5 + 0.02 * tree.pmf(x, i) * n) << i;
+    // The walks of a batch (four at a time, any remainder) pick what single walks pick.
+    for (size_t m : {size_t(1), size_t(3), size_t(4), size_t(9), size_t(37)}) {
+      std::vector<float> u(m), pmf(m);
+      std::vector<uint32_t> light(m);
+      for (float& v : u) v = rng.uniform();
+      tree.sample(x, u.data(), m, light.data(), pmf.data());
+      for (size_t j = 0; j < m; ++j) {
+        float p = 0;
+        EXPECT_EQ(light[j], tree.sample(x, u[j], p)) << m << " " << j;
+        EXPECT_EQ(pmf[j], p) << m << " " << j;
+      }
+    }
   }
 }
 

@@ -85,6 +85,41 @@ TEST(RadianceCacheCells, MeansAreExactAndHistoryIsCapped) {
   EXPECT_EQ(c.cells(), 1u);
 }
 
+TEST(RadianceCacheCells, AFullTableOfYoungCellsKeepsTheMostRecentAndMakesRoom) {
+  // Four passes of 16 000 new cells each (4 samples apiece, so each answers): after the
+  // fourth the table holds more than evict_at cells, all far younger than max_age. The
+  // eviction keeps the most recent passes' cells up to keep_at (three passes: 48 000) and
+  // drops the oldest pass's, so the table has room again instead of evicting nothing.
+  RadianceCache c = cache_at_origin();
+  constexpr uint64_t per_pass = 16000;
+  static_assert(4 * per_pass >= RadianceCache::evict_at);
+  static_assert(3 * per_pass <= RadianceCache::keep_at && 4 * per_pass > RadianceCache::keep_at);
+  const auto key = [](uint64_t i) { return 2 * i + 1; };
+  std::vector<CacheRecord> rs;
+  for (uint64_t pass = 0; pass < 4; ++pass) {
+    rs.clear();
+    for (uint64_t i = pass * per_pass; i < (pass + 1) * per_pass; ++i)
+      for (int s = 0; s < 4; ++s) rs.push_back({key(i), {float(pass), 1, 1}});
+    c.add(rs);
+    c.end_pass();
+    if (pass < 3) EXPECT_EQ(c.cells(), (pass + 1) * per_pass) << pass;
+  }
+  EXPECT_EQ(c.cells(), 3 * per_pass);
+  Vec3 out;
+  EXPECT_FALSE(c.lookup(key(0), out)) << "the oldest pass's cells go";
+  EXPECT_FALSE(c.lookup(key(per_pass - 1), out));
+  for (uint64_t i : {per_pass, 2 * per_pass + 7, 4 * per_pass - 1}) {
+    ASSERT_TRUE(c.lookup(key(i), out)) << i;
+    EXPECT_EQ(out.x, float(i / per_pass)) << i;
+  }
+  // A new cell is taken in and answers.
+  rs.assign(4, {key(5 * per_pass), {9, 9, 9}});
+  c.add(rs);
+  c.end_pass();
+  ASSERT_TRUE(c.lookup(key(5 * per_pass), out));
+  EXPECT_EQ(out.x, 9);
+}
+
 TEST(RadianceCacheCells, ChangedLightingReachesAFullCellWithinEightHalfLives) {
   // A cell full of history (max_samples of 1) then one sample of 3 per pass: the history
   // halves every half_life passes, so the mean follows although few samples arrive.
