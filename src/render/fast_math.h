@@ -5,7 +5,9 @@
 // each, with errors below 4e-7 (tests/render/bsdf_test.cpp checks them against double
 // precision).
 #pragma once
+#include <bit>
 #include <cmath>
+#include <cstdint>
 
 namespace kestrel::render {
 
@@ -50,10 +52,14 @@ inline void sincos_2pi(float u, float& s, float& c) {
   const float cs =
       1.0f + t2 * (-0.5f + t2 * (1.0f / 24 + t2 * (-1.0f / 720 +
                                                    t2 * (1.0f / 40320 + t2 * (-1.0f / 3628800)))));
-  const int k = int(q) & 3;  // quarter turns: 0, 1, 2, 3 (= -1)
-  const float a = (k & 1) ? cs : sn, b = (k & 1) ? sn : cs;
-  s = (k == 2 || k == 3) ? -a : a;
-  c = (k == 1 || k == 2) ? -b : b;
+  // The quadrant's swap and signs as bit operations: k is as random as u, so branches on it
+  // would mispredict half the time.
+  const uint32_t k = uint32_t(int(q)) & 3u;  // quarter turns: 0, 1, 2, 3 (= -1)
+  const uint32_t swap = 0u - (k & 1u), bs = std::bit_cast<uint32_t>(sn),
+                 bc = std::bit_cast<uint32_t>(cs);
+  const uint32_t a = (bs & ~swap) | (bc & swap), b = (bc & ~swap) | (bs & swap);
+  s = std::bit_cast<float>(a ^ ((k >> 1) << 31));                // negated for k = 2, 3
+  c = std::bit_cast<float>(b ^ ((((k + 1u) >> 1) & 1u) << 31));  // negated for k = 1, 2
 }
 
 /// atan2(y, x) in [-pi, pi]: an odd polynomial in min / max of |x| and |y| (degree 15, fitted

@@ -439,6 +439,8 @@ struct Renderer::Impl {
   // Unshadowed f * Le * G of y at g, in the measure y was sampled in (area for emissive
   // triangles, solid angle for directions, counting for punctual lights); the shadow ray.
   Vec3 restir_eval(const RestirShading& g, const LightRef& y, Ray* shadow) const;
+  // luminance(restir_eval(g, y, nullptr)): the target function ReSTIR resamples by.
+  float restir_target(const RestirShading& g, const LightRef& y) const;
   Vec3 restir_eval(const RestirSurface& g, const LightRef& y, Ray* shadow) const {
     return restir_eval(RestirShading(g), y, shadow);
   }

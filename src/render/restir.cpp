@@ -12,6 +12,7 @@
 
 #include "render/fast_math.h"
 #include "render/renderer_impl.h"
+#include "render/testing.h"
 
 namespace kestrel {
 
@@ -80,6 +81,41 @@ Vec3 Renderer::Impl::restir_eval(const RestirShading& s, const LightRef& y, Ray*
   s.bsdf.eval(s.frame.to_local(wi), f, nullptr);
   if (shadow) *shadow = Ray{origin, dir, 0.0f, tmax};
   return f * le * geometry;
+}
+
+// luminance(restir_eval(s, y, nullptr)), with the tests on the sample (towards the surface's
+// side, lit, a positive geometry term) combined instead of taken one by one: a batch of
+// candidates, about half of which face away, evaluates without a misprediction each.
+float Renderer::Impl::restir_target(const RestirShading& s, const LightRef& y) const {
+  Vec3 wi, le;
+  float geometry = 1;
+  bool ok = true;
+  if (y.id == LightRef::env) {
+    wi = y.v;
+    le = env_radiance(wi);
+  } else if (y.id == LightRef::sun) {
+    wi = y.v;
+    le = sun_on ? sun_radiance : Vec3{0, 0, 0};
+  } else if (y.id < lights.size()) {
+    const LightTri& l = lights[y.id];
+    const Vec3 dir = l.p0 + l.e1 * y.v.x + l.e2 * y.v.y - s.origin;
+    const float dist2 = dot(dir, dir);
+    ok = dist2 > 0;
+    wi = dir * (1.0f / std::sqrt(dist2));
+    le = light_emission(l, y.v.x, y.v.y);
+    geometry = std::fabs(dot(l.normal, wi)) / dist2;
+  } else if (y.id < local_light_count()) {
+    Vec3 dir;
+    float tmax;
+    if (!punctual_light(punctual[y.id - lights.size()], s.origin, wi, dir, le, tmax)) return 0;
+  } else {
+    return 0;
+  }
+  ok = ok & (dot(wi, s.g.ng) > 0) & (luminance(le) > 0) & (geometry > 0);
+  Vec3 f;
+  s.bsdf.eval(s.frame.to_local(wi), f, nullptr);
+  const float p = luminance(f * le * geometry);
+  return ok ? p : 0.0f;
 }
 
 Renderer::Impl::LightDraw Renderer::Impl::local_light_sample(Vec3 origin, bool tree, float u,
@@ -198,16 +234,22 @@ void Renderer::Impl::restir_candidates(const RenderSettings& s, int x0, int y0, 
             local_light_samples(own_origin, tree, ou, ou1, ou2, size_t(owns), drawn);
             for (int j = 0; j < owns; ++j) cand[own_of[j]] = drawn[j];
           }
+          // Resampling without a branch per candidate: a candidate that adds nothing (a
+          // weight that is not positive and finite) adds 0 and is never taken.
+          int taken = -1;
           for (int c = 0; c < m; ++c) {
             const Entry& e = cand[c];
             r.M += 1;
             if (!(e.pdf > 0) || !std::isfinite(e.pdf)) continue;
-            const float p_hat = luminance(restir_eval(at, e.y, nullptr));
+            const float p_hat = restir_target(at, e.y);
             const float wgt = p_hat / e.pdf;
-            if (!(wgt > 0) || !std::isfinite(wgt)) continue;
-            r.w_sum += wgt;
-            if (us[c] * r.w_sum < wgt) r.y = e.y, r.p_hat = p_hat;
+            const bool adds = (wgt > 0) & (wgt < INFINITY);
+            r.w_sum += adds ? wgt : 0.0f;
+            const bool take = adds & (us[c] * r.w_sum < wgt);
+            taken = take ? c : taken;
+            r.p_hat = take ? p_hat : r.p_hat;
           }
+          if (taken >= 0) r.y = cand[taken].y;
           r.W = r.p_hat > 0 ? r.w_sum / (r.M * r.p_hat) : 0.0f;
           res[i] = r;
         }
@@ -233,7 +275,7 @@ void Renderer::Impl::restir_reuse(const RestirPass& rp, const RenderSettings& s,
     const RestirShading xs(x);
     for (int j = 0; j < n; ++j) {
       const Reservoir& r = in[j].r;
-      const float p_hat = j == 0 ? r.p_hat : luminance(restir_eval(xs, r.y, nullptr));
+      const float p_hat = j == 0 ? r.p_hat : restir_target(xs, r.y);
       if (stream(out, r, p_hat, rng)) chosen = j;
     }
     if (chosen < 0 || !(out.p_hat > 0)) return Reservoir{{}, 0, out.M, 0, 0};
@@ -262,8 +304,8 @@ void Renderer::Impl::restir_reuse(const RestirPass& rp, const RenderSettings& s,
       const Reservoir& c = res[i];
       Reservoir h = rp.prev->res[q];
       h.M = std::min(h.M, history_cap * std::max(1.0f, c.M));
-      const float pc_x = c.p_hat, pc_h = c.W > 0 ? luminance(restir_eval(hs, c.y, nullptr)) : 0;
-      const float ph_h = h.p_hat, ph_x = h.W > 0 ? luminance(restir_eval(x, h.y, nullptr)) : 0;
+      const float pc_x = c.p_hat, pc_h = c.W > 0 ? restir_target(RestirShading(hs), c.y) : 0;
+      const float ph_h = h.p_hat, ph_x = h.W > 0 ? restir_target(RestirShading(x), h.y) : 0;
       auto mis = [](float m_a, float p_a, float m_b, float p_b) {
         const float d = m_a * p_a + m_b * p_b;
         return d > 0 ? m_a * p_a / d : 0.0f;
@@ -309,6 +351,48 @@ void Renderer::Impl::restir_reuse(const RestirPass& rp, const RenderSettings& s,
     rp.cur->res[g] = res[i];
     rp.cur->surf[g] = surf[i];
   }
+}
+
+std::array<size_t, 2> RendererTesting::restir_target_check(const Renderer& renderer, int n,
+                                                           uint64_t seed) {
+  const Renderer::Impl& r = *renderer.impl_;
+  Rng rng(seed, 0, 0, 0);
+  const auto unit = [&] {
+    const float z = 2 * rng.uniform() - 1, a = 2 * pi * rng.uniform(),
+                s = std::sqrt(std::max(0.0f, 1 - z * z));
+    return Vec3{s * std::cos(a), s * std::sin(a), z};
+  };
+  const Vec3 lo = r.bounds.lo, span = r.bounds.hi - r.bounds.lo;
+  std::array<size_t, 2> out{0, 0};
+  for (int i = 0; i < n; ++i) {
+    RestirSurface g;
+    g.p = lo + Vec3{span.x * rng.uniform(), span.y * rng.uniform(), span.z * rng.uniform()};
+    g.ng = unit();
+    g.n = normalize(g.ng + unit() * 0.7f);
+    g.wo_l = normalize(unit() + Vec3{0, 0, 0.8f});
+    g.bp.base = {rng.uniform(), rng.uniform(), rng.uniform()};
+    g.bp.metallic = rng.uniform() < 0.3f ? 1.0f : rng.uniform() < 0.5f ? 0.0f : rng.uniform();
+    g.bp.alpha = std::max(rng.uniform() * rng.uniform(), min_alpha);
+    g.bp.specular = rng.uniform() < 0.3f ? 0.0f : rng.uniform();
+    g.depth = 1, g.valid = true;
+    LightRef y;
+    const float kind = rng.uniform();
+    if (kind < 0.15f) {
+      y = {LightRef::env, unit()};
+    } else if (kind < 0.3f) {
+      y = {LightRef::sun, unit()};
+    } else if (r.local_light_count() > 0) {
+      y.id = std::min(uint32_t(rng.uniform() * float(r.local_light_count())),
+                      uint32_t(r.local_light_count() - 1));
+      const float su = std::sqrt(rng.uniform());
+      y.v = {rng.uniform() * su, 1 - su, 0};
+    }
+    const RestirShading s(g);
+    const float target = r.restir_target(s, y), full = luminance(r.restir_eval(s, y, nullptr));
+    if (!(target == full || (std::isnan(target) && std::isnan(full)))) ++out[0];
+    if (target > 0) ++out[1];
+  }
+  return out;
 }
 
 }  // namespace kestrel

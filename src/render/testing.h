@@ -4,6 +4,7 @@
 #pragma once
 #include <array>
 #include <cstddef>
+#include <cstdint>
 #include <vector>
 
 #include "kestrel/render.h"
@@ -26,6 +27,12 @@ struct RendererTesting {
   /// Tiles per wave (each bounce of a wave's tiles one batch); the default is
   /// render::wave_tiles. The image is the same for any value.
   static void set_wave_tiles(Renderer& renderer, size_t tiles);
+  /// ReSTIR's target function (the branch-light form the candidates use) against the
+  /// luminance of its full evaluation, at n random surfaces (shading normals tilted off the
+  /// geometric ones, views below them too, random materials) and random light samples of the
+  /// renderer's lights (after a render): {samples whose two values differ, samples with a
+  /// positive target}.
+  static std::array<size_t, 2> restir_target_check(const Renderer& renderer, int n, uint64_t seed);
 };
 
 }  // namespace kestrel

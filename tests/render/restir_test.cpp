@@ -8,6 +8,7 @@
 #include <cstdio>
 
 #include "kestrel/kestrel.h"
+#include "render/testing.h"
 #include "support/oracles.h"
 
 namespace kestrel {
@@ -160,6 +161,31 @@ TEST(Restir, SameBitsForAnyThreadCountAndFreshAtFrameZero) {
     return out;
   };
   EXPECT_EQ(sequence(1), sequence(2));
+}
+
+// The target the candidates resample by (its tests on the sample combined, not taken one by
+// one) is the luminance of the full evaluation reuse and shading use, to the bit: emissive
+// triangles (the lamp hall), point and spot lights, the sun and the sky.
+TEST(Restir, CandidatesTargetIsTheFullEvaluationsLuminance) {
+  Scene spots = plane();
+  spots.lights.push_back(
+      Light{.name = "bulb", .type = Light::Type::point, .position = {0, 2, -3}, .intensity = 8});
+  spots.lights.push_back(Light{.name = "spot",
+                               .type = Light::Type::spot,
+                               .position = {1, 3, 0},
+                               .direction = {0, -0.70710678f, -0.70710678f},
+                               .intensity = 20});
+  const Asset hall = Asset::load("builtin:lamp_hall");
+  const Asset lamps = Asset::from_scene(spots);
+  for (const Asset* a : {&hall, &lamps}) {
+    Renderer renderer(a->scene(), make_lighting("", "30,40", true));
+    RenderSettings s = restir_settings(DirectLighting::restir);
+    s.width = 16, s.height = 8;
+    renderer.render(Camera{}, s);  // the lights as a render sets them up
+    const std::array<size_t, 2> check = RendererTesting::restir_target_check(renderer, 20000, 7);
+    EXPECT_EQ(check[0], 0u) << a->source();
+    EXPECT_GT(check[1], 2000u) << a->source();  // enough lit samples to mean something
+  }
 }
 
 TEST(Restir, BadSettingsAreErrors) {
