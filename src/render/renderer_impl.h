@@ -441,6 +441,9 @@ struct Renderer::Impl {
   Vec3 restir_eval(const RestirShading& g, const LightRef& y, Ray* shadow) const;
   // luminance(restir_eval(g, y, nullptr)): the target function ReSTIR resamples by.
   float restir_target(const RestirShading& g, const LightRef& y) const;
+  // restir_eval's light part: direction, shadow-ray direction and length, radiance, G.
+  bool restir_light(const RestirShading& g, const LightRef& y, Vec3& wi, Vec3& dir, Vec3& le,
+                    float& geometry, float& tmax) const;
   Vec3 restir_eval(const RestirSurface& g, const LightRef& y, Ray* shadow) const {
     return restir_eval(RestirShading(g), y, shadow);
   }

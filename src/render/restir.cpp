@@ -48,70 +48,61 @@ bool Renderer::Impl::restir_eligible(const Surface& sf) const {
   return sf.bp.alpha >= min_restir_alpha && (p_env > 0 || p_sun > 0 || local_light_count() > 0);
 }
 
-Vec3 Renderer::Impl::restir_eval(const RestirShading& s, const LightRef& y, Ray* shadow) const {
-  const RestirSurface& g = s.g;
-  const Vec3 origin = s.origin;
-  Vec3 wi, le, dir;
-  float geometry = 1, tmax = INFINITY;
+// What y sends towards the surface: its direction wi (and dir, the shadow ray's direction
+// over its length tmax), radiance le and geometry term G; false where y gives nothing there
+// (an emitter's point at the origin, a punctual light out of range, no light) — with no
+// other branch on the sample, so that restir_target can combine the tests.
+[[gnu::always_inline]] inline bool Renderer::Impl::restir_light(const RestirShading& s,
+                                                                const LightRef& y, Vec3& wi,
+                                                                Vec3& dir, Vec3& le,
+                                                                float& geometry,
+                                                                float& tmax) const {
+  geometry = 1, tmax = INFINITY;
   if (y.id == LightRef::env) {
     wi = dir = y.v;
     le = env_radiance(wi);
-  } else if (y.id == LightRef::sun) {
+    return true;
+  }
+  if (y.id == LightRef::sun) {
     wi = dir = y.v;
     le = sun_on ? sun_radiance : Vec3{0, 0, 0};
-  } else if (y.id < lights.size()) {
+    return true;
+  }
+  if (y.id < lights.size()) {
     const LightTri& l = lights[y.id];
     const Vec3 q = l.p0 + l.e1 * y.v.x + l.e2 * y.v.y;
-    dir = q - origin;
+    dir = q - s.origin;
     const float dist2 = dot(dir, dir);
-    if (!(dist2 > 0)) return {0, 0, 0};
-    wi = dir * (1.0f / std::sqrt(dist2));
-    const float cos_l = std::fabs(dot(l.normal, wi));
-    le = light_emission(l, y.v.x, y.v.y);
-    geometry = cos_l / dist2;
-    tmax = 1.0f - 1e-3f;
-  } else if (y.id < local_light_count()) {
-    if (!punctual_light(punctual[y.id - lights.size()], origin, wi, dir, le, tmax))
-      return {0, 0, 0};
-  } else {
-    return {0, 0, 0};
-  }
-  if (!(dot(wi, g.ng) > 0) || !(luminance(le) > 0) || !(geometry > 0)) return {0, 0, 0};
-  Vec3 f;
-  s.bsdf.eval(s.frame.to_local(wi), f, nullptr);
-  if (shadow) *shadow = Ray{origin, dir, 0.0f, tmax};
-  return f * le * geometry;
-}
-
-// luminance(restir_eval(s, y, nullptr)), with the tests on the sample (towards the surface's
-// side, lit, a positive geometry term) combined instead of taken one by one: a batch of
-// candidates, about half of which face away, evaluates without a misprediction each.
-float Renderer::Impl::restir_target(const RestirShading& s, const LightRef& y) const {
-  Vec3 wi, le;
-  float geometry = 1;
-  bool ok = true;
-  if (y.id == LightRef::env) {
-    wi = y.v;
-    le = env_radiance(wi);
-  } else if (y.id == LightRef::sun) {
-    wi = y.v;
-    le = sun_on ? sun_radiance : Vec3{0, 0, 0};
-  } else if (y.id < lights.size()) {
-    const LightTri& l = lights[y.id];
-    const Vec3 dir = l.p0 + l.e1 * y.v.x + l.e2 * y.v.y - s.origin;
-    const float dist2 = dot(dir, dir);
-    ok = dist2 > 0;
     wi = dir * (1.0f / std::sqrt(dist2));
     le = light_emission(l, y.v.x, y.v.y);
     geometry = std::fabs(dot(l.normal, wi)) / dist2;
-  } else if (y.id < local_light_count()) {
-    Vec3 dir;
-    float tmax;
-    if (!punctual_light(punctual[y.id - lights.size()], s.origin, wi, dir, le, tmax)) return 0;
-  } else {
-    return 0;
+    tmax = 1.0f - 1e-3f;
+    return dist2 > 0;
   }
-  ok = ok & (dot(wi, s.g.ng) > 0) & (luminance(le) > 0) & (geometry > 0);
+  if (y.id < local_light_count())
+    return punctual_light(punctual[y.id - lights.size()], s.origin, wi, dir, le, tmax);
+  return false;
+}
+
+Vec3 Renderer::Impl::restir_eval(const RestirShading& s, const LightRef& y, Ray* shadow) const {
+  Vec3 wi, dir, le;
+  float geometry, tmax;
+  if (!restir_light(s, y, wi, dir, le, geometry, tmax)) return {0, 0, 0};
+  if (!(dot(wi, s.g.ng) > 0) || !(luminance(le) > 0) || !(geometry > 0)) return {0, 0, 0};
+  Vec3 f;
+  s.bsdf.eval(s.frame.to_local(wi), f, nullptr);
+  if (shadow) *shadow = Ray{s.origin, dir, 0.0f, tmax};
+  return f * le * geometry;
+}
+
+// restir_eval's luminance with its tests on the sample (towards the surface's side, lit, a
+// positive geometry term) combined instead of taken one by one: a batch of candidates, about
+// half of which face away at random, evaluates without a misprediction each.
+float Renderer::Impl::restir_target(const RestirShading& s, const LightRef& y) const {
+  Vec3 wi{0, 0, 1}, dir, le{0, 0, 0};
+  float geometry, tmax;
+  const bool ok = restir_light(s, y, wi, dir, le, geometry, tmax) & (dot(wi, s.g.ng) > 0) &
+                  (luminance(le) > 0) & (geometry > 0);
   Vec3 f;
   s.bsdf.eval(s.frame.to_local(wi), f, nullptr);
   const float p = luminance(f * le * geometry);
