@@ -378,13 +378,12 @@ void Renderer::Impl::TilePaths::restir_initial(const Impl& r) {
   r.restir_candidates(s, x0, y0, x1 - x0, y1 - y0, ctx->pass, ctx->use_tree, rsurf, rres, rngs);
   vis.clear();
   vis_pixel.clear();
+  // A reservoir with W > 0 holds a sample whose target here (p_hat, the luminance of
+  // restir_eval) is positive: only its shadow ray is needed.
   if (s.direct == DirectLighting::restir)
-    for (size_t i = 0; i < count; ++i) {
-      Ray ray;
-      if (rsurf[i].valid && rres[i].W > 0 &&
-          luminance(r.restir_eval(rsurf[i], rres[i].y, &ray)) > 0)
-        vis.push_back(ray), vis_pixel.push_back(uint32_t(i));
-    }
+    for (size_t i = 0; i < count; ++i)
+      if (rsurf[i].valid && rres[i].W > 0)
+        vis.push_back(r.restir_shadow_ray(rsurf[i], rres[i].y)), vis_pixel.push_back(uint32_t(i));
 }
 
 void Renderer::Impl::TilePaths::restir_final(const Impl& r, std::span<const uint8_t> blocked) {

@@ -441,9 +441,12 @@ struct Renderer::Impl {
   Vec3 restir_eval(const RestirShading& g, const LightRef& y, Ray* shadow) const;
   // luminance(restir_eval(g, y, nullptr)): the target function ReSTIR resamples by.
   float restir_target(const RestirShading& g, const LightRef& y) const;
-  // restir_eval's light part: direction, shadow-ray direction and length, radiance, G.
-  bool restir_light(const RestirShading& g, const LightRef& y, Vec3& wi, Vec3& dir, Vec3& le,
-                    float& geometry, float& tmax) const;
+  // restir_eval's light part from the shadow ray's origin: direction, shadow-ray direction
+  // and length, radiance, G.
+  bool restir_light(Vec3 origin, const LightRef& y, Vec3& wi, Vec3& dir, Vec3& le, float& geometry,
+                    float& tmax) const;
+  // The shadow ray restir_eval(g, y, &ray) gives where it gives light, without the BSDF.
+  Ray restir_shadow_ray(const RestirSurface& g, const LightRef& y) const;
   Vec3 restir_eval(const RestirSurface& g, const LightRef& y, Ray* shadow) const {
     return restir_eval(RestirShading(g), y, shadow);
   }

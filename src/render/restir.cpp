@@ -52,9 +52,8 @@ bool Renderer::Impl::restir_eligible(const Surface& sf) const {
 // over its length tmax), radiance le and geometry term G; false where y gives nothing there
 // (an emitter's point at the origin, a punctual light out of range, no light) — with no
 // other branch on the sample, so that restir_target can combine the tests.
-[[gnu::always_inline]] inline bool Renderer::Impl::restir_light(const RestirShading& s,
-                                                                const LightRef& y, Vec3& wi,
-                                                                Vec3& dir, Vec3& le,
+[[gnu::always_inline]] inline bool Renderer::Impl::restir_light(Vec3 origin, const LightRef& y,
+                                                                Vec3& wi, Vec3& dir, Vec3& le,
                                                                 float& geometry,
                                                                 float& tmax) const {
   geometry = 1, tmax = INFINITY;
@@ -71,7 +70,7 @@ bool Renderer::Impl::restir_eligible(const Surface& sf) const {
   if (y.id < lights.size()) {
     const LightTri& l = lights[y.id];
     const Vec3 q = l.p0 + l.e1 * y.v.x + l.e2 * y.v.y;
-    dir = q - s.origin;
+    dir = q - origin;
     const float dist2 = dot(dir, dir);
     wi = dir * (1.0f / std::sqrt(dist2));
     le = light_emission(l, y.v.x, y.v.y);
@@ -80,19 +79,27 @@ bool Renderer::Impl::restir_eligible(const Surface& sf) const {
     return dist2 > 0;
   }
   if (y.id < local_light_count())
-    return punctual_light(punctual[y.id - lights.size()], s.origin, wi, dir, le, tmax);
+    return punctual_light(punctual[y.id - lights.size()], origin, wi, dir, le, tmax);
   return false;
 }
 
 Vec3 Renderer::Impl::restir_eval(const RestirShading& s, const LightRef& y, Ray* shadow) const {
   Vec3 wi, dir, le;
   float geometry, tmax;
-  if (!restir_light(s, y, wi, dir, le, geometry, tmax)) return {0, 0, 0};
+  if (!restir_light(s.origin, y, wi, dir, le, geometry, tmax)) return {0, 0, 0};
   if (!(dot(wi, s.g.ng) > 0) || !(luminance(le) > 0) || !(geometry > 0)) return {0, 0, 0};
   Vec3 f;
   s.bsdf.eval(s.frame.to_local(wi), f, nullptr);
   if (shadow) *shadow = Ray{s.origin, dir, 0.0f, tmax};
   return f * le * geometry;
+}
+
+Ray Renderer::Impl::restir_shadow_ray(const RestirSurface& g, const LightRef& y) const {
+  const Vec3 origin = offset_origin(g.p, g.ng);
+  Vec3 wi, dir, le;
+  float geometry, tmax;
+  restir_light(origin, y, wi, dir, le, geometry, tmax);
+  return Ray{origin, dir, 0.0f, tmax};
 }
 
 // restir_eval's luminance with its tests on the sample (towards the surface's side, lit, a
@@ -101,7 +108,7 @@ Vec3 Renderer::Impl::restir_eval(const RestirShading& s, const LightRef& y, Ray*
 float Renderer::Impl::restir_target(const RestirShading& s, const LightRef& y) const {
   Vec3 wi{0, 0, 1}, dir, le{0, 0, 0};
   float geometry, tmax;
-  const bool ok = restir_light(s, y, wi, dir, le, geometry, tmax) & (dot(wi, s.g.ng) > 0) &
+  const bool ok = restir_light(s.origin, y, wi, dir, le, geometry, tmax) & (dot(wi, s.g.ng) > 0) &
                   (luminance(le) > 0) & (geometry > 0);
   Vec3 f;
   s.bsdf.eval(s.frame.to_local(wi), f, nullptr);
