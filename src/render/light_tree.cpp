@@ -150,12 +150,12 @@ size_t LightTree::sample(Vec3 x, float u, float& pmf) const {
 }
 
 void LightTree::sample(Vec3 x, const float* u, size_t n, uint32_t* light, float* pmf) const {
+  if (wide_.empty()) {  // one light
+    for (size_t i = 0; i < n; ++i) light[i] = uint32_t(nodes_[0].light), pmf[i] = 1;
+    return;
+  }
   for (size_t i0 = 0; i0 < n; i0 += 4) {
     const size_t m = std::min<size_t>(4, n - i0);
-    if (wide_.empty()) {
-      for (size_t j = 0; j < m; ++j) light[i0 + j] = uint32_t(nodes_[0].light), pmf[i0 + j] = 1;
-      continue;
-    }
     int32_t at[4] = {0, 0, 0, 0};
     float uj[4] = {0, 0, 0, 0}, pj[4] = {1, 1, 1, 1};
     unsigned walking = (1u << m) - 1;

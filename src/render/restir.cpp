@@ -204,7 +204,6 @@ void Renderer::Impl::restir_candidates(const RenderSettings& s, int x0, int y0, 
           if (!surf[i].valid) continue;
           const bool own = tree && !similar(surf[i], *g);  // power: the same everywhere
           const RestirShading at(surf[i]);
-          const Vec3 own_origin = at.origin;
           Reservoir r;
           Rng& pr = rngs[i];
           // The candidates, then their own lights' walks together, then resampling.
@@ -229,7 +228,7 @@ void Renderer::Impl::restir_candidates(const RenderSettings& s, int x0, int y0, 
             }
           }
           if (owns > 0) {
-            local_light_samples(own_origin, tree, ou, ou1, ou2, size_t(owns), drawn);
+            local_light_samples(at.origin, tree, ou, ou1, ou2, size_t(owns), drawn);
             for (int j = 0; j < owns; ++j) cand[own_of[j]] = drawn[j];
           }
           // Resampling without a branch per candidate: a candidate that adds nothing (a
