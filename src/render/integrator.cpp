@@ -26,9 +26,10 @@ void Renderer::Impl::occluded(std::span<const Ray> rays, std::span<uint8_t> out)
 
 namespace {
 
-struct PathState {
+// One cache line: the shading loop touches it per path per bounce (the path's pixel is its
+// index in the tile's arrays; the radiance cache's vertex, rarely touched, is in CacheVertex).
+struct alignas(64) PathState {
   Vec3 throughput{1, 1, 1}, radiance{0, 0, 0};
-  uint32_t pixel;             // index into the tile's pixel list
   float bsdf_pdf = 0;         // pdf of the direction that led here (solid angle)
   Vec3 prev_normal{0, 0, 1};  // shading normal where that direction was sampled
   bool aov_pending = true;
@@ -37,11 +38,17 @@ struct PathState {
   bool env_nee = true;
   bool restir = false;  // the first hit's direct light came from ReSTIR: BSDF rays skip it
   // Radiance cache: a training path never stops at the cache; rough: the surface the last
-  // bounce left may use it; cache_key: the first bounce's cell, with the path's radiance and
-  // throughput there (its outgoing radiance is what the path adds after it, / throughput).
+  // bounce left may use it; cache_key: the first bounce's cell (its CacheVertex holds the
+  // path's radiance and throughput there).
   bool train = true, rough = false;
   uint64_t cache_key = 0;
-  Vec3 cache_radiance, cache_throughput;
+};
+static_assert(sizeof(PathState) == 64);
+
+// A path's radiance and throughput at its radiance-cache vertex: its outgoing radiance there
+// is what the path adds after it, / throughput.
+struct CacheVertex {
+  Vec3 radiance, throughput;
 };
 
 struct Shadow {
@@ -50,11 +57,11 @@ struct Shadow {
 };
 
 constexpr size_t index_distance = 48, vertex_distance = 24, texel_distance = 12,
-                 state_distance = 16;
+                 state_distance = 24;
 
 // The outgoing radiance a path measured at its cached vertex, clamped as samples are.
-bool cache_sample(const PathState& ps, float clamp, Vec3& out) {
-  const Vec3 t = ps.cache_throughput, d = ps.radiance - ps.cache_radiance;
+bool cache_sample(const PathState& ps, const CacheVertex& cv, float clamp, Vec3& out) {
+  const Vec3 t = cv.throughput, d = ps.radiance - cv.radiance;
   if (!(t.x > 0 && t.y > 0 && t.z > 0)) return false;
   out = {d.x / t.x, d.y / t.y, d.z / t.z};
   if (!is_finite(out)) return false;
@@ -86,6 +93,7 @@ struct Renderer::Impl::TilePaths {
   size_t count = 0;
   std::vector<Rng> rngs;
   std::vector<PathState> paths;
+  std::vector<CacheVertex> cache_vtx;  // of paths with a cache_key
   std::vector<PixelSample> px;
   std::vector<Ray> rays, next_rays;
   std::vector<uint32_t> active, next_active;
@@ -129,6 +137,7 @@ void Renderer::Impl::TilePaths::begin(const WavePass& wp, int tx, int ty,
   rngs.clear();
   paths.resize(count);  // each path and pixel sample set at its first hit (shade, depth 0):
   px.resize(count);     // written where they are read next, not twice
+  cache_vtx.resize(records ? count : 0);
   rays.resize(count);
   active.resize(count);
   const size_t restir_count = wp.rp ? count : 0;
@@ -168,7 +177,6 @@ void Renderer::Impl::TilePaths::shade(const Impl& r, int depth, std::span<const 
   const auto start = [&](size_t k) {
     PathState& ps = paths[k];
     ps = PathState{};
-    ps.pixel = uint32_t(k);
     const int x = x0 + int(k % size_t(x1 - x0)), y = y0 + int(k / size_t(x1 - x0));
     const uint64_t pixel = uint64_t(y) * uint64_t(s.width) + uint64_t(x);
     ps.train =
@@ -216,16 +224,15 @@ void Renderer::Impl::TilePaths::shade(const Impl& r, int depth, std::span<const 
     // tile's arrays; a path's pixel sample has the path's index).
     if (k + state_distance < n) {
       const uint32_t a = active[k + state_distance];
-      const char* q = reinterpret_cast<const char*>(&paths[a]);
-      __builtin_prefetch(q, 1);
-      __builtin_prefetch(q + sizeof(PathState) - 1, 1);
+      __builtin_prefetch(&paths[a], 1);
       __builtin_prefetch(&rngs[a], 1);
       __builtin_prefetch(&px[a], 1);
     }
-    PathState& ps = paths[active[k]];
-    Rng& rng = rngs[active[k]];
-    if (depth == 0) start(active[k]);
-    PixelSample& out = px[ps.pixel];
+    const uint32_t pix = active[k];  // the path's pixel in the tile
+    PathState& ps = paths[pix];
+    Rng& rng = rngs[pix];
+    if (depth == 0) start(pix);
+    PixelSample& out = px[pix];
     const Ray& ray = rays[k];
     const SurfaceHit& h = hits[k];
     if (!h.hit()) {
@@ -276,10 +283,10 @@ void Renderer::Impl::TilePaths::shade(const Impl& r, int depth, std::span<const 
         out.mx = gx - fx, out.my = gy - fy;
         if (rp && !rp->same_camera && gx >= 0 && gy >= 0 && gx < float(s.width) &&
             gy < float(s.height))
-          rprev[ps.pixel] = int32_t(int(gy) * s.width + int(gx));
+          rprev[pix] = int32_t(int(gy) * s.width + int(gx));
       }
       if (rp && rp->same_camera) {
-        const size_t i = ps.pixel;
+        const size_t i = pix;
         rprev[i] = int32_t((y0 + int(i) / (x1 - x0)) * s.width + x0 + int(i) % (x1 - x0));
       }
     }
@@ -313,7 +320,8 @@ void Renderer::Impl::TilePaths::shade(const Impl& r, int depth, std::span<const 
         ps.radiance = ps.radiance + ps.throughput * lc;
         continue;
       }
-      ps.cache_key = cell.key, ps.cache_radiance = ps.radiance, ps.cache_throughput = ps.throughput;
+      ps.cache_key = cell.key;
+      cache_vtx[pix] = {ps.radiance, ps.throughput};
     }
     const Basis frame(ns);
     const Vec3 wo_l = frame.to_local(wo);
@@ -323,7 +331,7 @@ void Renderer::Impl::TilePaths::shade(const Impl& r, int depth, std::span<const 
     // Next-event estimation: one light sample (an emissive triangle or the environment),
     // or at the first hit ReSTIR's reservoir (shaded once the tile's reuse is done).
     if (rp && depth == 0 && r.restir_eligible(sf)) {
-      RestirSurface& g = rsurf[ps.pixel];
+      RestirSurface& g = rsurf[pix];
       g = {sf.p, ng, ns, wo_l, bp, out.depth, true};
       ps.restir = true;  // its reservoir comes after the loop, from its block's pool
     } else if (r.p_env > 0 || r.p_sun > 0 || r.local_light_count() > 0) {
@@ -343,8 +351,8 @@ void Renderer::Impl::TilePaths::shade(const Impl& r, int depth, std::span<const 
     // Russian roulette at the first bounce (indirect_rate < 1): the pixels whose turn it is
     // not stop here with their direct light; mirror-like surfaces always go on.
     if (depth == 0 && s.indirect_rate < 1.0f && !specular_surface) {
-      const uint32_t px_x = uint32_t(x0 + int(ps.pixel % uint32_t(x1 - x0)));
-      const uint32_t px_y = uint32_t(y0 + int(ps.pixel / uint32_t(x1 - x0)));
+      const uint32_t px_x = uint32_t(x0 + int(pix % uint32_t(x1 - x0)));
+      const uint32_t px_y = uint32_t(y0 + int(pix / uint32_t(x1 - x0)));
       if (!first_bounce_survives(px_x, px_y, s.frame + uint32_t(ctx->pass), s.indirect_rate))
         continue;
       ps.throughput = ps.throughput * (1.0f / s.indirect_rate);
@@ -420,7 +428,7 @@ void Renderer::Impl::TilePaths::end(Accumulator& acc) const {
     const int x = x0 + int(i % size_t(x1 - x0)), y = y0 + int(i / size_t(x1 - x0));
     acc.add(size_t(y) * size_t(s.width) + size_t(x), paths[i].radiance, px[i], s.clamp);
     Vec3 lc;
-    if (paths[i].cache_key && cache_sample(paths[i], s.clamp, lc))
+    if (paths[i].cache_key && cache_sample(paths[i], cache_vtx[i], s.clamp, lc))
       cache_records->push_back({paths[i].cache_key, lc});
   }
 }
