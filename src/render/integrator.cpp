@@ -11,6 +11,7 @@
 #include "core/parallel.h"
 #include "render/bsdf.h"
 #include "render/renderer_impl.h"
+#include "render/surface_rows.h"
 
 namespace kestrel {
 
@@ -56,7 +57,7 @@ struct Shadow {
   uint32_t path;
 };
 
-constexpr size_t index_distance = 48, vertex_distance = 24, texel_distance = 12,
+constexpr size_t index_distance = 64, vertex_distance = 40, texel_distance = 12,
                  state_distance = 24;
 
 // The outgoing radiance a path measured at its cached vertex, clamped as samples are.
@@ -203,6 +204,27 @@ void Renderer::Impl::TilePaths::shade(const Impl& r, int depth, std::span<const 
   // they name, then texels (misses overlap instead of stalling one hit at a time).
   for (size_t k = 0; k < std::min(n, index_distance); ++k) r.prefetch_indices(hits[k]);
   for (size_t k = 0; k < std::min(n, vertex_distance); ++k) r.prefetch_vertices(hits[k]);
+  // The hits' surfaces in SIMD rows, a group of 16 at a time, one group ahead of the hits
+  // shaded (group g + 1 as hit 16 g is reached: its vertices are prefetched by then, and the
+  // texel look-ahead finds its hits' rows).
+  constexpr size_t group = SurfaceRows::size;
+  SurfaceRows rows[2];
+  uint32_t in_rows[2] = {0, 0};
+  const SurfaceRowsKernel kernel = r.surface_rows_on ? surface_rows_kernel(default_isa()) : nullptr;
+  const auto make_rows = [&](size_t g) {
+    const size_t b = g * group;
+    in_rows[g & 1] = kernel && b < n ? r.surface_rows_of(kernel, &hits[b], &rays[b],
+                                                         std::min(group, n - b), rows[g & 1])
+                                     : 0;
+  };
+  // Hit k's entry, or null.
+  const auto row_of = [&](size_t k, int& j) -> const SurfaceRows* {
+    j = int(k % group);
+    const size_t slot = (k / group) & 1;
+    return (in_rows[slot] >> j) & 1u ? &rows[slot] : nullptr;
+  };
+  make_rows(0);
+  make_rows(1);
   // Paths the radiance cache likely answers at their second vertex: their cell (its slot
   // prefetched) instead of texels.
   const bool cache_stops = cache_records && depth == 1 && depth + 1 < s.max_depth;
@@ -210,13 +232,20 @@ void Renderer::Impl::TilePaths::shade(const Impl& r, int depth, std::span<const 
   auto ahead = [&](size_t k) {
     const PathState& q = paths[active[k]];
     cells[k].key = 0;
-    if (!(cache_stops && q.rough && !q.train && !q.aov_pending))
-      r.prefetch_texels(hits[k]);
-    else if (hits[k].hit())
-      cells[k] = r.cache_cell(hits[k], rays[k]);
+    int j;
+    const SurfaceRows* row = row_of(k, j);
+    if (!(cache_stops && q.rough && !q.train && !q.aov_pending)) {
+      if (row)
+        r.prefetch_texels(hits[k], Vec2{row->u[j], row->v[j]});
+      else
+        r.prefetch_texels(hits[k]);
+    } else if (hits[k].hit()) {
+      cells[k] = row ? r.cache_cell(*row, j) : r.cache_cell(hits[k], rays[k]);
+    }
   };
   for (size_t k = 0; k < std::min(n, texel_distance); ++k) ahead(k);
   for (size_t k = 0; k < n; ++k) {
+    if (k % group == 0 && k > 0) make_rows(k / group + 1);
     if (k + index_distance < n) r.prefetch_indices(hits[k + index_distance]);
     if (k + vertex_distance < n) r.prefetch_vertices(hits[k + vertex_distance]);
     if (k + texel_distance < n) ahead(k + texel_distance);
@@ -271,7 +300,9 @@ void Renderer::Impl::TilePaths::shade(const Impl& r, int depth, std::span<const 
     }
     // Surface interaction.
     const InstanceShade& is = r.instances[h.instance_id];
-    const Surface sf = r.surface_at(h, ray);
+    int row_j;
+    const SurfaceRows* row = row_of(k, row_j);
+    const Surface sf = row ? r.surface_from_rows(*row, row_j, h, ray) : r.surface_at(h, ray);
     const Vec3 &p = sf.p, &ng = sf.ng, &ns = sf.ns, &wo = sf.wo;
     const Material& mat = *sf.mat;
     const BsdfParams& bp = sf.bp;

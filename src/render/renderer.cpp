@@ -94,6 +94,10 @@ void RendererTesting::set_wave_tiles(Renderer& renderer, size_t tiles) {
   renderer.impl_->tiles_per_wave = std::max<size_t>(1, tiles);
 }
 
+void RendererTesting::set_surface_rows(Renderer& renderer, bool on) {
+  renderer.impl_->surface_rows_on = on;
+}
+
 std::array<double, 3> RendererTesting::retrace(const Renderer& renderer, const RayCapture& c) {
   const Renderer::Impl* impl_ = renderer.impl_.get();
   std::array<double, 3> ms{0, 0, 0};

@@ -25,6 +25,10 @@ namespace kestrel {
 
 namespace render {
 
+struct SurfaceRows;
+struct SurfaceRowsArgs;
+using SurfaceRowsKernel = void (*)(const SurfaceRowsArgs& a);
+
 constexpr int tile_size = 32;
 // Tiles traced together (render_wave): each bounce of a wave is one batch of up to
 // wave_tiles x tile_size^2 rays. Fixed, so the waves (and the images) are the same for any
@@ -261,6 +265,7 @@ struct Renderer::Impl {
   bool env_ready = false;    // choose_environment ran (the probabilities can be set)
   Bounds3 bounds;
   RayCapture* capture = nullptr;
+  bool surface_rows_on = true;  // surfaces in SIMD rows where they can be (off: surface_at)
   std::unique_ptr<Accumulator> tile_acc;  // render_tiles: sums kept between calls of one size
   Accumulator acc{0, 0};                  // render: the sums, storage kept from frame to frame
   RestirBuffer restir[2];                 // ReSTIR: [restir_last] is the last pass's
@@ -383,6 +388,16 @@ struct Renderer::Impl {
   Surface surface_at(const SurfaceHit& h, const Ray& ray) const;
   // surface_at's first part: p, p_obj, wo, ng (facing wo), cos_hit, the material.
   void surface_geometry(const SurfaceHit& h, const Ray& ray, Surface& sf) const;
+  // surface_at of a hit on an identity-transformed mesh from its entry j of SIMD rows
+  // (render/surface_rows.h: the same values), and its last part: the material's BSDF
+  // parameters and roughness at sf.uv.
+  Surface surface_from_rows(const render::SurfaceRows& rows, int j, const SurfaceHit& h,
+                            const Ray& ray) const;
+  void surface_material(Surface& sf) const;
+  // The rows of a group of n <= SurfaceRows::size hits (rays[j] is hit j's): the lanes on the
+  // first hit's instance when its transform is the identity; bit j set where entry j is hit j's.
+  uint32_t surface_rows_of(render::SurfaceRowsKernel kernel, const SurfaceHit* hits,
+                           const Ray* rays, size_t n, render::SurfaceRows& rows) const;
   // The material's roughness in [0, 1] at uv (its metallic-roughness texture's G scales it)
   // and its metallic factor (the texture's B); uv_of() is asked only where there is a texture.
   template <class Uv>
@@ -400,6 +415,7 @@ struct Renderer::Impl {
   }
   bool cache_answer(const SurfaceHit& h, const RadianceCache::Cell& cell, Vec3& lc) const;
   RadianceCache::Cell cache_cell(const SurfaceHit& h, const Ray& ray) const;
+  RadianceCache::Cell cache_cell(const render::SurfaceRows& rows, int j) const;  // the same
   // `env`: the environment among the lights to pick (else the sun and the local lights, their
   // probabilities scaled by nee_scale(false)).
   bool sample_light(const Surface& sf, const Basis& frame, const BsdfAt& bsdf, Vec3 origin,
@@ -464,6 +480,7 @@ struct Renderer::Impl {
   void prefetch_indices(const SurfaceHit& h) const;
   void prefetch_vertices(const SurfaceHit& h) const;
   void prefetch_texels(const SurfaceHit& h) const;
+  void prefetch_texels(const SurfaceHit& h, Vec2 uv) const;  // its texture coordinates known
   // integrator.cpp: the path tracer over a wave of tiles.
   struct WavePass {  // what every tile of a wave shares
     const CameraModel& cam;

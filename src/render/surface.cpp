@@ -6,6 +6,7 @@
 
 #include "render/bsdf.h"
 #include "render/renderer_impl.h"
+#include "render/surface_rows.h"
 
 namespace kestrel {
 
@@ -34,9 +35,13 @@ void Renderer::Impl::prefetch_texels(const SurfaceHit& h) const {
   if (!h.hit()) return;
   const TriangleMesh& m = *instances[h.instance_id].mesh;
   if (m.uvs.empty()) return;
+  prefetch_texels(h, uv_at(m, h.prim_id, h.u, h.v));
+}
+// The same where the hit's texture coordinates are known.
+void Renderer::Impl::prefetch_texels(const SurfaceHit& h, Vec2 uv) const {
+  const TriangleMesh& m = *instances[h.instance_id].mesh;
   const Texture* t = maps_of(material_of(m, h.prim_id)).base;
   if (!t) return;
-  const Vec2 uv = uv_at(m, h.prim_id, h.u, h.v);
   const float u = uv.x, v = uv.y;
   const float x = (u - floor_exact(u)) * float(t->width),
               y = (v - floor_exact(v)) * float(t->height);
@@ -96,7 +101,32 @@ Renderer::Impl::Surface Renderer::Impl::surface_at(const SurfaceHit& h, const Ra
       if (dot(nn, wo) > 1e-4f) ns = nn;
     }
   }
-  const Vec2 uv = sf.uv = uv_at(mesh, h.prim_id, h.u, h.v);
+  sf.uv = uv_at(mesh, h.prim_id, h.u, h.v);
+  sf.ns = ns;
+  surface_material(sf);
+  return sf;
+}
+
+// surface_at from a hit's entry j of SIMD rows (the same values), for a hit on an instance
+// with an identity transform.
+Renderer::Impl::Surface Renderer::Impl::surface_from_rows(const SurfaceRows& rows, int j,
+                                                          const SurfaceHit& h,
+                                                          const Ray& ray) const {
+  Surface sf;
+  sf.p = sf.p_obj = {rows.px[j], rows.py[j], rows.pz[j]};
+  sf.wo = -ray.dir;
+  sf.ng = {rows.gx[j], rows.gy[j], rows.gz[j]};
+  sf.cos_hit = rows.cos_hit[j];
+  sf.mat = &material_of(*instances[h.instance_id].mesh, h.prim_id);
+  sf.ns = {rows.nx[j], rows.ny[j], rows.nz[j]};
+  sf.uv = {rows.u[j], rows.v[j]};
+  surface_material(sf);
+  return sf;
+}
+
+// surface_at's last part: the material's BSDF parameters at sf.uv.
+void Renderer::Impl::surface_material(Surface& sf) const {
+  const Vec2 uv = sf.uv;
   const Material& mat = *sf.mat;
   BsdfParams& bp = sf.bp;
   bp.base = mat.base_color;
@@ -110,8 +140,51 @@ Renderer::Impl::Surface Renderer::Impl::surface_at(const SurfaceHit& h, const Ra
       mat, [uv] { return uv; }, bp.metallic);
   bp.alpha = std::max(roughness * roughness, min_alpha);
   bp.specular = std::clamp(mat.specular, 0.0f, 1.0f);
-  sf.ns = ns, sf.roughness = roughness;
-  return sf;
+  sf.roughness = roughness;
+}
+
+// The rows of a group of hits (at most SurfaceRows::size): the lanes on the first hit's
+// instance when it has an identity transform (bit j of the result: entry j is hit j's).
+uint32_t Renderer::Impl::surface_rows_of(SurfaceRowsKernel kernel, const SurfaceHit* hits,
+                                         const Ray* rays, size_t n, SurfaceRows& rows) const {
+  size_t first = 0;
+  while (first < n && !hits[first].hit()) ++first;
+  if (first == n) return 0;
+  const uint32_t id = hits[first].instance_id;
+  const InstanceShade& is = instances[id];
+  const TriangleMesh& m = *is.mesh;
+  // The lanes gather at 32-bit float offsets: 3 per vertex and per triangle.
+  if (!is.identity || m.positions.size() >= (size_t(1) << 29) ||
+      m.indices.size() >= (size_t(1) << 31))
+    return 0;
+  SurfaceRowsArgs a;
+  a.indices = m.indices.data(), a.positions = m.positions.data();
+  a.normals = m.normals.empty() ? nullptr : m.normals.data();
+  a.uvs = m.uvs.empty() ? nullptr : m.uvs.data();
+  a.hits = hits, a.rays = rays, a.n = n, a.instance = id, a.out = &rows;
+  kernel(a);
+  uint32_t mask = 0;
+  for (size_t j = first; j < n; ++j) mask |= uint32_t(hits[j].instance_id == id) << j;
+  return mask;
+}
+
+RadianceCache::Cell Renderer::Impl::cache_cell(const SurfaceRows& rows, int j) const {
+  const RadianceCache::Cell cell = radiance_cache.cell({rows.px[j], rows.py[j], rows.pz[j]},
+                                                       {rows.gx[j], rows.gy[j], rows.gz[j]});
+  radiance_cache.prefetch(cell.key);
+  return cell;
+}
+
+SurfaceRowsKernel render::surface_rows_kernel(Isa isa) {
+  require_supported(isa);
+  switch (isa) {
+    case Isa::avx512:
+      return surface_rows_avx512();
+    case Isa::avx2:
+      return surface_rows_avx2();
+    default:
+      return surface_rows_sse2();
+  }
 }
 
 // ---- the radiance cache's early answer ------------------------------------------------------

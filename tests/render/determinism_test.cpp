@@ -7,6 +7,8 @@
 #include <cmath>
 #include <cstring>
 
+#include "kestrel/instances.h"
+#include "kestrel/isa.h"
 #include "kestrel/render.h"
 #include "render/testing.h"
 #include "support/oracles.h"
@@ -70,6 +72,104 @@ TEST(Determinism, SameBitsForAnyWaveOfTiles) {
   EXPECT_EQ(frames(0, 1), reference);
   EXPECT_EQ(frames(0, 2), reference);
   EXPECT_EQ(frames(5, 2), reference);
+}
+
+// The shading takes hits' surfaces from SIMD rows (render/surface_rows.h) where a group's hits
+// lie on an identity-transformed mesh, else from surface_at: every AOV must be the same bits
+// either way, on every ISA this CPU runs. The scene mixes what the rows must get right: a
+// bumpy textured mesh whose vertex normals are sometimes zero, infinite, NaN or turned away
+// from the surface, texture coordinates beyond [0, 1], a mesh without normals or texture
+// coordinates, and both meshes again under transforms (surface_at's lanes in the same groups).
+TEST(Determinism, SurfaceRowsGiveTheSurfacesBitForBit) {
+  InstancedScene scene;
+  TriangleMesh bumpy;
+  constexpr int n = 24;
+  for (int j = 0; j <= n; ++j)
+    for (int i = 0; i <= n; ++i) {
+      const float x = -2 + 4.0f * float(i) / n, y = -2 + 4.0f * float(j) / n;
+      const float z = 0.3f * std::sin(2.1f * x) * std::cos(1.7f * y);
+      bumpy.positions.push_back({x, y, z});
+      Vec3 nrm{-0.63f * std::cos(2.1f * x) * std::cos(1.7f * y),
+               0.51f * std::sin(2.1f * x) * std::sin(1.7f * y), 1};
+      // Some vertex normals the shading must not trust: zero, infinite, NaN, turned away
+      // from the surface, grazing.
+      const Vec3 odd[5] = {
+          {0, 0, 0}, {INFINITY, 0, 1}, {NAN, 0, 1}, {-nrm.x, -nrm.y, -1}, {nrm.x, 3.0f, 0.05f}};
+      const int which = (i * 7 + j * 3) % 23;
+      if (which < 5) nrm = odd[which];
+      bumpy.normals.push_back(nrm);
+      bumpy.uvs.push_back({1.7f * x - 0.4f, 2.3f * y + 0.6f});
+    }
+  for (int j = 0; j < n; ++j)
+    for (int i = 0; i < n; ++i) {
+      const uint32_t a = uint32_t(j * (n + 1) + i), b = a + 1, c = a + uint32_t(n) + 1, d = c + 1;
+      bumpy.indices.insert(bumpy.indices.end(), {a, b, d, a, d, c});
+      bumpy.material_ids.insert(bumpy.material_ids.end(), {uint32_t((i + j) % 2), 0});
+    }
+  TriangleMesh plain;  // no normals, no texture coordinates
+  uint64_t seed = 12345;
+  auto uniform = [&] {
+    seed = seed * 6364136223846793005ull + 1442695040888963407ull;
+    return float(seed >> 40) / float(1 << 24);
+  };
+  for (uint32_t t = 0; t < 300; ++t) {
+    const Vec3 c{uniform() * 4 - 2, uniform() * 4 - 2, uniform() * 0.8f + 0.2f};
+    for (int v = 0; v < 3; ++v)
+      plain.positions.push_back({c.x + uniform() * 0.6f - 0.3f, c.y + uniform() * 0.6f - 0.3f,
+                                 c.z + uniform() * 0.6f - 0.3f});
+    plain.indices.insert(plain.indices.end(), {3 * t, 3 * t + 1, 3 * t + 2});
+    plain.material_ids.push_back(1);
+  }
+  const MeshId mb = scene.add_mesh(bumpy), mp = scene.add_mesh(plain);
+  scene.add_instance(mb, Affine3::translation({0, 0, 0}));
+  scene.add_instance(mp, Affine3::translation({0, 0, 0}));
+  scene.add_instance(mb, Affine3::translation({0.7f, -0.4f, 0.9f}) * Affine3::rotation_y(0.4f));
+  scene.add_instance(mp, Affine3::translation({-1.1f, 0.8f, 0.5f}) * Affine3::rotation_y(-0.3f));
+  Texture checker{"checker", 8, 8, {}};
+  for (int k = 0; k < 64; ++k)
+    for (int c = 0; c < 4; ++c) checker.rgba.push_back(uint8_t((k * 37 + c * 91) % 256));
+  Material textured{.name = "textured"};
+  textured.base_color_texture = 0;
+  textured.roughness = 0.4f, textured.metallic = 0.3f;
+  Material rough{.name = "rough"};
+  scene.commit();
+  scene.set_materials({textured, rough}, {checker});
+  scene.commit();
+  const Camera cam{{0.3f, -3.6f, 3.2f}, {0.0f, 0.2f, 0.0f}, 55};  // eye, target, fov
+  RenderSettings rs;
+  rs.width = 96, rs.height = 72, rs.max_depth = 4, rs.seed = 3;
+  auto frames = [&](bool rows) {
+    Environment env = Environment::parse("sky");
+    env.sun = Sun{};
+    env.sun->direction = normalize(Vec3{0.3f, 0.6f, 0.7f});
+    Renderer r(scene, env);
+    RendererTesting::set_surface_rows(r, rows);
+    std::vector<std::vector<float>> out;
+    RenderSettings s = rs;
+    for (uint32_t f = 0; f < 3; ++f) {
+      s.frame = f;
+      s.direct = f == 0 ? DirectLighting::restir : DirectLighting::nee;
+      s.radiance_cache = f >= 1;
+      s.spp = f == 2 ? 2 : 1;
+      const Frame fr = r.render(cam, s, cam);
+      for (int k = 0; k < aov_count; ++k) out.push_back(fr.aov[k].pixels);
+    }
+    return out;
+  };
+  const Isa before = default_isa();
+  for (Isa isa : {Isa::sse2, Isa::avx2, Isa::avx512}) {
+    if (!isa_supported(isa)) continue;
+    SCOPED_TRACE(isa_name(isa));
+    set_default_isa(isa);
+    const auto with = frames(true), without = frames(false);
+    ASSERT_EQ(with.size(), without.size());
+    for (size_t k = 0; k < with.size(); ++k) {
+      ASSERT_EQ(with[k].size(), without[k].size());
+      EXPECT_EQ(std::memcmp(with[k].data(), without[k].data(), with[k].size() * sizeof(float)), 0)
+          << "frame " << k / aov_count << ", " << aov_name(Aov(k % aov_count));
+    }
+  }
+  set_default_isa(before);
 }
 
 TEST(Determinism, RenderIntoAKeptFrameIsAFreshRender) {

@@ -1,0 +1,91 @@
+// surface_rows' kernel for one instruction set: included by surface_rows_<isa>.cpp inside a
+// namespace of their own, after core/simd/lanes.inl. The body is written once over T = float
+// (a group's tail) and T = vfloat (kLanes hits at a time); each lane does the operations of
+// surface_geometry, surface_at and uv_at in their order. Lanes whose hit is on another
+// instance (or none) read triangle 0 and their entries are left for the caller to ignore.
+
+static inline int bits_of(float x) {
+  return __builtin_bit_cast(int, x);
+}
+static inline vint bits_of(vfloat x) {
+  return (vint)x;
+}
+
+// Attribute c (n floats per vertex) of the vertices i0, i1, i2 interpolated with the
+// barycentric weights b0, b1, b2 as Vec3's / Vec2's operators do: (a b0 + b b1) + c b2.
+template <class T, class I>
+static inline T interpolate(const float* base, I i0, I i1, I i2, int n, int c, T b0, T b1, T b2) {
+  return vgather(base, i0 * n + c) * b0 + vgather(base, i1 * n + c) * b1 +
+         vgather(base, i2 * n + c) * b2;
+}
+
+template <class T>
+static inline void surface_lanes(const SurfaceRowsArgs& a, int j) {
+  using I = lanes_int<T>;
+  SurfaceRows& o = *a.out;
+  const I kv = lane_iota(I{}) + j;
+  // InstanceHit: t, prim_id, instance_id, u, v; Ray: org, dir, tmin, tmax.
+  const float* hf = reinterpret_cast<const float*>(a.hits);
+  const float* rf = reinterpret_cast<const float*>(a.rays);
+  const I h5 = kv * 5, r8 = kv * 8;
+  const I mine = bits_of(vgather(hf, h5 + 2)) == int(a.instance);
+  const I tri = mine ? bits_of(vgather(hf, h5 + 1)) * 3 : I{};
+  const T u = vgather(hf, h5 + 3), v = vgather(hf, h5 + 4);
+  const T wx = -vgather(rf, r8 + 3), wy = -vgather(rf, r8 + 4), wz = -vgather(rf, r8 + 5);
+  const float* ixf = reinterpret_cast<const float*>(a.indices);
+  const I i0 = bits_of(vgather(ixf, tri)), i1 = bits_of(vgather(ixf, tri + 1)),
+          i2 = bits_of(vgather(ixf, tri + 2));
+  const T b0 = (1.0f - u) - v;
+  // Position and geometric normal (surface_geometry).
+  const float* pf = reinterpret_cast<const float*>(a.positions);
+  const T p0x = vgather(pf, i0 * 3), p0y = vgather(pf, i0 * 3 + 1), p0z = vgather(pf, i0 * 3 + 2);
+  const T p1x = vgather(pf, i1 * 3), p1y = vgather(pf, i1 * 3 + 1), p1z = vgather(pf, i1 * 3 + 2);
+  const T p2x = vgather(pf, i2 * 3), p2y = vgather(pf, i2 * 3 + 1), p2z = vgather(pf, i2 * 3 + 2);
+  st(o.px + j, p0x * b0 + p1x * u + p2x * v);
+  st(o.py + j, p0y * b0 + p1y * u + p2y * v);
+  st(o.pz + j, p0z * b0 + p1z * u + p2z * v);
+  const T e1x = p1x - p0x, e1y = p1y - p0y, e1z = p1z - p0z;
+  const T e2x = p2x - p0x, e2y = p2y - p0y, e2z = p2z - p0z;
+  T gx = e1y * e2z - e1z * e2y, gy = e1z * e2x - e1x * e2z, gz = e1x * e2y - e1y * e2x;
+  const T glen = vsqrt(gx * gx + gy * gy + gz * gz);
+  const auto area = glen > 0.0f;
+  const T ginv = 1.0f / glen;
+  gx = area ? gx * ginv : -wx, gy = area ? gy * ginv : -wy, gz = area ? gz * ginv : -wz;
+  const T cos_hit = gx * wx + gy * wy + gz * wz;
+  const auto back = cos_hit < 0.0f;
+  gx = back ? -gx : gx, gy = back ? -gy : gy, gz = back ? -gz : gz;
+  st(o.gx + j, gx), st(o.gy + j, gy), st(o.gz + j, gz), st(o.cos_hit + j, cos_hit);
+  // Shading normal (surface_at): the interpolated vertex normal where it has a finite,
+  // non-zero length, turned to the geometric normal's side, and seen from wo.
+  T nx = gx, ny = gy, nz = gz;
+  if (a.normals) {
+    const float* nf = reinterpret_cast<const float*>(a.normals);
+    T mx = interpolate(nf, i0, i1, i2, 3, 0, b0, u, v),
+      my = interpolate(nf, i0, i1, i2, 3, 1, b0, u, v),
+      mz = interpolate(nf, i0, i1, i2, 3, 2, b0, u, v);
+    const T len = vsqrt(mx * mx + my * my + mz * mz);
+    const auto ok = (len > 0.0f) & (len < INFINITY);
+    const T inv = 1.0f / len;
+    mx = mx * inv, my = my * inv, mz = mz * inv;
+    const auto flip = (mx * gx + my * gy + mz * gz) < 0.0f;
+    mx = flip ? -mx : mx, my = flip ? -my : my, mz = flip ? -mz : mz;
+    const auto use = ok & ((mx * wx + my * wy + mz * wz) > 1e-4f);
+    nx = use ? mx : nx, ny = use ? my : ny, nz = use ? mz : nz;
+  }
+  st(o.nx + j, nx), st(o.ny + j, ny), st(o.nz + j, nz);
+  // Texture coordinates (uv_at).
+  if (a.uvs) {
+    const float* tf = reinterpret_cast<const float*>(a.uvs);
+    st(o.u + j, interpolate(tf, i0, i1, i2, 2, 0, b0, u, v));
+    st(o.v + j, interpolate(tf, i0, i1, i2, 2, 1, b0, u, v));
+  } else {
+    st(o.u + j, T{}), st(o.v + j, T{});
+  }
+}
+
+static void surface_rows(const SurfaceRowsArgs& a) {
+  int j = 0;
+  const int n = int(a.n);
+  for (; j + kLanes <= n; j += kLanes) surface_lanes<vfloat>(a, j);
+  for (; j < n; ++j) surface_lanes<float>(a, j);
+}
