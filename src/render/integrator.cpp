@@ -206,16 +206,19 @@ void Renderer::Impl::TilePaths::shade(const Impl& r, int depth, std::span<const 
   for (size_t k = 0; k < std::min(n, vertex_distance); ++k) r.prefetch_vertices(hits[k]);
   // The hits' surfaces in SIMD rows, a group of 16 at a time, one group ahead of the hits
   // shaded (group g + 1 as hit 16 g is reached: its vertices are prefetched by then, and the
-  // texel look-ahead finds its hits' rows).
+  // texel look-ahead finds its hits' rows); the first hits' base texels too (bounce hits'
+  // texels are scattered, and most of them the radiance cache answers without).
   constexpr size_t group = SurfaceRows::size;
   SurfaceRows rows[2];
   uint32_t in_rows[2] = {0, 0};
-  const SurfaceRowsKernel kernel = r.surface_rows_on ? surface_rows_kernel(default_isa()) : nullptr;
+  const SurfaceRowsKernels* kernels =
+      r.surface_rows_on ? &surface_rows_kernels(default_isa()) : nullptr;
   const auto make_rows = [&](size_t g) {
     const size_t b = g * group;
-    in_rows[g & 1] = kernel && b < n ? r.surface_rows_of(kernel, &hits[b], &rays[b],
-                                                         std::min(group, n - b), rows[g & 1])
-                                     : 0;
+    in_rows[g & 1] = kernels && b < n
+                         ? r.surface_rows_of(*kernels, &hits[b], &rays[b], std::min(group, n - b),
+                                             depth == 0, rows[g & 1])
+                         : 0;
   };
   // Hit k's entry, or null.
   const auto row_of = [&](size_t k, int& j) -> const SurfaceRows* {

@@ -26,8 +26,7 @@ namespace kestrel {
 namespace render {
 
 struct SurfaceRows;
-struct SurfaceRowsArgs;
-using SurfaceRowsKernel = void (*)(const SurfaceRowsArgs& a);
+struct SurfaceRowsKernels;
 
 constexpr int tile_size = 32;
 // Tiles traced together (render_wave): each bounce of a wave is one batch of up to
@@ -44,6 +43,8 @@ constexpr uint64_t cache_train_mask = 15;
 
 /// Bilinear, repeat-wrapped texture fetch; sRGB-decoded per texel when `srgb` (texture.cpp).
 void sample_texture(const Texture& tex, Vec2 uv, bool srgb, float out[3]);
+// sample_texture's sRGB decoding: the linear value of each 8-bit code (256 floats).
+const float* srgb_decode_table();
 /// Texture coordinates at barycentrics (1 - b1 - b2, b1, b2) of a triangle; (0, 0) without uvs.
 Vec2 uv_at(const TriangleMesh& m, uint32_t prim, float b1, float b2);
 
@@ -393,11 +394,13 @@ struct Renderer::Impl {
   // parameters and roughness at sf.uv.
   Surface surface_from_rows(const render::SurfaceRows& rows, int j, const SurfaceHit& h,
                             const Ray& ray) const;
-  void surface_material(Surface& sf) const;
+  void surface_material(Surface& sf, const float* texel = nullptr) const;  // texel: its base one
   // The rows of a group of n <= SurfaceRows::size hits (rays[j] is hit j's): the lanes on the
   // first hit's instance when its transform is the identity; bit j set where entry j is hit j's.
-  uint32_t surface_rows_of(render::SurfaceRowsKernel kernel, const SurfaceHit* hits,
-                           const Ray* rays, size_t n, render::SurfaceRows& rows) const;
+  // `texels`: with the base texels of the lanes that share the first textured lane's texture
+  // (worth it where neighbouring hits read neighbouring texels: camera rays').
+  uint32_t surface_rows_of(const render::SurfaceRowsKernels& kernels, const SurfaceHit* hits,
+                           const Ray* rays, size_t n, bool texels, render::SurfaceRows& rows) const;
   // The material's roughness in [0, 1] at uv (its metallic-roughness texture's G scales it)
   // and its metallic factor (the texture's B); uv_of() is asked only where there is a texture.
   template <class Uv>

@@ -120,19 +120,24 @@ Renderer::Impl::Surface Renderer::Impl::surface_from_rows(const SurfaceRows& row
   sf.mat = &material_of(*instances[h.instance_id].mesh, h.prim_id);
   sf.ns = {rows.nx[j], rows.ny[j], rows.nz[j]};
   sf.uv = {rows.u[j], rows.v[j]};
-  surface_material(sf);
+  const float texel[3] = {rows.tr[j], rows.tg[j], rows.tb[j]};
+  surface_material(sf, (rows.texel >> j) & 1u ? texel : nullptr);
   return sf;
 }
 
-// surface_at's last part: the material's BSDF parameters at sf.uv.
-void Renderer::Impl::surface_material(Surface& sf) const {
+// surface_at's last part: the material's BSDF parameters at sf.uv (`texel`: its base
+// colour's texel there, when known).
+void Renderer::Impl::surface_material(Surface& sf, const float* texel) const {
   const Vec2 uv = sf.uv;
   const Material& mat = *sf.mat;
   BsdfParams& bp = sf.bp;
   bp.base = mat.base_color;
   if (const Texture* t = maps_of(mat).base) {
     float c[3];
-    sample_texture(*t, uv, true, c);
+    if (texel)
+      c[0] = texel[0], c[1] = texel[1], c[2] = texel[2];
+    else
+      sample_texture(*t, uv, true, c);
     bp.base = bp.base * Vec3{c[0], c[1], c[2]};
   }
   bp.base = min(max(bp.base, Vec3{0, 0, 0}), Vec3{1, 1, 1});
@@ -145,8 +150,9 @@ void Renderer::Impl::surface_material(Surface& sf) const {
 
 // The rows of a group of hits (at most SurfaceRows::size): the lanes on the first hit's
 // instance when it has an identity transform (bit j of the result: entry j is hit j's).
-uint32_t Renderer::Impl::surface_rows_of(SurfaceRowsKernel kernel, const SurfaceHit* hits,
-                                         const Ray* rays, size_t n, SurfaceRows& rows) const {
+uint32_t Renderer::Impl::surface_rows_of(const SurfaceRowsKernels& kernels, const SurfaceHit* hits,
+                                         const Ray* rays, size_t n, bool texels,
+                                         SurfaceRows& rows) const {
   size_t first = 0;
   while (first < n && !hits[first].hit()) ++first;
   if (first == n) return 0;
@@ -162,9 +168,29 @@ uint32_t Renderer::Impl::surface_rows_of(SurfaceRowsKernel kernel, const Surface
   a.normals = m.normals.empty() ? nullptr : m.normals.data();
   a.uvs = m.uvs.empty() ? nullptr : m.uvs.data();
   a.hits = hits, a.rays = rays, a.n = n, a.instance = id, a.out = &rows;
-  kernel(a);
+  kernels.surfaces(a);
   uint32_t mask = 0;
   for (size_t j = first; j < n; ++j) mask |= uint32_t(hits[j].instance_id == id) << j;
+  // The base texels of the lanes whose material has the first such lane's texture.
+  rows.texel = 0;
+  if (!texels) return mask;
+  const Texture* texture = nullptr;
+  for (size_t j = first; j < n; ++j) {
+    if (!((mask >> j) & 1u)) continue;
+    const Texture* t = maps_of(material_of(m, hits[j].prim_id)).base;
+    if (t && !texture) texture = t;
+    if (t && t == texture) rows.texel |= 1u << j;
+  }
+  const size_t size = texture ? size_t(texture->width) * size_t(texture->height) : 0;
+  if (texture && texture->width > 0 && texture->height > 0 && size < (size_t(1) << 31) &&
+      texture->rgba.size() >= 4 * size) {
+    TexelRowsArgs ta;
+    ta.rgba = texture->rgba.data(), ta.width = texture->width, ta.height = texture->height;
+    ta.srgb = srgb_decode_table(), ta.n = n, ta.rows = &rows;
+    kernels.texels(ta);
+  } else {
+    rows.texel = 0;
+  }
   return mask;
 }
 
@@ -175,7 +201,7 @@ RadianceCache::Cell Renderer::Impl::cache_cell(const SurfaceRows& rows, int j) c
   return cell;
 }
 
-SurfaceRowsKernel render::surface_rows_kernel(Isa isa) {
+const SurfaceRowsKernels& render::surface_rows_kernels(Isa isa) {
   require_supported(isa);
   switch (isa) {
     case Isa::avx512:

@@ -1,10 +1,10 @@
-// The geometry of hits several at a time in SIMD lanes: what surface_geometry and surface_at
+// The surfaces of hits several at a time in SIMD lanes: what surface_geometry and surface_at
 // compute before the material (position, geometric normal facing the ray, the cosine there,
-// shading normal, texture coordinates), for the lanes of a group whose hits lie on one triangle
-// mesh with an identity transform, written as structure-of-arrays rows. Compiled once per
-// instruction set (surface_rows_<isa>.cpp include surface_rows.inl with -ffp-contract=off) and
-// picked by default_isa(); every lane does the scalar code's operations in its order, so the
-// values are the same bits.
+// shading normal, texture coordinates) and the base colour's texel, for the lanes of a group whose
+// hits lie on one triangle mesh with an identity transform, written as structure-of-arrays rows.
+// Compiled once per instruction set (surface_rows_<isa>.cpp include surface_rows.inl with
+// -ffp-contract=off) and picked by default_isa(); every lane does the scalar code's operations in
+// its order, so the values are the same bits.
 #pragma once
 #include <cstddef>
 #include <cstdint>
@@ -23,6 +23,8 @@ struct SurfaceRows {
   float cos_hit[size];                 // its cosine with wo before it was turned to face it
   float nx[size], ny[size], nz[size];  // shading normal (the geometric one where normals fail)
   float u[size], v[size];              // texture coordinates (0 without)
+  float tr[size], tg[size], tb[size];  // base-colour texel (sample_texture, sRGB decoded)
+  uint32_t texel = 0;                  // bit j: tr, tg, tb hold hit j's base texel
 };
 
 struct SurfaceRowsArgs {
@@ -37,11 +39,26 @@ struct SurfaceRowsArgs {
   SurfaceRows* out = nullptr;
 };
 
+/// One texture's bilinear, repeat-wrapped, sRGB-decoded texel (sample_texture's) at the rows'
+/// texture coordinates, for the first n entries, into tr, tg, tb.
+struct TexelRowsArgs {
+  const uint8_t* rgba = nullptr;  // width * height texels of 4 bytes
+  int width = 0, height = 0;      // width * height < 2^31
+  const float* srgb = nullptr;    // srgb_decode_table()
+  size_t n = 0;
+  SurfaceRows* rows = nullptr;
+};
+
 using SurfaceRowsKernel = void (*)(const SurfaceRowsArgs& a);
-SurfaceRowsKernel surface_rows_sse2();
-SurfaceRowsKernel surface_rows_avx2();
-SurfaceRowsKernel surface_rows_avx512();
-/// The kernel of an ISA (Error when this CPU lacks it).
-SurfaceRowsKernel surface_rows_kernel(Isa isa);
+using TexelRowsKernel = void (*)(const TexelRowsArgs& a);
+struct SurfaceRowsKernels {
+  SurfaceRowsKernel surfaces;
+  TexelRowsKernel texels;
+};
+const SurfaceRowsKernels& surface_rows_sse2();
+const SurfaceRowsKernels& surface_rows_avx2();
+const SurfaceRowsKernels& surface_rows_avx512();
+/// The kernels of an ISA (Error when this CPU lacks it).
+const SurfaceRowsKernels& surface_rows_kernels(Isa isa);
 
 }  // namespace kestrel::render

@@ -89,3 +89,58 @@ static void surface_rows(const SurfaceRowsArgs& a) {
   for (; j + kLanes <= n; j += kLanes) surface_lanes<vfloat>(a, j);
   for (; j < n; ++j) surface_lanes<float>(a, j);
 }
+
+// floor_exact (render/fast_math.h) lane by lane: the truncation, one lower where it rounded up,
+// the sign of x kept (-0 stays -0); floats of at least 2^23, NaN and the infinities unchanged.
+static inline float floor_lanes(float x) {
+  if (!(std::fabs(x) < 0x1p23f)) return x;
+  float t = float(int(x));
+  if (t > x) t -= 1.0f;
+  return std::copysign(t, x);
+}
+static inline vfloat floor_lanes(vfloat x) {
+  const vint small = vabs(x) < 0x1p23f;
+  vfloat t = __builtin_convertvector(__builtin_convertvector(small ? x : vfloat{}, vint), vfloat);
+  t = t > x ? t - 1.0f : t;
+  t = (vfloat)(((vint)t & 0x7FFFFFFF) | ((vint)x & int(0x80000000u)));
+  return small ? t : x;
+}
+
+// sample_texture's bilinear, repeat-wrapped, sRGB-decoded fetch for entries j .. j + lanes.
+template <class T>
+static inline void texel_lanes(const TexelRowsArgs& a, int j) {
+  using I = lanes_int<T>;
+  SurfaceRows& o = *a.rows;
+  const float w = float(a.width), h = float(a.height);
+  const T u = ld<T>(o.u + j), v = ld<T>(o.v + j);
+  T x = (u - floor_lanes(u)) * w - 0.5f, y = (v - floor_lanes(v)) * h - 0.5f;
+  const auto inside = (x >= -1.0f) & (x < w) & (y >= -1.0f) & (y < h);  // false for NaN
+  x = inside ? x : T{}, y = inside ? y : T{};
+  const T fx = floor_lanes(x), fy = floor_lanes(y);
+  const T wx = x - fx, wy = y - fy;
+  I x0 = vtrunc(fx), y0 = vtrunc(fy);
+  I x1 = x0 + 1, y1 = y0 + 1;
+  x0 = x0 < 0 ? I{} + (a.width - 1) : x0, x1 = x1 >= a.width ? I{} : x1;
+  y0 = y0 < 0 ? I{} + (a.height - 1) : y0, y1 = y1 >= a.height ? I{} : y1;
+  const float* texels = reinterpret_cast<const float*>(a.rgba);
+  const I row0 = y0 * a.width, row1 = y1 * a.width;
+  const I t00 = bits_of(vgather(texels, row0 + x0)), t10 = bits_of(vgather(texels, row0 + x1)),
+          t01 = bits_of(vgather(texels, row1 + x0)), t11 = bits_of(vgather(texels, row1 + x1));
+  const T w00 = (1.0f - wx) * (1.0f - wy), w10 = wx * (1.0f - wy), w01 = (1.0f - wx) * wy,
+          w11 = wx * wy;
+  float* out[3] = {o.tr, o.tg, o.tb};
+  for (int c = 0; c < 3; ++c) {
+    const int shift = 8 * c;
+    st(out[c] + j, vgather(a.srgb, (t00 >> shift) & 255) * w00 +
+                       vgather(a.srgb, (t10 >> shift) & 255) * w10 +
+                       vgather(a.srgb, (t01 >> shift) & 255) * w01 +
+                       vgather(a.srgb, (t11 >> shift) & 255) * w11);
+  }
+}
+
+static void texel_rows(const TexelRowsArgs& a) {
+  int j = 0;
+  const int n = int(a.n);
+  for (; j + kLanes <= n; j += kLanes) texel_lanes<vfloat>(a, j);
+  for (; j < n; ++j) texel_lanes<float>(a, j);
+}

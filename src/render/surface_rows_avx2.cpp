@@ -14,8 +14,9 @@ namespace avx2_ns {
 // clang-format on
 }  // namespace avx2_ns
 
-SurfaceRowsKernel surface_rows_avx2() {
-  return avx2_ns::surface_rows;
+const SurfaceRowsKernels& surface_rows_avx2() {
+  static const SurfaceRowsKernels table{avx2_ns::surface_rows, avx2_ns::texel_rows};
+  return table;
 }
 
 }  // namespace kestrel::render

@@ -14,8 +14,9 @@ namespace avx512_ns {
 // clang-format on
 }  // namespace avx512_ns
 
-SurfaceRowsKernel surface_rows_avx512() {
-  return avx512_ns::surface_rows;
+const SurfaceRowsKernels& surface_rows_avx512() {
+  static const SurfaceRowsKernels table{avx512_ns::surface_rows, avx512_ns::texel_rows};
+  return table;
 }
 
 }  // namespace kestrel::render

@@ -14,8 +14,9 @@ namespace sse2_ns {
 // clang-format on
 }  // namespace sse2_ns
 
-SurfaceRowsKernel surface_rows_sse2() {
-  return sse2_ns::surface_rows;
+const SurfaceRowsKernels& surface_rows_sse2() {
+  static const SurfaceRowsKernels table{sse2_ns::surface_rows, sse2_ns::texel_rows};
+  return table;
 }
 
 }  // namespace kestrel::render

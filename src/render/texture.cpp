@@ -21,6 +21,10 @@ const SrgbTable srgb_table;
 
 }  // namespace
 
+const float* srgb_decode_table() {
+  return srgb_table.v;
+}
+
 void sample_texture(const Texture& tex, Vec2 uv, bool srgb, float out[3]) {
   float x = (uv.x - floor_exact(uv.x)) * float(tex.width) - 0.5f;
   float y = (uv.y - floor_exact(uv.y)) * float(tex.height) - 0.5f;

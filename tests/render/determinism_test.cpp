@@ -74,8 +74,9 @@ TEST(Determinism, SameBitsForAnyWaveOfTiles) {
   EXPECT_EQ(frames(5, 2), reference);
 }
 
-// The shading takes hits' surfaces from SIMD rows (render/surface_rows.h) where a group's hits
-// lie on an identity-transformed mesh, else from surface_at: every AOV must be the same bits
+// The shading takes hits' surfaces (and first hits' base texels) from SIMD rows
+// (render/surface_rows.h) where a group's hits lie on an identity-transformed mesh, else from
+// surface_at: every AOV must be the same bits
 // either way, on every ISA this CPU runs. The scene mixes what the rows must get right: a
 // bumpy textured mesh whose vertex normals are sometimes zero, infinite, NaN or turned away
 // from the surface, texture coordinates beyond [0, 1], a mesh without normals or texture
