@@ -266,7 +266,7 @@ struct Renderer::Impl {
   bool env_ready = false;    // choose_environment ran (the probabilities can be set)
   Bounds3 bounds;
   RayCapture* capture = nullptr;
-  bool surface_rows_on = true;  // surfaces in SIMD rows where they can be (off: surface_at)
+  bool surface_rows_on = true;            // surfaces in SIMD rows (off: surface_at, for tests)
   std::unique_ptr<Accumulator> tile_acc;  // render_tiles: sums kept between calls of one size
   Accumulator acc{0, 0};                  // render: the sums, storage kept from frame to frame
   RestirBuffer restir[2];                 // ReSTIR: [restir_last] is the last pass's
@@ -389,14 +389,13 @@ struct Renderer::Impl {
   Surface surface_at(const SurfaceHit& h, const Ray& ray) const;
   // surface_at's first part: p, p_obj, wo, ng (facing wo), cos_hit, the material.
   void surface_geometry(const SurfaceHit& h, const Ray& ray, Surface& sf) const;
-  // surface_at of a hit on an identity-transformed mesh from its entry j of SIMD rows
-  // (render/surface_rows.h: the same values), and its last part: the material's BSDF
-  // parameters and roughness at sf.uv.
+  // surface_at of a hit from its entry j of SIMD rows (render/surface_rows.h: the same
+  // values), and its last part: the material's BSDF parameters and roughness at sf.uv.
   Surface surface_from_rows(const render::SurfaceRows& rows, int j, const SurfaceHit& h,
                             const Ray& ray) const;
   void surface_material(Surface& sf, const float* texel = nullptr) const;  // texel: its base one
   // The rows of a group of n <= SurfaceRows::size hits (rays[j] is hit j's): the lanes on the
-  // first hit's instance when its transform is the identity; bit j set where entry j is hit j's.
+  // first hit's instance; bit j set where entry j is hit j's.
   // `texels`: with the base texels of the lanes that share the first textured lane's texture
   // (worth it where neighbouring hits read neighbouring texels: camera rays').
   uint32_t surface_rows_of(const render::SurfaceRowsKernels& kernels, const SurfaceHit* hits,

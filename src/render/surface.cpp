@@ -107,13 +107,13 @@ Renderer::Impl::Surface Renderer::Impl::surface_at(const SurfaceHit& h, const Ra
   return sf;
 }
 
-// surface_at from a hit's entry j of SIMD rows (the same values), for a hit on an instance
-// with an identity transform.
+// surface_at from a hit's entry j of SIMD rows (the same values).
 Renderer::Impl::Surface Renderer::Impl::surface_from_rows(const SurfaceRows& rows, int j,
                                                           const SurfaceHit& h,
                                                           const Ray& ray) const {
   Surface sf;
-  sf.p = sf.p_obj = {rows.px[j], rows.py[j], rows.pz[j]};
+  sf.p = {rows.px[j], rows.py[j], rows.pz[j]};
+  sf.p_obj = {rows.ox[j], rows.oy[j], rows.oz[j]};
   sf.wo = -ray.dir;
   sf.ng = {rows.gx[j], rows.gy[j], rows.gz[j]};
   sf.cos_hit = rows.cos_hit[j];
@@ -149,7 +149,7 @@ void Renderer::Impl::surface_material(Surface& sf, const float* texel) const {
 }
 
 // The rows of a group of hits (at most SurfaceRows::size): the lanes on the first hit's
-// instance when it has an identity transform (bit j of the result: entry j is hit j's).
+// instance (bit j of the result: entry j is hit j's).
 uint32_t Renderer::Impl::surface_rows_of(const SurfaceRowsKernels& kernels, const SurfaceHit* hits,
                                          const Ray* rays, size_t n, bool texels,
                                          SurfaceRows& rows) const {
@@ -160,14 +160,13 @@ uint32_t Renderer::Impl::surface_rows_of(const SurfaceRowsKernels& kernels, cons
   const InstanceShade& is = instances[id];
   const TriangleMesh& m = *is.mesh;
   // The lanes gather at 32-bit float offsets: 3 per vertex and per triangle.
-  if (!is.identity || m.positions.size() >= (size_t(1) << 29) ||
-      m.indices.size() >= (size_t(1) << 31))
-    return 0;
+  if (m.positions.size() >= (size_t(1) << 29) || m.indices.size() >= (size_t(1) << 31)) return 0;
   SurfaceRowsArgs a;
   a.indices = m.indices.data(), a.positions = m.positions.data();
   a.normals = m.normals.empty() ? nullptr : m.normals.data();
   a.uvs = m.uvs.empty() ? nullptr : m.uvs.data();
   a.hits = hits, a.rays = rays, a.n = n, a.instance = id, a.out = &rows;
+  if (!is.identity) a.xf = is.xf.m, a.nrm = is.nrm;
   kernels.surfaces(a);
   uint32_t mask = 0;
   for (size_t j = first; j < n; ++j) mask |= uint32_t(hits[j].instance_id == id) << j;

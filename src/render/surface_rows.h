@@ -1,7 +1,7 @@
 // The surfaces of hits several at a time in SIMD lanes: what surface_geometry and surface_at
 // compute before the material (position, geometric normal facing the ray, the cosine there,
 // shading normal, texture coordinates) and the base colour's texel, for the lanes of a group whose
-// hits lie on one triangle mesh with an identity transform, written as structure-of-arrays rows.
+// hits lie on one instance, written as structure-of-arrays rows.
 // Compiled once per instruction set (surface_rows_<isa>.cpp include surface_rows.inl with
 // -ffp-contract=off) and picked by default_isa(); every lane does the scalar code's operations in
 // its order, so the values are the same bits.
@@ -19,6 +19,7 @@ namespace kestrel::render {
 struct SurfaceRows {
   static constexpr int size = 16;      // hits per group (the widest lanes)
   float px[size], py[size], pz[size];  // position
+  float ox[size], oy[size], oz[size];  // position in the instance's object space
   float gx[size], gy[size], gz[size];  // unit geometric normal facing the ray (wo without area)
   float cos_hit[size];                 // its cosine with wo before it was turned to face it
   float nx[size], ny[size], nz[size];  // shading normal (the geometric one where normals fail)
@@ -36,6 +37,8 @@ struct SurfaceRowsArgs {
   const Ray* rays = nullptr;          // their rays
   size_t n = 0;                       // 1 .. SurfaceRows::size
   uint32_t instance = 0;              // the lanes whose hit is on this instance are computed
+  const float* xf = nullptr;   // its object-to-world transform (Affine3::m), null: the identity
+  const float* nrm = nullptr;  // with xf: its normal transform (the inverse transpose, 3 x 3)
   SurfaceRows* out = nullptr;
 };
 

@@ -38,9 +38,21 @@ static inline void surface_lanes(const SurfaceRowsArgs& a, int j) {
   const T b0 = (1.0f - u) - v;
   // Position and geometric normal (surface_geometry).
   const float* pf = reinterpret_cast<const float*>(a.positions);
-  const T p0x = vgather(pf, i0 * 3), p0y = vgather(pf, i0 * 3 + 1), p0z = vgather(pf, i0 * 3 + 2);
-  const T p1x = vgather(pf, i1 * 3), p1y = vgather(pf, i1 * 3 + 1), p1z = vgather(pf, i1 * 3 + 2);
-  const T p2x = vgather(pf, i2 * 3), p2y = vgather(pf, i2 * 3 + 1), p2z = vgather(pf, i2 * 3 + 2);
+  T p0x = vgather(pf, i0 * 3), p0y = vgather(pf, i0 * 3 + 1), p0z = vgather(pf, i0 * 3 + 2);
+  T p1x = vgather(pf, i1 * 3), p1y = vgather(pf, i1 * 3 + 1), p1z = vgather(pf, i1 * 3 + 2);
+  T p2x = vgather(pf, i2 * 3), p2y = vgather(pf, i2 * 3 + 1), p2z = vgather(pf, i2 * 3 + 2);
+  st(o.ox + j, p0x * b0 + p1x * u + p2x * v);
+  st(o.oy + j, p0y * b0 + p1y * u + p2y * v);
+  st(o.oz + j, p0z * b0 + p1z * u + p2z * v);
+  if (const float* m = a.xf) {  // the vertices in world space (Affine3::point)
+    const auto point = [m](T& x, T& y, T& z) {
+      const T wx_ = m[0] * x + m[1] * y + m[2] * z + m[3],
+              wy_ = m[4] * x + m[5] * y + m[6] * z + m[7],
+              wz_ = m[8] * x + m[9] * y + m[10] * z + m[11];
+      x = wx_, y = wy_, z = wz_;
+    };
+    point(p0x, p0y, p0z), point(p1x, p1y, p1z), point(p2x, p2y, p2z);
+  }
   st(o.px + j, p0x * b0 + p1x * u + p2x * v);
   st(o.py + j, p0y * b0 + p1y * u + p2y * v);
   st(o.pz + j, p0z * b0 + p1z * u + p2z * v);
@@ -63,6 +75,11 @@ static inline void surface_lanes(const SurfaceRowsArgs& a, int j) {
     T mx = interpolate(nf, i0, i1, i2, 3, 0, b0, u, v),
       my = interpolate(nf, i0, i1, i2, 3, 1, b0, u, v),
       mz = interpolate(nf, i0, i1, i2, 3, 2, b0, u, v);
+    if (const float* q = a.nrm) {  // normal_transform
+      const T tx = q[0] * mx + q[1] * my + q[2] * mz, ty = q[3] * mx + q[4] * my + q[5] * mz,
+              tz = q[6] * mx + q[7] * my + q[8] * mz;
+      mx = tx, my = ty, mz = tz;
+    }
     const T len = vsqrt(mx * mx + my * my + mz * mz);
     const auto ok = (len > 0.0f) & (len < INFINITY);
     const T inv = 1.0f / len;
