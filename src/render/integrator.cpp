@@ -11,7 +11,6 @@
 #include "core/parallel.h"
 #include "render/bsdf.h"
 #include "render/renderer_impl.h"
-#include "render/surface_rows.h"
 
 namespace kestrel {
 
@@ -204,30 +203,9 @@ void Renderer::Impl::TilePaths::shade(const Impl& r, int depth, std::span<const 
   // they name, then texels (misses overlap instead of stalling one hit at a time).
   for (size_t k = 0; k < std::min(n, index_distance); ++k) r.prefetch_indices(hits[k]);
   for (size_t k = 0; k < std::min(n, vertex_distance); ++k) r.prefetch_vertices(hits[k]);
-  // The hits' surfaces in SIMD rows, a group of 16 at a time, one group ahead of the hits
-  // shaded (group g + 1 as hit 16 g is reached: its vertices are prefetched by then, and the
-  // texel look-ahead finds its hits' rows); the first hits' base texels too (bounce hits'
-  // texels are scattered, and most of them the radiance cache answers without).
-  constexpr size_t group = SurfaceRows::size;
-  SurfaceRows rows[2];
-  uint32_t in_rows[2] = {0, 0};
-  const SurfaceRowsKernels* kernels =
-      r.surface_rows_on ? &surface_rows_kernels(default_isa()) : nullptr;
-  const auto make_rows = [&](size_t g) {
-    const size_t b = g * group;
-    in_rows[g & 1] = kernels && b < n
-                         ? r.surface_rows_of(*kernels, &hits[b], &rays[b], std::min(group, n - b),
-                                             depth == 0, rows[g & 1])
-                         : 0;
-  };
-  // Hit k's entry, or null.
-  const auto row_of = [&](size_t k, int& j) -> const SurfaceRows* {
-    j = int(k % group);
-    const size_t slot = (k / group) & 1;
-    return (in_rows[slot] >> j) & 1u ? &rows[slot] : nullptr;
-  };
-  make_rows(0);
-  make_rows(1);
+  // The hits' surfaces in SIMD rows a group ahead of the loop; the first hits' base texels too
+  // (bounce hits' texels are scattered, and most of them the radiance cache answers without).
+  SurfaceGroups surfaces(r, hits, rays.data(), depth == 0);
   // Paths the radiance cache likely answers at their second vertex: their cell (its slot
   // prefetched) instead of texels.
   const bool cache_stops = cache_records && depth == 1 && depth + 1 < s.max_depth;
@@ -236,7 +214,7 @@ void Renderer::Impl::TilePaths::shade(const Impl& r, int depth, std::span<const 
     const PathState& q = paths[active[k]];
     cells[k].key = 0;
     int j;
-    const SurfaceRows* row = row_of(k, j);
+    const SurfaceRows* row = surfaces.rows_of(k, j);
     if (!(cache_stops && q.rough && !q.train && !q.aov_pending)) {
       if (row)
         r.prefetch_texels(hits[k], Vec2{row->u[j], row->v[j]});
@@ -248,7 +226,7 @@ void Renderer::Impl::TilePaths::shade(const Impl& r, int depth, std::span<const 
   };
   for (size_t k = 0; k < std::min(n, texel_distance); ++k) ahead(k);
   for (size_t k = 0; k < n; ++k) {
-    if (k % group == 0 && k > 0) make_rows(k / group + 1);
+    surfaces.reached(k);
     if (k + index_distance < n) r.prefetch_indices(hits[k + index_distance]);
     if (k + vertex_distance < n) r.prefetch_vertices(hits[k + vertex_distance]);
     if (k + texel_distance < n) ahead(k + texel_distance);
@@ -304,7 +282,7 @@ void Renderer::Impl::TilePaths::shade(const Impl& r, int depth, std::span<const 
     // Surface interaction.
     const InstanceShade& is = r.instances[h.instance_id];
     int row_j;
-    const SurfaceRows* row = row_of(k, row_j);
+    const SurfaceRows* row = surfaces.rows_of(k, row_j);
     const Surface sf = row ? r.surface_from_rows(*row, row_j, h, ray) : r.surface_at(h, ray);
     const Vec3 &p = sf.p, &ng = sf.ng, &ns = sf.ns, &wo = sf.wo;
     const Material& mat = *sf.mat;

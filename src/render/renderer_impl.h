@@ -19,14 +19,12 @@
 #include "render/light_tree.h"
 #include "render/radiance_cache.h"
 #include "render/sampling.h"
+#include "render/surface_rows.h"
 #include "render/testing.h"
 
 namespace kestrel {
 
 namespace render {
-
-struct SurfaceRows;
-struct SurfaceRowsKernels;
 
 constexpr int tile_size = 32;
 // Tiles traced together (render_wave): each bounce of a wave is one batch of up to
@@ -400,6 +398,35 @@ struct Renderer::Impl {
   // (worth it where neighbouring hits read neighbouring texels: camera rays').
   uint32_t surface_rows_of(const render::SurfaceRowsKernels& kernels, const SurfaceHit* hits,
                            const Ray* rays, size_t n, bool texels, render::SurfaceRows& rows) const;
+  // A bounce's hits' surfaces in SIMD rows, a group of SurfaceRows::size at a time, one group
+  // ahead of the shading loop: group g + 1 is made as the loop reaches hit 16 g, by when the
+  // loop's prefetches have fetched its vertices (surface.cpp).
+  class SurfaceGroups {
+   public:
+    // `texels`: with the groups' base texels (surface_rows_of).
+    SurfaceGroups(const Impl& r, std::span<const SurfaceHit> hits, const Ray* rays, bool texels);
+    // The loop reached hit k: at the start of a group, the next one is made.
+    void reached(size_t k) {
+      if (k % group == 0 && k > 0) make(k / group + 1);
+    }
+    // Hit k's rows and its entry j there, or null (its surface from surface_at).
+    const render::SurfaceRows* rows_of(size_t k, int& j) const {
+      j = int(k % group);
+      const size_t slot = (k / group) & 1;
+      return (in_rows_[slot] >> j) & 1u ? &rows_[slot] : nullptr;
+    }
+
+   private:
+    static constexpr size_t group = render::SurfaceRows::size;
+    void make(size_t g);
+    const Impl& r_;
+    std::span<const SurfaceHit> hits_;
+    const Ray* rays_;
+    bool texels_;
+    const render::SurfaceRowsKernels* kernels_;  // null: surface_rows_on is off
+    render::SurfaceRows rows_[2];
+    uint32_t in_rows_[2] = {0, 0};
+  };
   // The material's roughness in [0, 1] at uv (its metallic-roughness texture's G scales it)
   // and its metallic factor (the texture's B); uv_of() is asked only where there is a texture.
   template <class Uv>

@@ -193,6 +193,25 @@ uint32_t Renderer::Impl::surface_rows_of(const SurfaceRowsKernels& kernels, cons
   return mask;
 }
 
+Renderer::Impl::SurfaceGroups::SurfaceGroups(const Impl& r, std::span<const SurfaceHit> hits,
+                                             const Ray* rays, bool texels)
+    : r_(r),
+      hits_(hits),
+      rays_(rays),
+      texels_(texels),
+      kernels_(r.surface_rows_on ? &surface_rows_kernels(default_isa()) : nullptr) {
+  make(0);
+  make(1);
+}
+
+void Renderer::Impl::SurfaceGroups::make(size_t g) {
+  const size_t b = g * group, n = hits_.size();
+  in_rows_[g & 1] = kernels_ && b < n
+                        ? r_.surface_rows_of(*kernels_, &hits_[b], &rays_[b],
+                                             std::min(group, n - b), texels_, rows_[g & 1])
+                        : 0;
+}
+
 RadianceCache::Cell Renderer::Impl::cache_cell(const SurfaceRows& rows, int j) const {
   const RadianceCache::Cell cell = radiance_cache.cell({rows.px[j], rows.py[j], rows.pz[j]},
                                                        {rows.gx[j], rows.gy[j], rows.gz[j]});
