@@ -253,7 +253,9 @@ void Renderer::Impl::render_passes(const Camera& camera, const RenderSettings& s
       cache_records.resize(tiles);
     }
     // Waves of up to tiles_per_wave tiles in order (the same waves for any thread count).
-    const WavePass wp{cam, prev, s, restir ? &rp : nullptr, pass, jx, jy, use_tree};
+    const render::SurfaceRowsKernels* rows =
+        surface_rows_on ? &surface_rows_kernels(default_isa()) : nullptr;
+    const WavePass wp{cam, prev, s, restir ? &rp : nullptr, pass, jx, jy, use_tree, rows};
     for (size_t w0 = 0; w0 < tiles; w0 += tiles_per_wave) {
       const size_t w1 = std::min(tiles, w0 + tiles_per_wave);
       for (size_t i = w0; i < w1; ++i) ids[i - w0] = only ? (*only)[i] : uint32_t(i);

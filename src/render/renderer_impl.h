@@ -519,6 +519,7 @@ struct Renderer::Impl {
     int pass;
     float jx, jy;
     bool use_tree;
+    const render::SurfaceRowsKernels* rows;  // null: surface_rows_on is off
   };
   struct TilePaths;
   struct Wave;

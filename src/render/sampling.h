@@ -35,8 +35,15 @@ class Rng {
   }
   /// Uniform in [0, 1).
   float uniform() { return float(next() >> 8) * 0x1p-24f; }
+  /// The generator of this state and increment (render::CameraRowsArgs' output).
+  static Rng from_state(uint64_t state, uint64_t inc) {
+    Rng g;
+    g.state_ = state, g.inc_ = inc;
+    return g;
+  }
 
  private:
+  Rng() = default;
   uint64_t state_, inc_;
 };
 

@@ -1,7 +1,8 @@
 // The surfaces of hits several at a time in SIMD lanes: what surface_geometry and surface_at
 // compute before the material (position, geometric normal facing the ray, the cosine there,
 // shading normal, texture coordinates) and the base colour's texel, for the lanes of a group whose
-// hits lie on one instance, written as structure-of-arrays rows.
+// hits lie on one instance, written as structure-of-arrays rows; and a tile's camera rays with
+// their paths' random number generators.
 // Compiled once per instruction set (surface_rows_<isa>.cpp include surface_rows.inl with
 // -ffp-contract=off) and picked by default_isa(); every lane does the scalar code's operations in
 // its order, so the values are the same bits.
@@ -52,11 +53,33 @@ struct TexelRowsArgs {
   SurfaceRows* rows = nullptr;
 };
 
+/// A pinhole camera's rays (CameraModel::ray, aperture 0) at pixels (x, y) and their paths'
+/// random number generators: Rng(seed, frame, pixel, sample) after the ctor's draw and the two
+/// lens draws ray() is given, pixel = y * image_width + x; n of them.
+struct CameraRowsArgs {
+  uint64_t seed = 0, frame = 0, sample = 0;
+  int image_width = 0;
+  const int* x = nullptr;  // n pixel columns, then rows
+  const int* y = nullptr;
+  size_t n = 0;
+  float jx = 0, jy = 0;         // the frame's jitter
+  const Vec3* basis = nullptr;  // the camera's forward, right and up
+  float tan_half = 0, aspect = 0;
+  int width = 0, height = 0;  // the camera's (CameraModel::width, height)
+  uint64_t* state = nullptr;  // out, n each: the generators' state and increment
+  uint64_t* inc = nullptr;
+  float* dx = nullptr;  // out, n each: the rays' unit directions
+  float* dy = nullptr;
+  float* dz = nullptr;
+};
+
 using SurfaceRowsKernel = void (*)(const SurfaceRowsArgs& a);
 using TexelRowsKernel = void (*)(const TexelRowsArgs& a);
+using CameraRowsKernel = void (*)(const CameraRowsArgs& a);
 struct SurfaceRowsKernels {
   SurfaceRowsKernel surfaces;
   TexelRowsKernel texels;
+  CameraRowsKernel camera;
 };
 const SurfaceRowsKernels& surface_rows_sse2();
 const SurfaceRowsKernels& surface_rows_avx2();

@@ -161,3 +161,58 @@ static void texel_rows(const TexelRowsArgs& a) {
   for (; j + kLanes <= n; j += kLanes) texel_lanes<vfloat>(a, j);
   for (; j < n; ++j) texel_lanes<float>(a, j);
 }
+
+// ---- camera rows ---------------------------------------------------------------------------
+// Rng's seeding and three draws (render/sampling.h) and CameraModel::ray without a lens
+// (renderer_impl.h) lane by lane: the same integer operations, the float ones in their order.
+typedef uint64_t vu64 __attribute__((vector_size(8 * kLanes)));
+static inline uint64_t u64_of(int v) {
+  return uint64_t(v);
+}
+static inline vu64 u64_of(vint v) {
+  return __builtin_convertvector(v, vu64);
+}
+static inline void st64(uint64_t* p, uint64_t v) {
+  *p = v;
+}
+static inline void st64(uint64_t* p, vu64 v) {
+  std::memcpy(p, &v, sizeof v);
+}
+
+template <class U>
+static inline U mix64_lanes(U x) {  // mix64
+  x ^= x >> 30;
+  x *= 0xBF58476D1CE4E5B9ull;
+  x ^= x >> 27;
+  x *= 0x94D049BB133111EBull;
+  x ^= x >> 31;
+  return x;
+}
+
+template <class T>
+static inline void camera_lanes(const CameraRowsArgs& a, int j) {
+  using I = lanes_int<T>;
+  const I x = ldi<I>(a.x + j), y = ldi<I>(a.y + j);
+  const auto pixel = u64_of(y) * uint64_t(a.image_width) + u64_of(x);
+  auto state = mix64_lanes(a.seed ^ mix64_lanes(a.frame * 0x9E3779B97F4A7C15ull ^
+                                                mix64_lanes(pixel + (a.sample << 32))));
+  const auto inc = (mix64_lanes(state + a.sample) << 1) | 1;
+  for (int k = 0; k < 3; ++k) state = state * 6364136223846793005ull + inc;  // next()
+  st64(a.state + j, state);
+  st64(a.inc + j, inc);
+  const T fx = vfloat_of(x) + a.jx, fy = vfloat_of(y) + a.jy;
+  const T sx = (2.0f * fx / float(a.width) - 1.0f) * a.tan_half * a.aspect;
+  const T sy = (1.0f - 2.0f * fy / float(a.height)) * a.tan_half;
+  const Vec3 &f = a.basis[0], &r = a.basis[1], &u = a.basis[2];
+  const T dx = (f.x + r.x * sx) + u.x * sy, dy = (f.y + r.y * sx) + u.y * sy,
+          dz = (f.z + r.z * sx) + u.z * sy;
+  const T inv = 1.0f / vsqrt(dx * dx + dy * dy + dz * dz);
+  st(a.dx + j, dx * inv), st(a.dy + j, dy * inv), st(a.dz + j, dz * inv);
+}
+
+static void camera_rows(const CameraRowsArgs& a) {
+  int j = 0;
+  const int n = int(a.n);
+  for (; j + kLanes <= n; j += kLanes) camera_lanes<vfloat>(a, j);
+  for (; j < n; ++j) camera_lanes<float>(a, j);
+}

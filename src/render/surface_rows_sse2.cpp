@@ -15,7 +15,8 @@ namespace sse2_ns {
 }  // namespace sse2_ns
 
 const SurfaceRowsKernels& surface_rows_sse2() {
-  static const SurfaceRowsKernels table{sse2_ns::surface_rows, sse2_ns::texel_rows};
+  static const SurfaceRowsKernels table{sse2_ns::surface_rows, sse2_ns::texel_rows,
+                                        sse2_ns::camera_rows};
   return table;
 }
 

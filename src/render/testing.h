@@ -27,8 +27,9 @@ struct RendererTesting {
   /// Tiles per wave (each bounce of a wave's tiles one batch); the default is
   /// render::wave_tiles. The image is the same for any value.
   static void set_wave_tiles(Renderer& renderer, size_t tiles);
-  /// Whether the shading computes hits' surfaces in SIMD rows where it can (the default) or
-  /// hit by hit (surface_at): the image is the same either way.
+  /// Whether the shading computes hits' surfaces, and a tile's pinhole camera rays with their
+  /// paths' generators, in SIMD rows where it can (the default) or one by one (surface_at,
+  /// CameraModel::ray): the image is the same either way.
   static void set_surface_rows(Renderer& renderer, bool on);
   /// ReSTIR's target function (the branch-light form the candidates use) against the
   /// luminance of its full evaluation, at n random surfaces (shading normals tilted off the

@@ -14,9 +14,11 @@
 // sorted rays as packets ~240 ms against ~420 ms for the caller's order. Whether the sorted
 // chunks go as packets or single rays is timed as the stream runs (trace.cpp: trace_stream).
 #pragma once
+#include <algorithm>
 #include <atomic>
 #include <chrono>
 #include <cstdint>
+#include <mutex>
 #include <optional>
 #include <span>
 
@@ -52,8 +54,9 @@ inline constexpr size_t ray_stream_rays = 16384;
 /// Packets or single rays for chunks of a batch (or of many batches: an Accel keeps one per
 /// query kind, an InstancedScene too between BLAS rebuilds): where the caller did not say, two
 /// chunks in every 32 are traced one each way and timed (in every 256 or 1 024 once each way
-/// was timed 8 times and one is 1.3x or 2x faster), and the rest go the way that has been
-/// faster per ray so far (the hits are the same either way). Sorted bounces inside a room (short,
+/// was timed 8 times and one is 1.3x or 2x faster), and the rest go the way whose recent trials
+/// were faster per ray (the lower quartile of each way's last 15; the hits are the same either
+/// way). Sorted bounces inside a room (short,
 /// between near walls) trace faster as packets, those of an open scene (long rays that part) as
 /// single rays: measured with either fixed, one thread, Sponza's shuffled diffuse rays 3.4-3.8
 /// (packets) against 2.8-3.2 Mrays/s, the sphere field's 3.3 against 4.0, the bunny grid's at
@@ -71,29 +74,38 @@ class PacketChoice {
     trial = false;
     if (fixed_) return *fixed_;
     const uint32_t t = started_.fetch_add(1, std::memory_order_relaxed);
-    const uint64_t s0 = ns_[0].load(std::memory_order_relaxed),
-                   s1 = ns_[1].load(std::memory_order_relaxed);
-    const uint64_t n0 = rays_[0].load(std::memory_order_relaxed),
-                   n1 = rays_[1].load(std::memory_order_relaxed);
+    const float single = rate_[0].load(std::memory_order_relaxed),
+                packet = rate_[1].load(std::memory_order_relaxed);
     // Trials of the slower way cost the most where it is much slower (Sponza's camera rays as
     // single rays: 4x): the clearer the difference, the rarer they are.
     // (Only once each way has been timed a few times: a first chunk that runs on cold caches
     // must not settle it.)
     uint32_t period = 32;
     if (trials_[0].load(std::memory_order_relaxed) >= 8 &&
-        trials_[1].load(std::memory_order_relaxed) >= 8 && s0 > 0 && s1 > 0) {
-      const double ratio = double(s1) * double(n0) / (double(s0) * double(n1));  // p / s
-      const double slower = ratio > 1 ? ratio : 1 / ratio;
-      period = slower > 2.0 ? 1024 : slower > 1.3 ? 256 : 32;
+        trials_[1].load(std::memory_order_relaxed) >= 8 && single > 0 && packet > 0) {
+      const float ratio = packet / single;
+      const float slower = ratio > 1 ? ratio : 1 / ratio;
+      period = slower > 2.0f ? 1024 : slower > 1.3f ? 256 : 32;
     }
     if (t < warmup_ || t % period < 2) return trial = true, (t & 1) != 0;
-    return n0 == 0 || n1 == 0 || s1 * n0 <= s0 * n1;  // packets' ns per ray <= singles'
+    return single == 0 || packet == 0 || packet <= single;  // packets' ns per ray <= singles'
   }
   void done(bool packets, uint64_t ns, size_t rays) {
     if (drop_first_ && first_[packets].exchange(false, std::memory_order_relaxed)) return;
-    ns_[packets].fetch_add(ns, std::memory_order_relaxed);
-    rays_[packets].fetch_add(rays, std::memory_order_relaxed);
+    if (rays == 0) return;
     trials_[packets].fetch_add(1, std::memory_order_relaxed);
+    // Each way's rate is the lower quartile of its last trials: a trial the thread was
+    // preempted in, or that ran on cold caches, only ever takes longer, and must not steer the
+    // choice (as a running sum it did, for the rest of a run: the Lamborghini's camera rays
+    // traced as single rays, 1.6x slower, in about half the runs of `kestrel run`).
+    const std::lock_guard lock(mutex_);
+    Recent& r = recent_[packets];
+    r.rate[r.next++ % Recent::size] = float(double(ns) / double(rays));
+    const size_t n = std::min<size_t>(r.next, Recent::size);
+    float sorted[Recent::size];
+    std::copy(r.rate, r.rate + n, sorted);
+    std::nth_element(sorted, sorted + n / 4, sorted + n);
+    rate_[packets].store(sorted[n / 4], std::memory_order_relaxed);
   }
   /// Runs traced(packets) for the next chunk of `rays` rays the way next() says, timing it
   /// for done() when it is a trial.
@@ -121,8 +133,9 @@ class PacketChoice {
   }
   /// Forgets what was measured (the scene changed).
   void reset() {
+    const std::lock_guard lock(mutex_);
     started_ = 0;
-    for (int k = 0; k < 2; ++k) ns_[k] = 0, rays_[k] = 0, trials_[k] = 0, first_[k] = true;
+    for (int k = 0; k < 2; ++k) rate_[k] = 0, trials_[k] = 0, first_[k] = true, recent_[k] = {};
   }
 
  private:
@@ -131,8 +144,15 @@ class PacketChoice {
   bool drop_first_ = false;
   std::atomic<bool> first_[2] = {true, true};
   std::atomic<uint32_t> started_{0};
-  std::atomic<uint64_t> ns_[2] = {0, 0}, rays_[2] = {0, 0};  // [0] single rays, [1] packets
-  std::atomic<uint32_t> trials_[2] = {0, 0};                 // chunks timed each way
+  std::atomic<float> rate_[2] = {0.0f, 0.0f};  // ns per ray, [0] single rays, [1] packets
+  std::atomic<uint32_t> trials_[2] = {0, 0};   // chunks timed each way
+  struct Recent {                              // each way's last trials (ns per ray)
+    static constexpr size_t size = 15;
+    float rate[size] = {};
+    size_t next = 0;
+  };
+  std::mutex mutex_;
+  Recent recent_[2];
 };
 
 namespace detail {

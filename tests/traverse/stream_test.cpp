@@ -159,3 +159,35 @@ TEST(StreamMode, OrderIsAPermutationGroupingOctants) {
 
 }  // namespace
 }  // namespace kestrel
+
+TEST(StreamMode, PacketChoiceIsNotSteeredByOutlierTrials) {
+  // The trials of the faster way (packets: 5 ns per ray) include a few that the thread was
+  // preempted in or that ran on cold caches (hundreds of ns per ray); single rays take 8. A
+  // running sum would pick single rays for a long while after such a trial; the choice must
+  // still be packets, and must follow when the speeds change places.
+  kestrel::PacketChoice choice;
+  const auto trials = [&](double packets_ns, double single_ns, int outliers) {
+    for (int k = 0; k < 15; ++k) {
+      choice.done(true, uint64_t(1000 * (k < outliers ? 400.0 : packets_ns)), 1000);
+      choice.done(false, uint64_t(1000 * single_ns), 1000);
+    }
+  };
+  const auto picks_packets = [&] {
+    int packets = 0, decided = 0;
+    for (int k = 0; k < 64; ++k) {
+      bool trial;
+      const bool p = choice.next(trial);
+      if (!trial) packets += p, ++decided;
+    }
+    return decided > 0 && packets == decided;
+  };
+  trials(5, 8, 3);
+  EXPECT_TRUE(picks_packets());
+  trials(9, 6, 0);  // single rays are now the faster way
+  EXPECT_FALSE(picks_packets());
+  choice.reset();
+  choice.done(true, 400000, 1000);  // one cold trial each way: the slow one must not decide
+  choice.done(false, 8000, 1000);
+  trials(5, 8, 0);
+  EXPECT_TRUE(picks_packets());
+}
