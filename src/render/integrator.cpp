@@ -241,7 +241,7 @@ void Renderer::Impl::TilePaths::shade(const Impl& r, int depth, std::span<const 
   for (size_t k = 0; k < std::min(n, vertex_distance); ++k) r.prefetch_vertices(hits[k]);
   // The hits' surfaces in SIMD rows a group ahead of the loop; the first hits' base texels too
   // (bounce hits' texels are scattered, and most of them the radiance cache answers without).
-  SurfaceGroups surfaces(r, hits, rays.data(), depth == 0);
+  SurfaceGroups surfaces(r, hits, rays.data(), depth == 0, rngs.data(), active.data());
   // Paths the radiance cache likely answers at their second vertex: their cell (its slot
   // prefetched) instead of texels.
   const bool cache_stops = cache_records && depth == 1 && depth + 1 < s.max_depth;
@@ -385,8 +385,10 @@ void Renderer::Impl::TilePaths::shade(const Impl& r, int depth, std::span<const 
     } else if (r.p_env > 0 || r.p_sun > 0 || r.local_light_count() > 0) {
       Ray shadow;
       Vec3 contribution;
+      int dj;
+      const LightDraws* pre = surfaces.draws_of(k, dj);
       if (r.sample_light(sf, frame, bsdf, origin, ps.throughput, rng, use_tree, env_nee, shadow,
-                         contribution)) {
+                         contribution, pre, dj)) {
         // From a first hit towards the sun's cone: with the tile's others of its kind, a run
         // of near-parallel rays from neighbouring points (from bounce hits, whose points are
         // scattered, they stay with the rest: as packets they were no faster).

@@ -169,10 +169,16 @@ Vec3 Renderer::Impl::sun_sample(float u1, float u2) const {
 // lights (deltas): the shadow ray to trace and what it adds when unblocked.
 bool Renderer::Impl::sample_light(const Surface& sf, const Basis& frame, const BsdfAt& bsdf,
                                   Vec3 origin, Vec3 throughput, Rng& rng, bool tree, bool env,
-                                  Ray& shadow, Vec3& contribution) const {
+                                  Ray& shadow, Vec3& contribution, const LightDraws* pre,
+                                  int j) const {
   const Vec3 &ng = sf.ng, &ns = sf.ns;
-  float ul = rng.uniform();
-  const float u1 = rng.uniform(), u2 = rng.uniform();
+  float ul, u1, u2;
+  if (pre) {  // the same three draws, made ahead
+    ul = pre->ul[j], u1 = pre->u1[j], u2 = pre->u2[j];
+    rng.set_state(pre->state[j]);
+  } else {
+    ul = rng.uniform(), u1 = rng.uniform(), u2 = rng.uniform();
+  }
   // Without the environment: ul in [p_env, 1), each other light's pick scaled by `scale`.
   const float scale = nee_scale(env);
   if (!env) ul = std::min(p_env + ul * (1.0f - p_env), 0x1.fffffep-1f);
@@ -186,8 +192,8 @@ bool Renderer::Impl::sample_light(const Surface& sf, const Basis& frame, const B
     pdf = p_env * epdf;
     le = env_radiance(wi);
     dir = wi;
-  } else if (ul < p_env + p_sun) {  // the sun: uniform in its cone
-    wi = sun_sample(u1, u2);
+  } else if (ul < p_env + p_sun) {  // the sun: uniform in its cone (p_sun > 0: in the draws)
+    wi = pre ? Vec3{pre->sx[j], pre->sy[j], pre->sz[j]} : sun_sample(u1, u2);
     pdf = p_sun / sun_solid_angle * scale;
     le = sun_radiance;
     dir = wi;

@@ -403,8 +403,10 @@ struct Renderer::Impl {
   // loop's prefetches have fetched its vertices (surface.cpp).
   class SurfaceGroups {
    public:
-    // `texels`: with the groups' base texels (surface_rows_of).
-    SurfaceGroups(const Impl& r, std::span<const SurfaceHit> hits, const Ray* rays, bool texels);
+    // `texels`: with the groups' base texels (surface_rows_of). `rngs`, `active`: the paths'
+    // generators and hit k's path, for each group's light-sample draws (null: none).
+    SurfaceGroups(const Impl& r, std::span<const SurfaceHit> hits, const Ray* rays, bool texels,
+                  const Rng* rngs = nullptr, const uint32_t* active = nullptr);
     // The loop reached hit k: at the start of a group, the next one is made.
     void reached(size_t k) {
       if (k % group == 0 && k > 0) make(k / group + 1);
@@ -414,6 +416,13 @@ struct Renderer::Impl {
       j = int(k % group);
       const size_t slot = (k / group) & 1;
       return (in_rows_[slot] >> j) & 1u ? &rows_[slot] : nullptr;
+    }
+    // Hit k's path's next light-sample draws (entry j), made from its generator as it is
+    // while nothing else draws from it, or null.
+    const render::LightDraws* draws_of(size_t k, int& j) const {
+      j = int(k % group);
+      const size_t slot = (k / group) & 1;
+      return drawn_[slot] ? &draws_[slot] : nullptr;
     }
 
    private:
@@ -426,6 +435,11 @@ struct Renderer::Impl {
     const render::SurfaceRowsKernels* kernels_;  // null: surface_rows_on is off
     render::SurfaceRows rows_[2];
     uint32_t in_rows_[2] = {0, 0};
+    const Rng* rngs_;
+    const uint32_t* active_;
+    Vec3 sun_basis_[3];
+    render::LightDraws draws_[2];
+    bool drawn_[2] = {false, false};
   };
   // The material's roughness in [0, 1] at uv (its metallic-roughness texture's G scales it)
   // and its metallic factor (the texture's B); uv_of() is asked only where there is a texture.
@@ -447,9 +461,10 @@ struct Renderer::Impl {
   RadianceCache::Cell cache_cell(const render::SurfaceRows& rows, int j) const;  // the same
   // `env`: the environment among the lights to pick (else the sun and the local lights, their
   // probabilities scaled by nee_scale(false)).
+  // `pre`: the path's draws made ahead (SurfaceGroups::draws_of, entry j) or null: from rng.
   bool sample_light(const Surface& sf, const Basis& frame, const BsdfAt& bsdf, Vec3 origin,
-                    Vec3 throughput, Rng& rng, bool tree, bool env, Ray& shadow,
-                    Vec3& contribution) const;
+                    Vec3 throughput, Rng& rng, bool tree, bool env, Ray& shadow, Vec3& contribution,
+                    const render::LightDraws* pre = nullptr, int j = 0) const;
   // A Lambertian BSDF is sampled with the cosine, the density with which a cosine-sampled
   // environment (env_cosine) is: a light sample of the environment there would draw what the
   // BSDF sample draws, for the price of a shadow ray (inside Sponza the sky's rays cost ~5

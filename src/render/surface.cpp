@@ -194,12 +194,16 @@ uint32_t Renderer::Impl::surface_rows_of(const SurfaceRowsKernels& kernels, cons
 }
 
 Renderer::Impl::SurfaceGroups::SurfaceGroups(const Impl& r, std::span<const SurfaceHit> hits,
-                                             const Ray* rays, bool texels)
+                                             const Ray* rays, bool texels, const Rng* rngs,
+                                             const uint32_t* active)
     : r_(r),
       hits_(hits),
       rays_(rays),
       texels_(texels),
-      kernels_(r.surface_rows_on ? &surface_rows_kernels(default_isa()) : nullptr) {
+      kernels_(r.surface_rows_on ? &surface_rows_kernels(default_isa()) : nullptr),
+      rngs_(rngs),
+      active_(active),
+      sun_basis_{r.sun_frame.t, r.sun_frame.b, r.sun_frame.n} {
   make(0);
   make(1);
 }
@@ -210,6 +214,19 @@ void Renderer::Impl::SurfaceGroups::make(size_t g) {
                         ? r_.surface_rows_of(*kernels_, &hits_[b], &rays_[b],
                                              std::min(group, n - b), texels_, rows_[g & 1])
                         : 0;
+  // The group's paths' next three draws (sample_light's) and the sun's direction for them.
+  drawn_[g & 1] = kernels_ && rngs_ && b < n;
+  if (!drawn_[g & 1]) return;
+  const size_t m = std::min(group, n - b);
+  uint64_t state[group], inc[group];
+  for (size_t j = 0; j < m; ++j) {
+    const Rng& rng = rngs_[active_[b + j]];
+    state[j] = rng.state(), inc[j] = rng.increment();
+  }
+  LightDrawsArgs a;
+  a.state = state, a.inc = inc, a.n = m, a.out = &draws_[g & 1];
+  if (r_.p_sun > 0) a.sun_frame = sun_basis_, a.sun_cos_max = r_.sun_cos_max;
+  kernels_->draws(a);
 }
 
 RadianceCache::Cell Renderer::Impl::cache_cell(const SurfaceRows& rows, int j) const {

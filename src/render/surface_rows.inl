@@ -179,12 +179,17 @@ static inline void st64(uint64_t* p, vu64 v) {
   std::memcpy(p, &v, sizeof v);
 }
 
+// The generators' constants as uint64_t (clang takes no unsigned long long into a vector of
+// unsigned long).
+constexpr uint64_t kMix1 = 0xBF58476D1CE4E5B9ull, kMix2 = 0x94D049BB133111EBull,
+                   kGolden = 0x9E3779B97F4A7C15ull, kPcgMul = 6364136223846793005ull;
+
 template <class U>
 static inline U mix64_lanes(U x) {  // mix64
   x ^= x >> 30;
-  x *= 0xBF58476D1CE4E5B9ull;
+  x *= kMix1;
   x ^= x >> 27;
-  x *= 0x94D049BB133111EBull;
+  x *= kMix2;
   x ^= x >> 31;
   return x;
 }
@@ -194,10 +199,10 @@ static inline void camera_lanes(const CameraRowsArgs& a, int j) {
   using I = lanes_int<T>;
   const I x = ldi<I>(a.x + j), y = ldi<I>(a.y + j);
   const auto pixel = u64_of(y) * uint64_t(a.image_width) + u64_of(x);
-  auto state = mix64_lanes(a.seed ^ mix64_lanes(a.frame * 0x9E3779B97F4A7C15ull ^
-                                                mix64_lanes(pixel + (a.sample << 32))));
-  const auto inc = (mix64_lanes(state + a.sample) << 1) | 1;
-  for (int k = 0; k < 3; ++k) state = state * 6364136223846793005ull + inc;  // next()
+  auto state =
+      mix64_lanes(a.seed ^ mix64_lanes(a.frame * kGolden ^ mix64_lanes(pixel + (a.sample << 32))));
+  const auto inc = (mix64_lanes(state + a.sample) << 1) | uint64_t(1);
+  for (int k = 0; k < 3; ++k) state = state * kPcgMul + inc;  // next()
   st64(a.state + j, state);
   st64(a.inc + j, inc);
   const T fx = vfloat_of(x) + a.jx, fy = vfloat_of(y) + a.jy;
@@ -215,4 +220,95 @@ static void camera_rows(const CameraRowsArgs& a) {
   const int n = int(a.n);
   for (; j + kLanes <= n; j += kLanes) camera_lanes<vfloat>(a, j);
   for (; j < n; ++j) camera_lanes<float>(a, j);
+}
+
+// ---- light draws ---------------------------------------------------------------------------
+// Rng::uniform three times and Renderer::Impl::sun_sample (with sincos_2pi and Basis::to_world)
+// lane by lane: the same integer operations, the float ones in their order.
+typedef uint32_t vu32 __attribute__((vector_size(4 * kLanes)));
+static inline uint32_t u32_of(uint64_t v) {
+  return uint32_t(v);
+}
+static inline vu32 u32_of(vu64 v) {
+  return __builtin_convertvector(v, vu32);
+}
+static inline float float_of24(uint32_t v) {  // v < 2^24: exact
+  return float(v);
+}
+static inline vfloat float_of24(vu32 v) {
+  return __builtin_convertvector((vint)v, vfloat);
+}
+template <class U>
+static inline U ld64(const uint64_t* p) {
+  U v;
+  std::memcpy(&v, p, sizeof v);
+  return v;
+}
+
+template <class T, class U>
+static inline T uniform_lanes(U& state, U inc) {  // Rng::next, Rng::uniform
+  const U old = state;
+  state = old * kPcgMul + inc;
+  const auto xorshifted = u32_of(((old >> 18u) ^ old) >> 27u);
+  const auto rot = u32_of(old >> 59u);
+  const auto r = (xorshifted >> rot) | (xorshifted << ((32u - rot) & 31u));
+  return float_of24(r >> 8) * 0x1p-24f;
+}
+
+template <class T>
+static inline T round_even_lanes(T x) {  // round_even
+  const T a = vabs(x);
+  const T r = (a + 0x1p23f) - 0x1p23f;
+  const auto small = a < 0x1p23f;  // false for NaN
+  const auto sign = bits_of(x) & int(0x80000000u);
+  const T signed_r = __builtin_bit_cast(T, bits_of(r) | sign);
+  return small ? signed_r : x;
+}
+
+template <class T>
+static inline void light_draw_lanes(const LightDrawsArgs& a, int j) {
+  using U = std::conditional_t<std::is_same_v<T, float>, uint64_t, vu64>;
+  U state = ld64<U>(a.state + j);
+  const U inc = ld64<U>(a.inc + j);
+  LightDraws& o = *a.out;
+  const T ul = uniform_lanes<T>(state, inc);
+  const T u1 = uniform_lanes<T>(state, inc);
+  const T u2 = uniform_lanes<T>(state, inc);
+  st(o.ul + j, ul), st(o.u1 + j, u1), st(o.u2 + j, u2);
+  std::memcpy(o.state + j, &state, sizeof state);
+  if (!a.sun_frame) return;
+  // sun_sample
+  const T cos_t = 1.0f - u1 * (1.0f - a.sun_cos_max);
+  const T q2 = 1.0f - cos_t * cos_t;
+  const T sin_t = vsqrt(0.0f < q2 ? q2 : T{});
+  // sincos_2pi(u2)
+  const T r = u2 - round_even_lanes(u2);
+  const T q = round_even_lanes(4.0f * r);
+  const T t = (r - 0.25f * q) * 6.28318531f;
+  const T t2 = t * t;
+  const T sn =
+      t *
+      (1.0f + t2 * (-1.0f / 6 + t2 * (1.0f / 120 + t2 * (-1.0f / 5040 + t2 * (1.0f / 362880)))));
+  const T cs =
+      1.0f + t2 * (-0.5f + t2 * (1.0f / 24 + t2 * (-1.0f / 720 +
+                                                   t2 * (1.0f / 40320 + t2 * (-1.0f / 3628800)))));
+  const auto k = vtrunc(q) & 3;
+  const auto swap = 0 - (k & 1);
+  const auto bs = bits_of(sn), bc = bits_of(cs);
+  const auto sa = (bs & ~swap) | (bc & swap), sb = (bc & ~swap) | (bs & swap);
+  const T sin_phi = __builtin_bit_cast(T, sa ^ ((k >> 1) << 31));
+  const T cos_phi = __builtin_bit_cast(T, sb ^ ((((k + 1) >> 1) & 1) << 31));
+  // Basis::to_world
+  const T vx = sin_t * cos_phi, vy = sin_t * sin_phi, vz = cos_t;
+  const Vec3 &bt = a.sun_frame[0], &bb = a.sun_frame[1], &bn = a.sun_frame[2];
+  st(o.sx + j, (bt.x * vx + bb.x * vy) + bn.x * vz);
+  st(o.sy + j, (bt.y * vx + bb.y * vy) + bn.y * vz);
+  st(o.sz + j, (bt.z * vx + bb.z * vy) + bn.z * vz);
+}
+
+static void light_draws(const LightDrawsArgs& a) {
+  int j = 0;
+  const int n = int(a.n);
+  for (; j + kLanes <= n; j += kLanes) light_draw_lanes<vfloat>(a, j);
+  for (; j < n; ++j) light_draw_lanes<float>(a, j);
 }
