@@ -137,11 +137,15 @@ struct BsdfAt {
   }
 
   /// Samples wi; false when the sample leaves no contribution (below the surface).
-  bool sample(float u0, float u1, float u2, BsdfSample& s) const {
+  /// `cosine`: the cosine lobe's direction for (u1, u2) where the caller has it (the lines
+  /// below give it; render::PathDraws makes it ahead), or null.
+  bool sample(float u0, float u1, float u2, const Vec3* cosine, BsdfSample& s) const {
     if (!above) return false;
     if (u0 < ps) {
       const Vec3 h = sample_ggx_vndf(p.alpha, wo, u1, u2);
       s.wi = h * (2.0f * dot(wo, h)) - wo;
+    } else if (cosine) {
+      s.wi = *cosine;
     } else {
       const float r = std::sqrt(u1);
       float sin_phi, cos_phi;  // of phi = 2 pi u2
@@ -173,7 +177,7 @@ inline float bsdf_pdf(const BsdfParams& p, Vec3 wo, Vec3 wi) {
 
 /// Samples wi; false when the sample leaves no contribution (below the surface).
 inline bool bsdf_sample(const BsdfParams& p, Vec3 wo, float u0, float u1, float u2, BsdfSample& s) {
-  return BsdfAt(p, wo).sample(u0, u1, u2, s);
+  return BsdfAt(p, wo).sample(u0, u1, u2, nullptr, s);
 }
 
 /// An orthonormal basis around n (Duff et al. 2017).

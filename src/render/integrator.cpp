@@ -377,7 +377,10 @@ void Renderer::Impl::TilePaths::shade(const Impl& r, int depth, std::span<const 
     const bool env_nee = !r.env_left_to_bsdf(bp);
     const Vec3 origin = offset_origin(p, ng);
     // Next-event estimation: one light sample (an emissive triangle or the environment),
-    // or at the first hit ReSTIR's reservoir (shaded once the tile's reuse is done).
+    // or at the first hit ReSTIR's reservoir (shaded once the tile's reuse is done). `pre`:
+    // the path's draws made ahead, once the light sample has taken its three.
+    const PathDraws* pre = nullptr;
+    int dj = 0;
     if (rp && depth == 0 && r.restir_eligible(sf)) {
       RestirSurface& g = rsurf[pix];
       g = {sf.p, ng, ns, wo_l, bp, out.depth, true};
@@ -385,8 +388,7 @@ void Renderer::Impl::TilePaths::shade(const Impl& r, int depth, std::span<const 
     } else if (r.p_env > 0 || r.p_sun > 0 || r.local_light_count() > 0) {
       Ray shadow;
       Vec3 contribution;
-      int dj;
-      const LightDraws* pre = surfaces.draws_of(k, dj);
+      pre = surfaces.draws_of(k, dj);
       if (r.sample_light(sf, frame, bsdf, origin, ps.throughput, rng, use_tree, env_nee, shadow,
                          contribution, pre, dj)) {
         // From a first hit towards the sun's cone: with the tile's others of its kind, a run
@@ -407,10 +409,17 @@ void Renderer::Impl::TilePaths::shade(const Impl& r, int depth, std::span<const 
         continue;
       ps.throughput = ps.throughput * (1.0f / s.indirect_rate);
     }
-    // Continue the path by sampling the BSDF.
-    const float u0 = rng.uniform(), u1 = rng.uniform(), u2 = rng.uniform();
+    // Continue the path by sampling the BSDF (with the next three draws, made ahead where the
+    // light sample took the three before them).
     BsdfSample bs;
-    if (!bsdf.sample(u0, u1, u2, bs)) continue;
+    if (pre) {
+      rng.set_state(pre->state6[dj]);
+      const Vec3 cosine{pre->cx[dj], pre->cy[dj], pre->cz[dj]};
+      if (!bsdf.sample(pre->b0[dj], pre->b1[dj], pre->b2[dj], &cosine, bs)) continue;
+    } else {
+      const float u0 = rng.uniform(), u1 = rng.uniform(), u2 = rng.uniform();
+      if (!bsdf.sample(u0, u1, u2, nullptr, bs)) continue;
+    }
     const Vec3 wi = frame.to_world(bs.wi);
     if (dot(wi, ng) <= 0) continue;
     ps.throughput = ps.throughput * bs.weight;

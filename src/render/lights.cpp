@@ -169,13 +169,13 @@ Vec3 Renderer::Impl::sun_sample(float u1, float u2) const {
 // lights (deltas): the shadow ray to trace and what it adds when unblocked.
 bool Renderer::Impl::sample_light(const Surface& sf, const Basis& frame, const BsdfAt& bsdf,
                                   Vec3 origin, Vec3 throughput, Rng& rng, bool tree, bool env,
-                                  Ray& shadow, Vec3& contribution, const LightDraws* pre,
+                                  Ray& shadow, Vec3& contribution, const PathDraws* pre,
                                   int j) const {
   const Vec3 &ng = sf.ng, &ns = sf.ns;
   float ul, u1, u2;
   if (pre) {  // the same three draws, made ahead
     ul = pre->ul[j], u1 = pre->u1[j], u2 = pre->u2[j];
-    rng.set_state(pre->state[j]);
+    rng.set_state(pre->state3[j]);
   } else {
     ul = rng.uniform(), u1 = rng.uniform(), u2 = rng.uniform();
   }

@@ -419,7 +419,7 @@ struct Renderer::Impl {
     }
     // Hit k's path's next light-sample draws (entry j), made from its generator as it is
     // while nothing else draws from it, or null.
-    const render::LightDraws* draws_of(size_t k, int& j) const {
+    const render::PathDraws* draws_of(size_t k, int& j) const {
       j = int(k % group);
       const size_t slot = (k / group) & 1;
       return drawn_[slot] ? &draws_[slot] : nullptr;
@@ -438,7 +438,7 @@ struct Renderer::Impl {
     const Rng* rngs_;
     const uint32_t* active_;
     Vec3 sun_basis_[3];
-    render::LightDraws draws_[2];
+    render::PathDraws draws_[2];
     bool drawn_[2] = {false, false};
   };
   // The material's roughness in [0, 1] at uv (its metallic-roughness texture's G scales it)
@@ -464,7 +464,7 @@ struct Renderer::Impl {
   // `pre`: the path's draws made ahead (SurfaceGroups::draws_of, entry j) or null: from rng.
   bool sample_light(const Surface& sf, const Basis& frame, const BsdfAt& bsdf, Vec3 origin,
                     Vec3 throughput, Rng& rng, bool tree, bool env, Ray& shadow, Vec3& contribution,
-                    const render::LightDraws* pre = nullptr, int j = 0) const;
+                    const render::PathDraws* pre = nullptr, int j = 0) const;
   // A Lambertian BSDF is sampled with the cosine, the density with which a cosine-sampled
   // environment (env_cosine) is: a light sample of the environment there would draw what the
   // BSDF sample draws, for the price of a shadow ray (inside Sponza the sky's rays cost ~5

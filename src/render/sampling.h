@@ -37,7 +37,7 @@ class Rng {
   float uniform() { return float(next() >> 8) * 0x1p-24f; }
   uint64_t state() const { return state_; }
   uint64_t increment() const { return inc_; }
-  /// Continues from `state` (render::LightDraws': the state after draws made ahead).
+  /// Continues from `state` (render::PathDraws': the state after draws made ahead).
   void set_state(uint64_t state) { state_ = state; }
   /// The generator of this state and increment (render::CameraRowsArgs' output).
   static Rng from_state(uint64_t state, uint64_t inc) {

@@ -223,7 +223,7 @@ void Renderer::Impl::SurfaceGroups::make(size_t g) {
     const Rng& rng = rngs_[active_[b + j]];
     state[j] = rng.state(), inc[j] = rng.increment();
   }
-  LightDrawsArgs a;
+  PathDrawsArgs a;
   a.state = state, a.inc = inc, a.n = m, a.out = &draws_[g & 1];
   if (r_.p_sun > 0) a.sun_frame = sun_basis_, a.sun_cos_max = r_.sun_cos_max;
   kernels_->draws(a);

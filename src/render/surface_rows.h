@@ -73,33 +73,38 @@ struct CameraRowsArgs {
   float* dz = nullptr;
 };
 
-/// A group's next light-sample draws, made ahead of the shading loop: each path's next three
-/// uniforms (sample_light's ul, u1, u2) from its generator's state and increment without
-/// advancing it, the state after them, and the sun's direction for (u1, u2) (sun_sample).
-struct LightDraws {
+/// A group's next draws, made ahead of the shading loop from each path's generator (state and
+/// increment) without advancing it: sample_light's three uniforms (ul, u1, u2) and the sun's
+/// direction for them (sun_sample), then the BSDF sample's three (b0, b1, b2) and the cosine
+/// lobe's direction for them (BsdfAt::sample), and the generator's state after three and
+/// after six.
+struct PathDraws {
   static constexpr int size = SurfaceRows::size;
   float ul[size], u1[size], u2[size];
-  uint64_t state[size];
+  uint64_t state3[size];
   float sx[size], sy[size], sz[size];  // when made with a sun
+  float b0[size], b1[size], b2[size];
+  uint64_t state6[size];
+  float cx[size], cy[size], cz[size];  // local frame: z = the shading normal
 };
-struct LightDrawsArgs {
+struct PathDrawsArgs {
   const uint64_t* state = nullptr;  // n each: the generators' state and increment
   const uint64_t* inc = nullptr;
   size_t n = 0;
   const Vec3* sun_frame = nullptr;  // the sun's cone's basis (t, b, n), or null: no sun
   float sun_cos_max = 1;
-  LightDraws* out = nullptr;
+  PathDraws* out = nullptr;
 };
 
 using SurfaceRowsKernel = void (*)(const SurfaceRowsArgs& a);
 using TexelRowsKernel = void (*)(const TexelRowsArgs& a);
 using CameraRowsKernel = void (*)(const CameraRowsArgs& a);
-using LightDrawsKernel = void (*)(const LightDrawsArgs& a);
+using PathDrawsKernel = void (*)(const PathDrawsArgs& a);
 struct SurfaceRowsKernels {
   SurfaceRowsKernel surfaces;
   TexelRowsKernel texels;
   CameraRowsKernel camera;
-  LightDrawsKernel draws;
+  PathDrawsKernel draws;
 };
 const SurfaceRowsKernels& surface_rows_sse2();
 const SurfaceRowsKernels& surface_rows_avx2();

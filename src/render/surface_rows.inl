@@ -222,9 +222,10 @@ static void camera_rows(const CameraRowsArgs& a) {
   for (; j < n; ++j) camera_lanes<float>(a, j);
 }
 
-// ---- light draws ---------------------------------------------------------------------------
-// Rng::uniform three times and Renderer::Impl::sun_sample (with sincos_2pi and Basis::to_world)
-// lane by lane: the same integer operations, the float ones in their order.
+// ---- path draws ----------------------------------------------------------------------------
+// Rng::uniform six times, Renderer::Impl::sun_sample (with sincos_2pi and Basis::to_world) and
+// BsdfAt::sample's cosine direction lane by lane: the same integer operations, the float ones
+// in their order.
 typedef uint32_t vu32 __attribute__((vector_size(4 * kLanes)));
 static inline uint32_t u32_of(uint64_t v) {
   return uint32_t(v);
@@ -265,24 +266,10 @@ static inline T round_even_lanes(T x) {  // round_even
   return small ? signed_r : x;
 }
 
+// sincos_2pi lane by lane.
 template <class T>
-static inline void light_draw_lanes(const LightDrawsArgs& a, int j) {
-  using U = std::conditional_t<std::is_same_v<T, float>, uint64_t, vu64>;
-  U state = ld64<U>(a.state + j);
-  const U inc = ld64<U>(a.inc + j);
-  LightDraws& o = *a.out;
-  const T ul = uniform_lanes<T>(state, inc);
-  const T u1 = uniform_lanes<T>(state, inc);
-  const T u2 = uniform_lanes<T>(state, inc);
-  st(o.ul + j, ul), st(o.u1 + j, u1), st(o.u2 + j, u2);
-  std::memcpy(o.state + j, &state, sizeof state);
-  if (!a.sun_frame) return;
-  // sun_sample
-  const T cos_t = 1.0f - u1 * (1.0f - a.sun_cos_max);
-  const T q2 = 1.0f - cos_t * cos_t;
-  const T sin_t = vsqrt(0.0f < q2 ? q2 : T{});
-  // sincos_2pi(u2)
-  const T r = u2 - round_even_lanes(u2);
+static inline void sincos_2pi_lanes(T u, T& s, T& c) {
+  const T r = u - round_even_lanes(u);
   const T q = round_even_lanes(4.0f * r);
   const T t = (r - 0.25f * q) * 6.28318531f;
   const T t2 = t * t;
@@ -296,9 +283,38 @@ static inline void light_draw_lanes(const LightDrawsArgs& a, int j) {
   const auto swap = 0 - (k & 1);
   const auto bs = bits_of(sn), bc = bits_of(cs);
   const auto sa = (bs & ~swap) | (bc & swap), sb = (bc & ~swap) | (bs & swap);
-  const T sin_phi = __builtin_bit_cast(T, sa ^ ((k >> 1) << 31));
-  const T cos_phi = __builtin_bit_cast(T, sb ^ ((((k + 1) >> 1) & 1) << 31));
-  // Basis::to_world
+  s = __builtin_bit_cast(T, sa ^ ((k >> 1) << 31));
+  c = __builtin_bit_cast(T, sb ^ ((((k + 1) >> 1) & 1) << 31));
+}
+
+template <class T>
+static inline void path_draw_lanes(const PathDrawsArgs& a, int j) {
+  using U = std::conditional_t<std::is_same_v<T, float>, uint64_t, vu64>;
+  U state = ld64<U>(a.state + j);
+  const U inc = ld64<U>(a.inc + j);
+  PathDraws& o = *a.out;
+  const T ul = uniform_lanes<T>(state, inc);
+  const T u1 = uniform_lanes<T>(state, inc);
+  const T u2 = uniform_lanes<T>(state, inc);
+  st(o.ul + j, ul), st(o.u1 + j, u1), st(o.u2 + j, u2);
+  std::memcpy(o.state3 + j, &state, sizeof state);
+  const T b0 = uniform_lanes<T>(state, inc);
+  const T b1 = uniform_lanes<T>(state, inc);
+  const T b2 = uniform_lanes<T>(state, inc);
+  st(o.b0 + j, b0), st(o.b1 + j, b1), st(o.b2 + j, b2);
+  std::memcpy(o.state6 + j, &state, sizeof state);
+  // The cosine lobe's direction (BsdfAt::sample).
+  T sin_phi, cos_phi;
+  const T r = vsqrt(b1);
+  sincos_2pi_lanes(b2, sin_phi, cos_phi);
+  const T zz = 1.0f - b1;
+  st(o.cx + j, r * cos_phi), st(o.cy + j, r * sin_phi), st(o.cz + j, vsqrt(0.0f < zz ? zz : T{}));
+  if (!a.sun_frame) return;
+  // sun_sample, then Basis::to_world.
+  const T cos_t = 1.0f - u1 * (1.0f - a.sun_cos_max);
+  const T q2 = 1.0f - cos_t * cos_t;
+  const T sin_t = vsqrt(0.0f < q2 ? q2 : T{});
+  sincos_2pi_lanes(u2, sin_phi, cos_phi);
   const T vx = sin_t * cos_phi, vy = sin_t * sin_phi, vz = cos_t;
   const Vec3 &bt = a.sun_frame[0], &bb = a.sun_frame[1], &bn = a.sun_frame[2];
   st(o.sx + j, (bt.x * vx + bb.x * vy) + bn.x * vz);
@@ -306,9 +322,9 @@ static inline void light_draw_lanes(const LightDrawsArgs& a, int j) {
   st(o.sz + j, (bt.z * vx + bb.z * vy) + bn.z * vz);
 }
 
-static void light_draws(const LightDrawsArgs& a) {
+static void path_draws(const PathDrawsArgs& a) {
   int j = 0;
   const int n = int(a.n);
-  for (; j + kLanes <= n; j += kLanes) light_draw_lanes<vfloat>(a, j);
-  for (; j < n; ++j) light_draw_lanes<float>(a, j);
+  for (; j + kLanes <= n; j += kLanes) path_draw_lanes<vfloat>(a, j);
+  for (; j < n; ++j) path_draw_lanes<float>(a, j);
 }

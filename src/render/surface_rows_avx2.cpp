@@ -16,7 +16,7 @@ namespace avx2_ns {
 
 const SurfaceRowsKernels& surface_rows_avx2() {
   static const SurfaceRowsKernels table{avx2_ns::surface_rows, avx2_ns::texel_rows,
-                                        avx2_ns::camera_rows, avx2_ns::light_draws};
+                                        avx2_ns::camera_rows, avx2_ns::path_draws};
   return table;
 }
 

@@ -16,7 +16,7 @@ namespace avx512_ns {
 
 const SurfaceRowsKernels& surface_rows_avx512() {
   static const SurfaceRowsKernels table{avx512_ns::surface_rows, avx512_ns::texel_rows,
-                                        avx512_ns::camera_rows, avx512_ns::light_draws};
+                                        avx512_ns::camera_rows, avx512_ns::path_draws};
   return table;
 }
 

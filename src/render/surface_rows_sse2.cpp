@@ -16,7 +16,7 @@ namespace sse2_ns {
 
 const SurfaceRowsKernels& surface_rows_sse2() {
   static const SurfaceRowsKernels table{sse2_ns::surface_rows, sse2_ns::texel_rows,
-                                        sse2_ns::camera_rows, sse2_ns::light_draws};
+                                        sse2_ns::camera_rows, sse2_ns::path_draws};
   return table;
 }
 
