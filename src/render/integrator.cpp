@@ -252,10 +252,10 @@ void Renderer::Impl::TilePaths::shade(const Impl& r, int depth, std::span<const 
     int j;
     const SurfaceRows* row = surfaces.rows_of(k, j);
     if (!(cache_stops && q.rough && !q.train && !q.aov_pending)) {
-      if (row)
-        r.prefetch_texels(hits[k], Vec2{row->u[j], row->v[j]});
-      else
+      if (!row)
         r.prefetch_texels(hits[k]);
+      else if (!((row->texel >> j) & 1u))  // (a base texel in the rows is fetched already)
+        r.prefetch_texels(hits[k], Vec2{row->u[j], row->v[j]});
     } else if (hits[k].hit()) {
       cells[k] = row ? r.cache_cell(*row, j) : r.cache_cell(hits[k], rays[k]);
     }
@@ -362,7 +362,8 @@ void Renderer::Impl::TilePaths::shade(const Impl& r, int depth, std::span<const 
     // (when the bounce is longer than a cell: contact light needs the path), or note the
     // vertex so this path teaches the cell what it measures from here on.
     if (cache_records && depth == 1 && ps.rough && bp.alpha >= cache_alpha_second) {
-      const RadianceCache::Cell cell = r.radiance_cache.cell(p, ng);
+      const RadianceCache::Cell cell =  // found ahead where the cache was to answer
+          cells[k].key != 0 ? cells[k] : r.radiance_cache.cell(p, ng);
       Vec3 lc;
       if (!ps.train && h.t >= cell.size && r.radiance_cache.lookup(cell.key, lc)) {
         ps.radiance = ps.radiance + ps.throughput * lc;
