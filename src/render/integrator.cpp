@@ -213,7 +213,8 @@ void Renderer::Impl::TilePaths::shade(const Impl& r, int depth, std::span<const 
   const auto start = [&](size_t k) {
     PathState& ps = paths[k];
     ps = PathState{};
-    const int x = x0 + int(k % size_t(x1 - x0)), y = y0 + int(k / size_t(x1 - x0));
+    const uint32_t tw = uint32_t(x1 - x0), kk = uint32_t(k);  // (32-bit divisions)
+    const int x = x0 + int(kk % tw), y = y0 + int(kk / tw);
     const uint64_t pixel = uint64_t(y) * uint64_t(s.width) + uint64_t(x);
     ps.train =
         !cache_records ||
@@ -484,13 +485,15 @@ void Renderer::Impl::TilePaths::finish_bounce(std::span<const uint8_t> sun_block
 
 void Renderer::Impl::TilePaths::end(Accumulator& acc) const {
   const RenderSettings& s = ctx->s;
-  for (size_t i = 0; i < count; ++i) {
-    const int x = x0 + int(i % size_t(x1 - x0)), y = y0 + int(i / size_t(x1 - x0));
-    acc.add(size_t(y) * size_t(s.width) + size_t(x), paths[i].radiance, px[i], s.clamp);
-    Vec3 lc;
-    if (paths[i].cache_key && cache_sample(paths[i], cache_vtx[i], s.clamp, lc))
-      cache_records->push_back({paths[i].cache_key, lc});
-  }
+  size_t i = 0;  // row by row: pixel i of the tile is image pixel p
+  for (int y = y0; y < y1; ++y)
+    for (size_t p = size_t(y) * size_t(s.width) + size_t(x0), e = p + size_t(x1 - x0); p < e;
+         ++p, ++i) {
+      acc.add(p, paths[i].radiance, px[i], s.clamp);
+      Vec3 lc;
+      if (paths[i].cache_key && cache_sample(paths[i], cache_vtx[i], s.clamp, lc))
+        cache_records->push_back({paths[i].cache_key, lc});
+    }
 }
 
 // ---- a wave of tiles -----------------------------------------------------------------------
