@@ -215,9 +215,14 @@ void Renderer::Impl::SurfaceGroups::make(size_t g) {
                                              std::min(group, n - b), texels_, rows_[g & 1])
                         : 0;
   // The group's paths' next three draws (sample_light's) and the sun's direction for them.
-  drawn_[g & 1] = kernels_ && rngs_ && b < n;
-  if (!drawn_[g & 1]) return;
+  // (Not for a group of misses: the sky around an object.)
+  drawn_[g & 1] = false;
+  if (!kernels_ || !rngs_ || b >= n) return;
   const size_t m = std::min(group, n - b);
+  bool any = false;
+  for (size_t j = 0; j < m; ++j) any |= hits_[b + j].hit();
+  if (!any) return;
+  drawn_[g & 1] = true;
   uint64_t state[group], inc[group];
   for (size_t j = 0; j < m; ++j) {
     const Rng& rng = rngs_[active_[b + j]];
