@@ -242,7 +242,10 @@ void Renderer::Impl::TilePaths::shade(const Impl& r, int depth, std::span<const 
   for (size_t k = 0; k < std::min(n, vertex_distance); ++k) r.prefetch_vertices(hits[k]);
   // The hits' surfaces in SIMD rows a group ahead of the loop; the first hits' base texels too
   // (bounce hits' texels are scattered, and most of them the radiance cache answers without).
-  SurfaceGroups surfaces(r, hits, rays.data(), depth == 0, rngs.data(), active.data());
+  // The first hits' path draws too (at bounces the radiance cache answers most hits before
+  // any draw, and their generators are scattered: there they cost more than they saved).
+  SurfaceGroups surfaces(r, hits, rays.data(), depth == 0, depth == 0 ? rngs.data() : nullptr,
+                         active.data());
   // Paths the radiance cache likely answers at their second vertex: their cell (its slot
   // prefetched) instead of texels.
   const bool cache_stops = cache_records && depth == 1 && depth + 1 < s.max_depth;
