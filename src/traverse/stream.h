@@ -56,12 +56,12 @@ inline constexpr size_t ray_stream_rays = 16384;
 /// chunks in every 32 are traced one each way and timed (in every 256 or 1 024 once each way
 /// was timed 8 times and one is 1.3x or 2x faster), and the rest go the way whose recent trials
 /// were faster per ray (the lower quartile of each way's last 15; the hits are the same either
-/// way). Sorted bounces inside a room (short,
-/// between near walls) trace faster as packets, those of an open scene (long rays that part) as
-/// single rays: measured with either fixed, one thread, Sponza's shuffled diffuse rays 3.4-3.8
-/// (packets) against 2.8-3.2 Mrays/s, the sphere field's 3.3 against 4.0, the bunny grid's at
-/// 3840x2160 2.5 against 3.3. Camera rays through instances: the glTF samples' 1.7-1.9x faster as
-/// packets, the bunny grid's (16 instances of 69 k small triangles) 0.8x.
+/// way). Sorted bounces inside a room (short, between near walls) trace faster as packets,
+/// those of an open scene (long rays that part) as single rays: measured with either fixed,
+/// one thread, Sponza's shuffled diffuse rays 3.4-3.8 (packets) against 2.8-3.2 Mrays/s, the
+/// sphere field's 3.3 against 4.0, the bunny grid's at 3840x2160 2.5 against 3.3. Camera rays
+/// through instances: the glTF samples' 1.7-1.9x faster as packets, the bunny grid's (16
+/// instances of 69 k small triangles) 0.8x.
 class PacketChoice {
  public:
   explicit PacketChoice(std::optional<bool> fixed = std::nullopt) : fixed_(fixed) {}
