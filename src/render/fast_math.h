@@ -38,20 +38,26 @@ inline float floor_exact(float x) {
   return std::copysign(t, x);
 }
 
+/// sin and cos of t in [-pi/4, pi/4] by the Taylor series to the 9th (sin) and 10th (cos)
+/// power, whose remainder is below 2e-9 there: sincos_2pi's core, of a float or of a vector of
+/// them (the SIMD lanes of render/surface_rows.inl do the same operations).
+template <class T>
+inline void sincos_taylor(T t, T& sn, T& cs) {
+  const T t2 = t * t;
+  sn = t *
+       (1.0f + t2 * (-1.0f / 6 + t2 * (1.0f / 120 + t2 * (-1.0f / 5040 + t2 * (1.0f / 362880)))));
+  cs = 1.0f + t2 * (-0.5f + t2 * (1.0f / 24 + t2 * (-1.0f / 720 +
+                                                    t2 * (1.0f / 40320 + t2 * (-1.0f / 3628800)))));
+}
+
 /// sin and cos of 2 pi u, for any finite u: reduced to a quarter turn around 0 and evaluated
-/// by the Taylor series to the 9th (sin) and 10th (cos) power, whose remainder is below 2e-9
-/// there; the quadrant's swap and signs are then exact.
+/// by sincos_taylor; the quadrant's swap and signs are then exact.
 inline void sincos_2pi(float u, float& s, float& c) {
   const float r = u - round_even(u);              // [-1/2, 1/2] turns
   const float q = round_even(4.0f * r);           // quadrant -2 .. 2
   const float t = (r - 0.25f * q) * 6.28318531f;  // [-pi/4, pi/4]
-  const float t2 = t * t;
-  const float sn =
-      t *
-      (1.0f + t2 * (-1.0f / 6 + t2 * (1.0f / 120 + t2 * (-1.0f / 5040 + t2 * (1.0f / 362880)))));
-  const float cs =
-      1.0f + t2 * (-0.5f + t2 * (1.0f / 24 + t2 * (-1.0f / 720 +
-                                                   t2 * (1.0f / 40320 + t2 * (-1.0f / 3628800)))));
+  float sn, cs;
+  sincos_taylor(t, sn, cs);
   // The quadrant's swap and signs as bit operations: k is as random as u, so branches on it
   // would mispredict half the time.
   const uint32_t k = uint32_t(int(q)) & 3u;  // quarter turns: 0, 1, 2, 3 (= -1)

@@ -403,9 +403,11 @@ struct Renderer::Impl {
   // loop's prefetches have fetched its vertices (surface.cpp).
   class SurfaceGroups {
    public:
-    // `texels`: with the groups' base texels (surface_rows_of). `rngs`, `active`: the paths'
-    // generators and hit k's path, for each group's light-sample draws (null: none).
-    SurfaceGroups(const Impl& r, std::span<const SurfaceHit> hits, const Ray* rays, bool texels,
+    // `kernels`: the wave's (WavePass::rows; null: every hit by surface_at). `texels`: with the
+    // groups' base texels (surface_rows_of). `rngs`, `active`: the paths' generators and hit
+    // k's path, for each group's draws (PathDraws; null: none).
+    SurfaceGroups(const Impl& r, const render::SurfaceRowsKernels* kernels,
+                  std::span<const SurfaceHit> hits, const Ray* rays, bool texels,
                   const Rng* rngs = nullptr, const uint32_t* active = nullptr);
     // The loop reached hit k: at the start of a group, the next one is made.
     void reached(size_t k) {
@@ -536,6 +538,11 @@ struct Renderer::Impl {
     bool use_tree;
     const render::SurfaceRowsKernels* rows;  // null: surface_rows_on is off
   };
+  // A tile's camera rays in 4 x 4 blocks of pixels (path k is pixel active[k] of the tile,
+  // rays and active of its pixel count) and its paths' generators (camera_paths.cpp).
+  static void camera_paths(const WavePass& wp, int x0, int y0, int x1, int y1,
+                           std::vector<render::Rng>& rngs, std::vector<Ray>& rays,
+                           std::vector<uint32_t>& active);
   struct TilePaths;
   struct Wave;
   struct WaveDelete {

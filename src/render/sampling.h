@@ -9,26 +9,40 @@
 
 namespace kestrel::render {
 
-inline uint64_t mix64(uint64_t x) {  // splitmix64 finaliser
+/// The splitmix64 finaliser, of a uint64_t or of a vector of them (the SIMD lanes of
+/// render/surface_rows.inl do the same operations).
+template <class U>
+inline U mix64(U x) {
   x ^= x >> 30;
-  x *= 0xBF58476D1CE4E5B9ull;
+  x *= uint64_t(0xBF58476D1CE4E5B9ull);
   x ^= x >> 27;
-  x *= 0x94D049BB133111EBull;
+  x *= uint64_t(0x94D049BB133111EBull);
   x ^= x >> 31;
   return x;
+}
+
+/// PCG32's multiplier (each step: state * pcg_multiplier + increment).
+inline constexpr uint64_t pcg_multiplier = 6364136223846793005ull;
+
+/// A generator's state and increment for (seed, frame, pixel, sample), before its first step;
+/// `pixel` a uint64_t or a vector of them (render/surface_rows.inl).
+template <class U>
+inline void pcg_seed(uint64_t seed, uint64_t frame, U pixel, uint64_t sample, U& state, U& inc) {
+  state =
+      mix64(seed ^ mix64(frame * uint64_t(0x9E3779B97F4A7C15ull) ^ mix64(pixel + (sample << 32))));
+  inc = (mix64(state + sample) << 1) | uint64_t(1);
 }
 
 /// PCG32 (O'Neill 2014, XSH-RR), seeded from (seed, frame, pixel, sample).
 class Rng {
  public:
   Rng(uint64_t seed, uint64_t frame, uint64_t pixel, uint64_t sample) {
-    state_ = mix64(seed ^ mix64(frame * 0x9E3779B97F4A7C15ull ^ mix64(pixel + (sample << 32))));
-    inc_ = (mix64(state_ + sample) << 1u) | 1u;
+    pcg_seed(seed, frame, pixel, sample, state_, inc_);
     next();
   }
   uint32_t next() {
     const uint64_t old = state_;
-    state_ = old * 6364136223846793005ull + inc_;
+    state_ = old * pcg_multiplier + inc_;
     const uint32_t xorshifted = uint32_t(((old >> 18u) ^ old) >> 27u);
     const uint32_t rot = uint32_t(old >> 59u);
     return (xorshifted >> rot) | (xorshifted << ((32u - rot) & 31u));

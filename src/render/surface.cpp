@@ -193,14 +193,14 @@ uint32_t Renderer::Impl::surface_rows_of(const SurfaceRowsKernels& kernels, cons
   return mask;
 }
 
-Renderer::Impl::SurfaceGroups::SurfaceGroups(const Impl& r, std::span<const SurfaceHit> hits,
-                                             const Ray* rays, bool texels, const Rng* rngs,
-                                             const uint32_t* active)
+Renderer::Impl::SurfaceGroups::SurfaceGroups(const Impl& r, const SurfaceRowsKernels* kernels,
+                                             std::span<const SurfaceHit> hits, const Ray* rays,
+                                             bool texels, const Rng* rngs, const uint32_t* active)
     : r_(r),
       hits_(hits),
       rays_(rays),
       texels_(texels),
-      kernels_(r.surface_rows_on ? &surface_rows_kernels(default_isa()) : nullptr),
+      kernels_(kernels),
       rngs_(rngs),
       active_(active),
       sun_basis_{r.sun_frame.t, r.sun_frame.b, r.sun_frame.n} {
@@ -214,8 +214,8 @@ void Renderer::Impl::SurfaceGroups::make(size_t g) {
                         ? r_.surface_rows_of(*kernels_, &hits_[b], &rays_[b],
                                              std::min(group, n - b), texels_, rows_[g & 1])
                         : 0;
-  // The group's paths' next three draws (sample_light's) and the sun's direction for them.
-  // (Not for a group of misses: the sky around an object.)
+  // The group's paths' next draws (PathDraws: the light sample's and the BSDF sample's), not
+  // for a group of misses (the sky around an object).
   drawn_[g & 1] = false;
   if (!kernels_ || !rngs_ || b >= n) return;
   const size_t m = std::min(group, n - b);

@@ -9,10 +9,13 @@
 #pragma once
 #include <cstddef>
 #include <cstdint>
+#include <type_traits>
 
 #include "kestrel/instances.h"
 #include "kestrel/isa.h"
 #include "kestrel/types.h"
+#include "render/fast_math.h"
+#include "render/sampling.h"
 
 namespace kestrel::render {
 

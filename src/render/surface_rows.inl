@@ -163,9 +163,11 @@ static void texel_rows(const TexelRowsArgs& a) {
 }
 
 // ---- camera rows ---------------------------------------------------------------------------
-// Rng's seeding and three draws (render/sampling.h) and CameraModel::ray without a lens
+// Rng's seeding (pcg_seed) and three steps (render/sampling.h) and CameraModel::ray without a lens
 // (renderer_impl.h) lane by lane: the same integer operations, the float ones in their order.
 typedef uint64_t vu64 __attribute__((vector_size(8 * kLanes)));
+template <class T>  // 64-bit lanes as many as T's: uint64_t for float, vu64 for vfloat
+using lanes_u64 = std::conditional_t<std::is_same_v<T, float>, uint64_t, vu64>;
 static inline uint64_t u64_of(int v) {
   return uint64_t(v);
 }
@@ -179,30 +181,15 @@ static inline void st64(uint64_t* p, vu64 v) {
   std::memcpy(p, &v, sizeof v);
 }
 
-// The generators' constants as uint64_t (clang takes no unsigned long long into a vector of
-// unsigned long).
-constexpr uint64_t kMix1 = 0xBF58476D1CE4E5B9ull, kMix2 = 0x94D049BB133111EBull,
-                   kGolden = 0x9E3779B97F4A7C15ull, kPcgMul = 6364136223846793005ull;
-
-template <class U>
-static inline U mix64_lanes(U x) {  // mix64
-  x ^= x >> 30;
-  x *= kMix1;
-  x ^= x >> 27;
-  x *= kMix2;
-  x ^= x >> 31;
-  return x;
-}
-
 template <class T>
 static inline void camera_lanes(const CameraRowsArgs& a, int j) {
   using I = lanes_int<T>;
   const I x = ldi<I>(a.x + j), y = ldi<I>(a.y + j);
-  const auto pixel = u64_of(y) * uint64_t(a.image_width) + u64_of(x);
-  auto state =
-      mix64_lanes(a.seed ^ mix64_lanes(a.frame * kGolden ^ mix64_lanes(pixel + (a.sample << 32))));
-  const auto inc = (mix64_lanes(state + a.sample) << 1) | uint64_t(1);
-  for (int k = 0; k < 3; ++k) state = state * kPcgMul + inc;  // next()
+  using U = lanes_u64<T>;
+  const U pixel = u64_of(y) * uint64_t(a.image_width) + u64_of(x);
+  U state, inc;
+  pcg_seed(a.seed, a.frame, pixel, a.sample, state, inc);
+  for (int k = 0; k < 3; ++k) state = state * pcg_multiplier + inc;  // next()
   st64(a.state + j, state);
   st64(a.inc + j, inc);
   const T fx = vfloat_of(x) + a.jx, fy = vfloat_of(y) + a.jy;
@@ -249,7 +236,7 @@ static inline U ld64(const uint64_t* p) {
 template <class T, class U>
 static inline T uniform_lanes(U& state, U inc) {  // Rng::next, Rng::uniform
   const U old = state;
-  state = old * kPcgMul + inc;
+  state = old * pcg_multiplier + inc;
   const auto xorshifted = u32_of(((old >> 18u) ^ old) >> 27u);
   const auto rot = u32_of(old >> 59u);
   const auto r = (xorshifted >> rot) | (xorshifted << ((32u - rot) & 31u));
@@ -272,13 +259,8 @@ static inline void sincos_2pi_lanes(T u, T& s, T& c) {
   const T r = u - round_even_lanes(u);
   const T q = round_even_lanes(4.0f * r);
   const T t = (r - 0.25f * q) * 6.28318531f;
-  const T t2 = t * t;
-  const T sn =
-      t *
-      (1.0f + t2 * (-1.0f / 6 + t2 * (1.0f / 120 + t2 * (-1.0f / 5040 + t2 * (1.0f / 362880)))));
-  const T cs =
-      1.0f + t2 * (-0.5f + t2 * (1.0f / 24 + t2 * (-1.0f / 720 +
-                                                   t2 * (1.0f / 40320 + t2 * (-1.0f / 3628800)))));
+  T sn, cs;
+  sincos_taylor(t, sn, cs);
   const auto k = vtrunc(q) & 3;
   const auto swap = 0 - (k & 1);
   const auto bs = bits_of(sn), bc = bits_of(cs);
@@ -289,7 +271,7 @@ static inline void sincos_2pi_lanes(T u, T& s, T& c) {
 
 template <class T>
 static inline void path_draw_lanes(const PathDrawsArgs& a, int j) {
-  using U = std::conditional_t<std::is_same_v<T, float>, uint64_t, vu64>;
+  using U = lanes_u64<T>;
   U state = ld64<U>(a.state + j);
   const U inc = ld64<U>(a.inc + j);
   PathDraws& o = *a.out;
@@ -297,12 +279,12 @@ static inline void path_draw_lanes(const PathDrawsArgs& a, int j) {
   const T u1 = uniform_lanes<T>(state, inc);
   const T u2 = uniform_lanes<T>(state, inc);
   st(o.ul + j, ul), st(o.u1 + j, u1), st(o.u2 + j, u2);
-  std::memcpy(o.state3 + j, &state, sizeof state);
+  st64(o.state3 + j, state);
   const T b0 = uniform_lanes<T>(state, inc);
   const T b1 = uniform_lanes<T>(state, inc);
   const T b2 = uniform_lanes<T>(state, inc);
   st(o.b0 + j, b0), st(o.b1 + j, b1), st(o.b2 + j, b2);
-  std::memcpy(o.state6 + j, &state, sizeof state);
+  st64(o.state6 + j, state);
   // The cosine lobe's direction (BsdfAt::sample).
   T sin_phi, cos_phi;
   const T r = vsqrt(b1);
