@@ -2,6 +2,21 @@
 // Blend), compiled per instruction set with the upsampler's other per-pixel stages
 // (reconstruct_*.cpp) and written once for T = float and T = vfloat (core/simd/lanes.inl).
 
+// y (3 planes of n, padded by kMaxLanes) of the low-res pixels i, 0 where i < 0. Neighbouring
+// pixels' samples are neighbouring low-res pixels where the motion is smooth: one load and a
+// permute instead of a gather (lookup) where they span few.
+template <class T, class I>
+static inline void samples_at(const float* y, size_t n, I i, T v[3]) {
+  const auto ok = i >= 0;
+  const int hi = lane_max(i);
+  const int lo = hi < 0 ? 0 : lane_min(ok ? i : I{} + hi);
+  const I ic = ok ? i : I{} + lo;
+  for (size_t c = 0; c < 3; ++c) {
+    const T s = lookup(y + c * n, ic, lo, hi < 0 ? lo : hi);
+    v[c] = ok ? s : T{};
+  }
+}
+
 // A frame's samples at the output resolution (nsrr.zero_upsample of y and of the presence):
 // rows [r0, r1) of the four planes, the image at offset (r, r).
 static void zero_upsample_rows(const ZeroUpArgs& a, int r0, int r1) {
@@ -14,11 +29,11 @@ static void zero_upsample_rows(const ZeroUpArgs& a, int r0, int r1) {
       using I = lanes_int<T>;
       const I i = ldi<I>(at + X);
       const auto ok = i >= 0;
-      const I ic = ok ? i : I{};
-      for (size_t c = 0; c < 3; ++c) {
-        const T v = vgather(a.y + c * a.n, ic);
-        st(z + c * plane + size_t(X), ok ? v : T{});
-      }
+      // Neighbouring pixels' samples are neighbouring low-res pixels where the motion is
+      // smooth: one load and a permute instead of a gather (lookup) where they span few.
+      T v[3];
+      samples_at(a.y, a.n, i, v);
+      for (size_t c = 0; c < 3; ++c) st(z + c * plane + size_t(X), v[c]);
       st(z + 3 * plane + size_t(X), ok ? T{} + 1.0f : T{});
     });
   }
@@ -36,8 +51,17 @@ static void blend_row(const BlendArgs& a) {
     // The largest logit present (the base and the history always are).
     T m = ld<T>(a.logits + X);
     size_t c = 1;
+    using I = lanes_int<T>;
+    I direct[kBlendMaxFrames];  // the frames read where they are: their samples' indices
     for (int k = 0; k < a.frames; ++k) {
       const int rk = a.rk[k];
+      if (!a.z[k] && a.at[k]) {
+        direct[k] = ldi<I>(a.at[k] + size_t(a.Y) * W + size_t(X));
+        const T l = ld<T>(a.logits + c * W + size_t(X));
+        m = direct[k] >= 0 ? vmax(m, l) : m;
+        ++c;
+        continue;
+      }
       if (!a.z[k]) {
         c += size_t((2 * rk + 1) * (2 * rk + 1));
         continue;
@@ -53,7 +77,6 @@ static void blend_row(const BlendArgs& a) {
     const T lh = ld<T>(a.logits + c * W + size_t(X));  // the history's, the last
     m = vmax(m, lh);
     // The base, bilinear: the columns' indices span a few samples (one load and a permute).
-    using I = lanes_int<T>;
     const I i0 = ldi<I>(a.i0 + X), i1 = ldi<I>(a.i1 + X);
     const int lo = a.i0[X], hi = a.i1[X + lanes_of<T> - 1];
     const T tx = ld<T>(a.tx + X);
@@ -74,6 +97,17 @@ static void blend_row(const BlendArgs& a) {
     c = 1;
     for (int k = 0; k < a.frames; ++k) {
       const int rk = a.rk[k];
+      if (!a.z[k] && a.at[k]) {
+        const T l = ld<T>(a.logits + c * W + size_t(X));
+        T e = vexp2((l - m) * kLog2e);
+        e = direct[k] >= 0 ? e : T{};
+        T v[3];
+        samples_at(a.ylow[k], a.n, direct[k], v);
+        s += e;
+        y0 += e * v[0], y1 += e * v[1], y2 += e * v[2];
+        ++c;
+        continue;
+      }
       if (!a.z[k]) {
         c += size_t((2 * rk + 1) * (2 * rk + 1));
         continue;

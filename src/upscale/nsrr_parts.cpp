@@ -36,7 +36,7 @@ float Window::push(const UpscaleInput& in, int f, int previous) {
   fr.w = w, fr.h = h, fr.jx = in.jitter_x, fr.jy = in.jitter_y;
   // y padded: a vector load at any of its pixels stays inside (reconstruct.h: kMaxLanes).
   fr.y.resize(3 * n + kMaxLanes), fr.depth.resize(n), fr.motion.resize(2 * n),
-      fr.sample_at.assign(N, -1);
+      fr.sample_at.resize(N);
   const int mc = in.motion ? in.motion->channels : 0;
   // Per row: the depth sum and count (summed in row order after: the same at any thread count).
   std::vector<double> row_sum(static_cast<size_t>(h));
@@ -62,14 +62,29 @@ float Window::push(const UpscaleInput& in, int f, int previous) {
   double depth_sum = 0;
   size_t depth_count = 0;
   for (size_t j = 0; j < size_t(h); ++j) depth_sum += row_sum[j], depth_count += row_count[j];
-  // zero_upsample: the sample of low-res pixel (i, j) lands in the output pixel containing it
-  // (serial: with a jitter outside [0, 1) clamped samples share a pixel, the last one kept).
+  // zero_upsample: the sample of low-res pixel (i, j) lands in the output pixel containing it;
+  // with a jitter outside [0, 1) clamped samples share a pixel, the last one in row-major
+  // order kept: the largest row and the largest column that land there, so the columns and
+  // rows are tabled apart.
+  fr.col_at.assign(size_t(W), -1), fr.row_at.assign(size_t(H), -1);
+  for (int i = 0; i < w; ++i)
+    fr.col_at[size_t(clampi(floor_int(float(f) * (float(i) + fr.jx)), 0, W - 1))] = i;
   for (int j = 0; j < h; ++j)
-    for (int i = 0; i < w; ++i) {
-      const int X = clampi(floor_int(float(f) * (float(i) + fr.jx)), 0, W - 1);
-      const int Y = clampi(floor_int(float(f) * (float(j) + fr.jy)), 0, H - 1);
-      fr.sample_at[size_t(Y) * size_t(W) + size_t(X)] = j * w + i;
+    fr.row_at[size_t(clampi(floor_int(float(f) * (float(j) + fr.jy)), 0, H - 1))] = j;
+  parallel_for(0, size_t(H), 16, [&](size_t Y0, size_t Y1) {
+    for (size_t Y = Y0; Y < Y1; ++Y) {
+      int32_t* at = &fr.sample_at[Y * size_t(W)];
+      const int32_t j = fr.row_at[Y];
+      if (j < 0) {
+        std::fill(at, at + W, -1);
+        continue;
+      }
+      for (size_t X = 0; X < size_t(W); ++X) {
+        const int32_t i = fr.col_at[X];
+        at[X] = i < 0 ? -1 : j * w + i;
+      }
     }
+  });
   frames_.push_front(std::move(fr));
   return depth_count ? float(depth_sum / double(depth_count)) : 1.0f;
 }
@@ -93,7 +108,9 @@ void warp_row_scalar(const WarpRow& a, float* pos, int32_t* out) {
     px += a.f * vx, py += a.f * vy;
     // Off screen, the position is kept (as nsrr.warp_positions does): later steps test it.
     const bool inside = px >= 0 && px < float(a.W) && py >= 0 && py < float(a.H);
-    out[X] = inside ? a.at[size_t(floor_int(py)) * size_t(a.W) + size_t(floor_int(px))] : -1;
+    const int32_t j = inside ? a.row_at[floor_int(py)] : -1;
+    const int32_t i = inside ? a.col_at[floor_int(px)] : -1;
+    out[X] = j < 0 || i < 0 ? -1 : j * a.w + i;
   }
 }
 
@@ -154,8 +171,8 @@ void Window::warp(int f, int W, int H, int previous, std::vector<int32_t>& src) 
         pos[2 * X] = float(X) + 0.5f, pos[2 * X + 1] = float(Y) + 0.5f;
       for (size_t k = 1; k < available; ++k) {
         const float* m = frames_[k - 1].motion.data();
-        const WarpRow a{m,        m + n,          frames_[k].sample_at.data(), w, h, W, H,
-                        float(f), 1.0f / float(f)};
+        const WarpRow a{m, m + n,    frames_[k].col_at.data(), frames_[k].row_at.data(), w, h, W,
+                        H, float(f), 1.0f / float(f)};
         warp_row(a, pos.data(), src.data() + (k - 1) * N + Y * size_t(W));
       }
     }

@@ -55,6 +55,9 @@ struct Frame {
   float jx = 0.5f, jy = 0.5f;
   std::vector<float> y, depth, motion;
   std::vector<int32_t> sample_at;  // output pixel -> the low-res pixel whose sample it holds, -1
+  // Separable: sample_at[Y W + X] = row_at[Y] w + col_at[X] where both are >= 0, else -1
+  // (the low-res row and column whose samples land in output row Y and column X).
+  std::vector<int32_t> col_at, row_at;
 };
 
 /// The window [current, previous, ...] of at most `previous` + 1 frames.
@@ -127,9 +130,11 @@ class Blend {
     const int frames = std::min(int(window.size()), previous + 1);
     const size_t N = size_t(W) * size_t(H), n = size_t(window[0].w) * size_t(window[0].h);
     const size_t plane = (size_t(W) + 2 * size_t(r)) * (size_t(H) + 2 * size_t(r));
-    if (W != W_ || H != H_ || planes_.size() < 4 * plane * size_t(previous + 1)) {
+    // The frames in planes: all, or the current one alone where the others are read directly.
+    const size_t planar = previous_radius == 0 ? 1 : size_t(previous + 1);
+    if (W != W_ || H != H_ || planes_.size() < 4 * plane * planar) {
       // The border is never written: zeros, no samples.
-      planes_.assign(4 * plane * size_t(previous + 1), 0.0f);
+      planes_.assign(4 * plane * planar, 0.0f);
       W_ = W, H_ = H;
     }
     const UpscaleKernels& kern = upscale_kernels(default_isa());
@@ -138,10 +143,15 @@ class Blend {
       const ZeroUpArgs z{k == 0 ? window[0].sample_at.data() : src.data() + size_t(k - 1) * N,
                          window[size_t(k)].y.data(),
                          n,
-                         planes_.data() + 4 * plane * size_t(k),
+                         planes_.data() + 4 * plane * std::min(size_t(k), planar - 1),
                          W,
                          H,
                          r};
+      if (k > 0 && previous_radius == 0) {
+        // One candidate a pixel: read where it is (no planes written and read back).
+        b.at[k] = z.at, b.ylow[k] = z.y;
+        continue;
+      }
       parallel_for(0, size_t(H), 8,
                    [&](size_t r0, size_t r1) { kern.zero_upsample(z, int(r0), int(r1)); });
       b.z[k] = z.z;

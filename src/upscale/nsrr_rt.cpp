@@ -59,10 +59,15 @@ const std::vector<nn::LayerSpec> kSpecs = {{"r1", 16, kIn, 1},
 void cell_logits_row(const float* o, size_t Y, size_t W, size_t Gw, float* l) {
   constexpr size_t K = size_t(kKernel), C = size_t(kCell);
   const float* row = o + (Y / C) * Gw * K * size_t(kCells) + (Y % C) * C;
-  for (size_t X = 0; X < W; X += C) {
+  const size_t whole = W / C * C;  // the last cell may stick out of the image
+  for (size_t X = 0; X < whole; X += C) {
     const float* oc = row + (X / C) * K * size_t(kCells);
-    const size_t n = std::min(C, W - X);  // the last cell may stick out of the image
-    for (size_t c = 0; c < K; ++c) std::memcpy(l + c * W + X, oc + c * kCells, n * sizeof(float));
+    for (size_t c = 0; c < K; ++c) std::memcpy(l + c * W + X, oc + c * kCells, C * sizeof(float));
+  }
+  if (whole < W) {
+    const float* oc = row + (whole / C) * K * size_t(kCells);
+    for (size_t c = 0; c < K; ++c)
+      std::memcpy(l + c * W + whole, oc + c * kCells, (W - whole) * sizeof(float));
   }
 }
 

@@ -42,9 +42,11 @@ inline void store(uint16_t& d, float v) {
 
 struct WarpRow {
   const float *mx, *my;  // frame t-k+1's motion (low resolution, planar x then y)
-  const int32_t* at;     // frame t-k's sample_at (output resolution)
-  int w, h, W, H;        // low and output resolution
-  float f, inv_f;        // the factor (2 or 4: inv_f exact)
+  // Frame t-k's samples: output pixel (X, Y) holds low-res pixel (col_at[X], row_at[Y])
+  // where both are >= 0 (nsrr_parts.h: Frame), none otherwise.
+  const int32_t *col_at, *row_at;
+  int w, h, W, H;  // low and output resolution
+  float f, inv_f;  // the factor (2 or 4: inv_f exact)
 };
 
 /// pos: W interleaved (x, y) output-pixel positions, advanced in place; out: W indices, -1

@@ -105,6 +105,10 @@ struct ZeroUpArgs {
 // tx[X] of i1).
 struct BlendArgs {
   const float* z[kBlendMaxFrames];  // per frame of the window (ZeroUpArgs::z), null: none
+  // Or, for a frame whose radius is 0, its sample map (ZeroUpArgs::at) and its y (3 planes of
+  // n, padded by kMaxLanes): its candidate read where it is, not from planes.
+  const int32_t* at[kBlendMaxFrames];
+  const float* ylow[kBlendMaxFrames];
   const float* logits;
   const float* hist;  // the history's y at row Y (its 3 planes hist_plane apart)
   size_t hist_plane;

@@ -223,35 +223,51 @@ TEST_P(Nsrr, OutputStaysWithinItsCandidates) {
 }
 
 // The warp's AVX-512 row against the scalar row it must reproduce bit for bit: rows whose
-// length is no multiple of 16, motion that sends positions off every edge, both factors.
+// length is no multiple of 16, motion that sends positions off every edge, both factors;
+// motion noisy from pixel to pixel (the lanes' taps far apart: gathers) and smooth (a few
+// neighbouring entries: loads and permutes); sample tables with gaps.
 TEST(NsrrWarp, Avx512RowIsTheScalarRow) {
   if (!isa_supported(Isa::avx512)) GTEST_SKIP() << "this CPU has no AVX-512";
   std::mt19937 rng(5);
   std::uniform_real_distribution<float> u(-1.0f, 1.0f);
-  for (int f : {2, 4})
-    for (int w : {1, 7, 13, 40}) {
-      const int h = 9, W = f * w, H = f * h;
-      std::vector<float> motion(2 * size_t(w) * size_t(h));
-      for (float& m : motion) m = 3.0f * u(rng);
-      std::vector<int32_t> at(size_t(W) * size_t(H));
-      for (size_t i = 0; i < at.size(); ++i) at[i] = int32_t(i % 5 == 0 ? -1 : i * 7 % 1000);
-      const upscale::nsrr::WarpRow a{
-          motion.data(),  motion.data() + size_t(w) * size_t(h), at.data(), w, h, W, H, float(f),
-          1.0f / float(f)};
-      for (int Y = 0; Y < H; ++Y) {
-        std::vector<float> p(2 * size_t(W));
-        for (int X = 0; X < W; ++X)
-          p[2 * size_t(X)] = float(X) + 0.5f + u(rng), p[2 * size_t(X) + 1] = float(Y) + 0.5f;
-        std::vector<float> q = p;
-        std::vector<int32_t> o1(static_cast<size_t>(W)), o2(static_cast<size_t>(W), 99);
-        for (int step = 0; step < 3; ++step) {  // accumulated: positions fed back
-          upscale::nsrr::warp_row_scalar(a, p.data(), o1.data());
-          upscale::nsrr::warp_row_avx512(a, q.data(), o2.data());
-          ASSERT_EQ(p, q) << "f " << f << " w " << w << " row " << Y << " step " << step;
-          ASSERT_EQ(o1, o2) << "f " << f << " w " << w << " row " << Y << " step " << step;
+  for (bool smooth : {false, true})
+    for (int f : {2, 4})
+      for (int w : {1, 7, 13, 40, 70}) {
+        const int h = 9, W = f * w, H = f * h;
+        std::vector<float> motion(2 * size_t(w) * size_t(h));
+        const float drift = 6.0f * u(rng);
+        for (size_t p = 0; p < motion.size(); ++p)
+          motion[p] = smooth ? drift + 0.01f * float(p % size_t(w)) + 0.2f * u(rng) : 3.0f * u(rng);
+        std::vector<int32_t> col_at(static_cast<size_t>(W)), row_at(static_cast<size_t>(H));
+        for (size_t X = 0; X < col_at.size(); ++X)
+          col_at[X] = X % size_t(f) != 0 || X % 7 == 3 ? -1 : int32_t(X) / f;
+        for (size_t Y = 0; Y < row_at.size(); ++Y)
+          row_at[Y] = Y % size_t(f) != 1 ? -1 : int32_t(Y) / f;
+        const upscale::nsrr::WarpRow a{motion.data(),
+                                       motion.data() + size_t(w) * size_t(h),
+                                       col_at.data(),
+                                       row_at.data(),
+                                       w,
+                                       h,
+                                       W,
+                                       H,
+                                       float(f),
+                                       1.0f / float(f)};
+        for (int Y = 0; Y < H; ++Y) {
+          std::vector<float> p(2 * size_t(W));
+          for (int X = 0; X < W; ++X)
+            p[2 * size_t(X)] = float(X) + 0.5f + (smooth ? 0.0f : u(rng)),
+                  p[2 * size_t(X) + 1] = float(Y) + 0.5f;
+          std::vector<float> q = p;
+          std::vector<int32_t> o1(static_cast<size_t>(W)), o2(static_cast<size_t>(W), 99);
+          for (int step = 0; step < 3; ++step) {  // accumulated: positions fed back
+            upscale::nsrr::warp_row_scalar(a, p.data(), o1.data());
+            upscale::nsrr::warp_row_avx512(a, q.data(), o2.data());
+            ASSERT_EQ(p, q) << "f " << f << " w " << w << " row " << Y << " step " << step;
+            ASSERT_EQ(o1, o2) << "f " << f << " w " << w << " row " << Y << " step " << step;
+          }
         }
       }
-    }
 }
 
 // nsrr-rt's grid fill, AVX-512 against scalar: partial cells at the right and bottom edges,
