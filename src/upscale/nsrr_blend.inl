@@ -53,7 +53,22 @@ static void blend_row(const BlendArgs& a) {
     size_t c = 1;
     using I = lanes_int<T>;
     I direct[kBlendMaxFrames];  // the frames read where they are: their samples' indices
-    for (int k = 0; k < a.frames; ++k) {
+    // The current frame's samples by column (a row of them where row_at holds one).
+    I cols[2 * kBlendRadius + 1];
+    const int r0 = a.rk[0];
+    for (int dx = -r0; dx <= r0; ++dx) cols[dx + r0] = ldi<I>(a.col_at + X + dx);
+    auto row_at = [&](int dy) { return a.Y + dy < 0 || a.Y + dy >= a.H ? -1 : a.row_at[a.Y + dy]; };
+    for (int dy = -r0; dy <= r0; ++dy) {
+      if (row_at(dy) < 0) {
+        c += size_t(2 * r0 + 1);
+        continue;
+      }
+      for (int dx = -r0; dx <= r0; ++dx, ++c) {
+        const T l = ld<T>(a.logits + c * W + size_t(X));
+        m = cols[dx + r0] >= 0 ? vmax(m, l) : m;
+      }
+    }
+    for (int k = 1; k < a.frames; ++k) {
       const int rk = a.rk[k];
       if (!a.z[k] && a.at[k]) {
         direct[k] = ldi<I>(a.at[k] + size_t(a.Y) * W + size_t(X));
@@ -95,7 +110,24 @@ static void blend_row(const BlendArgs& a) {
       y1 = e0 * base[1] + eh * ld<T>(h + a.hist_plane),
       y2 = e0 * base[2] + eh * ld<T>(h + 2 * a.hist_plane);
     c = 1;
-    for (int k = 0; k < a.frames; ++k) {
+    for (int dy = -r0; dy <= r0; ++dy) {
+      // Rows without samples add nothing (+0 to sums of non-negative terms).
+      const int j = row_at(dy);
+      if (j < 0) {
+        c += size_t(2 * r0 + 1);
+        continue;
+      }
+      for (int dx = -r0; dx <= r0; ++dx, ++c) {
+        const T l = ld<T>(a.logits + c * W + size_t(X));
+        T e = vexp2((l - m) * kLog2e);
+        e = cols[dx + r0] >= 0 ? e : T{};
+        T v[3];
+        samples_at(a.y + size_t(j) * size_t(a.w), a.n, cols[dx + r0], v);
+        s += e;
+        y0 += e * v[0], y1 += e * v[1], y2 += e * v[2];
+      }
+    }
+    for (int k = 1; k < a.frames; ++k) {
       const int rk = a.rk[k];
       if (!a.z[k] && a.at[k]) {
         const T l = ld<T>(a.logits + c * W + size_t(X));

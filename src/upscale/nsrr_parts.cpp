@@ -66,9 +66,10 @@ float Window::push(const UpscaleInput& in, int f, int previous) {
   // with a jitter outside [0, 1) clamped samples share a pixel, the last one in row-major
   // order kept: the largest row and the largest column that land there, so the columns and
   // rows are tabled apart.
-  fr.col_at.assign(size_t(W), -1), fr.row_at.assign(size_t(H), -1);
+  fr.col_padded.assign(size_t(W) + 2 * Frame::kColPad, -1), fr.row_at.assign(size_t(H), -1);
+  int32_t* col_at = fr.col_padded.data() + Frame::kColPad;
   for (int i = 0; i < w; ++i)
-    fr.col_at[size_t(clampi(floor_int(float(f) * (float(i) + fr.jx)), 0, W - 1))] = i;
+    col_at[clampi(floor_int(float(f) * (float(i) + fr.jx)), 0, W - 1)] = i;
   for (int j = 0; j < h; ++j)
     fr.row_at[size_t(clampi(floor_int(float(f) * (float(j) + fr.jy)), 0, H - 1))] = j;
   parallel_for(0, size_t(H), 16, [&](size_t Y0, size_t Y1) {
@@ -80,7 +81,7 @@ float Window::push(const UpscaleInput& in, int f, int previous) {
         continue;
       }
       for (size_t X = 0; X < size_t(W); ++X) {
-        const int32_t i = fr.col_at[X];
+        const int32_t i = col_at[X];
         at[X] = i < 0 ? -1 : j * w + i;
       }
     }
@@ -171,7 +172,7 @@ void Window::warp(int f, int W, int H, int previous, std::vector<int32_t>& src) 
         pos[2 * X] = float(X) + 0.5f, pos[2 * X + 1] = float(Y) + 0.5f;
       for (size_t k = 1; k < available; ++k) {
         const float* m = frames_[k - 1].motion.data();
-        const WarpRow a{m, m + n,    frames_[k].col_at.data(), frames_[k].row_at.data(), w, h, W,
+        const WarpRow a{m, m + n,    frames_[k].col_at(), frames_[k].row_at.data(), w, h, W,
                         H, float(f), 1.0f / float(f)};
         warp_row(a, pos.data(), src.data() + (k - 1) * N + Y * size_t(W));
       }

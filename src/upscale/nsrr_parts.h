@@ -30,7 +30,6 @@ constexpr float kReweightMax = 10.0f;
 /// The blend's candidates (nsrr.blend_logits): the base, every frame's samples in the (2 r + 1)^2
 /// output pixels around a pixel (r = kBlendRadius for the current frame, `previous_radius` <=
 /// kBlendRadius for the `previous` others), and the history.
-constexpr int kBlendRadius = 1;
 constexpr int blend_logits(int previous, int previous_radius = kBlendRadius) {
   return 2 + (2 * kBlendRadius + 1) * (2 * kBlendRadius + 1) +
          previous * (2 * previous_radius + 1) * (2 * previous_radius + 1);
@@ -55,9 +54,12 @@ struct Frame {
   float jx = 0.5f, jy = 0.5f;
   std::vector<float> y, depth, motion;
   std::vector<int32_t> sample_at;  // output pixel -> the low-res pixel whose sample it holds, -1
-  // Separable: sample_at[Y W + X] = row_at[Y] w + col_at[X] where both are >= 0, else -1
-  // (the low-res row and column whose samples land in output row Y and column X).
-  std::vector<int32_t> col_at, row_at;
+  // Separable: sample_at[Y W + X] = row_at[Y] w + col_at()[X] where both are >= 0, else -1
+  // (the low-res row and column whose samples land in output row Y and column X); col_at()
+  // readable for X in [-kColPad, W + kColPad), -1 off the image.
+  static constexpr size_t kColPad = kMaxLanes;
+  std::vector<int32_t> col_padded, row_at;
+  const int32_t* col_at() const { return col_padded.data() + kColPad; }
 };
 
 /// The window [current, previous, ...] of at most `previous` + 1 frames.
@@ -130,8 +132,8 @@ class Blend {
     const int frames = std::min(int(window.size()), previous + 1);
     const size_t N = size_t(W) * size_t(H), n = size_t(window[0].w) * size_t(window[0].h);
     const size_t plane = (size_t(W) + 2 * size_t(r)) * (size_t(H) + 2 * size_t(r));
-    // The frames in planes: all, or the current one alone where the others are read directly.
-    const size_t planar = previous_radius == 0 ? 1 : size_t(previous + 1);
+    // The previous frames in planes, unless they are read where they are too.
+    const size_t planar = previous_radius == 0 ? 0 : size_t(previous);
     if (W != W_ || H != H_ || planes_.size() < 4 * plane * planar) {
       // The border is never written: zeros, no samples.
       planes_.assign(4 * plane * planar, 0.0f);
@@ -139,23 +141,20 @@ class Blend {
     }
     const UpscaleKernels& kern = upscale_kernels(default_isa());
     BlendArgs b{};
-    for (int k = 0; k < frames; ++k) {
-      const ZeroUpArgs z{k == 0 ? window[0].sample_at.data() : src.data() + size_t(k - 1) * N,
-                         window[size_t(k)].y.data(),
-                         n,
-                         planes_.data() + 4 * plane * std::min(size_t(k), planar - 1),
-                         W,
-                         H,
-                         r};
-      if (k > 0 && previous_radius == 0) {
-        // One candidate a pixel: read where it is (no planes written and read back).
-        b.at[k] = z.at, b.ylow[k] = z.y;
+    for (int k = 1; k < frames; ++k) {  // (the current frame is read where it is)
+      const int32_t* at = src.data() + size_t(k - 1) * N;
+      if (previous_radius == 0) {
+        // One candidate a pixel: read where it is too (no planes written and read back).
+        b.at[k] = at, b.ylow[k] = window[size_t(k)].y.data();
         continue;
       }
+      const ZeroUpArgs z{
+          at, window[size_t(k)].y.data(), n, planes_.data() + 4 * plane * size_t(k - 1), W, H, r};
       parallel_for(0, size_t(H), 8,
                    [&](size_t r0, size_t r1) { kern.zero_upsample(z, int(r0), int(r1)); });
       b.z[k] = z.z;
     }
+    b.col_at = window[0].col_at(), b.row_at = window[0].row_at.data(), b.w = window[0].w;
     b.W = W, b.H = H, b.r = r, b.frames = previous + 1, b.hist_plane = N;
     for (int k = 0; k <= previous; ++k) b.rk[k] = k == 0 ? r : previous_radius;
     const size_t K = size_t(blend_logits(previous, previous_radius));

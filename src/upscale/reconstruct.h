@@ -89,6 +89,9 @@ struct Recon {
 // no samples; zero_upsample writes rows [r0, r1) of the image from the frame's sample map.
 constexpr float kBlendYMax = 0.999f;
 constexpr int kBlendMaxFrames = 4;
+/// The current frame's candidates are its samples in the (2 kBlendRadius + 1)^2 output pixels
+/// around a pixel (nsrr.blend_logits).
+constexpr int kBlendRadius = 1;
 struct ZeroUpArgs {
   const int32_t* at;  // W x H: the low-resolution pixel whose sample an output pixel holds, -1
   const float* y;     // the frame's y, 3 planes of n
@@ -104,6 +107,13 @@ struct ZeroUpArgs {
 // at rows j0, j1 (offsets, weight ty of j1) and columns i0[X], i1[X] (non-decreasing, weight
 // tx[X] of i1).
 struct BlendArgs {
+  // The current frame (k = 0) read where it is: its y is the base's, its samples tabled by
+  // column (col_at[X] for X in [-kBlendRadius, W + kBlendRadius), -1 off the image) and row
+  // (row_at, H entries): output pixel (X, Y) holds low-res pixel (col_at[X], row_at[Y]) where both
+  // are >= 0; w the frame's width.
+  const int32_t *col_at, *row_at;
+  int w;
+  // The previous frames (k >= 1):
   const float* z[kBlendMaxFrames];  // per frame of the window (ZeroUpArgs::z), null: none
   // Or, for a frame whose radius is 0, its sample map (ZeroUpArgs::at) and its y (3 planes of
   // n, padded by kMaxLanes): its candidate read where it is, not from planes.
