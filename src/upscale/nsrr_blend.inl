@@ -29,8 +29,6 @@ static void zero_upsample_rows(const ZeroUpArgs& a, int r0, int r1) {
       using I = lanes_int<T>;
       const I i = ldi<I>(at + X);
       const auto ok = i >= 0;
-      // Neighbouring pixels' samples are neighbouring low-res pixels where the motion is
-      // smooth: one load and a permute instead of a gather (lookup) where they span few.
       T v[3];
       samples_at(a.y, a.n, i, v);
       for (size_t c = 0; c < 3; ++c) st(z + c * plane + size_t(X), v[c]);

@@ -119,9 +119,11 @@ class BilinearBase {
 /// row (frame 0's sample_at, then the warp's src), a candidate where that pixel is on the image
 /// and holds a sample; c = K - 1 the history (`hist`: its y, 3 planes of W x H).
 /// The output is the softmax over the candidates of their y, a convex combination, back from
-/// y. `base` must be built for this frame; its planes hold the frames' zero-upsampled samples
-/// (reconstruct.h: ZeroUpArgs), kept between frames. The per-pixel loops are reconstruct.h's
-/// kernels of default_isa().
+/// y. `base` must be built for this frame. The current frame's candidates are read from its y
+/// through its column and row tables, previous frames' at radius 0 through the warp's indices;
+/// previous frames at a larger radius are zero-upsampled first into planes (reconstruct.h:
+/// ZeroUpArgs) kept between frames. The per-pixel loops are reconstruct.h's kernels of
+/// default_isa().
 class Blend {
  public:
   template <class RowLogits>

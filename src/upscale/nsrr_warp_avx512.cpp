@@ -12,22 +12,24 @@
 namespace kestrel::upscale::nsrr {
 
 namespace {
-// The smallest and largest of the lanes of m (m != 0).
-int reduce_min(__mmask16 m, __m512i q) {
-  __m512i v = _mm512_mask_blend_epi32(m, _mm512_set1_epi32(0x7FFFFFFF), q);
-  v = _mm512_min_epi32(v, _mm512_shuffle_i64x2(v, v, 0x4E));
-  v = _mm512_min_epi32(v, _mm512_shuffle_i64x2(v, v, 0xB1));
-  v = _mm512_min_epi32(v, _mm512_shuffle_epi32(v, _MM_PERM_BADC));
-  v = _mm512_min_epi32(v, _mm512_shuffle_epi32(v, _MM_PERM_CDAB));
+// The smallest (kMax false) or largest of the lanes of m (m != 0).
+template <bool kMax>
+int reduce(__mmask16 m, __m512i q) {
+  auto op = [](__m512i a, __m512i b) {
+    return kMax ? _mm512_max_epi32(a, b) : _mm512_min_epi32(a, b);
+  };
+  __m512i v = _mm512_mask_blend_epi32(m, _mm512_set1_epi32(kMax ? -0x7FFFFFFF - 1 : 0x7FFFFFFF), q);
+  v = op(v, _mm512_shuffle_i64x2(v, v, 0x4E));
+  v = op(v, _mm512_shuffle_i64x2(v, v, 0xB1));
+  v = op(v, _mm512_shuffle_epi32(v, _MM_PERM_BADC));
+  v = op(v, _mm512_shuffle_epi32(v, _MM_PERM_CDAB));
   return _mm_cvtsi128_si32(_mm512_castsi512_si128(v));
 }
+int reduce_min(__mmask16 m, __m512i q) {
+  return reduce<false>(m, q);
+}
 int reduce_max(__mmask16 m, __m512i q) {
-  __m512i v = _mm512_mask_blend_epi32(m, _mm512_set1_epi32(-0x7FFFFFFF - 1), q);
-  v = _mm512_max_epi32(v, _mm512_shuffle_i64x2(v, v, 0x4E));
-  v = _mm512_max_epi32(v, _mm512_shuffle_i64x2(v, v, 0xB1));
-  v = _mm512_max_epi32(v, _mm512_shuffle_epi32(v, _MM_PERM_BADC));
-  v = _mm512_max_epi32(v, _mm512_shuffle_epi32(v, _MM_PERM_CDAB));
-  return _mm_cvtsi128_si32(_mm512_castsi512_si128(v));
+  return reduce<true>(m, q);
 }
 // Lanes that index fewer than 32 neighbouring entries [lo, hi] of an array: two masked loads
 // (only those entries read) and a two-source permute replace a gather, ~5 times slower here.
