@@ -168,8 +168,8 @@ Vec3 Renderer::Impl::sun_sample(float u1, float u2) const {
 // triangle or a punctual light, by power); MIS weighted against the BSDF except for punctual
 // lights (deltas): the shadow ray to trace and what it adds when unblocked.
 bool Renderer::Impl::sample_light(const Surface& sf, const Basis& frame, const BsdfAt& bsdf,
-                                  Vec3 origin, Vec3 throughput, Rng& rng, bool tree, bool env,
-                                  Ray& shadow, Vec3& contribution, const PathDraws* pre,
+                                  const Vec3& origin, const Vec3& throughput, Rng& rng, bool tree,
+                                  bool env, Ray& shadow, Vec3& contribution, const PathDraws* pre,
                                   int j) const {
   const Vec3 &ng = sf.ng, &ns = sf.ns;
   float ul, u1, u2;

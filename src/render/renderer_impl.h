@@ -464,9 +464,11 @@ struct Renderer::Impl {
   // `env`: the environment among the lights to pick (else the sun and the local lights, their
   // probabilities scaled by nee_scale(false)).
   // `pre`: the path's draws made ahead (SurfaceGroups::draws_of, entry j) or null: from rng.
-  bool sample_light(const Surface& sf, const Basis& frame, const BsdfAt& bsdf, Vec3 origin,
-                    Vec3 throughput, Rng& rng, bool tree, bool env, Ray& shadow, Vec3& contribution,
-                    const render::PathDraws* pre = nullptr, int j = 0) const;
+  // (origin and throughput by reference: passed by value, each was stored to the stack a
+  // float at a time and reloaded as two registers, a store-forwarding stall on every call.)
+  bool sample_light(const Surface& sf, const Basis& frame, const BsdfAt& bsdf, const Vec3& origin,
+                    const Vec3& throughput, Rng& rng, bool tree, bool env, Ray& shadow,
+                    Vec3& contribution, const render::PathDraws* pre = nullptr, int j = 0) const;
   // A Lambertian BSDF is sampled with the cosine, the density with which a cosine-sampled
   // environment (env_cosine) is: a light sample of the environment there would draw what the
   // BSDF sample draws, for the price of a shadow ray (inside Sponza the sky's rays cost ~5
