@@ -102,7 +102,9 @@ TEST(RadianceCacheCells, AFullTableOfYoungCellsKeepsTheMostRecentAndMakesRoom) {
       for (int s = 0; s < 4; ++s) rs.push_back({key(i), {float(pass), 1, 1}});
     c.add(rs);
     c.end_pass();
-    if (pass < 3) EXPECT_EQ(c.cells(), (pass + 1) * per_pass) << pass;
+    if (pass < 3) {
+      EXPECT_EQ(c.cells(), (pass + 1) * per_pass) << pass;
+    }
   }
   EXPECT_EQ(c.cells(), 3 * per_pass);
   Vec3 out;

@@ -184,7 +184,9 @@ TEST_P(Nsrr, BadInputIsAnError) {
 TEST_P(Nsrr, OutputStaysWithinItsCandidates) {
   for (int f : {2, 4}) {
     Upscaler up(nsrr(GetParam(), f));
-    Upscaler taau(UpscalerOptions{UpscaleMethod::neural, f});
+    UpscalerOptions taau_options;
+    taau_options.method = UpscaleMethod::neural, taau_options.factor = f;
+    Upscaler taau(taau_options);
     std::mt19937 rng(7 + f);
     std::uniform_real_distribution<float> u(0.0f, 1.0f);
     const int w = 24, h = 16, window = GetParam() == UpscaleMethod::nsrr ? 4 : 3;
