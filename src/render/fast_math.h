@@ -50,22 +50,27 @@ inline void sincos_taylor(T t, T& sn, T& cs) {
                                                     t2 * (1.0f / 40320 + t2 * (-1.0f / 3628800)))));
 }
 
+/// sin and cos of k quarter turns plus t from those of t (sn, cs): the quadrant's swap and
+/// signs as bit operations on B (uint32_t, or a vector of 32-bit integers for a vector T: the
+/// SIMD lanes of render/surface_rows.inl), since k is as random as the angle and branches on
+/// it would mispredict half the time. k: 0, 1, 2, 3 (= -1).
+template <class T, class B>
+inline void sincos_quadrant(B k, T sn, T cs, T& s, T& c) {
+  const B swap = 0 - (k & 1), bs = __builtin_bit_cast(B, sn), bc = __builtin_bit_cast(B, cs);
+  const B a = (bs & ~swap) | (bc & swap), b = (bc & ~swap) | (bs & swap);
+  s = __builtin_bit_cast(T, B(a ^ ((k >> 1) << 31)));              // negated for k = 2, 3
+  c = __builtin_bit_cast(T, B(b ^ ((((k + 1) >> 1) & 1) << 31)));  // negated for k = 1, 2
+}
+
 /// sin and cos of 2 pi u, for any finite u: reduced to a quarter turn around 0 and evaluated
-/// by sincos_taylor; the quadrant's swap and signs are then exact.
+/// by sincos_taylor; the quadrant's swap and signs are then exact (sincos_quadrant).
 inline void sincos_2pi(float u, float& s, float& c) {
   const float r = u - round_even(u);              // [-1/2, 1/2] turns
   const float q = round_even(4.0f * r);           // quadrant -2 .. 2
   const float t = (r - 0.25f * q) * 6.28318531f;  // [-pi/4, pi/4]
   float sn, cs;
   sincos_taylor(t, sn, cs);
-  // The quadrant's swap and signs as bit operations: k is as random as u, so branches on it
-  // would mispredict half the time.
-  const uint32_t k = uint32_t(int(q)) & 3u;  // quarter turns: 0, 1, 2, 3 (= -1)
-  const uint32_t swap = 0u - (k & 1u), bs = std::bit_cast<uint32_t>(sn),
-                 bc = std::bit_cast<uint32_t>(cs);
-  const uint32_t a = (bs & ~swap) | (bc & swap), b = (bc & ~swap) | (bs & swap);
-  s = std::bit_cast<float>(a ^ ((k >> 1) << 31));                // negated for k = 2, 3
-  c = std::bit_cast<float>(b ^ ((((k + 1u) >> 1) & 1u) << 31));  // negated for k = 1, 2
+  sincos_quadrant(uint32_t(int(q)) & 3u, sn, cs, s, c);
 }
 
 /// atan2(y, x) in [-pi, pi]: an odd polynomial in min / max of |x| and |y| (degree 15, fitted

@@ -261,12 +261,7 @@ static inline void sincos_2pi_lanes(T u, T& s, T& c) {
   const T t = (r - 0.25f * q) * 6.28318531f;
   T sn, cs;
   sincos_taylor(t, sn, cs);
-  const auto k = vtrunc(q) & 3;
-  const auto swap = 0 - (k & 1);
-  const auto bs = bits_of(sn), bc = bits_of(cs);
-  const auto sa = (bs & ~swap) | (bc & swap), sb = (bc & ~swap) | (bs & swap);
-  s = __builtin_bit_cast(T, sa ^ ((k >> 1) << 31));
-  c = __builtin_bit_cast(T, sb ^ ((((k + 1) >> 1) & 1) << 31));
+  sincos_quadrant(vtrunc(q) & 3, sn, cs, s, c);
 }
 
 template <class T>

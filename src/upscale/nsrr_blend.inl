@@ -2,18 +2,27 @@
 // Blend), compiled per instruction set with the upsampler's other per-pixel stages
 // (reconstruct_*.cpp) and written once for T = float and T = vfloat (core/simd/lanes.inl).
 
-// y (3 planes of n, padded by kMaxLanes) of the low-res pixels i, 0 where i < 0. Neighbouring
-// pixels' samples are neighbouring low-res pixels where the motion is smooth: one load and a
-// permute instead of a gather (lookup) where they span few.
+// Low-res pixels i (< 0: none) as lookup reads them: the span [lo, hi] of those present and
+// the indices with the absent ones inside it. Neighbouring pixels' samples are neighbouring
+// low-res pixels where the motion is smooth: one load and a permute instead of a gather where
+// they span few.
+template <class I>
+struct Picks {
+  I i, ic;
+  int lo, hi;
+  explicit Picks(I i_) : i(i_) {
+    hi = lane_max(i);
+    lo = hi < 0 ? 0 : lane_min(i >= 0 ? i : I{} + hi);
+    ic = i >= 0 ? i : I{} + lo;
+    if (hi < 0) hi = lo;
+  }
+};
+// y (3 planes of n, padded by kMaxLanes) at the picks, 0 where absent.
 template <class T, class I>
-static inline void samples_at(const float* y, size_t n, I i, T v[3]) {
-  const auto ok = i >= 0;
-  const int hi = lane_max(i);
-  const int lo = hi < 0 ? 0 : lane_min(ok ? i : I{} + hi);
-  const I ic = ok ? i : I{} + lo;
+static inline void samples_at(const float* y, size_t n, const Picks<I>& p, T v[3]) {
   for (size_t c = 0; c < 3; ++c) {
-    const T s = lookup(y + c * n, ic, lo, hi < 0 ? lo : hi);
-    v[c] = ok ? s : T{};
+    const T s = lookup(y + c * n, p.ic, p.lo, p.hi);
+    v[c] = p.i >= 0 ? s : T{};
   }
 }
 
@@ -30,7 +39,7 @@ static void zero_upsample_rows(const ZeroUpArgs& a, int r0, int r1) {
       const I i = ldi<I>(at + X);
       const auto ok = i >= 0;
       T v[3];
-      samples_at(a.y, a.n, i, v);
+      samples_at(a.y, a.n, Picks(i), v);
       for (size_t c = 0; c < 3; ++c) st(z + c * plane + size_t(X), v[c]);
       st(z + 3 * plane + size_t(X), ok ? T{} + 1.0f : T{});
     });
@@ -51,10 +60,13 @@ static void blend_row(const BlendArgs& a) {
     size_t c = 1;
     using I = lanes_int<T>;
     I direct[kBlendMaxFrames];  // the frames read where they are: their samples' indices
-    // The current frame's samples by column (a row of them where row_at holds one).
-    I cols[2 * kBlendRadius + 1];
+    // The current frame's samples by column (a row of them where row_at holds one): the same
+    // columns on every row of the window.
+    static_assert(kBlendRadius == 1);  // (cols below: X - r0, X, X + r0 for r0 <= 1)
     const int r0 = a.rk[0];
-    for (int dx = -r0; dx <= r0; ++dx) cols[dx + r0] = ldi<I>(a.col_at + X + dx);
+    Picks<I> cols[2 * kBlendRadius + 1] = {Picks(ldi<I>(a.col_at + X - r0)),
+                                           Picks(ldi<I>(a.col_at + X)),
+                                           Picks(ldi<I>(a.col_at + X + r0))};
     auto row_at = [&](int dy) { return a.Y + dy < 0 || a.Y + dy >= a.H ? -1 : a.row_at[a.Y + dy]; };
     for (int dy = -r0; dy <= r0; ++dy) {
       if (row_at(dy) < 0) {
@@ -63,7 +75,7 @@ static void blend_row(const BlendArgs& a) {
       }
       for (int dx = -r0; dx <= r0; ++dx, ++c) {
         const T l = ld<T>(a.logits + c * W + size_t(X));
-        m = cols[dx + r0] >= 0 ? vmax(m, l) : m;
+        m = cols[dx + r0].i >= 0 ? vmax(m, l) : m;
       }
     }
     for (int k = 1; k < a.frames; ++k) {
@@ -118,7 +130,7 @@ static void blend_row(const BlendArgs& a) {
       for (int dx = -r0; dx <= r0; ++dx, ++c) {
         const T l = ld<T>(a.logits + c * W + size_t(X));
         T e = vexp2((l - m) * kLog2e);
-        e = cols[dx + r0] >= 0 ? e : T{};
+        e = cols[dx + r0].i >= 0 ? e : T{};
         T v[3];
         samples_at(a.y + size_t(j) * size_t(a.w), a.n, cols[dx + r0], v);
         s += e;
@@ -132,7 +144,7 @@ static void blend_row(const BlendArgs& a) {
         T e = vexp2((l - m) * kLog2e);
         e = direct[k] >= 0 ? e : T{};
         T v[3];
-        samples_at(a.ylow[k], a.n, direct[k], v);
+        samples_at(a.ylow[k], a.n, Picks(direct[k]), v);
         s += e;
         y0 += e * v[0], y1 += e * v[1], y2 += e * v[2];
         ++c;
