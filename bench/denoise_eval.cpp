@@ -143,6 +143,11 @@ int main(int argc, char** argv) {
     o.recurrent = true;
     methods.push_back({"neural (recurrent)", o, false});
     const size_t params = Denoiser(o).parameter_count();
+    if (Denoiser(o).uses_bf16()) {  // the default there: bf16 convolutions; f32 beside them
+      o.bf16 = false;
+      methods.push_back({"neural (recurrent), fp32", o, false});
+      o.bf16 = true;
+    }
     if (!no_rae) {
       DenoiserOptions r;
       r.method = DenoiseMethod::rae;

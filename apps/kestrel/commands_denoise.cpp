@@ -184,8 +184,9 @@ Action add_denoise_command(CLI::App& cmd) {
   cmd.add_option("--start", a->start, "First frame number")->capture_default_str();
   cmd.add_flag("--no-recurrent", a->no_recurrent,
                "Neural: each frame alone (no warped previous output)");
-  cmd.add_flag("--fp32", a->fp32,
-               "rae: fp32 convolutions even where the CPU has bf16 ones (the default there)");
+  cmd.add_flag(
+      "--fp32", a->fp32,
+      "neural, rae: fp32 convolutions even where the CPU has bf16 ones (the default there)");
   cmd.add_flag("--quiet", a->quiet, "Print nothing");
   cmd.add_option("--bench", a->bench,
                  "Denoise each frame this many more times and print the median time");

@@ -177,9 +177,10 @@ Action add_upscale_command(CLI::App& cmd) {
   cmd.add_option("--start", a->start, "First frame number")->capture_default_str();
   cmd.add_option("--bench", a->bench,
                  "Upscale each frame this many more times; the median counts those");
-  cmd.add_flag("--fp32", a->fp32,
-               "nsrr, nsrr-rt: fp32 convolutions even where the CPU has bf16 ones (the default "
-               "there)");
+  cmd.add_flag(
+      "--fp32", a->fp32,
+      "neural, nsrr, nsrr-rt: fp32 convolutions even where the CPU has bf16 ones (the default "
+      "there)");
   cmd.add_flag("--quiet", a->quiet, "Only the summary line");
   return [a] {
     if (!a->pattern.empty()) {

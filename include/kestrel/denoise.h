@@ -37,7 +37,7 @@ struct DenoiserOptions {
   /// neural, rae: weights file ("" = default_denoiser_weights(method))
   std::string weights;
   bool recurrent = true;  ///< neural, rae: carry the state (false: every frame starts afresh)
-  bool bf16 = true;       ///< rae: bf16 convolutions where the CPU has them (else fp32)
+  bool bf16 = true;       ///< neural, rae: bf16 convolutions where the CPU has them (else fp32)
 };
 
 /// Where the committed weights are: $KESTREL_WEIGHTS_DIR/FILE, else the source tree's
@@ -63,7 +63,7 @@ class Denoiser {
   void reset();
   DenoiseMethod method() const;
   size_t parameter_count() const;  ///< 0 for the non-neural filters
-  bool uses_bf16() const;          ///< rae running its convolutions in bf16
+  bool uses_bf16() const;          ///< neural / rae running its convolutions in bf16
 
  private:
   struct Impl;

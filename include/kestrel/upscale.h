@@ -42,7 +42,8 @@ struct UpscalerOptions {
   UpscaleMethod method = UpscaleMethod::neural;
   int factor = 2;       ///< 2 or 4: the output is factor x the input in each dimension
   std::string weights;  ///< neural, nsrr, nsrr-rt: weights ("" = default_upscaler_weights(method))
-  bool bf16 = true;     ///< nsrr, nsrr-rt: bf16 convolutions where the CPU has them (else fp32)
+  /// neural, nsrr, nsrr-rt: bf16 convolutions where the CPU has them (AVX-512 BF16; else fp32)
+  bool bf16 = true;
 };
 
 /// $KESTREL_WEIGHTS_DIR/upscaler.kdw (upscaler_nsrr.kdw for nsrr, upscaler_nsrr_rt.kdw for
@@ -69,7 +70,7 @@ class Upscaler {
   UpscaleMethod method() const;
   int factor() const;
   size_t parameter_count() const;  ///< 0 for the baselines
-  bool uses_bf16() const;          ///< nsrr / nsrr-rt running its convolutions in bf16
+  bool uses_bf16() const;          ///< the network running its convolutions in bf16
   /// Milliseconds of the last frame's stages: features, network, reconstruction, and for nsrr
   /// and nsrr-rt the learned TAAU run beside them (its whole frame: history).
   struct Times {

@@ -160,7 +160,9 @@ class Upscaler:
     method: str
     factor: int
     parameter_count: int
-    def __init__(self, method: str = "neural", factor: int = 2, weights: str = "") -> None: ...
+    uses_bf16: bool
+    def __init__(self, method: str = "neural", factor: int = 2, weights: str = "",
+                 bf16: bool = True) -> None: ...
     def upscale(self, color: FloatArray, depth: Optional[FloatArray] = None, motion: Optional[FloatArray] = None,
                 jitter: Tuple[float, float] = (0.5, 0.5), threads: int = 0, nan_policy: str = "zero",
                 out: Optional[FloatArray] = None) -> FloatArray: ...

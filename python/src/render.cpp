@@ -82,9 +82,10 @@ DenoiserOptions denoiser_options(const std::string& method, const std::string& w
   return o;
 }
 
-UpscalerOptions upscaler_options(const std::string& method, int factor,
-                                 const std::string& weights) {
+UpscalerOptions upscaler_options(const std::string& method, int factor, const std::string& weights,
+                                 bool bf16 = true) {
   UpscalerOptions o;
+  o.bf16 = bf16;
   auto m = upscale_method_from_name(method);
   if (!m)
     throw py::value_error(
@@ -431,10 +432,12 @@ void bind_render(py::module_& m) {
   py::class_<Upscaler>(
       m, "Upscaler",
       "A temporal upsampler for one sequence (history carried; reset() starts anew).")
-      .def(py::init([](const std::string& method, int factor, const std::string& weights) {
-             return std::make_unique<Upscaler>(upscaler_options(method, factor, weights));
-           }),
-           py::arg("method") = "neural", py::arg("factor") = 2, py::arg("weights") = "")
+      .def(py::init(
+               [](const std::string& method, int factor, const std::string& weights, bool bf16) {
+                 return std::make_unique<Upscaler>(upscaler_options(method, factor, weights, bf16));
+               }),
+           py::arg("method") = "neural", py::arg("factor") = 2, py::arg("weights") = "",
+           py::arg("bf16") = true)
       .def(
           "upscale",
           [](Upscaler& u, py::handle color, py::handle depth, py::handle motion,
@@ -451,7 +454,8 @@ void bind_render(py::module_& m) {
       .def_property_readonly(
           "method", [](const Upscaler& u) { return std::string(upscale_method_name(u.method())); })
       .def_property_readonly("factor", &Upscaler::factor)
-      .def_property_readonly("parameter_count", &Upscaler::parameter_count);
+      .def_property_readonly("parameter_count", &Upscaler::parameter_count)
+      .def_property_readonly("uses_bf16", &Upscaler::uses_bf16);
 
   m.def(
       "upscale",

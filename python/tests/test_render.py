@@ -117,14 +117,15 @@ def test_denoise_equals_the_cli(cli, frame, tmp_path):
         got = kestrel.denoise(frame["color"], albedo=frame["albedo"], normal=frame["normal"], method=method)
         assert got.shape == (RES[1], RES[0], 3)
         assert np.array_equal(bits(got), bits(expected)), method
-    # rae in fp32 where bf16 is the default: the CLI's --fp32
-    cli("denoise", "--hdr", tmp_path / "color.pfm", "--alb", tmp_path / "albedo.pfm", "--nrm",
-        tmp_path / "normal.pfm", "-o", tmp_path / "out.pfm", "--method", "rae", "--fp32", "--quiet")
-    expected = kestrel.read_pfm(str(tmp_path / "out.pfm"))
-    d = kestrel.Denoiser("rae", bf16=False)
-    assert not d.uses_bf16
-    got = d.denoise(frame["color"], albedo=frame["albedo"], normal=frame["normal"])
-    assert np.array_equal(bits(got), bits(expected))
+    # fp32 where bf16 is the default: the CLI's --fp32
+    for method in ("neural", "rae"):
+        cli("denoise", "--hdr", tmp_path / "color.pfm", "--alb", tmp_path / "albedo.pfm", "--nrm",
+            tmp_path / "normal.pfm", "-o", tmp_path / "out.pfm", "--method", method, "--fp32", "--quiet")
+        expected = kestrel.read_pfm(str(tmp_path / "out.pfm"))
+        d = kestrel.Denoiser(method, bf16=False)
+        assert not d.uses_bf16
+        got = d.denoise(frame["color"], albedo=frame["albedo"], normal=frame["normal"])
+        assert np.array_equal(bits(got), bits(expected)), method
 
 
 def test_denoise_inputs_are_checked(frame, tmp_path):
@@ -175,6 +176,11 @@ def test_upscale(frame):
     u = kestrel.Upscaler("neural", factor=4)
     big = u.upscale(frame["color"], depth=frame["depth"], motion=frame["motion"], jitter=(0.5, 0.5))
     assert big.shape == (4 * RES[1], 4 * RES[0], 3) and np.isfinite(big).all()
+    # bf16 convolutions (the default where the CPU has them) or fp32: nearly the same frame
+    u32 = kestrel.Upscaler("neural", factor=4, bf16=False)
+    assert not u32.uses_bf16
+    big32 = u32.upscale(frame["color"], depth=frame["depth"], motion=frame["motion"], jitter=(0.5, 0.5))
+    assert np.allclose(big, big32, rtol=1e-2, atol=1e-3)
     with pytest.raises(ValueError, match="factor: must be 2 or 4"):
         kestrel.upscale(frame["color"], factor=3)
     with pytest.raises(ValueError, match="depth: size"):

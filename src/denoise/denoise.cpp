@@ -18,6 +18,7 @@
 #include "denoise/svgf.h"
 #include "kestrel/error.h"
 #include "kestrel/trace.h"
+#include "nn/conv.h"
 
 #ifndef KESTREL_SOURCE_DIR
 #define KESTREL_SOURCE_DIR "."
@@ -212,9 +213,10 @@ Denoiser::Denoiser(const DenoiserOptions& options) : impl_(std::make_unique<Impl
   impl_->options = options;
   const std::string weights =
       options.weights.empty() ? default_denoiser_weights(options.method) : options.weights;
-  if (options.method == DenoiseMethod::neural)
+  if (options.method == DenoiseMethod::neural) {
     impl_->weights = denoise::NeuralWeights::load(weights);
-  else if (options.method == DenoiseMethod::rae)
+    impl_->workspace.bf16 = options.bf16;
+  } else if (options.method == DenoiseMethod::rae)
     impl_->rae.emplace(weights, options.bf16);
 }
 Denoiser::~Denoiser() = default;
@@ -234,7 +236,9 @@ size_t Denoiser::parameter_count() const {
   return impl_->weights ? impl_->weights->parameters : impl_->rae ? impl_->rae->parameters() : 0;
 }
 bool Denoiser::uses_bf16() const {
-  return impl_->rae && impl_->rae->bf16();
+  if (impl_->rae) return impl_->rae->bf16();
+  return impl_->weights && impl_->options.bf16 && default_isa() == Isa::avx512 &&
+         nn::conv_bf16_supported();
 }
 
 FloatImage Denoiser::denoise(const DenoiseInput& input) {

@@ -39,10 +39,11 @@ static void parallel_rows(int h, int grain, F&& f) {
   });
 }
 
-// The convolutions run on src/nn's kernel of this file's instruction set.
+// The convolutions run on src/nn's kernel of this file's instruction set (bf16 if asked and
+// there is one: ws.bf16).
 static void conv_layer(const ConvLayer& l, const std::vector<float>& in, int w, int h,
-                       std::vector<float>& out, bool relu, std::vector<float>& scratch) {
-  nn::conv_kernels(kThisIsa).conv(l, in, w, h, out, relu, scratch);
+                       std::vector<float>& out, bool relu, Workspace& ws) {
+  nn::conv_kernels(kThisIsa, ws.bf16).conv(l, in, w, h, out, relu, ws.padded);
 }
 
 static void ensure(Planes& p, int w, int h, int c) {
@@ -365,7 +366,7 @@ static const Planes& network(const NeuralWeights& nw, const Planes& in, Planes& 
   });
   lap(&stage.features);
   // The CNN at 1/4 and 1/8 resolution.
-  conv_layer(nw.enc1, ws.feat, Wq, Hq, ws.e1, true, ws.padded);
+  conv_layer(nw.enc1, ws.feat, Wq, Hq, ws.e1, true, ws);
   const int We = Wq / 2, He = Hq / 2;
   ws.pooled.resize(size_t(We) * size_t(He) * 16);
   parallel_rows(He, 4, [&](int r0, int r1) {
@@ -377,8 +378,8 @@ static const Planes& network(const NeuralWeights& nw, const Planes& in, Planes& 
         for (int c = 0; c < 16; ++c) o[c] = (a[c] + a[16 + c] + b[c] + b[16 + c]) * 0.25f;
       }
   });
-  conv_layer(nw.enc2, ws.pooled, We, He, ws.e2, true, ws.padded);
-  conv_layer(nw.enc3, ws.e2, We, He, ws.e3, true, ws.padded);
+  conv_layer(nw.enc2, ws.pooled, We, He, ws.e2, true, ws);
+  conv_layer(nw.enc3, ws.e2, We, He, ws.e3, true, ws);
   ws.cat.resize(size_t(Wq) * size_t(Hq) * 48);
   parallel_rows(Hq, 4, [&](int r0, int r1) {
     for (int y = r0; y < r1; ++y)
@@ -389,8 +390,8 @@ static const Planes& network(const NeuralWeights& nw, const Planes& in, Planes& 
         std::memcpy(c + 32, &ws.e1[(size_t(y) * size_t(Wq) + size_t(i)) * 16], 16 * sizeof(float));
       }
   });
-  conv_layer(nw.dec1, ws.cat, Wq, Hq, ws.d1, true, ws.padded);
-  conv_layer(nw.head, ws.d1, Wq, Hq, ws.o, false, ws.padded);
+  conv_layer(nw.dec1, ws.cat, Wq, Hq, ws.d1, true, ws);
+  conv_layer(nw.head, ws.d1, Wq, Hq, ws.o, false, ws);
   // Activations at quarter resolution, planar.
   const size_t Nq = size_t(Wq) * size_t(Hq);
   ws.act.resize(Nq * kOutputs);

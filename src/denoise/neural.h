@@ -87,6 +87,8 @@ constexpr float kMinDepth = 1e-3f;
 
 /// Buffers reused from frame to frame (no allocation or page faults once warm).
 struct Workspace {
+  /// The CNN's convolutions in bf16 where the CPU has the kernel (nn::conv_kernels), else f32.
+  bool bf16 = false;
   Planes x, xlin, demod, yw, xi, xo, lg, lg2, out, next_state;
   std::vector<float> bound, bound3, mu, mu3, cells, cut3, top3;
   std::vector<uint8_t> black_rows;  ///< per row: any pixel with black flag 1

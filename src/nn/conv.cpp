@@ -3,8 +3,14 @@
 
 namespace kestrel::nn {
 
-const ConvKernels& conv_kernels(Isa isa) {
+bool conv_bf16_supported() {
+  __builtin_cpu_init();
+  return isa_supported(Isa::avx512) && __builtin_cpu_supports("avx512bf16");
+}
+
+const ConvKernels& conv_kernels(Isa isa, bool bf16) {
   require_supported(isa);
+  if (bf16 && isa == Isa::avx512 && conv_bf16_supported()) return conv_kernels_avx512_bf16();
   switch (isa) {
     case Isa::avx512:
       return conv_kernels_avx512();

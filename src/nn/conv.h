@@ -31,7 +31,12 @@ struct ConvKernels {
 const ConvKernels& conv_kernels_sse2();
 const ConvKernels& conv_kernels_avx2();
 const ConvKernels& conv_kernels_avx512();
-/// The kernels of an ISA (Error when this CPU lacks it).
-const ConvKernels& conv_kernels(Isa isa);
+/// bf16 inputs and weights, f32 sums (vdpbf16ps): only where conv_bf16_supported().
+const ConvKernels& conv_kernels_avx512_bf16();
+/// Whether this CPU runs the bf16 kernel (AVX-512 with AVX512_BF16).
+bool conv_bf16_supported();
+/// The kernels of an ISA (Error when this CPU lacks it); with `bf16`, the bf16 kernel where
+/// the ISA is avx512 and the CPU has it (else the ISA's f32 kernel).
+const ConvKernels& conv_kernels(Isa isa, bool bf16 = false);
 
 }  // namespace kestrel::nn

@@ -210,6 +210,7 @@ Upscaler::Upscaler(const UpscalerOptions& options) : impl_(std::make_unique<Impl
                       : upscale::make_nsrr_rt(path, options.factor, options.bf16);
     UpscalerOptions history;  // the learned TAAU, with its default weights
     history.factor = options.factor;
+    history.bf16 = options.bf16;
     impl_->history = std::make_unique<Upscaler>(history);
     impl_->parameters = impl_->nsrr->parameters() + impl_->history->parameter_count();
   }
@@ -233,7 +234,9 @@ void Upscaler::reset() {
   if (impl_->history) impl_->history->reset();
 }
 bool Upscaler::uses_bf16() const {
-  return impl_->nsrr && impl_->nsrr->bf16();
+  if (impl_->nsrr) return impl_->nsrr->bf16();
+  return impl_->options.method == UpscaleMethod::neural && impl_->options.bf16 &&
+         default_isa() == Isa::avx512 && nn::conv_bf16_supported();
 }
 UpscaleMethod Upscaler::method() const {
   return impl_->options.method;
@@ -374,7 +377,7 @@ void Upscaler::Impl::temporal(const UpscaleInput& in, FloatImage& out) {
     });
     times.features = timer.ms();
     timer = Timer();
-    const nn::ConvKernels& k = nn::conv_kernels(default_isa());
+    const nn::ConvKernels& k = nn::conv_kernels(default_isa(), options.bf16);
     k.conv(layers[0], act0, gw, gh, act1, true, scratch);
     k.conv(layers[1], act1, gw, gh, act0, true, scratch);
     k.conv(layers[2], act0, gw, gh, act1, true, scratch);
