@@ -147,7 +147,7 @@ int main(int argc, char** argv) {
           two.trace(*rays, ih);
           a_ms.push_back(ta.ms());
           Timer tb;
-          trace(flat, *rays, fh, TraceOptions{std::nullopt, false});
+          trace(flat, *rays, fh, TraceOptions{std::nullopt, false, std::nullopt});
           b_ms.push_back(tb.ms());
         }
         size_t same = 0;

@@ -157,8 +157,9 @@ int main(int argc, char** argv) {
     for (Layout layout : {Layout::bvh4, Layout::bvh8})
       for (Isa isa : {Isa::sse2, Isa::avx2, Isa::avx512})
         if (isa_supported(isa))
-          variants.push_back(
-              {fmt::format("{}-{}", layout_name(layout), isa_name(isa)), layout, {isa, false}});
+          variants.push_back({fmt::format("{}-{}", layout_name(layout), isa_name(isa)),
+                              layout,
+                              {isa, false, std::nullopt}});
     variants.push_back({"bvh2-scalar", Layout::bvh2, {}});
   }
   std::vector<Result> results;

@@ -310,7 +310,7 @@ TEST(Aovs, DepthAndNormalOnASphere) {
   s.materials = {Material{.name = "m", .base_color = {0.5f, 0.5f, 0.5f}}};
   s.meshes.push_back(uv_sphere(c, radius, 256, 512, true));
   SceneRenderer r(std::move(s), Environment::parse("sky"));
-  for (const auto [w, h] : {std::pair{64, 64}, std::pair{45, 39}}) {
+  for (const auto& [w, h] : {std::pair{64, 64}, std::pair{45, 39}}) {
     RenderSettings rs;
     rs.width = w, rs.height = h, rs.frame = 7;
     const Camera cam{{0, 0, 0}, {0, 0, -1}, 40};
