@@ -89,7 +89,7 @@ int main(int argc, char** argv) {
   std::string weights, rt_weights, nsrr_weights;
   std::vector<std::string> only;
   int threads = int(std::thread::hardware_concurrency()), repeat = 9;
-  bool quick = false;
+  bool quick = false, fp32 = false;
   CLI::App app{"kestrel_upscale_eval: the upsamplers on the held-out clips"};
   app.add_option("--dataset", dataset, "The dataset of scripts/upscale/make_dataset.py")
       ->capture_default_str();
@@ -106,6 +106,9 @@ int main(int argc, char** argv) {
   app.add_option("--threads", threads, "Worker threads")->capture_default_str();
   app.add_option("--repeat", repeat, "Timed frames (median)")->capture_default_str();
   app.add_flag("--quick", quick, "Three frames per clip (smoke test)");
+  app.add_flag("--fp32", fp32,
+               "Every network's convolutions in f32, even where the CPU has bf16 ones (the "
+               "default there)");
   CLI11_PARSE(app, argc, argv);
   tbb::global_control threads_limit(tbb::global_control::max_allowed_parallelism,
                                     size_t(std::max(threads, 1)));
@@ -130,7 +133,7 @@ int main(int argc, char** argv) {
     fs::create_directories(out_dir);
     auto options = [&](UpscaleMethod m, int f) {
       UpscalerOptions o;
-      o.method = m, o.factor = f;
+      o.method = m, o.factor = f, o.bf16 = !fp32;
       if (m == UpscaleMethod::neural) o.weights = weights;
       if (m == UpscaleMethod::nsrr) o.weights = nsrr_weights;
       if (m == UpscaleMethod::nsrr_rt) o.weights = rt_weights;
@@ -303,7 +306,11 @@ int main(int argc, char** argv) {
         repeat);
     for (UpscaleMethod m : methods)
       if (params[m]) md += fmt::format(" {} {};", label(m), params[m]);
-    md += "\n\n";
+    bool bf16 = false;  // whether the networks' convolutions ran in bf16 (this CPU, --fp32)
+    for (UpscaleMethod m : methods)
+      if (params[m]) bf16 |= Upscaler(options(m, 2)).uses_bf16();
+    md += bf16 ? " convolutions in bf16 (the default on this CPU; `--fp32` for f32).\n\n"
+               : " convolutions in f32.\n\n";
     nlohmann::json json_total = nlohmann::json::array();
     for (const Variant& var : kVariants)
       for (int f : {2, 4}) {
