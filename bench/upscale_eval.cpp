@@ -349,7 +349,9 @@ int main(int argc, char** argv) {
           const double taau = mean(UpscaleMethod::taau);
           for (UpscaleMethod m :
                {UpscaleMethod::neural, UpscaleMethod::nsrr_rt, UpscaleMethod::nsrr})
-            md += fmt::format(" | {:+.2f}", mean(m) - taau);
+            md += std::isnan(mean(m) - taau)  // a method not run (--methods)
+                      ? std::string(" | -")
+                      : fmt::format(" | {:+.2f}", mean(m) - taau);
           md += " |\n";
         }
         if (var.suffix[0] == 0)
