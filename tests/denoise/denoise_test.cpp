@@ -16,6 +16,7 @@
 
 #include "kestrel/error.h"
 #include "kestrel/io.h"
+#include "support/oracles.h"
 
 namespace kestrel {
 namespace {
@@ -57,13 +58,10 @@ constexpr double kBf16FixturePsnr = 40, kBf16FixtureWorst = 0.05;
 const DenoiseMethod kMethods[] = {DenoiseMethod::neural, DenoiseMethod::svgf,
                                   DenoiseMethod::atrous};
 
-// The fixture's frames through a neural denoiser: the worst error relative to |expected| +
-// 0.01 and the PSNR (peak 1) against the training framework's output, per frame.
-struct FixtureScore {
-  double worst = 0, psnr = 0;
-};
-std::vector<FixtureScore> score_on_fixture(Denoiser& d) {
-  std::vector<FixtureScore> scores;
+// The fixture's frames through a neural denoiser, each against the training framework's
+// output (test::match_images).
+std::vector<test::ImageMatch> score_on_fixture(Denoiser& d) {
+  std::vector<test::ImageMatch> scores;
   // The fixture's second frame is 4x brighter, its third 4x darker: both history clamps act;
   // its fourth is the third again, still: a history long enough for the output's last step.
   for (int t = 0; t < 4; ++t) {
@@ -76,15 +74,7 @@ std::vector<FixtureScore> score_on_fixture(Denoiser& d) {
     EXPECT_EQ(out.width, expected.width);
     EXPECT_EQ(out.height, expected.height);
     if (out.pixels.size() != expected.pixels.size()) return scores;
-    FixtureScore s;
-    double se = 0;
-    for (size_t i = 0; i < out.pixels.size(); ++i) {
-      const double e = std::abs(double(out.pixels[i]) - expected.pixels[i]);
-      s.worst = std::max(s.worst, e / (std::abs(expected.pixels[i]) + 1e-2));
-      se += e * e;
-    }
-    s.psnr = 10 * std::log10(double(out.pixels.size()) / std::max(se, 1e-30));
-    scores.push_back(s);
+    scores.push_back(test::match_images(out, expected));
   }
   return scores;
 }
@@ -100,7 +90,7 @@ TEST(Denoise, NeuralMatchesPyTorchOnTheFixture) {
     o.bf16 = false;
     Denoiser d(o);
     EXPECT_FALSE(d.uses_bf16());
-    const std::vector<FixtureScore> scores = score_on_fixture(d);
+    const std::vector<test::ImageMatch> scores = score_on_fixture(d);
     ASSERT_EQ(scores.size(), 4u);
     for (size_t t = 0; t < scores.size(); ++t) EXPECT_LT(scores[t].worst, 1e-4) << "frame " << t;
     EXPECT_LE(d.parameter_count(), 100000u);
@@ -115,7 +105,7 @@ TEST(Denoise, NeuralMatchesPyTorchOnTheFixture) {
 TEST(Denoise, NeuralInBf16StaysCloseToPyTorch) {
   Denoiser d;
   if (!d.uses_bf16()) GTEST_SKIP() << "this CPU has no bf16 convolutions";
-  const std::vector<FixtureScore> scores = score_on_fixture(d);
+  const std::vector<test::ImageMatch> scores = score_on_fixture(d);
   ASSERT_EQ(scores.size(), 4u);
   for (size_t t = 0; t < scores.size(); ++t) {
     EXPECT_GT(scores[t].psnr, kBf16FixturePsnr) << "frame " << t;

@@ -75,7 +75,7 @@ TEST(Lights, SpotLightFollowsItsCone) {
 TEST(Lights, DirectionalLightAndSunGiveTheirIrradiance) {
   Scene s = plane();
   s.lights.push_back(
-      Light{.type = Light::Type::directional, .direction = {0, 0, -1}, .intensity = 3});
+      Light{.name = {}, .type = Light::Type::directional, .direction = {0, 0, -1}, .intensity = 3});
   EXPECT_NEAR(radiance_at(s, std::nullopt), kAlbedo / kPi * 3, 1e-4f);
   // A sun straight above the plane (towards +z), no sky: its irradiance times the mean cosine
   // over its disk (1 - (1 - cos r) / 2, ~1), from NEE and BSDF samples combined by MIS.
@@ -263,11 +263,13 @@ TEST(Lights, BadLightsAreErrorsNamingSceneAndLight) {
       EXPECT_NE(m.find(needle), std::string::npos) << m;
     }
   };
-  expect(Light{.intensity = -1}, "negative");
-  expect(Light{.position = {NAN, 0, 0}}, "NaN");
-  expect(Light{.type = Light::Type::spot, .direction = {0, 0, 0}}, "direction");
-  expect(Light{.type = Light::Type::directional, .direction = {NAN, 0, 1}}, "direction");
-  expect(Light{.type = Light::Type::spot, .inner_cone = 0.5f, .outer_cone = 0.4f}, "cone");
+  expect(Light{.name = {}, .intensity = -1}, "negative");
+  expect(Light{.name = {}, .position = {NAN, 0, 0}}, "NaN");
+  expect(Light{.name = {}, .type = Light::Type::spot, .direction = {0, 0, 0}}, "direction");
+  expect(Light{.name = {}, .type = Light::Type::directional, .direction = {NAN, 0, 1}},
+         "direction");
+  expect(Light{.name = {}, .type = Light::Type::spot, .inner_cone = 0.5f, .outer_cone = 0.4f},
+         "cone");
 }
 
 std::string gltf_with_light(const std::string& name, const std::string& light_json) {

@@ -300,4 +300,17 @@ uint32_t float_bits(float f) {
   return u;
 }
 
+ImageMatch match_images(const FloatImage& out, const FloatImage& expected) {
+  ImageMatch m;
+  double se = 0;
+  const size_t n = std::min(out.pixels.size(), expected.pixels.size());
+  for (size_t i = 0; i < n; ++i) {
+    const double e = std::abs(double(out.pixels[i]) - expected.pixels[i]);
+    m.worst = std::max(m.worst, e / (std::abs(double(expected.pixels[i])) + 1e-2));
+    se += e * e;
+  }
+  m.psnr = 10 * std::log10(double(std::max<size_t>(n, 1)) / std::max(se, 1e-30));
+  return m;
+}
+
 }  // namespace kestrel::test

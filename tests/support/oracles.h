@@ -84,4 +84,11 @@ std::filesystem::path test_temp_dir();
 /// Writes text to a fresh file under the test temp dir and returns its path.
 std::string write_temp_file(const std::string& name, const std::string& contents);
 
+/// An output against a framework's (PyTorch's) expected image of the same size: the worst
+/// error relative to |expected| + 0.01, and the PSNR (peak 1).
+struct ImageMatch {
+  double worst = 0, psnr = 0;
+};
+ImageMatch match_images(const FloatImage& out, const FloatImage& expected);
+
 }  // namespace kestrel::test

@@ -15,6 +15,7 @@
 #include "kestrel/io.h"
 #include "kestrel/isa.h"
 #include "kestrel/upscale.h"
+#include "support/oracles.h"
 #include "upscale/nsrr_warp.h"
 
 namespace kestrel {
@@ -78,15 +79,9 @@ void compare(UpscaleMethod m, bool bf16, double worst_allowed, double psnr_requi
       const FloatImage out = up.upscale({&fr.color, &fr.depth, &fr.motion, fr.jx, fr.jy});
       ASSERT_EQ(out.width, fr.expected.width);
       ASSERT_EQ(out.height, fr.expected.height);
-      double worst = 0, se = 0;
-      for (size_t i = 0; i < out.pixels.size(); ++i) {
-        const double d = std::abs(double(out.pixels[i]) - fr.expected.pixels[i]);
-        worst = std::max(worst, d / (std::abs(fr.expected.pixels[i]) + 1e-2));
-        se += d * d;
-      }
-      const double psnr = 10 * std::log10(double(out.pixels.size()) / std::max(se, 1e-30));
-      EXPECT_LT(worst, worst_allowed) << "factor " << f << " frame " << t;
-      EXPECT_GT(psnr, psnr_required) << "factor " << f << " frame " << t;
+      const test::ImageMatch m = test::match_images(out, fr.expected);
+      EXPECT_LT(m.worst, worst_allowed) << "factor " << f << " frame " << t;
+      EXPECT_GT(m.psnr, psnr_required) << "factor " << f << " frame " << t;
     }
   }
 }

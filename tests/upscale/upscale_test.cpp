@@ -20,6 +20,7 @@
 #include "kestrel/io.h"
 #include "kestrel/isa.h"
 #include "kestrel/render.h"
+#include "support/oracles.h"
 
 namespace kestrel {
 namespace {
@@ -35,18 +36,15 @@ UpscalerOptions options(UpscaleMethod m, int factor, bool bf16 = true) {
 const UpscaleMethod kMethods[] = {UpscaleMethod::neural, UpscaleMethod::taau,
                                   UpscaleMethod::bicubic, UpscaleMethod::bilinear};
 
-// The fixture's frames through the learned TAAU at factor f: the worst error relative to
-// |expected| + 0.01 and the PSNR (peak 1) against the training framework's output, per frame.
-struct FixtureScore {
-  double worst = 0, psnr = 0;
-};
-std::vector<FixtureScore> score_on_fixture(Upscaler& up, int f) {
+// The fixture's frames through the learned TAAU at factor f, each against the training
+// framework's output (test::match_images).
+std::vector<test::ImageMatch> score_on_fixture(Upscaler& up, int f) {
   std::ifstream meta_file(kFixture + "/fixture.json");
   EXPECT_TRUE(meta_file) << kFixture;
   if (!meta_file) return {};
   const nlohmann::json meta = nlohmann::json::parse(meta_file);
   const int frames = meta["frames"];
-  std::vector<FixtureScore> scores;
+  std::vector<test::ImageMatch> scores;
   for (int t = 0; t < frames; ++t) {
     const std::string p = kFixture + "/x" + std::to_string(f) + "_";
     const FloatImage color = read_pfm(p + "color_" + std::to_string(t) + ".pfm");
@@ -62,15 +60,7 @@ std::vector<FixtureScore> score_on_fixture(Upscaler& up, int f) {
     EXPECT_EQ(out.width, expected.width);
     EXPECT_EQ(out.height, expected.height);
     if (out.pixels.size() != expected.pixels.size()) return scores;
-    FixtureScore s;
-    double se = 0;
-    for (size_t i = 0; i < out.pixels.size(); ++i) {
-      const double e = std::abs(double(out.pixels[i]) - expected.pixels[i]);
-      s.worst = std::max(s.worst, e / (std::abs(expected.pixels[i]) + 1e-2));
-      se += e * e;
-    }
-    s.psnr = 10 * std::log10(double(out.pixels.size()) / std::max(se, 1e-30));
-    scores.push_back(s);
+    scores.push_back(test::match_images(out, expected));
   }
   return scores;
 }
@@ -86,7 +76,7 @@ TEST(Upscale, NeuralMatchesPyTorchOnTheFixture) {
     for (int f : {2, 4}) {
       Upscaler up(options(UpscaleMethod::neural, f, false));
       EXPECT_FALSE(up.uses_bf16());
-      const std::vector<FixtureScore> scores = score_on_fixture(up, f);
+      const std::vector<test::ImageMatch> scores = score_on_fixture(up, f);
       ASSERT_GE(scores.size(), 2u);
       for (size_t t = 0; t < scores.size(); ++t)
         EXPECT_LT(scores[t].worst, 2e-4) << "factor " << f << " frame " << t;
@@ -102,7 +92,7 @@ TEST(Upscale, NeuralInBf16StaysCloseToPyTorch) {
   for (int f : {2, 4}) {
     Upscaler up(options(UpscaleMethod::neural, f));
     if (!up.uses_bf16()) GTEST_SKIP() << "this CPU has no bf16 convolutions";
-    const std::vector<FixtureScore> scores = score_on_fixture(up, f);
+    const std::vector<test::ImageMatch> scores = score_on_fixture(up, f);
     ASSERT_GE(scores.size(), 2u);
     for (size_t t = 0; t < scores.size(); ++t) {
       EXPECT_GT(scores[t].psnr, 80.0) << "factor " << f << " frame " << t;
