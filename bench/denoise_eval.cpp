@@ -142,8 +142,9 @@ int main(int argc, char** argv) {
     methods.push_back({"neural, frame by frame", o, false});
     o.recurrent = true;
     methods.push_back({"neural (recurrent)", o, false});
-    const size_t params = Denoiser(o).parameter_count();
-    if (Denoiser(o).uses_bf16()) {  // the default there: bf16 convolutions; f32 beside them
+    const Denoiser neural(o);
+    const size_t params = neural.parameter_count();
+    if (neural.uses_bf16()) {  // the default there: bf16 convolutions; f32 beside them
       o.bf16 = false;
       methods.push_back({"neural (recurrent), fp32", o, false});
       o.bf16 = true;

@@ -152,8 +152,11 @@ int main(int argc, char** argv) {
     // The methods whose weights load (a missing network is reported, not fatal).
     std::vector<UpscaleMethod> methods;
     std::map<UpscaleMethod, size_t> params;
+    bool bf16 = false;  // whether a network's convolutions run in bf16 (this CPU, --fp32)
     for (UpscaleMethod m : wanted) try {
-        params[m] = Upscaler(options(m, 2)).parameter_count();
+        const Upscaler up(options(m, 2));
+        params[m] = up.parameter_count();
+        bf16 |= up.uses_bf16();
         methods.push_back(m);
       } catch (const Error& e) {
         fmt::print("skipping {}: {}\n", label(m), e.what());
@@ -306,9 +309,6 @@ int main(int argc, char** argv) {
         repeat);
     for (UpscaleMethod m : methods)
       if (params[m]) md += fmt::format(" {} {};", label(m), params[m]);
-    bool bf16 = false;  // whether the networks' convolutions ran in bf16 (this CPU, --fp32)
-    for (UpscaleMethod m : methods)
-      if (params[m]) bf16 |= Upscaler(options(m, 2)).uses_bf16();
     md += bf16 ? " convolutions in bf16 (the default on this CPU; `--fp32` for f32).\n\n"
                : " convolutions in f32.\n\n";
     nlohmann::json json_total = nlohmann::json::array();
@@ -348,10 +348,11 @@ int main(int argc, char** argv) {
           for (UpscaleMethod m : methods) md += fmt::format(" | {:.2f}", mean(m));
           const double taau = mean(UpscaleMethod::taau);
           for (UpscaleMethod m :
-               {UpscaleMethod::neural, UpscaleMethod::nsrr_rt, UpscaleMethod::nsrr})
-            md += std::isnan(mean(m) - taau)  // a method not run (--methods)
-                      ? std::string(" | -")
-                      : fmt::format(" | {:+.2f}", mean(m) - taau);
+               {UpscaleMethod::neural, UpscaleMethod::nsrr_rt, UpscaleMethod::nsrr}) {
+            const double gain = mean(m) - taau;
+            md += std::isnan(gain) ? std::string(" | -")  // a method not run (--methods)
+                                   : fmt::format(" | {:+.2f}", gain);
+          }
           md += " |\n";
         }
         if (var.suffix[0] == 0)

@@ -237,8 +237,7 @@ size_t Denoiser::parameter_count() const {
 }
 bool Denoiser::uses_bf16() const {
   if (impl_->rae) return impl_->rae->bf16();
-  return impl_->weights && impl_->options.bf16 && default_isa() == Isa::avx512 &&
-         nn::conv_bf16_supported();
+  return impl_->weights && nn::conv_kernels(default_isa(), impl_->options.bf16).bf16;
 }
 
 FloatImage Denoiser::denoise(const DenoiseInput& input) {

@@ -26,6 +26,7 @@ struct ConvKernels {
   void (*conv)(const ConvLayer& l, const std::vector<float>& in, int w, int h,
                std::vector<float>& out, bool relu, std::vector<float>& scratch);
   const char* isa;
+  bool bf16 = false;  ///< inputs and weights rounded to bf16 (else f32 throughout)
 };
 
 const ConvKernels& conv_kernels_sse2();

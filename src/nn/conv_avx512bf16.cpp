@@ -15,7 +15,7 @@ namespace avx512bf16_ns {
 }  // namespace avx512bf16_ns
 
 const ConvKernels& conv_kernels_avx512_bf16() {
-  static const ConvKernels table{avx512bf16_ns::conv_layer_bf16, "avx512-bf16"};
+  static const ConvKernels table{avx512bf16_ns::conv_layer_bf16, "avx512-bf16", true};
   return table;
 }
 

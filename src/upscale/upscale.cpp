@@ -235,8 +235,8 @@ void Upscaler::reset() {
 }
 bool Upscaler::uses_bf16() const {
   if (impl_->nsrr) return impl_->nsrr->bf16();
-  return impl_->options.method == UpscaleMethod::neural && impl_->options.bf16 &&
-         default_isa() == Isa::avx512 && nn::conv_bf16_supported();
+  return impl_->options.method == UpscaleMethod::neural &&
+         nn::conv_kernels(default_isa(), impl_->options.bf16).bf16;
 }
 UpscaleMethod Upscaler::method() const {
   return impl_->options.method;
