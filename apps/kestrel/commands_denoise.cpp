@@ -9,6 +9,7 @@
 #include <vector>
 
 #include "commands.h"
+#include "core/file_io.h"
 #include "kestrel/denoise.h"
 #include "kestrel/error.h"
 #include "kestrel/io.h"
@@ -86,8 +87,7 @@ Loaded load_inputs(const DenoiseArgs& a, int frame) {
 }  // namespace
 
 void write_image(const std::string& path, const FloatImage& img) {
-  const std::filesystem::path parent = std::filesystem::path(path).parent_path();
-  if (!parent.empty()) std::filesystem::create_directories(parent);
+  make_parent_directories(path);
   std::string ext = std::filesystem::path(path).extension().string();
   for (char& c : ext) c = char(std::tolower(static_cast<unsigned char>(c)));
   if (ext == ".exr") {

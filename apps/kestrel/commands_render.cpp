@@ -204,8 +204,7 @@ void write_outputs(const Frame& frame, const std::string& exr, const std::string
   const FloatImage& noisy = frame[Aov::color];
   FileSet files;
   if (!exr.empty()) {
-    const std::filesystem::path parent = std::filesystem::path(exr).parent_path();
-    if (!parent.empty()) std::filesystem::create_directories(parent);
+    make_parent_directories(exr);
     if (denoised) {
       std::vector<ImageLayer> layers = f.layers();
       layers.push_back({"noisy", {"R", "G", "B"}, noisy});
@@ -215,11 +214,7 @@ void write_outputs(const Frame& frame, const std::string& exr, const std::string
     }
   }
   if (!pfm.empty()) {
-    std::error_code ec;
-    std::filesystem::create_directories(pfm, ec);
-    if (ec)
-      throw Error(ErrorCode::io_error,
-                  fmt::format("{}: cannot create directory: {}", pfm, ec.message()));
+    make_directories(pfm);
     for (int a = 0; a < aov_count; ++a)
       write_pfm(
           files.add(
@@ -262,16 +257,11 @@ void print_ranks(const std::vector<distributed::RankStats>& ranks, double frame_
 // leave -o replaced and --png missing.
 void check_destinations(const std::string& exr, const std::string& pfm, const std::string& png) {
   if (!exr.empty()) {
-    const std::filesystem::path parent = std::filesystem::path(exr).parent_path();
-    if (!parent.empty()) std::filesystem::create_directories(parent);
+    make_parent_directories(exr);
     check_writable_destination(exr);
   }
   if (!pfm.empty()) {
-    std::error_code ec;
-    std::filesystem::create_directories(pfm, ec);
-    if (ec)
-      throw Error(ErrorCode::io_error,
-                  fmt::format("{}: cannot create directory: {}", pfm, ec.message()));
+    make_directories(pfm);
     check_writable_destination((std::filesystem::path(pfm) / "color.pfm").string());
   }
   if (!png.empty()) check_writable_destination(png);
@@ -356,7 +346,7 @@ void run_sequence(const RenderArgs& a) {
                               a.factor));
     ps.upscaler = *m, ps.factor = a.factor, ps.fixed_jitter = true;
   }
-  std::filesystem::create_directories(a.out);
+  make_directories(a.out);
   ps.sun = a.sun, ps.sky = a.sky;
   Asset asset = load_asset_reporting(a.scene);
   if (!a.lights.empty()) asset.add_lights(load_lights(a.lights));

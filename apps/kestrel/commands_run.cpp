@@ -9,6 +9,7 @@
 #include <vector>
 
 #include "commands.h"
+#include "core/file_io.h"
 #include "kestrel/error.h"
 #include "kestrel/io.h"
 #include "kestrel/pipeline.h"
@@ -36,6 +37,7 @@ void run(RunArgs& a) {
     throw Error(ErrorCode::invalid_argument,
                 fmt::format("run: --frames must be positive, got {}", a.frames));
   if (a.out.empty()) throw Error(ErrorCode::invalid_argument, "run: -o DIR is required");
+  make_directories(a.out);  // before the scene loads: a bad folder costs nothing
   const PipelineSettings settings = a.p.settings();
   const std::unique_ptr<Pipeline> owned = a.p.pipeline(settings);
   Pipeline& pipeline = *owned;
@@ -48,7 +50,6 @@ void run(RunArgs& a) {
       settings.auto_lighting ? ", auto" : "", settings.radiance_cache ? ", radiance cache" : "");
   const CameraPath path =
       camera_path_for(pipeline.asset(), a.path.empty() ? "orbit:30" : a.path, a.view);
-  std::filesystem::create_directories(a.out);
   fmt::print("scene    {} ({} triangles)\n", pipeline.source(), pipeline.triangle_count());
   fmt::print(
       "pipeline {}x{} output, internal {}x{} (x{}), denoise {}, upscale {}, {} spp, max depth {}, "

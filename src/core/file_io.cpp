@@ -84,6 +84,19 @@ void check_writable_destination(const std::string& path) {
                 fmt::format("{}: the folder {} is not writable", path, parent.string()));
 }
 
+void make_directories(const std::string& dir) {
+  if (dir.empty()) return;
+  std::error_code ec;
+  std::filesystem::create_directories(dir, ec);
+  if (ec)
+    throw Error(ErrorCode::io_error,
+                fmt::format("{}: cannot create the folder: {}", dir, ec.message()));
+}
+
+void make_parent_directories(const std::string& path) {
+  make_directories(std::filesystem::path(path).parent_path().string());
+}
+
 AtomicFile::AtomicFile(std::string path) : path_(std::move(path)) {
   check_writable_destination(path_);
   static std::atomic<unsigned> counter{0};

@@ -39,6 +39,13 @@ inline bool mul_fits(uint64_t a, uint64_t b, uint64_t& product) {
 /// check them all before the work starts.)
 void check_writable_destination(const std::string& path);
 
+/// Creates folder `dir` and its parents where missing (nothing for an empty name); an Error
+/// naming the folder and the reason (a file in the way, no permission) where that fails.
+void make_directories(const std::string& dir);
+
+/// make_directories of the folder that holds `path`.
+void make_parent_directories(const std::string& path);
+
 /// A file written under a temporary name and renamed into place by commit().
 class AtomicFile {
  public:

@@ -9,6 +9,7 @@
 #include <cstdint>
 #include <filesystem>
 
+#include "core/file_io.h"
 #include "core/parallel.h"
 #include "kestrel/error.h"
 #include "kestrel/render.h"
@@ -60,11 +61,7 @@ void write_frame_exr(const std::string& path, const Frame& frame) {
 }
 
 void write_frame_pfms(const std::string& dir, const Frame& frame) {
-  std::error_code ec;
-  std::filesystem::create_directories(dir, ec);
-  if (ec)
-    throw Error(ErrorCode::io_error,
-                fmt::format("{}: cannot create directory: {}", dir, ec.message()));
+  make_directories(dir);
   for (int a = 0; a < aov_count; ++a)
     write_pfm((std::filesystem::path(dir) / (std::string(aov_name(Aov(a))) + ".pfm")).string(),
               frame.aov[a]);

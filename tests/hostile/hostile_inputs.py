@@ -54,6 +54,8 @@ def expect_error(name, args, needles, keep=(), timeout=60, preexec=limits):
             problems.append(f"message lacks {n!r}")
     if "std::" in out or "basic_filebuf" in out:
         problems.append("std:: text reached the user")
+    if "internal error" in out:
+        problems.append("an internal error instead of one naming the problem")
     for p, data in before.items():
         if not os.path.exists(p) or open(p, "rb").read() != data:
             problems.append(f"{p} was damaged")
@@ -179,6 +181,16 @@ def main():
     expect_error("-o old.exr with --png into a missing folder", ["render", "builtin:cornell_box", "--res", "8x8", "-o",
                                                                  "old.exr", "--png", "missing_dir/x.png", "--quiet"],
                  ["missing_dir"], keep=[old])
+
+    # A file where an output folder is to be made: an error naming it, before any work.
+    write("a_file", b"not a folder")
+    for name, args in (("-o", ["render", "builtin:cornell_box", "--res", "8x8", "-o", "a_file/x.exr"]),
+                       ("--pfm", ["render", "builtin:cornell_box", "--res", "8x8", "--pfm", "a_file/pfm"]),
+                       ("render-sequence -o", ["render-sequence", "builtin:cornell_box", "--path", "orbit:1",
+                                               "--frames", "1", "--res", "8x8", "-o", "a_file/seq"]),
+                       ("run -o", ["run", "builtin:cornell_box", "--frames", "1", "-o", "a_file/run"]),
+                       ("denoise -o", ["denoise", "-i", "old.exr", "-o", "a_file/d.exr"])):
+        expect_error(f"{name} below a file", args + ["--quiet"], ["a_file", "cannot create the folder"])
 
     def small_disk():  # writes past 64 KiB fail (EFBIG) as on a full disk; the signal is ignored
         limits()

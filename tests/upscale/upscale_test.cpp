@@ -171,8 +171,10 @@ TEST(Upscale, CorruptOrMismatchedWeightsAreErrorsNamingTheFile) {
   const std::vector<char> truncated(bytes.begin(),
                                     bytes.begin() + std::ptrdiff_t(bytes.size() / 3));
   const std::string denoiser = std::string(KESTREL_SOURCE_DIR) + "/weights/denoiser.kdw";
+  // nsrr's weights: the same magic, an architecture the learned TAAU does not run.
+  const std::string nsrr = std::string(KESTREL_SOURCE_DIR) + "/weights/upscaler_nsrr.kdw";
   for (const std::string& path :
-       {write("up_flipped.kdw", flipped), write("up_truncated.kdw", truncated), denoiser,
+       {write("up_flipped.kdw", flipped), write("up_truncated.kdw", truncated), denoiser, nsrr,
         dir + "does_not_exist.kdw"}) {
     UpscalerOptions o;
     o.weights = path;
