@@ -20,6 +20,7 @@
 #include <thread>
 #include <vector>
 
+#include "common/openmp_env.h"
 #include "image_metrics.h"
 #include "kestrel/denoise.h"
 #include "kestrel/error.h"
@@ -109,6 +110,8 @@ struct Method {
 }  // namespace
 
 int main(int argc, char** argv) {
+  // It runs rae (oneDNN): OpenMP threads that sleep between its regions (common/openmp_env.h).
+  kestrel::cli::passive_openmp_for_onednn(argc, argv, /*always=*/true);
   std::string dataset = std::string(KESTREL_SOURCE_DIR) + "/out/denoise_dataset";
   std::string out_dir = std::string(KESTREL_SOURCE_DIR) + "/docs/denoiser";
   std::string weights;

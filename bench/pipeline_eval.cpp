@@ -22,6 +22,7 @@
 #include <thread>
 #include <vector>
 
+#include "common/openmp_env.h"
 #include "common/views.h"
 #include "image_metrics.h"
 #include "kestrel/error.h"
@@ -51,6 +52,7 @@ double percentile(std::vector<double> v, double q) {
 }  // namespace
 
 int main(int argc, char** argv) {
+  kestrel::cli::passive_openmp_for_onednn(argc, argv);  // common/openmp_env.h
   std::string dataset = std::string(KESTREL_SOURCE_DIR) + "/out/upscale_dataset";
   std::string out_dir = std::string(KESTREL_SOURCE_DIR) + "/docs/pipeline";
   std::string timing_scene =

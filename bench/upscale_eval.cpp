@@ -17,6 +17,7 @@
 #include <thread>
 #include <vector>
 
+#include "common/openmp_env.h"
 #include "image_metrics.h"
 #include "kestrel/error.h"
 #include "kestrel/io.h"
@@ -84,6 +85,8 @@ const Variant kVariants[] = {{"clean", ""}, {"denoised 1 spp", "_dn"}};
 }  // namespace
 
 int main(int argc, char** argv) {
+  // It runs nsrr (oneDNN): OpenMP threads that sleep between its regions (common/openmp_env.h).
+  kestrel::cli::passive_openmp_for_onednn(argc, argv, /*always=*/true);
   std::string dataset = std::string(KESTREL_SOURCE_DIR) + "/out/upscale_families";
   std::string out_dir = std::string(KESTREL_SOURCE_DIR) + "/docs/upscaler";
   std::string weights, rt_weights, nsrr_weights;

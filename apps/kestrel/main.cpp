@@ -5,11 +5,13 @@
 #include <string>
 
 #include "commands.h"
+#include "common/openmp_env.h"
 #include "distributed/distributed.h"
 #include "kestrel/error.h"
 #include "kestrel/upscale.h"
 
 int main(int argc, char** argv) {
+  kestrel::cli::passive_openmp_for_onednn(argc, argv);  // first: it may execute kestrel again
   kestrel::distributed::init(&argc, &argv);  // under mpirun: one rank of many (docs/distributed.md)
   CLI::App app{"kestrel: CPU ray tracing engine (BVH builders, traversal, tools)"};
   app.require_subcommand(1);

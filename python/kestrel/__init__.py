@@ -21,6 +21,11 @@ _weights = _os.path.join(_os.path.dirname(__file__), "weights")
 if _os.path.isdir(_weights):
     _os.environ.setdefault("KESTREL_WEIGHTS_DIR", _weights)
 
+# oneDNN's OpenMP threads sleep between its parallel regions instead of spinning against
+# kestrel's own threads (src/core/openmp_preinit.cpp says why); libgomp reads this when it
+# loads with the extension, so it is set first. A user's own setting is kept.
+_os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
+
 from ._kestrel import *  # noqa: F401,F403,E402
 from ._kestrel import _last_inputs  # noqa: F401
 from ._kestrel import (Accel, Camera, CameraPath, Denoiser, InstancedScene, Pipeline, Renderer, Scene,  # noqa: F401

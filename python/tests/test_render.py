@@ -358,3 +358,23 @@ def test_restir_matches_the_cli(cli, tmp_path):
         assert np.isfinite(loop.frame(cam)["rgb8"]).all()
     with pytest.raises(ValueError, match="direct"):
         kestrel.Pipeline("builtin:lamp_hall", res=(32, 24), factor=1, direct="ris")
+
+
+def test_importing_kestrel_makes_openmp_threads_sleep():
+    """oneDNN's OpenMP threads (rae, nsrr, nsrr-rt) sleep between its parallel regions unless
+    the user chose otherwise: libgomp, loaded with the module, reports what it read."""
+    import os
+    import subprocess
+    import sys
+
+    def spin_count(policy):
+        env = {k: v for k, v in os.environ.items() if k != "OMP_WAIT_POLICY"}
+        env["OMP_DISPLAY_ENV"] = "verbose"
+        if policy:
+            env["OMP_WAIT_POLICY"] = policy
+        out = subprocess.run([sys.executable, "-c", "import kestrel"], env=env, capture_output=True, text=True,
+                             check=True).stderr
+        return [line.split("=")[1].strip() for line in out.splitlines() if "GOMP_SPINCOUNT" in line]
+
+    assert spin_count(None) == ["'0'"]
+    assert spin_count("active") == ["'30000000000'"]

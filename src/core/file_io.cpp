@@ -40,9 +40,12 @@ uint64_t regular_file_size(const std::string& path, std::string_view what) {
   if (::stat(path.c_str(), &st) != 0)
     throw Error(ErrorCode::file_not_found,
                 fmt::format("{}: no such {} ({})", path, what, std::strerror(errno)));
-  if (!S_ISREG(st.st_mode))
-    throw Error(ErrorCode::file_not_found, fmt::format("{}: is {}, not a {} kestrel can read", path,
-                                                       kind_of(st.st_mode), what));
+  if (!S_ISREG(st.st_mode)) {
+    const bool vowel = !what.empty() && std::strchr("aeiouAEIOU", what.front()) != nullptr;
+    throw Error(ErrorCode::file_not_found,
+                fmt::format("{}: is {}, not {} {} kestrel can read", path, kind_of(st.st_mode),
+                            vowel ? "an" : "a", what));
+  }
   return uint64_t(st.st_size);
 }
 

@@ -23,8 +23,8 @@ struct CliRun {
   std::string out;  // stdout and stderr
 };
 
-CliRun run(const std::string& args) {
-  const std::string cmd = std::string(KESTREL_CLI) + " " + args + " 2>&1";
+CliRun run(const std::string& args, const std::string& env = "") {
+  const std::string cmd = env + (env.empty() ? "" : " ") + KESTREL_CLI + " " + args + " 2>&1";
   CliRun r{0, ""};
   FILE* p = popen(cmd.c_str(), "r");
   std::array<char, 4096> buf;
@@ -283,6 +283,30 @@ TEST(Cli, DenoiseReadsPfmsAndExrSequences) {
   EXPECT_EQ(bad.status, 1);
   EXPECT_NE(bad.out.find("%d"), std::string::npos) << bad.out;
   EXPECT_EQ(run("denoise -o " + (dir / "x.pfm").string()).status, 1);
+}
+
+// A command that runs a oneDNN network (rae here) executes itself again with OMP_WAIT_POLICY
+// set to passive unless the user set it; libgomp itself reports what it read
+// (OMP_DISPLAY_ENV=verbose, once per process start: GOMP_SPINCOUNT 0 under passive, 300000
+// by default, 3e10 under active). Other commands start once.
+TEST(Cli, OnednnCommandsMakeOpenMpThreadsSleep) {
+  const std::string frame = (test::test_temp_dir() / "cli_openmp" / "frame.exr").string();
+  ASSERT_EQ(run("render builtin:cornell_box --spp 1 --res 24x16 --quiet -o " + frame).status, 0);
+  auto display = [&](const std::string& env, const std::string& method) {
+    return run(
+        "denoise -i " + frame + " -o " + frame + "." + method + ".exr --quiet --method " + method,
+        "env -u OMP_WAIT_POLICY OMP_DISPLAY_ENV=verbose " + env);
+  };
+  CliRun r = display("", "rae");
+  ASSERT_EQ(r.status, 0) << r.out;
+  EXPECT_NE(r.out.find("GOMP_SPINCOUNT = '0'"), std::string::npos) << r.out;
+  r = display("OMP_WAIT_POLICY=active", "rae");
+  ASSERT_EQ(r.status, 0) << r.out;
+  EXPECT_EQ(r.out.find("GOMP_SPINCOUNT = '0'"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("GOMP_SPINCOUNT = '30000000000'"), std::string::npos) << r.out;
+  r = display("", "neural");
+  ASSERT_EQ(r.status, 0) << r.out;
+  EXPECT_EQ(r.out.find("GOMP_SPINCOUNT = '0'"), std::string::npos) << r.out;
 }
 
 TEST(Cli, UpscaleAndRenderSequenceUpscale) {
