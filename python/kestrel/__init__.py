@@ -22,7 +22,7 @@ if _os.path.isdir(_weights):
     _os.environ.setdefault("KESTREL_WEIGHTS_DIR", _weights)
 
 # oneDNN's OpenMP threads sleep between its parallel regions instead of spinning against
-# kestrel's own threads (src/core/openmp_preinit.cpp says why); libgomp reads this when it
+# kestrel's own threads (apps/common/openmp_env.h says why); libgomp reads this when it
 # loads with the extension, so it is set first. A user's own setting is kept.
 _os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
 
