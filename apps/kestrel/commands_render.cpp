@@ -3,10 +3,12 @@
 #include <fmt/format.h>
 
 #include <unistd.h>
+#include <cctype>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
 #include <memory>
+#include <string_view>
 
 #include "commands.h"
 #include "core/file_io.h"
@@ -255,7 +257,22 @@ void print_ranks(const std::vector<distributed::RankStats>& ranks, double frame_
 
 // Every destination checked before the work starts: a bad --png must not cost a render, nor
 // leave -o replaced and --png missing.
+// Whether `path` ends in `ext` (".exr"), in any case.
+bool has_extension(const std::string& path, std::string_view ext) {
+  std::string e = std::filesystem::path(path).extension().string();
+  for (char& c : e) c = char(std::tolower(static_cast<unsigned char>(c)));
+  return e == ext;
+}
+
 void check_destinations(const std::string& exr, const std::string& pfm, const std::string& png) {
+  if (!exr.empty() && !has_extension(exr, ".exr"))
+    throw Error(ErrorCode::invalid_argument,
+                fmt::format("{}: -o writes a multi-layer EXR, so its name must end in .exr (for a "
+                            "PNG give --png)",
+                            exr));
+  if (!png.empty() && !has_extension(png, ".png"))
+    throw Error(ErrorCode::invalid_argument,
+                fmt::format("{}: --png writes a PNG, so its name must end in .png", png));
   if (!exr.empty()) {
     make_parent_directories(exr);
     check_writable_destination(exr);
@@ -271,6 +288,9 @@ void run_render(const RenderArgs& a) {
   if (a.out.empty() && a.pfm.empty() && a.png.empty())
     throw Error(ErrorCode::invalid_argument,
                 "render: nothing to write (give -o out.exr, --pfm DIR or --png out.png)");
+  if (!std::isfinite(a.exposure))
+    throw Error(ErrorCode::invalid_argument,
+                fmt::format("render: --exposure {} is not a finite number of stops", a.exposure));
   if (distributed::rank() == 0) check_destinations(a.out, a.pfm, a.png);
   if (!a.view.empty() && !a.camera.empty())
     throw Error(ErrorCode::invalid_argument, "render: give --view or --camera, not both");

@@ -173,8 +173,19 @@ def main():
     # --- Outputs: devices refused, full disks reported, existing files never damaged.
     expect_ok("an old output", ["render", "builtin:cornell_box", "--res", "8x8", "-o", "old.exr", "--quiet"])
     old = os.path.join(WORK, "old.exr")
-    expect_error("PNG to /dev/full", ["render", "builtin:cornell_box", "--res", "8x8", "--png", "/dev/full", "--quiet"],
-                 ["/dev/full"])
+    # A .png name that is a device (a link to /dev/full): refused as a device, not written.
+    full_png = os.path.join(WORK, "full.png")
+    if not os.path.lexists(full_png):
+        os.symlink("/dev/full", full_png)
+    expect_error("PNG to /dev/full", ["render", "builtin:cornell_box", "--res", "8x8", "--png", "full.png", "--quiet"],
+                 ["full.png", "character device"])
+    # Outputs named for another format: an error, not an EXR in a .png or a PNG in a .exr.
+    expect_error("-o x.png", ["render", "builtin:cornell_box", "--res", "8x8", "-o", "x.png", "--quiet"],
+                 ["x.png", ".exr"])
+    expect_error("--png x.exr", ["render", "builtin:cornell_box", "--res", "8x8", "--png", "x.exr", "--quiet"],
+                 ["x.exr", ".png"])
+    expect_error("--exposure inf", ["render", "builtin:cornell_box", "--res", "8x8", "--png", "x.png", "--exposure",
+                                    "inf", "--quiet"], ["--exposure"])
     expect_ok("rays to trace", ["rays", "builtin:cornell_box", "--res", "8x8", "-o", "r.rays"])
     expect_error(".hits to /dev/full", ["trace", "builtin:cornell_box", "--rays", "r.rays", "--hits", "/dev/full"],
                  ["/dev/full"])
