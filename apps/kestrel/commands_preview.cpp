@@ -8,6 +8,7 @@
 #include "commands.h"
 #include "common/ray_gen.h"
 #include "common/views.h"
+#include "core/file_io.h"
 #include "core/parallel.h"
 #include "core/timer.h"
 #include "core/vec.h"
@@ -25,6 +26,9 @@ struct PreviewArgs {
 };
 
 void run_preview(const PreviewArgs& a) {
+  if (!has_extension(a.out, ".png"))
+    throw Error(ErrorCode::invalid_argument,
+                fmt::format("{}: preview writes a PNG, so its name must end in .png", a.out));
   const BuildConfig config = a.build.config();
   std::unique_ptr<ThreadLimit> limit;
   if (a.build.threads > 0) limit = std::make_unique<ThreadLimit>(a.build.threads);

@@ -3,12 +3,10 @@
 #include <fmt/format.h>
 
 #include <unistd.h>
-#include <cctype>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
 #include <memory>
-#include <string_view>
 
 #include "commands.h"
 #include "core/file_io.h"
@@ -257,13 +255,6 @@ void print_ranks(const std::vector<distributed::RankStats>& ranks, double frame_
 
 // Every destination checked before the work starts: a bad --png must not cost a render, nor
 // leave -o replaced and --png missing.
-// Whether `path` ends in `ext` (".exr"), in any case.
-bool has_extension(const std::string& path, std::string_view ext) {
-  std::string e = std::filesystem::path(path).extension().string();
-  for (char& c : e) c = char(std::tolower(static_cast<unsigned char>(c)));
-  return e == ext;
-}
-
 void check_destinations(const std::string& exr, const std::string& pfm, const std::string& png) {
   if (!exr.empty() && !has_extension(exr, ".exr"))
     throw Error(ErrorCode::invalid_argument,

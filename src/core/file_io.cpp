@@ -6,6 +6,7 @@
 #include <unistd.h>
 
 #include <atomic>
+#include <cctype>
 #include <cerrno>
 #include <cstring>
 #include <filesystem>
@@ -98,6 +99,12 @@ void make_directories(const std::string& dir) {
 
 void make_parent_directories(const std::string& path) {
   make_directories(std::filesystem::path(path).parent_path().string());
+}
+
+bool has_extension(const std::string& path, std::string_view ext) {
+  std::string e = std::filesystem::path(path).extension().string();
+  for (char& c : e) c = char(std::tolower(static_cast<unsigned char>(c)));
+  return e == ext;
 }
 
 AtomicFile::AtomicFile(std::string path) : path_(std::move(path)) {

@@ -46,6 +46,9 @@ void make_directories(const std::string& dir);
 /// make_directories of the folder that holds `path`.
 void make_parent_directories(const std::string& path);
 
+/// Whether `path`'s extension is `ext` (".exr"), in any case.
+bool has_extension(const std::string& path, std::string_view ext);
+
 /// A file written under a temporary name and renamed into place by commit().
 class AtomicFile {
  public:

@@ -184,6 +184,7 @@ def main():
                  ["x.png", ".exr"])
     expect_error("--png x.exr", ["render", "builtin:cornell_box", "--res", "8x8", "--png", "x.exr", "--quiet"],
                  ["x.exr", ".png"])
+    expect_error("preview -o x.exr", ["preview", "builtin:cornell_box", "--res", "8x8", "-o", "x.exr"], ["x.exr", ".png"])
     expect_error("--exposure inf", ["render", "builtin:cornell_box", "--res", "8x8", "--png", "x.png", "--exposure",
                                     "inf", "--quiet"], ["--exposure"])
     expect_ok("rays to trace", ["rays", "builtin:cornell_box", "--res", "8x8", "-o", "r.rays"])
