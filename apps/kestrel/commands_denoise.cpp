@@ -88,8 +88,7 @@ Loaded load_inputs(const DenoiseArgs& a, int frame) {
 
 void write_image(const std::string& path, const FloatImage& img) {
   make_parent_directories(path);
-  std::string ext = std::filesystem::path(path).extension().string();
-  for (char& c : ext) c = char(std::tolower(static_cast<unsigned char>(c)));
+  const std::string ext = lower_extension(path);
   if (ext == ".exr") {
     const ImageLayer layer{"", {"R", "G", "B"}, img};
     write_exr(path, std::span<const ImageLayer>(&layer, 1));

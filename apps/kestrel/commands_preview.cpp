@@ -26,7 +26,7 @@ struct PreviewArgs {
 };
 
 void run_preview(const PreviewArgs& a) {
-  if (!has_extension(a.out, ".png"))
+  if (lower_extension(a.out) != ".png")
     throw Error(ErrorCode::invalid_argument,
                 fmt::format("{}: preview writes a PNG, so its name must end in .png", a.out));
   const BuildConfig config = a.build.config();

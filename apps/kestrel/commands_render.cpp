@@ -256,12 +256,12 @@ void print_ranks(const std::vector<distributed::RankStats>& ranks, double frame_
 // Every destination checked before the work starts: a bad --png must not cost a render, nor
 // leave -o replaced and --png missing.
 void check_destinations(const std::string& exr, const std::string& pfm, const std::string& png) {
-  if (!exr.empty() && !has_extension(exr, ".exr"))
+  if (!exr.empty() && lower_extension(exr) != ".exr")
     throw Error(ErrorCode::invalid_argument,
                 fmt::format("{}: -o writes a multi-layer EXR, so its name must end in .exr (for a "
                             "PNG give --png)",
                             exr));
-  if (!png.empty() && !has_extension(png, ".png"))
+  if (!png.empty() && lower_extension(png) != ".png")
     throw Error(ErrorCode::invalid_argument,
                 fmt::format("{}: --png writes a PNG, so its name must end in .png", png));
   if (!exr.empty()) {

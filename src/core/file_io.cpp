@@ -101,10 +101,10 @@ void make_parent_directories(const std::string& path) {
   make_directories(std::filesystem::path(path).parent_path().string());
 }
 
-bool has_extension(const std::string& path, std::string_view ext) {
-  std::string e = std::filesystem::path(path).extension().string();
-  for (char& c : e) c = char(std::tolower(static_cast<unsigned char>(c)));
-  return e == ext;
+std::string lower_extension(const std::string& path) {
+  std::string ext = std::filesystem::path(path).extension().string();
+  for (char& c : ext) c = char(std::tolower(static_cast<unsigned char>(c)));
+  return ext;
 }
 
 AtomicFile::AtomicFile(std::string path) : path_(std::move(path)) {

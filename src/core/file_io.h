@@ -46,8 +46,8 @@ void make_directories(const std::string& dir);
 /// make_directories of the folder that holds `path`.
 void make_parent_directories(const std::string& path);
 
-/// Whether `path`'s extension is `ext` (".exr"), in any case.
-bool has_extension(const std::string& path, std::string_view ext);
+/// `path`'s extension in lower case, with its dot (".exr"; "" without one).
+std::string lower_extension(const std::string& path);
 
 /// A file written under a temporary name and renamed into place by commit().
 class AtomicFile {

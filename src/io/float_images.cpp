@@ -47,16 +47,6 @@ void check_decoded_size(const std::string& path, uint64_t decoded_bytes, uint64_
                             path, decoded_bytes >> 20, file_bytes, limit >> 20));
 }
 
-namespace {
-
-std::string lower_extension(const std::string& path) {
-  std::string ext = std::filesystem::path(path).extension().string();
-  for (char& c : ext) c = char(std::tolower(static_cast<unsigned char>(c)));
-  return ext;
-}
-
-}  // namespace
-
 void write_pfm(const std::string& path, const FloatImage& image) {
   check_image(path, image);
   if (image.channels > 3)

@@ -306,9 +306,7 @@ tinygltf::Model load_model(const std::string& path) {
   loader.SetImageLoader(&load_image, nullptr);
   tinygltf::Model model;
   std::string err, warn;
-  std::string ext = std::filesystem::path(path).extension().string();
-  for (char& c : ext) c = char(std::tolower(static_cast<unsigned char>(c)));
-  const bool binary = ext == ".glb";
+  const bool binary = lower_extension(path) == ".glb";
   if (binary && regular_file_size(path, "glTF file") < 20)
     throw Error(
         ErrorCode::parse_error,

@@ -22,17 +22,6 @@ void require_readable_file(const std::string& path) {
   if (!f) throw Error(ErrorCode::file_not_found, fmt::format("{}: cannot be opened", path));
 }
 
-namespace {
-
-std::string lower_extension(const std::string& path) {
-  std::string ext = std::filesystem::path(path).extension().string();
-  std::transform(ext.begin(), ext.end(), ext.begin(),
-                 [](unsigned char c) { return char(std::tolower(c)); });
-  return ext;
-}
-
-}  // namespace
-
 const char* light_type_name(Light::Type type) {
   switch (type) {
     case Light::Type::point:

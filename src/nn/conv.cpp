@@ -4,8 +4,12 @@
 namespace kestrel::nn {
 
 bool conv_bf16_supported() {
-  __builtin_cpu_init();
-  return isa_supported(Isa::avx512) && __builtin_cpu_supports("avx512bf16");
+  // Asked for every layer of every frame: the CPU is read once.
+  static const bool supported = [] {
+    __builtin_cpu_init();
+    return isa_supported(Isa::avx512) && __builtin_cpu_supports("avx512bf16");
+  }();
+  return supported;
 }
 
 const ConvKernels& conv_kernels(Isa isa, bool bf16) {

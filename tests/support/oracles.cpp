@@ -1,12 +1,14 @@
 #include "support/oracles.h"
 
 #include <fmt/format.h>
+#include <gtest/gtest.h>
 
 #include <algorithm>
 #include <cmath>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <limits>
 #include <map>
 
 #include <unistd.h>
@@ -302,6 +304,13 @@ uint32_t float_bits(float f) {
 
 ImageMatch match_images(const FloatImage& out, const FloatImage& expected) {
   ImageMatch m;
+  EXPECT_EQ(out.width, expected.width);
+  EXPECT_EQ(out.height, expected.height);
+  if (out.pixels.size() != expected.pixels.size()) {  // no score: fails whatever is asked of it
+    m.worst = std::numeric_limits<double>::infinity();
+    m.psnr = -std::numeric_limits<double>::infinity();
+    return m;
+  }
   double se = 0;
   const size_t n = std::min(out.pixels.size(), expected.pixels.size());
   for (size_t i = 0; i < n; ++i) {

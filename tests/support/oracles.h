@@ -85,7 +85,8 @@ std::filesystem::path test_temp_dir();
 std::string write_temp_file(const std::string& name, const std::string& contents);
 
 /// An output against a framework's (PyTorch's) expected image of the same size: the worst
-/// error relative to |expected| + 0.01, and the PSNR (peak 1).
+/// error relative to |expected| + 0.01, and the PSNR (peak 1). Sizes that differ are a test
+/// failure (and a worst of +inf, a PSNR of -inf).
 struct ImageMatch {
   double worst = 0, psnr = 0;
 };
