@@ -10,12 +10,13 @@ namespace kestrel {
 
 using namespace render;
 
-// After the lights are known: the given environment, else the sky when nothing emits.
+// After the lights are known: the given environment, else the sky unless the scene has lights
+// of its own (emission from textures alone does not count: sync_lights).
 void Renderer::Impl::choose_environment(std::optional<Environment> environment) {
   if (environment)
     env = std::move(*environment);
   else
-    env = Environment::parse(lights.empty() && punctual.empty() ? "sky" : "none");
+    env = Environment::parse(lit_by_emitters ? "none" : "sky");
   setup_environment();
   env_ready = true;
   choose_strategies();

@@ -36,19 +36,31 @@ void Renderer::Impl::sync_lights() {
   emissive_rank.clear();
   lights.clear();
   std::vector<float> power;
+  // Per mesh key, per emissive triangle (by rank): its mean emitted luminance.
+  std::vector<std::vector<float>> radiance;
   bounds = Bounds3{};
+  lit_by_emitters = false;
   for (uint32_t i = 0; i < instances.size(); ++i) {
     InstanceShade& is = instances[i];
     if (!is.mesh) continue;
     auto [it, fresh] = key_of.try_emplace(is.mesh, uint32_t(emissive_rank.size()));
     if (fresh) {
       std::vector<int32_t> rank(is.mesh->triangle_count(), -1);
-      int32_t n = 0;
+      std::vector<float> mean;
       for (uint32_t p = 0; p < rank.size(); ++p) {
         const Material& m = material_of(*is.mesh, p);
-        if ((luminance(m.emission) > 0) && valid_triangle(*is.mesh, p)) rank[p] = n++;
+        if (!(luminance(m.emission) > 0) || !valid_triangle(*is.mesh, p)) continue;
+        // A textured emitter black all over this triangle is not a light (a BSDF ray that
+        // hits it takes its emission with MIS weight 1).
+        const Texture* t = texture(m.emission_texture);
+        const float lum =
+            t ? luminance(m.emission * mean_texel(*t, *is.mesh, p)) : luminance(m.emission);
+        if (!(lum > 0)) continue;
+        rank[p] = int32_t(mean.size());
+        mean.push_back(lum);
       }
       emissive_rank.push_back(std::move(rank));
+      radiance.push_back(std::move(mean));
     }
     is.mesh_key = it->second;
     is.light_base = uint32_t(lights.size());
@@ -58,10 +70,13 @@ void Renderer::Impl::sync_lights() {
       Vec3 p0, p1, p2;
       world_triangle(is, p, p0, p1, p2);
       const float area = 0.5f * length(cross(p1 - p0, p2 - p0));
-      lights.push_back({i, p, p0, p1 - p0, p2 - p0, area, normalize(cross(p1 - p0, p2 - p0)),
-                        &material_of(*is.mesh, p)});
-      power.push_back(area > 0 ? luminance(material_of(*is.mesh, p).emission) * area * 2 * pi
-                               : 0.0f);
+      const Material* mat = &material_of(*is.mesh, p);
+      lights.push_back({i, p, p0, p1 - p0, p2 - p0, area, normalize(cross(p1 - p0, p2 - p0)), mat});
+      const float w = area > 0 ? radiance[is.mesh_key][size_t(rank[p])] * area * 2 * pi : 0.0f;
+      power.push_back(w);
+      // Emission from a texture is a surface's own glow (a label, a screen, an indicator:
+      // glTF models carry it routinely), not what lights the scene.
+      lit_by_emitters |= w > 0 && !texture(mat->emission_texture);
     }
     const TriangleMesh& m = *is.mesh;
     for (uint32_t t = 0; t < m.triangle_count(); ++t) {
@@ -99,6 +114,7 @@ void Renderer::Impl::sync_lights() {
     else
       w = pi * r * r * lum;
     if (!(w > 0)) continue;
+    lit_by_emitters = true;
     punctual.push_back(q);
     power.push_back(w);
   }

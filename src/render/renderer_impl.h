@@ -45,6 +45,8 @@ void sample_texture(const Texture& tex, Vec2 uv, bool srgb, float out[3]);
 const float* srgb_decode_table();
 /// Texture coordinates at barycentrics (1 - b1 - b2, b1, b2) of a triangle; (0, 0) without uvs.
 Vec2 uv_at(const TriangleMesh& m, uint32_t prim, float b1, float b2);
+/// A texture's mean (sRGB-decoded) over a triangle's texture coordinates, by stratified samples.
+Vec3 mean_texel(const Texture& tex, const TriangleMesh& m, uint32_t prim);
 
 inline Vec3 normal_transform(const float n[9], Vec3 v) {
   return {n[0] * v.x + n[1] * v.y + n[2] * v.z, n[3] * v.x + n[4] * v.y + n[5] * v.z,
@@ -233,6 +235,9 @@ struct Renderer::Impl {
   }
   std::vector<InstanceShade> instances;
   std::vector<std::vector<int32_t>> emissive_rank;  // per mesh key, per triangle: rank or -1
+  // Punctual lights, or emitters whose emission is not from a texture: the scene's own
+  // lighting, which turns the default sky off (sync_lights).
+  bool lit_by_emitters = false;
   std::vector<LightTri> lights;  // emissive triangles: local lights 0 .. lights.size() - 1
   // Punctual lights (the scene's KHR_lights_punctual): local lights lights.size() .. on.
   struct Punctual {

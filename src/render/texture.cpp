@@ -1,4 +1,5 @@
 // Texel fetches: bilinear, repeat-wrapped, sRGB decoded through a table.
+#include <algorithm>
 #include <cmath>
 
 #include "render/fast_math.h"
@@ -65,6 +66,29 @@ Vec2 uv_at(const TriangleMesh& m, uint32_t prim, float b1, float b2) {
              c = m.uvs[m.indices[tri + 2]];
   const float b0 = 1 - b1 - b2;
   return {a.x * b0 + b.x * b1 + c.x * b2, a.y * b0 + b.y * b1 + c.y * b2};
+}
+
+Vec3 mean_texel(const Texture& tex, const TriangleMesh& m, uint32_t prim) {
+  // A triangle's texels by a folded n x n grid (twice the triangle's area in texels, at most
+  // 16 x 16 samples): cells past the diagonal are mirrored into the triangle.
+  const Vec2 a = uv_at(m, prim, 0, 0), b = uv_at(m, prim, 1, 0), c = uv_at(m, prim, 0, 1);
+  const double texels =
+      0.5 *
+      std::fabs(double(b.x - a.x) * double(c.y - a.y) - double(c.x - a.x) * double(b.y - a.y)) *
+      double(tex.width) * double(tex.height);
+  const int n =
+      std::isfinite(texels) ? int(std::clamp(std::ceil(std::sqrt(2 * texels)), 1.0, 16.0)) : 1;
+  double sum[3] = {0, 0, 0};
+  for (int i = 0; i < n; ++i)
+    for (int j = 0; j < n; ++j) {
+      float u = (float(i) + 0.5f) / float(n), v = (float(j) + 0.5f) / float(n);
+      if (u + v > 1) u = 1 - u, v = 1 - v;
+      float px[3];
+      sample_texture(tex, uv_at(m, prim, u, v), true, px);
+      for (int k = 0; k < 3; ++k) sum[k] += px[k];
+    }
+  const double inv = 1.0 / double(n * n);
+  return {float(sum[0] * inv), float(sum[1] * inv), float(sum[2] * inv)};
 }
 
 }  // namespace kestrel::render

@@ -139,6 +139,68 @@ TEST(Lights, EnvironmentLeftToTheBsdfStaysUnbiased) {
   }
 }
 
+// A glTF model's emissive texture (a label, a screen) is its own glow, not the scene's
+// lighting: a scene whose only emission comes from textures keeps the default sky, one with
+// an untextured emitter does not. Such emitters are sampled by the texture's mean over each
+// triangle: a 2 x 2 quad, one triangle textured white and the other black, lights the plane
+// as the white triangle alone does (rho / pi x L x its form factor, Lambert's polygon
+// formula), and next-event estimation never spends a sample on the black one (the estimate's
+// variance stays far below a half-wasted one's, var / mean^2 >= 1).
+TEST(Lights, TexturedEmissionIsAGlowSampledByItsTexture) {
+  const Vec3 p0{0.5f, -1, -3.5f}, p1{2.5f, -1, -3.5f}, p2{2.5f, 1, -3.5f}, p3{0.5f, 1, -3.5f};
+  auto lamp_scene = [&](bool textured) {
+    Scene s = plane();
+    Material lamp{.name = "lamp", .base_color = {0, 0, 0}, .emission = {10, 10, 10}};
+    if (textured) {
+      lamp.emission_texture = 0;
+      Texture t;
+      t.width = t.height = 64;
+      for (int y = 0; y < 64; ++y)
+        for (int x = 0; x < 64; ++x)
+          for (int c = 0; c < 4; ++c) t.rgba.push_back(x < 32 || c == 3 ? 255 : 0);
+      s.textures = {t};
+    }
+    s.materials.push_back(lamp);
+    TriangleMesh m;
+    m.positions = {p0, p1, p2, p0, p2, p3};
+    m.uvs = {{0.1f, 0.1f}, {0.4f, 0.1f}, {0.4f, 0.9f}, {0.6f, 0.1f}, {0.9f, 0.9f}, {0.6f, 0.9f}};
+    m.indices = {0, 1, 2, 3, 4, 5};
+    m.material_ids = {1, 1};
+    s.meshes.push_back(m);
+    return s;
+  };
+  RenderSettings one;
+  one.width = one.height = 1, one.spp = 4, one.jitter = false;
+  const Camera away{{0, 0, 0}, {0, 0, 5}, 10};  // nothing but the environment that way
+  for (const bool textured : {true, false}) {
+    const Asset asset = Asset::from_scene(lamp_scene(textured));
+    Renderer r(asset.scene());
+    const float sky = r.render(away, one)[Aov::color].pixels[1];
+    if (textured)
+      EXPECT_GT(sky, 0.05f) << "the default sky is on";
+    else
+      EXPECT_EQ(sky, 0.0f) << "an untextured emitter lights the scene: no default sky";
+  }
+  double f = 0;  // the white triangle's form factor seen from (0, 0, -5), normal +z
+  const Vec3 tri[3] = {p0, p1, p2};
+  for (int i = 0; i < 3; ++i) {
+    const Vec3 a = normalize(tri[i] - Vec3{0, 0, -5}),
+               b = normalize(tri[(i + 1) % 3] - Vec3{0, 0, -5});
+    const Vec3 c = cross(a, b);
+    f += std::acos(std::clamp(double(dot(a, b)), -1.0, 1.0)) * c.z / length(c);
+  }
+  const double expected = kAlbedo / kPi * 10 * std::fabs(f) / 2;
+  const Asset asset = Asset::from_scene(lamp_scene(true));
+  Renderer r(asset.scene(), Environment::parse("none"));
+  RenderSettings s = one;
+  s.spp = 16384, s.max_depth = 2;
+  const Frame frame = r.render(Camera{{0, 0, 0}, {0, 0, -5}, 10}, s);
+  const double got = frame[Aov::color].pixels[1];
+  EXPECT_NEAR(got, expected, 0.01 * expected);
+  const double relative_variance = frame[Aov::variance].pixels[0] * s.spp / (got * got);
+  EXPECT_LT(relative_variance, 0.5);
+}
+
 TEST(Lights, PhysicalSkyIsNormalisedAndBrightestTowardsTheSun) {
   const Sun sun = Sun::parse("90,45");  // east (+X), 45 degrees up
   EXPECT_NEAR(sun.direction.x, std::sqrt(0.5f), 1e-6f);
