@@ -4,6 +4,7 @@
 #include <fmt/format.h>
 
 #include <cmath>
+#include <cstring>
 #include <unordered_map>
 
 #include "kestrel/error.h"
@@ -30,9 +31,72 @@ void Renderer::Impl::check_materials(const std::string& source) {
   }
 }
 
+namespace {
+uint64_t mix(uint64_t h, uint64_t w) {
+  h = (h ^ w) * 0x9E3779B97F4A7C15ull;
+  return h ^ (h >> 29);
+}
+// A 64-bit fingerprint of an array's bytes, eight at a time.
+template <class T>
+uint64_t hash_array(uint64_t h, const std::vector<T>& v) {
+  const size_t bytes = v.size() * sizeof(T);
+  const auto* p = reinterpret_cast<const unsigned char*>(v.data());
+  size_t i = 0;
+  for (; i + 8 <= bytes; i += 8) {
+    uint64_t w;
+    std::memcpy(&w, p + i, 8);
+    h = mix(h, w);
+  }
+  uint64_t w = 0;
+  if (bytes > i) std::memcpy(&w, p + i, bytes - i);
+  return mix(mix(h, w), bytes);
+}
+}  // namespace
+
+// Each triangle's mean emitted luminance where its emission is textured (0 elsewhere),
+// remembered while the mesh's uvs, indices and material ids, the materials' emission and the
+// textures stay the same (`glow_key`): a glTF asset commits every frame, animated or not.
+const std::vector<float>& Renderer::Impl::textured_emission(const TriangleMesh& mesh,
+                                                            uint64_t glow_key) {
+  uint64_t key = hash_array(glow_key, mesh.uvs);
+  key = hash_array(key, mesh.indices);
+  key = hash_array(key, mesh.material_ids);
+  GlowCache& c = glow_cache[&mesh];
+  c.seen = true;
+  if (c.key == key && c.mean.size() == mesh.triangle_count()) return c.mean;
+  c.key = key;
+  c.mean.assign(mesh.triangle_count(), 0.0f);
+  for (uint32_t p = 0; p < mesh.triangle_count(); ++p) {
+    const Material& m = material_of(mesh, p);
+    if (const Texture* t = texture(m.emission_texture); t && luminance(m.emission) > 0)
+      c.mean[p] = luminance(m.emission * mean_texel(*t, mesh, p));
+  }
+  return c.mean;
+}
+
 void Renderer::Impl::sync_lights() {
   // Emissive triangles by mesh, then world-space light triangles for every instance.
   std::unordered_map<const TriangleMesh*, uint32_t> key_of;
+  // What textured emission depends on beyond a mesh: the materials' emission and textures.
+  bool glow = false;
+  uint64_t glow_key = 0;
+  for (const Material& m : materials) {
+    glow |= luminance(m.emission) > 0 && texture(m.emission_texture);
+    const float e[3] = {m.emission.x, m.emission.y, m.emission.z};
+    uint32_t w[4] = {uint32_t(m.emission_texture), 0, 0, 0};
+    std::memcpy(&w[1], e, sizeof e);
+    glow_key = mix(mix(glow_key, uint64_t(w[0]) << 32 | w[1]), uint64_t(w[2]) << 32 | w[3]);
+  }
+  for (const Texture& t : scene->textures()) {  // its place, size and 64 of its texels
+    glow_key = mix(mix(glow_key, reinterpret_cast<uintptr_t>(t.rgba.data())),
+                   uint64_t(uint32_t(t.width)) << 32 | uint32_t(t.height));
+    for (size_t k = 0, n = t.rgba.size() / 4; n > 0 && k < 64; ++k) {
+      uint32_t texel;
+      std::memcpy(&texel, &t.rgba[(k * n / 64) * 4], 4);
+      glow_key = mix(glow_key, texel);
+    }
+  }
+  for (auto& [mesh, c] : glow_cache) c.seen = false;
   emissive_rank.clear();
   lights.clear();
   std::vector<float> power;
@@ -47,14 +111,13 @@ void Renderer::Impl::sync_lights() {
     if (fresh) {
       std::vector<int32_t> rank(is.mesh->triangle_count(), -1);
       std::vector<float> mean;
+      const std::vector<float>* textured = glow ? &textured_emission(*is.mesh, glow_key) : nullptr;
       for (uint32_t p = 0; p < rank.size(); ++p) {
         const Material& m = material_of(*is.mesh, p);
         if (!(luminance(m.emission) > 0) || !valid_triangle(*is.mesh, p)) continue;
         // A textured emitter black all over this triangle is not a light (a BSDF ray that
         // hits it takes its emission with MIS weight 1).
-        const Texture* t = texture(m.emission_texture);
-        const float lum =
-            t ? luminance(m.emission * mean_texel(*t, *is.mesh, p)) : luminance(m.emission);
+        const float lum = texture(m.emission_texture) ? (*textured)[p] : luminance(m.emission);
         if (!(lum > 0)) continue;
         rank[p] = int32_t(mean.size());
         mean.push_back(lum);
@@ -86,6 +149,7 @@ void Renderer::Impl::sync_lights() {
       extend(bounds, p0), extend(bounds, p1), extend(bounds, p2);
     }
   }
+  std::erase_if(glow_cache, [](const auto& entry) { return !entry.second.seen; });
   double triangle_power = 0;
   for (float w : power) triangle_power += w;
   if (!(triangle_power > 0)) lights.clear(), power.clear();

@@ -11,6 +11,7 @@
 #include <optional>
 #include <span>
 #include <string>
+#include <unordered_map>
 #include <vector>
 
 #include "core/vec.h"
@@ -238,6 +239,13 @@ struct Renderer::Impl {
   // Punctual lights, or emitters whose emission is not from a texture: the scene's own
   // lighting, which turns the default sky off (sync_lights).
   bool lit_by_emitters = false;
+  // textured_emission's per-triangle means, per mesh, and what they were computed from.
+  struct GlowCache {
+    uint64_t key = 0;
+    std::vector<float> mean;
+    bool seen = false;
+  };
+  std::unordered_map<const TriangleMesh*, GlowCache> glow_cache;
   std::vector<LightTri> lights;  // emissive triangles: local lights 0 .. lights.size() - 1
   // Punctual lights (the scene's KHR_lights_punctual): local lights lights.size() .. on.
   struct Punctual {
@@ -376,6 +384,7 @@ struct Renderer::Impl {
   // lights.cpp
   void check_materials(const std::string& source);
   void sync_lights();
+  const std::vector<float>& textured_emission(const TriangleMesh& mesh, uint64_t glow_key);
   // renderer.cpp
   std::string source() const;
   void sync();

@@ -181,24 +181,39 @@ TEST(Lights, TexturedEmissionIsAGlowSampledByItsTexture) {
     else
       EXPECT_EQ(sky, 0.0f) << "an untextured emitter lights the scene: no default sky";
   }
-  double f = 0;  // the white triangle's form factor seen from (0, 0, -5), normal +z
-  const Vec3 tri[3] = {p0, p1, p2};
-  for (int i = 0; i < 3; ++i) {
-    const Vec3 a = normalize(tri[i] - Vec3{0, 0, -5}),
-               b = normalize(tri[(i + 1) % 3] - Vec3{0, 0, -5});
-    const Vec3 c = cross(a, b);
-    f += std::acos(std::clamp(double(dot(a, b)), -1.0, 1.0)) * c.z / length(c);
-  }
-  const double expected = kAlbedo / kPi * 10 * std::fabs(f) / 2;
-  const Asset asset = Asset::from_scene(lamp_scene(true));
+  // The form factor of a triangle seen from (0, 0, -5), normal +z.
+  auto form_factor = [](const Vec3(&tri)[3]) {
+    double f = 0;
+    for (int i = 0; i < 3; ++i) {
+      const Vec3 a = normalize(tri[i] - Vec3{0, 0, -5}),
+                 b = normalize(tri[(i + 1) % 3] - Vec3{0, 0, -5});
+      const Vec3 c = cross(a, b);
+      f += std::acos(std::clamp(double(dot(a, b)), -1.0, 1.0)) * c.z / length(c);
+    }
+    return std::fabs(f) / 2;
+  };
+  Asset asset = Asset::from_scene(lamp_scene(true));
   Renderer r(asset.scene(), Environment::parse("none"));
   RenderSettings s = one;
   s.spp = 16384, s.max_depth = 2;
-  const Frame frame = r.render(Camera{{0, 0, 0}, {0, 0, -5}, 10}, s);
-  const double got = frame[Aov::color].pixels[1];
-  EXPECT_NEAR(got, expected, 0.01 * expected);
-  const double relative_variance = frame[Aov::variance].pixels[0] * s.spp / (got * got);
-  EXPECT_LT(relative_variance, 0.5);
+  // Then the texture's halves swapped after a commit: the other triangle lights the plane,
+  // and the light choice follows (the means are recomputed, not kept from the first sync).
+  for (const bool swapped : {false, true}) {
+    if (swapped) {
+      std::vector<Texture> textures = asset.scene().textures();
+      for (uint8_t& v : textures[0].rgba) v = uint8_t(255 - v);
+      for (size_t i = 3; i < textures[0].rgba.size(); i += 4) textures[0].rgba[i] = 255;
+      asset.scene().set_materials(asset.scene().materials(), std::move(textures));
+      asset.scene().commit();
+    }
+    const Vec3 white[2][3] = {{p0, p1, p2}, {p0, p2, p3}};
+    const double expected = kAlbedo / kPi * 10 * form_factor(white[swapped]);
+    const Frame frame = r.render(Camera{{0, 0, 0}, {0, 0, -5}, 10}, s);
+    const double got = frame[Aov::color].pixels[1];
+    EXPECT_NEAR(got, expected, 0.01 * expected) << (swapped ? "swapped" : "first");
+    const double relative_variance = frame[Aov::variance].pixels[0] * s.spp / (got * got);
+    EXPECT_LT(relative_variance, 0.5) << (swapped ? "swapped" : "first");
+  }
 }
 
 TEST(Lights, PhysicalSkyIsNormalisedAndBrightestTowardsTheSun) {
