@@ -4,6 +4,7 @@
 // their buffers before use, so a truncated or inconsistent file is an Error, never a read
 // past the end.
 #include <fmt/format.h>
+#include <fmt/ranges.h>
 #include <tiny_gltf.h>
 
 #include "io/gltf_reader.h"
@@ -327,6 +328,16 @@ tinygltf::Model load_model(const std::string& path) {
     throw Error(ErrorCode::parse_error,
                 fmt::format("{}: {}", path, err.empty() ? "not a valid glTF file" : err));
   }
+  // A required extension changes what the file's data mean (compressed meshes, transformed
+  // texture coordinates...): glTF asks a loader that does not read it to refuse the file.
+  static const char* const readable[] = {"KHR_lights_punctual", "KHR_materials_emissive_strength",
+                                         "KHR_materials_specular"};
+  for (const std::string& ext : model.extensionsRequired)
+    if (std::find(std::begin(readable), std::end(readable), ext) == std::end(readable))
+      throw Error(ErrorCode::unsupported,
+                  fmt::format("{}: requires the glTF extension {}, which kestrel does not read "
+                              "(it reads {})",
+                              path, ext, fmt::join(readable, ", ")));
   check_node_tree(path, model);
   return model;
 }

@@ -130,6 +130,12 @@ def main():
     nodes = [{"children": [1]}, {"children": [0], "mesh": 0}]
     path = gltf_with([ok_acc], views, tri, {"nodes": nodes}, "cycle.gltf")
     expect_error("glTF node cycle", ["bvh", path], ["cycle.gltf"])
+    extra = {"extensionsUsed": ["KHR_draco_mesh_compression"],
+             "extensionsRequired": ["KHR_draco_mesh_compression"]}
+    path = gltf_with([ok_acc], views, tri, extra, "draco.gltf")
+    expect_error("glTF requiring an extension kestrel does not read", ["render", path, "-o",
+                 os.path.join(os.path.dirname(path), "draco.exr")],
+                 ["draco.gltf", "KHR_draco_mesh_compression"])
 
     # --- Images whose headers claim far more than the file holds.
     path = write("huge.pfm", b"PF\n16000 16000\n-1.0\n" + b"\0" * 64)
