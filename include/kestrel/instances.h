@@ -116,6 +116,11 @@ class InstancedScene {
   /// Occlusion of a batch: 1 when the ray hits anything in (tmin, tmax).
   void occluded(std::span<const Ray> rays, std::span<uint8_t> occluded,
                 uint32_t ray_mask = 0xFFFFFFFFu, const TraceOptions& options = {}) const;
+  /// What occluded() decides from: for each ray a hit in (tmin, tmax) and its triangle — any
+  /// one, not necessarily the closest (u = v = 0) — or a miss. For callers that filter what
+  /// blocks a ray (the renderer's cut-outs).
+  void any_hits(std::span<const Ray> rays, std::span<InstanceHit> hits,
+                uint32_t ray_mask = 0xFFFFFFFFu, const TraceOptions& options = {}) const;
 
   size_t instance_count() const;
   size_t mesh_count() const;

@@ -29,6 +29,16 @@ struct Material {
   int metallic_roughness_texture = -1;  ///< glTF: G = roughness, B = metallic
   int emission_texture = -1;
   int normal_texture = -1;
+  /// Cut-out opacity (glTF alphaMode, MTL d and map_d): `opaque` ignores alpha; where a
+  /// `mask` material's alpha is below alpha_cutoff, its surface is not there (rays pass
+  /// through: foliage cards, fences); a `blend` material's surface is there for a fraction
+  /// alpha of the rays that meet it (stochastic transparency: thin glass, decals).
+  enum class AlphaMode : uint8_t { opaque, mask, blend };
+  AlphaMode alpha_mode = AlphaMode::opaque;
+  float alpha = 1.0f;           ///< [0, 1]; glTF baseColorFactor's fourth value, MTL d
+  float alpha_cutoff = 0.5f;    ///< mask: glTF alphaCutoff
+  int alpha_texture = -1;       ///< multiplies alpha: its A channel (R with alpha_from_red)
+  bool alpha_from_red = false;  ///< an MTL map_d without an alpha channel: a grey mask
 };
 
 /// A punctual light (glTF KHR_lights_punctual): a point, a spot or a directional light, in

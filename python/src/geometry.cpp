@@ -301,8 +301,13 @@ void bind_geometry(py::module_& m) {
       .def(
           "add_material",
           [](Scene& s, const std::string& name, py::handle base_color, float metallic,
-             float roughness, float specular, py::handle emission) {
+             float roughness, float specular, py::handle emission, float alpha) {
             Material mat{.name = name};
+            if (!(alpha >= 0 && alpha <= 1))
+              throw py::value_error(
+                  fmt::format("material '{}': alpha {} is not in [0, 1]", name, alpha));
+            mat.alpha = alpha;
+            if (alpha < 1) mat.alpha_mode = Material::AlphaMode::blend;
             mat.base_color = vec3_from(base_color, "base_color");
             mat.emission = vec3_from(emission, "emission");
             mat.metallic = metallic;
@@ -322,8 +327,10 @@ void bind_geometry(py::module_& m) {
           },
           py::arg("name"), py::arg("base_color") = py::make_tuple(0.8, 0.8, 0.8),
           py::arg("metallic") = 0.0f, py::arg("roughness") = 1.0f, py::arg("specular") = 0.0f,
-          py::arg("emission") = py::make_tuple(0, 0, 0),
-          "Appends a metallic-roughness material; returns its index for add_mesh(material=...).")
+          py::arg("emission") = py::make_tuple(0, 0, 0), py::arg("alpha") = 1.0f,
+          "Appends a metallic-roughness material; returns its index for add_mesh(material=...). "
+          "alpha < 1: a surface that a fraction alpha of the rays meeting it sees (stochastic "
+          "transparency).")
       .def_readonly("source", &Scene::source)
       .def_readonly("warnings", &Scene::warnings)
       .def_property_readonly("triangle_count", &Scene::triangle_count)

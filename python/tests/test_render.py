@@ -90,6 +90,22 @@ def test_render_is_the_same_for_any_thread_count(cornell):
     assert r.last_stats["passes"] == 2
 
 
+def test_translucent_material_is_seen_by_alpha_of_the_rays():
+    # A red quad with alpha 0.25 over a grey floor, seen straight down: the albedo AOV mixes
+    # them as 0.25 : 0.75; alpha outside [0, 1] is refused.
+    scene = kestrel.Scene()
+    floor = scene.add_material("floor", base_color=(0.5, 0.5, 0.5))
+    glass = scene.add_material("glass", base_color=(0.9, 0.1, 0.1), alpha=0.25)
+    quad = np.array([[-1, 0, -1], [1, 0, -1], [1, 0, 1], [-1, 0, 1]], np.float32)
+    tris = np.array([[0, 2, 1], [0, 3, 2]], np.uint32)
+    scene.add_mesh(quad * 20, tris, material=floor)
+    scene.add_mesh(quad + np.float32([0, 1, 0]), tris, material=glass)
+    frame = kestrel.Renderer(scene).render(kestrel.Camera((0, 8, 0.01), (0, 0, 0), 10), spp=64, res=(8, 8))
+    assert frame["albedo"][..., 0].mean() == pytest.approx(0.25 * 0.9 + 0.75 * 0.5, abs=0.02)
+    with pytest.raises(ValueError, match="alpha"):
+        scene.add_material("bad", alpha=1.5)
+
+
 def test_render_arguments_are_checked(cornell):
     r = kestrel.Renderer(cornell)
     cam = kestrel.view(cornell)

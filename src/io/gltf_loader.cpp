@@ -228,6 +228,13 @@ Material convert_material(const tinygltf::Material& m, const tinygltf::Model& mo
   out.metallic_roughness_texture = texture(pbr.metallicRoughnessTexture.index);
   out.emission_texture = texture(m.emissiveTexture.index);
   out.normal_texture = texture(m.normalTexture.index);
+  // Alpha: baseColorFactor's fourth value times the base colour texture's A channel.
+  if (m.alphaMode == "MASK" || m.alphaMode == "BLEND") {
+    out.alpha_mode = m.alphaMode == "MASK" ? Material::AlphaMode::mask : Material::AlphaMode::blend;
+    out.alpha = pbr.baseColorFactor.size() == 4 ? float(pbr.baseColorFactor[3]) : 1.0f;
+    out.alpha_cutoff = float(m.alphaCutoff);
+    out.alpha_texture = out.base_color_texture;
+  }
   return out;
 }
 

@@ -302,6 +302,19 @@ Scene load_obj(const std::string& path) {
     Material material = convert_material(m);
     material.base_color_texture = texture(m.diffuse_texname);
     material.emission_texture = texture(m.emissive_texname);
+    // map_d: a cut-out mask (its A channel, or its grey level when it has no alpha); d < 1
+    // alone (or Tr > 0): a surface that lets the rest of the light through, stochastically.
+    material.alpha = m.dissolve;
+    if (const int mask = texture(m.alpha_texname); mask >= 0) {
+      const std::vector<uint8_t>& rgba = scene.textures[size_t(mask)].rgba;
+      bool has_alpha = false;
+      for (size_t i = 3; i < rgba.size() && !has_alpha; i += 4) has_alpha = rgba[i] != 255;
+      material.alpha_mode = Material::AlphaMode::mask;
+      material.alpha_texture = mask;
+      material.alpha_from_red = !has_alpha;
+    } else if (m.dissolve < 1.0f) {
+      material.alpha_mode = Material::AlphaMode::blend;
+    }
     scene.materials.push_back(material);
   }
   const uint32_t default_material = uint32_t(scene.materials.size());

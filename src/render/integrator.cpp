@@ -16,14 +16,6 @@ namespace kestrel {
 
 using namespace render;
 
-void Renderer::Impl::trace(std::span<const Ray> rays, std::span<SurfaceHit> hits) const {
-  scene->trace(rays, hits);
-}
-
-void Renderer::Impl::occluded(std::span<const Ray> rays, std::span<uint8_t> out) const {
-  scene->occluded(rays, out);
-}
-
 namespace {
 
 // One cache line: the shading loop touches it per path per bounce (the path's pixel is its

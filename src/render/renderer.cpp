@@ -73,6 +73,9 @@ void Renderer::Impl::sync() {
     for (int row = 0; row < 3; ++row)
       for (int col = 0; col < 3; ++col) is.nrm[row * 3 + col] = inv.m[col * 4 + row];
   }
+  cutouts = std::any_of(materials.begin(), materials.end(), [](const Material& m) {
+    return m.alpha_mode != Material::AlphaMode::opaque;
+  });
   sync_lights();
   if (env_ready) choose_strategies();  // the local lights may have come or gone
 }

@@ -46,6 +46,8 @@ void sample_texture(const Texture& tex, Vec2 uv, bool srgb, float out[3]);
 const float* srgb_decode_table();
 /// Texture coordinates at barycentrics (1 - b1 - b2, b1, b2) of a triangle; (0, 0) without uvs.
 Vec2 uv_at(const TriangleMesh& m, uint32_t prim, float b1, float b2);
+/// One channel (0..3), bilinear and repeat-wrapped as sample_texture, not decoded: [0, 1].
+float sample_channel(const Texture& tex, Vec2 uv, int channel);
 /// A texture's mean (sRGB-decoded) over a triangle's texture coordinates, by stratified samples.
 Vec3 mean_texel(const Texture& tex, const TriangleMesh& m, uint32_t prim);
 
@@ -239,6 +241,7 @@ struct Renderer::Impl {
   // Punctual lights, or emitters whose emission is not from a texture: the scene's own
   // lighting, which turns the default sky off (sync_lights).
   bool lit_by_emitters = false;
+  bool cutouts = false;  // a material is masked or blended (cutouts.cpp)
   // textured_emission's per-triangle means, per mesh, and what they were computed from.
   struct GlowCache {
     uint64_t key = 0;
@@ -388,8 +391,11 @@ struct Renderer::Impl {
   // renderer.cpp
   std::string source() const;
   void sync();
+  // cutouts.cpp: the scene's queries, through surfaces a material's alpha leaves out.
   void trace(std::span<const Ray> rays, std::span<SurfaceHit> hits) const;
   void occluded(std::span<const Ray> rays, std::span<uint8_t> out) const;
+  void pass_cutouts(std::span<const Ray> rays, std::span<SurfaceHit> hits) const;
+  bool cut_out(const Ray& ray, const SurfaceHit& h) const;
   // integrator.cpp
   struct Surface {
     Vec3 p, p_obj, ng, ns, wo;

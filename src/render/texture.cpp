@@ -68,6 +68,27 @@ Vec2 uv_at(const TriangleMesh& m, uint32_t prim, float b1, float b2) {
   return {a.x * b0 + b.x * b1 + c.x * b2, a.y * b0 + b.y * b1 + c.y * b2};
 }
 
+float sample_channel(const Texture& tex, Vec2 uv, int channel) {
+  float x = (uv.x - floor_exact(uv.x)) * float(tex.width) - 0.5f;
+  float y = (uv.y - floor_exact(uv.y)) * float(tex.height) - 0.5f;
+  if (!(x >= -1.0f && x < float(tex.width)) || !(y >= -1.0f && y < float(tex.height)))
+    x = 0, y = 0;  // NaN uv
+  const float fx = floor_exact(x), fy = floor_exact(y);
+  const float wx = x - fx, wy = y - fy;
+  int x0 = int(fx), y0 = int(fy);
+  int x1 = x0 + 1, y1 = y0 + 1;
+  if (x0 < 0) x0 = tex.width - 1;
+  if (x1 >= tex.width) x1 = 0;
+  if (y0 < 0) y0 = tex.height - 1;
+  if (y1 >= tex.height) y1 = 0;
+  auto at = [&](int px, int py) {
+    return float(tex.rgba[(size_t(py) * size_t(tex.width) + size_t(px)) * 4 + size_t(channel)]);
+  };
+  return ((at(x0, y0) * (1 - wx) + at(x1, y0) * wx) * (1 - wy) +
+          (at(x0, y1) * (1 - wx) + at(x1, y1) * wx) * wy) *
+         (1.0f / 255.0f);
+}
+
 Vec3 mean_texel(const Texture& tex, const TriangleMesh& m, uint32_t prim) {
   // A triangle's texels by a folded n x n grid (twice the triangle's area in texels, at most
   // 16 x 16 samples): cells past the diagonal are mirrored into the triangle.

@@ -404,6 +404,38 @@ void InstancedScene::occluded(std::span<const Ray> rays, std::span<uint8_t> out,
   });
 }
 
+void InstancedScene::any_hits(std::span<const Ray> rays, std::span<InstanceHit> hits,
+                              uint32_t ray_mask, const TraceOptions& options) const {
+  const Impl& s = *impl_;
+  const TlasQuery q = prepare_query("any_hits", rays.size(), hits.size(), options, true, s.layout,
+                                    s.tlas_data(), s.data.empty() || s.empty_tlas());
+  if (!q.fn) {
+    for (InstanceHit& h : hits) h = InstanceHit{};
+    return;
+  }
+  if (const Accel* direct = s.direct(); direct && ray_mask != 0) {
+    thread_local std::vector<Hit> scratch;
+    scratch.resize(rays.size());
+    kestrel::trace(*direct, rays, std::span<Hit>(scratch.data(), rays.size()), true, options);
+    const Hit* found = scratch.data();
+    parallel_for(0, rays.size(), 16384, [&](size_t b, size_t e) {
+      for (size_t i = b; i < e; ++i) {
+        const Hit& h = found[i];
+        hits[i] = h.hit() ? InstanceHit{h.t, h.prim_id, s.direct_id, 0, 0} : InstanceHit{};
+      }
+    });
+    return;
+  }
+  parallel_for(0, rays.size(), 1024, [&](size_t b, size_t e) {
+    for (size_t i = b; i < e; i += stream_chunk) {
+      const auto chunk = rays.subspan(i, std::min(stream_chunk, e - i));
+      q.run(chunk, options, s.any_choice, false, [&](kernels::TlasFn fn) {
+        fn(q.tlas, s.data.data(), chunk.data(), hits.data() + i, chunk.size(), ray_mask);
+      });
+    }
+  });
+}
+
 void InstancedScene::set_materials(std::vector<Material> materials, std::vector<Texture> textures) {
   impl_->materials = std::move(materials);
   impl_->textures = std::move(textures);

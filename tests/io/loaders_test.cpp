@@ -264,6 +264,77 @@ TEST(Gltf, SpecularExtensionSetsTheCoatWeight) {
   EXPECT_EQ(s.materials[4].specular, 1.0f);
 }
 
+// Cut-out opacity: glTF's alphaMode, alphaCutoff and baseColorFactor's fourth value (with the
+// base colour texture's A channel); MTL's d (or Tr) and map_d (a mask: its A channel, or its
+// grey level when the image has no alpha).
+TEST(Gltf, AlphaModesAreRead) {
+  const std::string path = test::write_temp_file("alpha.gltf", R"({
+    "asset": {"version": "2.0"}, "scene": 0, "scenes": [{"nodes": [0]}], "nodes": [{"mesh": 0}],
+    "meshes": [{"primitives": [{"attributes": {"POSITION": 0}, "material": 0}]}],
+    "materials": [
+      {"name": "plain", "pbrMetallicRoughness": {"baseColorFactor": [1, 1, 1, 0.3]}},
+      {"name": "leaf", "alphaMode": "MASK", "alphaCutoff": 0.25},
+      {"name": "glass", "alphaMode": "BLEND",
+       "pbrMetallicRoughness": {"baseColorFactor": [1, 1, 1, 0.3]}}],
+    "buffers": [{"byteLength": 36,
+                 "uri": "data:application/octet-stream;base64,AAAAAAAAAAAAAAAAAACAPwAAAAAAAAAAAAAAAAAAgD8AAAAA"}],
+    "bufferViews": [{"buffer": 0, "byteOffset": 0, "byteLength": 36}],
+    "accessors": [{"bufferView": 0, "componentType": 5126, "count": 3, "type": "VEC3",
+                   "min": [0, 0, 0], "max": [1, 1, 0]}]})");
+  const Scene s = load_scene(path);
+  ASSERT_GE(s.materials.size(), 3u);
+  EXPECT_EQ(s.materials[0].alpha_mode, Material::AlphaMode::opaque);  // OPAQUE ignores alpha
+  EXPECT_EQ(s.materials[1].alpha_mode, Material::AlphaMode::mask);
+  EXPECT_FLOAT_EQ(s.materials[1].alpha_cutoff, 0.25f);
+  EXPECT_FLOAT_EQ(s.materials[1].alpha, 1.0f);
+  EXPECT_EQ(s.materials[2].alpha_mode, Material::AlphaMode::blend);
+  EXPECT_FLOAT_EQ(s.materials[2].alpha, 0.3f);
+}
+
+TEST(Obj, DissolveAndAlphaMapsAreRead) {
+  const std::filesystem::path dir = test::test_temp_dir();
+  // 2 x 2 uncompressed true-colour TGAs: 24 bits (no alpha: the mask is its grey level) and
+  // 32 bits (its A channel).
+  auto tga = [&](const char* name, int bits) {
+    std::string bytes(18, '\0');
+    bytes[2] = 2, bytes[12] = 2, bytes[14] = 2, bytes[16] = char(bits), bytes[17] = 0x20;
+    for (int i = 0; i < 4; ++i) {
+      const char v = i % 2 ? char(255) : 0;
+      bytes += std::string(3, v);
+      if (bits == 32) bytes += i == 0 ? char(0) : char(255);
+    }
+    std::ofstream(dir / name, std::ios::binary) << bytes;
+  };
+  tga("alpha_grey.tga", 24);
+  tga("alpha_cut.tga", 32);
+  std::ofstream(dir / "alpha.mtl") << "newmtl solid\nKd 1 1 1\n"
+                                      "newmtl glass\nKd 1 1 1\nd 0.4\n"
+                                      "newmtl tinted\nKd 1 1 1\nTr 0.75\n"
+                                      "newmtl leaf\nKd 1 1 1\nmap_d alpha_grey.tga\n"
+                                      "newmtl fence\nKd 1 1 1\nmap_d alpha_cut.tga\n";
+  std::ofstream(dir / "alpha.obj") << "mtllib alpha.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\n"
+                                      "usemtl solid\nf 1 2 3\nusemtl glass\nf 1 2 3\n"
+                                      "usemtl tinted\nf 1 2 3\nusemtl leaf\nf 1 2 3\n"
+                                      "usemtl fence\nf 1 2 3\n";
+  const Scene s = load_scene((dir / "alpha.obj").string());
+  auto named = [&](const std::string& name) {
+    for (const Material& m : s.materials)
+      if (m.name == name) return m;
+    ADD_FAILURE() << name;
+    return Material{};
+  };
+  EXPECT_EQ(named("solid").alpha_mode, Material::AlphaMode::opaque);
+  EXPECT_EQ(named("glass").alpha_mode, Material::AlphaMode::blend);
+  EXPECT_FLOAT_EQ(named("glass").alpha, 0.4f);
+  EXPECT_EQ(named("tinted").alpha_mode, Material::AlphaMode::blend);
+  EXPECT_FLOAT_EQ(named("tinted").alpha, 0.25f);
+  EXPECT_EQ(named("leaf").alpha_mode, Material::AlphaMode::mask);
+  EXPECT_GE(named("leaf").alpha_texture, 0);
+  EXPECT_TRUE(named("leaf").alpha_from_red);
+  EXPECT_EQ(named("fence").alpha_mode, Material::AlphaMode::mask);
+  EXPECT_FALSE(named("fence").alpha_from_red);
+}
+
 TEST(Gltf, MalformedAndTruncatedFilesAreErrors) {
   const std::string not_json =
       test::write_temp_file("broken.gltf", "{ \"asset\": { \"version\": \"2.0\" ");

@@ -4,6 +4,7 @@
 
 #include <fmt/format.h>
 
+#include <algorithm>
 #include <cmath>
 
 #include "core/vec.h"
@@ -235,6 +236,67 @@ TEST(Instances, MasksHideInstances) {
   size_t n = 0;
   for (const InstanceHit& x : h) n += x.hit();
   EXPECT_GT(n, 50u);
+}
+
+// any_hits names a triangle the ray really hits in (tmin, tmax) (a double-precision test on
+// the flattened scene) exactly where occluded() says it is blocked; through the TLAS and
+// through one identity instance's own BLAS.
+TEST(Instances, AnyHitsNameATriangleTheRayHits) {
+  auto hits_at = [](const Vec3& o, const Vec3& d, const Vec3& a, const Vec3& b, const Vec3& c) {
+    const double e1[3] = {double(b.x) - a.x, double(b.y) - a.y, double(b.z) - a.z},
+                 e2[3] = {double(c.x) - a.x, double(c.y) - a.y, double(c.z) - a.z},
+                 s[3] = {double(o.x) - a.x, double(o.y) - a.y, double(o.z) - a.z},
+                 dd[3] = {d.x, d.y, d.z};
+    auto cross = [](const double* x, const double* y, double* r) {
+      r[0] = x[1] * y[2] - x[2] * y[1], r[1] = x[2] * y[0] - x[0] * y[2],
+      r[2] = x[0] * y[1] - x[1] * y[0];
+    };
+    auto dot = [](const double* x, const double* y) {
+      return x[0] * y[0] + x[1] * y[1] + x[2] * y[2];
+    };
+    double p[3], q[3];
+    cross(dd, e2, p);
+    const double det = dot(e1, p);
+    cross(s, e1, q);
+    const double u = dot(s, p) / det, v = dot(dd, q) / det;
+    const double slack = 1e-6;  // edges: float kernels against doubles
+    return std::pair{u >= -slack && v >= -slack && u + v <= 1 + slack, dot(e2, q) / det};
+  };
+  for (const bool direct : {false, true}) {
+    Fixture f = make_fixture();
+    if (direct) {  // one identity instance: the BLAS alone
+      f = Fixture{};
+      f.meshes.push_back(test::random_soup(800, 0.2f, 3).meshes[0]);
+      f.ids.push_back(f.scene.add_instance(f.scene.add_mesh(f.meshes[0]), Affine3{}));
+    }
+    f.scene.commit();
+    const Scene flat = f.scene.flatten();
+    std::vector<Ray> rays = rays_through(flat, 4000, 29);
+    for (size_t i = 0; i < rays.size(); i += 2) rays[i].tmax = 0.5f;  // some fall short
+    std::vector<InstanceHit> any(rays.size());
+    std::vector<uint8_t> occ(rays.size());
+    f.scene.any_hits(rays, any);
+    f.scene.occluded(rays, occ);
+    size_t blocked = 0;
+    for (size_t i = 0; i < rays.size(); ++i) {
+      ASSERT_EQ(any[i].hit(), occ[i] != 0) << "ray " << i << (direct ? " direct" : "");
+      if (!any[i].hit()) continue;
+      ++blocked;
+      const size_t k =
+          size_t(std::find(f.ids.begin(), f.ids.end(), any[i].instance_id) - f.ids.begin());
+      ASSERT_LT(k, flat.meshes.size());
+      const TriangleMesh& m = flat.meshes[k];
+      ASSERT_LT(any[i].prim_id, m.triangle_count());
+      const uint32_t* t = &m.indices[3 * size_t(any[i].prim_id)];
+      const auto [inside, t_hit] = hits_at(rays[i].org, rays[i].dir, m.positions[t[0]],
+                                           m.positions[t[1]], m.positions[t[2]]);
+      EXPECT_TRUE(inside) << "ray " << i;
+      EXPECT_NEAR(t_hit, any[i].t, 1e-4 * std::max(1.0, t_hit)) << "ray " << i;
+      EXPECT_LE(any[i].t, rays[i].tmax);
+    }
+    EXPECT_GT(blocked, rays.size() / 10);
+    EXPECT_LT(blocked, rays.size());
+  }
 }
 
 TEST(Instances, RemovedInstancesAndMeshes) {
