@@ -60,7 +60,7 @@ Scene load_gltf(const std::string& path) {
       const tinygltf::Mesh& gm = model.meshes[node.mesh];
       TriangleMesh mesh;
       mesh.name = gm.name.empty() ? fmt::format("mesh{}", node.mesh) : gm.name;
-      bool all_normals = true, all_uvs = true;
+      bool all_normals = true;
       for (const tinygltf::Primitive& prim : gm.primitives) {
         std::vector<Vec3> positions;
         std::vector<uint32_t> indices;
@@ -70,12 +70,11 @@ Scene load_gltf(const std::string& path) {
         std::vector<Vec2> uvs;
         reader.read_normals_uvs(prim, positions.size(), normals, uvs);
         all_normals &= normals.size() == positions.size();
-        all_uvs &= uvs.size() == positions.size();
         const uint32_t base = uint32_t(mesh.positions.size());
+        add_uvs(mesh.uvs, base, uvs, positions.size());
         for (Vec3 p : positions) mesh.positions.push_back(transform_point(world, p));
         if (all_normals)
           for (Vec3 n : normals) mesh.normals.push_back(transform_normal(world, n));
-        if (all_uvs) mesh.uvs.insert(mesh.uvs.end(), uvs.begin(), uvs.end());
         const uint32_t material =
             prim.material >= 0 && size_t(prim.material) < model.materials.size()
                 ? uint32_t(prim.material)
@@ -89,7 +88,6 @@ Scene load_gltf(const std::string& path) {
         }
       }
       if (!all_normals) mesh.normals.clear();
-      if (!all_uvs) mesh.uvs.clear();
       scene.meshes.push_back(std::move(mesh));
     }
     if (auto light = node_light(path, model, node_index, world)) scene.lights.push_back(*light);
@@ -338,7 +336,7 @@ tinygltf::Model load_model(const std::string& path) {
   // A required extension changes what the file's data mean (compressed meshes, transformed
   // texture coordinates...): glTF asks a loader that does not read it to refuse the file.
   static const char* const readable[] = {"KHR_lights_punctual", "KHR_materials_emissive_strength",
-                                         "KHR_materials_specular"};
+                                         "KHR_materials_specular", "KHR_texture_transform"};
   for (const std::string& ext : model.extensionsRequired)
     if (std::find(std::begin(readable), std::end(readable), ext) == std::end(readable))
       throw Error(ErrorCode::unsupported,

@@ -125,6 +125,20 @@ inline bool place_light(Light& l, const Mat4& world) {
 std::optional<Light> node_light(const std::string& path, const tinygltf::Model& model,
                                 int node_index, const Mat4& world);
 
+// Appends a primitive's texture coordinates to a mesh's whose first `before` vertices came
+// from earlier primitives: a primitive without them gets (0, 0) once another has them (so one
+// primitive without coordinates no longer strips the textures of the mesh's others), and
+// the earlier ones are filled the same way when the first primitive with them comes.
+inline void add_uvs(std::vector<Vec2>& mesh_uvs, size_t before, const std::vector<Vec2>& uvs,
+                    size_t count) {
+  if (uvs.empty() && mesh_uvs.empty()) return;
+  mesh_uvs.resize(before, Vec2{0, 0});
+  if (uvs.empty())
+    mesh_uvs.resize(before + count, Vec2{0, 0});
+  else
+    mesh_uvs.insert(mesh_uvs.end(), uvs.begin(), uvs.end());
+}
+
 struct GltfReader {
   const std::string& path;
   const tinygltf::Model& model;
@@ -212,6 +226,41 @@ struct GltfReader {
       uvs = read_vec2(it->second);
     if (normals.size() != vertex_count) normals.clear();
     if (uvs.size() != vertex_count) uvs.clear();
+    if (prim.material >= 0 && size_t(prim.material) < model.materials.size())
+      apply_texture_transform(model.materials[size_t(prim.material)], uvs);
+  }
+
+  // KHR_texture_transform, applied to the texture coordinates themselves (kestrel's materials
+  // have one set of coordinates for all their maps): the transform of the base colour texture,
+  // else of the emissive, metallic-roughness or normal texture, whichever has one first. The
+  // extension's matrix: uv' = offset + R(rotation) (scale * uv), with R = [cos -sin; sin cos].
+  void apply_texture_transform(const tinygltf::Material& m, std::vector<Vec2>& uvs) const {
+    const tinygltf::ExtensionMap* maps[] = {
+        &m.pbrMetallicRoughness.baseColorTexture.extensions, &m.emissiveTexture.extensions,
+        &m.pbrMetallicRoughness.metallicRoughnessTexture.extensions, &m.normalTexture.extensions};
+    for (const tinygltf::ExtensionMap* ext : maps) {
+      const auto it = ext->find("KHR_texture_transform");
+      if (it == ext->end() || !it->second.IsObject()) continue;
+      const tinygltf::Value& v = it->second;
+      auto number = [&](const tinygltf::Value& x, double fallback) {
+        return x.IsNumber() ? x.GetNumberAsDouble() : fallback;
+      };
+      auto pair = [&](const char* key, double fallback, double out[2]) {
+        out[0] = out[1] = fallback;
+        if (!v.Has(key) || !v.Get(key).IsArray() || v.Get(key).ArrayLen() < 2) return;
+        out[0] = number(v.Get(key).Get(0), fallback), out[1] = number(v.Get(key).Get(1), fallback);
+      };
+      double offset[2], scale[2];
+      pair("offset", 0.0, offset);
+      pair("scale", 1.0, scale);
+      const double r = v.Has("rotation") ? number(v.Get("rotation"), 0.0) : 0.0;
+      const double c = std::cos(r), s = std::sin(r);
+      for (Vec2& uv : uvs) {
+        const double x = scale[0] * uv.x, y = scale[1] * uv.y;
+        uv = {float(offset[0] + c * x - s * y), float(offset[1] + s * x + c * y)};
+      }
+      return;
+    }
   }
 
   std::vector<Vec3> read_vec3(int accessor_index) const {

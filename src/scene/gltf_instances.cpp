@@ -193,7 +193,7 @@ GltfInstances GltfInstances::load(const std::string& path, size_t clip) {
     for (const tinygltf::Primitive& p : gm.primitives)
       target_count = std::max(target_count, p.targets.size());
     mm.targets.resize(target_count);
-    bool all_normals = true, all_uvs = true;
+    bool all_normals = true;
     for (const tinygltf::Primitive& prim : gm.primitives) {
       std::vector<Vec3> positions;
       std::vector<uint32_t> indices;
@@ -202,10 +202,9 @@ GltfInstances GltfInstances::load(const std::string& path, size_t clip) {
       std::vector<Vec2> uvs;
       reader.read_normals_uvs(prim, positions.size(), normals, uvs);
       all_normals &= normals.size() == positions.size();
-      all_uvs &= uvs.size() == positions.size();
       if (all_normals)
         mm.base.normals.insert(mm.base.normals.end(), normals.begin(), normals.end());
-      if (all_uvs) mm.base.uvs.insert(mm.base.uvs.end(), uvs.begin(), uvs.end());
+      gltf::add_uvs(mm.base.uvs, mm.base.positions.size(), uvs, positions.size());
       const uint32_t material = prim.material >= 0 && size_t(prim.material) < model.materials.size()
                                     ? uint32_t(prim.material)
                                     : default_material;
@@ -231,7 +230,6 @@ GltfInstances GltfInstances::load(const std::string& path, size_t clip) {
       }
     }
     if (!all_normals) mm.base.normals.clear();
-    if (!all_uvs) mm.base.uvs.clear();
     mm.weights.assign(target_count, 0.0f);
     for (size_t k = 0; k < std::min(target_count, gm.weights.size()); ++k)
       mm.weights[k] = float(gm.weights[k]);

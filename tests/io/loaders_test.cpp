@@ -2,6 +2,8 @@
 // gives an Error naming the file (and line); validation counts and skips bad triangles.
 #include <gtest/gtest.h>
 
+#include <fmt/format.h>
+
 #include <algorithm>
 #include <cmath>
 #include <cstring>
@@ -333,6 +335,52 @@ TEST(Obj, DissolveAndAlphaMapsAreRead) {
   EXPECT_TRUE(named("leaf").alpha_from_red);
   EXPECT_EQ(named("fence").alpha_mode, Material::AlphaMode::mask);
   EXPECT_FALSE(named("fence").alpha_from_red);
+}
+
+// KHR_texture_transform moves the coordinates themselves (uv' = offset + R (scale uv), the
+// extension's matrix); a primitive without TEXCOORD_0 gets (0, 0) instead of stripping the
+// coordinates of the mesh's other primitives. Both loaders (flattened and two-level).
+TEST(Gltf, TextureTransformsAndMissingCoordinates) {
+  std::string bytes;
+  auto put = [&](std::initializer_list<float> v) {
+    for (float x : v) bytes.append(reinterpret_cast<const char*>(&x), sizeof x);
+  };
+  put({0, 0, 0, 1, 0, 0, 0, 1, 0});  // positions (36 bytes)
+  put({0, 0, 1, 0, 0, 1});           // uvs (24 bytes)
+  const std::string path = test::write_temp_file("texture_transform.gltf", fmt::format(R"({{
+    "asset": {{"version": "2.0"}}, "scene": 0, "scenes": [{{"nodes": [0]}}], "nodes": [{{"mesh": 0}}],
+    "extensionsUsed": ["KHR_texture_transform"], "extensionsRequired": ["KHR_texture_transform"],
+    "meshes": [{{"primitives": [
+      {{"attributes": {{"POSITION": 0, "TEXCOORD_0": 1}}, "material": 0}},
+      {{"attributes": {{"POSITION": 0}}, "material": 1}}]}}],
+    "materials": [
+      {{"name": "moved", "pbrMetallicRoughness": {{"baseColorTexture": {{"index": 0,
+        "extensions": {{"KHR_texture_transform":
+          {{"offset": [0.5, 0.25], "scale": [2, 3], "rotation": 1.5707963267948966}}}}}}}}}},
+      {{"name": "plain"}}],
+    "textures": [{{"source": 0}}],
+    "images": [{{"uri": "missing.png"}}],
+    "buffers": [{{"byteLength": 60, "uri": "data:application/octet-stream;base64,{}"}}],
+    "bufferViews": [{{"buffer": 0, "byteOffset": 0, "byteLength": 36}},
+                    {{"buffer": 0, "byteOffset": 36, "byteLength": 24}}],
+    "accessors": [{{"bufferView": 0, "componentType": 5126, "count": 3, "type": "VEC3",
+                   "min": [0, 0, 0], "max": [1, 1, 0]}},
+                  {{"bufferView": 1, "componentType": 5126, "count": 3, "type": "VEC2"}}]}})",
+                                                                            test::base64(bytes)));
+  // (u, v) -> (0.5 - 3 v, 0.25 + 2 u): rotation by 90 degrees after the scale.
+  const Vec2 want[6] = {{0.5f, 0.25f}, {0.5f, 2.25f}, {-2.5f, 0.25f}, {0, 0}, {0, 0}, {0, 0}};
+  auto check = [&](const std::vector<Vec2>& uvs, const char* which) {
+    ASSERT_EQ(uvs.size(), 6u) << which;
+    for (int i = 0; i < 6; ++i) {
+      EXPECT_NEAR(uvs[size_t(i)].x, want[i].x, 1e-6f) << which << " " << i;
+      EXPECT_NEAR(uvs[size_t(i)].y, want[i].y, 1e-6f) << which << " " << i;
+    }
+  };
+  const Scene s = load_scene(path);
+  ASSERT_EQ(s.meshes.size(), 1u);
+  check(s.meshes[0].uvs, "flattened");
+  const Asset a = Asset::load(path);
+  check(a.scene().mesh(a.scene().instance_mesh(0)).uvs, "two-level");
 }
 
 TEST(Gltf, MalformedAndTruncatedFilesAreErrors) {
