@@ -28,7 +28,8 @@ struct Material {
   int base_color_texture = -1;          ///< index into Scene::textures, or -1
   int metallic_roughness_texture = -1;  ///< glTF: G = roughness, B = metallic
   int emission_texture = -1;
-  int normal_texture = -1;
+  int normal_texture = -1;    ///< tangent space (glTF: +X along u, +Y against v), linear
+  float normal_scale = 1.0f;  ///< glTF normalTexture.scale: multiplies the map's X and Y
   /// Cut-out opacity (glTF alphaMode, MTL d and map_d): `opaque` ignores alpha; where a
   /// `mask` material's alpha is below alpha_cutoff, its surface is not there (rays pass
   /// through: foliage cards, fences); a `blend` material's surface is there for a fraction

@@ -226,6 +226,7 @@ Material convert_material(const tinygltf::Material& m, const tinygltf::Model& mo
   out.metallic_roughness_texture = texture(pbr.metallicRoughnessTexture.index);
   out.emission_texture = texture(m.emissiveTexture.index);
   out.normal_texture = texture(m.normalTexture.index);
+  out.normal_scale = float(m.normalTexture.scale);
   // Alpha: baseColorFactor's fourth value times the base colour texture's A channel.
   if (m.alphaMode == "MASK" || m.alphaMode == "BLEND") {
     out.alpha_mode = m.alphaMode == "MASK" ? Material::AlphaMode::mask : Material::AlphaMode::blend;

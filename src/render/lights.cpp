@@ -24,7 +24,8 @@ void Renderer::Impl::check_materials(const std::string& source) {
     const Material& m = materials[i];
     if (!is_finite(m.base_color) || !is_finite(m.emission) || !std::isfinite(m.metallic) ||
         !std::isfinite(m.roughness) || !std::isfinite(m.specular) || !std::isfinite(m.alpha) ||
-        !std::isfinite(m.alpha_cutoff) || m.emission.x < 0 || m.emission.y < 0 || m.emission.z < 0)
+        !std::isfinite(m.normal_scale) || !std::isfinite(m.alpha_cutoff) || m.emission.x < 0 ||
+        m.emission.y < 0 || m.emission.z < 0)
       throw Error(ErrorCode::invalid_argument,
                   fmt::format("{}: material {} '{}': a non-finite or negative parameter", source, i,
                               m.name));

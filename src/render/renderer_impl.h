@@ -405,6 +405,7 @@ struct Renderer::Impl {
     BsdfParams bp;
   };
   Surface surface_at(const SurfaceHit& h, const Ray& ray) const;
+  void normal_map(const SurfaceHit& h, Surface& sf) const;
   // surface_at's first part: p, p_obj, wo, ng (facing wo), cos_hit, the material.
   void surface_geometry(const SurfaceHit& h, const Ray& ray, Surface& sf) const;
   // surface_at of a hit from its entry j of SIMD rows (render/surface_rows.h: the same

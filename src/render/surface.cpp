@@ -103,8 +103,49 @@ Renderer::Impl::Surface Renderer::Impl::surface_at(const SurfaceHit& h, const Ra
   }
   sf.uv = uv_at(mesh, h.prim_id, h.u, h.v);
   sf.ns = ns;
+  normal_map(h, sf);
   surface_material(sf);
   return sf;
+}
+
+// A material's normal map (glTF: tangent space, +X along u, +Y against v, linear texels) tilts
+// the shading normal. The tangent frame comes from the triangle's texture coordinates: T =
+// dp/du made orthogonal to ns, B = ns x T turned to point against dp/dv (mirrored mappings
+// keep their handedness); a back face mirrors T and B with the normal, as glTF's sample
+// viewer does. A tilted normal that would face away from the viewer is not used.
+void Renderer::Impl::normal_map(const SurfaceHit& h, Surface& sf) const {
+  const Material& mat = *sf.mat;
+  const Texture* t = texture(mat.normal_texture);
+  if (!t) return;
+  const InstanceShade& is = instances[h.instance_id];
+  const TriangleMesh& mesh = *is.mesh;
+  if (mesh.uvs.empty()) return;
+  const uint32_t* idx = &mesh.indices[3 * size_t(h.prim_id)];
+  Vec3 p0 = mesh.positions[idx[0]], p1 = mesh.positions[idx[1]], p2 = mesh.positions[idx[2]];
+  if (!is.identity) p0 = is.xf.point(p0), p1 = is.xf.point(p1), p2 = is.xf.point(p2);
+  const Vec2 t0 = mesh.uvs[idx[0]], t1 = mesh.uvs[idx[1]], t2 = mesh.uvs[idx[2]];
+  const Vec3 e1 = p1 - p0, e2 = p2 - p0;
+  const float du1 = t1.x - t0.x, dv1 = t1.y - t0.y, du2 = t2.x - t0.x, dv2 = t2.y - t0.y;
+  const float det = du1 * dv2 - du2 * dv1;
+  if (!(std::fabs(det) > 0) || !std::isfinite(det)) return;  // no mapping to follow
+  const float r = 1.0f / det;
+  const Vec3 dpdu = (e1 * dv2 - e2 * dv1) * r, dpdv = (e2 * du1 - e1 * du2) * r;
+  const Vec3 ns = sf.ns;
+  Vec3 tangent = dpdu - ns * dot(ns, dpdu);
+  const float len = length(tangent);
+  if (!(len > 0) || !std::isfinite(len)) return;
+  tangent = tangent * (1.0f / len);
+  Vec3 bitangent = cross(ns, tangent);
+  if (dot(bitangent, dpdv) > 0) bitangent = -bitangent;
+  if (sf.cos_hit < 0) tangent = -tangent, bitangent = -bitangent;
+  const float x = (sample_channel(*t, sf.uv, 0) * 2 - 1) * mat.normal_scale,
+              y = (sample_channel(*t, sf.uv, 1) * 2 - 1) * mat.normal_scale,
+              z = sample_channel(*t, sf.uv, 2) * 2 - 1;
+  Vec3 n = tangent * x + bitangent * y + ns * z;
+  const float n_len = length(n);
+  if (!(n_len > 0) || !std::isfinite(n_len)) return;
+  n = n * (1.0f / n_len);
+  if (dot(n, sf.wo) > 1e-4f) sf.ns = n;
 }
 
 // surface_at from a hit's entry j of SIMD rows (the same values).
@@ -120,6 +161,7 @@ Renderer::Impl::Surface Renderer::Impl::surface_from_rows(const SurfaceRows& row
   sf.mat = &material_of(*instances[h.instance_id].mesh, h.prim_id);
   sf.ns = {rows.nx[j], rows.ny[j], rows.nz[j]};
   sf.uv = {rows.u[j], rows.v[j]};
+  normal_map(h, sf);
   const float texel[3] = {rows.tr[j], rows.tg[j], rows.tb[j]};
   surface_material(sf, (rows.texel >> j) & 1u ? texel : nullptr);
   return sf;
