@@ -5,6 +5,7 @@
 #include <fmt/format.h>
 #include <tiny_gltf.h>
 
+#include <algorithm>
 #include <array>
 #include <cmath>
 #include <cstring>
@@ -222,12 +223,42 @@ struct GltfReader {
     normals.clear(), uvs.clear();
     if (auto it = prim.attributes.find("NORMAL"); it != prim.attributes.end())
       normals = read_vec3(it->second);
-    if (auto it = prim.attributes.find("TEXCOORD_0"); it != prim.attributes.end())
+    const tinygltf::Material* m =
+        prim.material >= 0 && size_t(prim.material) < model.materials.size()
+            ? &model.materials[size_t(prim.material)]
+            : nullptr;
+    const std::string set = fmt::format("TEXCOORD_{}", m ? texcoord_set(*m) : 0);
+    if (auto it = prim.attributes.find(set); it != prim.attributes.end())
       uvs = read_vec2(it->second);
     if (normals.size() != vertex_count) normals.clear();
     if (uvs.size() != vertex_count) uvs.clear();
-    if (prim.material >= 0 && size_t(prim.material) < model.materials.size())
-      apply_texture_transform(model.materials[size_t(prim.material)], uvs);
+    if (m) apply_texture_transform(*m, uvs);
+  }
+
+  // The texture coordinate set a material's maps read (kestrel's materials have one): the base
+  // colour texture's texCoord (or its KHR_texture_transform's), else the emissive,
+  // metallic-roughness or normal texture's, whichever the material has first; 0 without one.
+  static int texcoord_set(const tinygltf::Material& m) {
+    const std::pair<int, const tinygltf::ExtensionMap*> maps[] = {
+        {m.pbrMetallicRoughness.baseColorTexture.index >= 0
+             ? m.pbrMetallicRoughness.baseColorTexture.texCoord
+             : -1,
+         &m.pbrMetallicRoughness.baseColorTexture.extensions},
+        {m.emissiveTexture.index >= 0 ? m.emissiveTexture.texCoord : -1,
+         &m.emissiveTexture.extensions},
+        {m.pbrMetallicRoughness.metallicRoughnessTexture.index >= 0
+             ? m.pbrMetallicRoughness.metallicRoughnessTexture.texCoord
+             : -1,
+         &m.pbrMetallicRoughness.metallicRoughnessTexture.extensions},
+        {m.normalTexture.index >= 0 ? m.normalTexture.texCoord : -1, &m.normalTexture.extensions}};
+    for (const auto& [set, ext] : maps) {
+      if (set < 0) continue;
+      if (const auto it = ext->find("KHR_texture_transform");
+          it != ext->end() && it->second.Has("texCoord") && it->second.Get("texCoord").IsInt())
+        return std::clamp(it->second.Get("texCoord").GetNumberAsInt(), 0, 7);
+      return std::clamp(set, 0, 7);
+    }
+    return 0;
   }
 
   // KHR_texture_transform, applied to the texture coordinates themselves (kestrel's materials

@@ -347,7 +347,8 @@ TEST(Gltf, TextureTransformsAndMissingCoordinates) {
   };
   put({0, 0, 0, 1, 0, 0, 0, 1, 0});  // positions (36 bytes)
   put({0, 0, 1, 0, 0, 1});           // uvs (24 bytes)
-  const std::string path = test::write_temp_file("texture_transform.gltf", fmt::format(R"({{
+  const std::string path =
+      test::write_temp_file("texture_transform.gltf", fmt::format(R"({{
     "asset": {{"version": "2.0"}}, "scene": 0, "scenes": [{{"nodes": [0]}}], "nodes": [{{"mesh": 0}}],
     "extensionsUsed": ["KHR_texture_transform"], "extensionsRequired": ["KHR_texture_transform"],
     "meshes": [{{"primitives": [
@@ -366,7 +367,7 @@ TEST(Gltf, TextureTransformsAndMissingCoordinates) {
     "accessors": [{{"bufferView": 0, "componentType": 5126, "count": 3, "type": "VEC3",
                    "min": [0, 0, 0], "max": [1, 1, 0]}},
                   {{"bufferView": 1, "componentType": 5126, "count": 3, "type": "VEC2"}}]}})",
-                                                                            test::base64(bytes)));
+                                                                  test::base64(bytes)));
   // (u, v) -> (0.5 - 3 v, 0.25 + 2 u): rotation by 90 degrees after the scale.
   const Vec2 want[6] = {{0.5f, 0.25f}, {0.5f, 2.25f}, {-2.5f, 0.25f}, {0, 0}, {0, 0}, {0, 0}};
   auto check = [&](const std::vector<Vec2>& uvs, const char* which) {
@@ -381,6 +382,38 @@ TEST(Gltf, TextureTransformsAndMissingCoordinates) {
   check(s.meshes[0].uvs, "flattened");
   const Asset a = Asset::load(path);
   check(a.scene().mesh(a.scene().instance_mesh(0)).uvs, "two-level");
+}
+
+// The coordinate set the material's textures name (texCoord): TEXCOORD_1 here, not 0.
+TEST(Gltf, TexturesReadTheCoordinateSetTheyName) {
+  std::string bytes;
+  auto put = [&](std::initializer_list<float> v) {
+    for (float x : v) bytes.append(reinterpret_cast<const char*>(&x), sizeof x);
+  };
+  put({0, 0, 0, 1, 0, 0, 0, 1, 0});           // positions
+  put({9, 9, 9, 9, 9, 9});                    // TEXCOORD_0
+  put({0.25f, 0.5f, 0.75f, 0.5f, 0.25f, 1});  // TEXCOORD_1
+  const std::string path =
+      test::write_temp_file("texcoord_set.gltf", fmt::format(R"({{
+    "asset": {{"version": "2.0"}}, "scene": 0, "scenes": [{{"nodes": [0]}}], "nodes": [{{"mesh": 0}}],
+    "meshes": [{{"primitives": [{{"attributes": {{"POSITION": 0, "TEXCOORD_0": 1, "TEXCOORD_1": 2}},
+                                  "material": 0}}]}}],
+    "materials": [{{"pbrMetallicRoughness": {{"baseColorTexture": {{"index": 0, "texCoord": 1}}}}}}],
+    "textures": [{{"source": 0}}], "images": [{{"uri": "missing.png"}}],
+    "buffers": [{{"byteLength": 84, "uri": "data:application/octet-stream;base64,{}"}}],
+    "bufferViews": [{{"buffer": 0, "byteOffset": 0, "byteLength": 36}},
+                    {{"buffer": 0, "byteOffset": 36, "byteLength": 24}},
+                    {{"buffer": 0, "byteOffset": 60, "byteLength": 24}}],
+    "accessors": [{{"bufferView": 0, "componentType": 5126, "count": 3, "type": "VEC3",
+                   "min": [0, 0, 0], "max": [1, 1, 0]}},
+                  {{"bufferView": 1, "componentType": 5126, "count": 3, "type": "VEC2"}},
+                  {{"bufferView": 2, "componentType": 5126, "count": 3, "type": "VEC2"}}]}})",
+                                                             test::base64(bytes)));
+  const Scene s = load_scene(path);
+  ASSERT_EQ(s.meshes.size(), 1u);
+  ASSERT_EQ(s.meshes[0].uvs.size(), 3u);
+  EXPECT_EQ(s.meshes[0].uvs[0].x, 0.25f);
+  EXPECT_EQ(s.meshes[0].uvs[2].y, 1.0f);
 }
 
 TEST(Gltf, MalformedAndTruncatedFilesAreErrors) {
