@@ -9,6 +9,7 @@
 #include <tiny_obj_loader.h>
 
 #include <algorithm>
+#include <cctype>
 #include <charconv>
 #include <cmath>
 #include <cstring>
@@ -221,6 +222,41 @@ Material convert_material(const tinyobj::material_t& m) {
   return out;
 }
 
+// A file an OBJ or MTL names (material library, texture), as written, or else as Windows
+// tools write names: with backslashes, or in another letter case than the file on disk
+// (resolved one folder at a time, case-insensitively). The name as written when nothing
+// matches (the error or warning then names it).
+std::string resolve_file_name(const std::filesystem::path& dir, const std::string& name) {
+  namespace fs = std::filesystem;
+  std::error_code ec;
+  const fs::path as_written = dir / name;
+  if (fs::exists(as_written, ec)) return as_written.string();
+  std::string slashed = name;
+  std::replace(slashed.begin(), slashed.end(), '\\', '/');
+  if (fs::exists(dir / slashed, ec)) return (dir / slashed).string();
+  auto lower = [](std::string x) {
+    for (char& c : x) c = char(std::tolower(static_cast<unsigned char>(c)));
+    return x;
+  };
+  fs::path at = dir.empty() ? fs::path(".") : dir;
+  for (const fs::path& part : fs::path(slashed)) {
+    if (part.empty() || part == ".") continue;
+    if (fs::exists(at / part, ec)) {
+      at /= part;
+      continue;
+    }
+    const std::string want = lower(part.string());
+    bool found = false;
+    for (fs::directory_iterator e(at, ec), end; !ec && e != end; e.increment(ec))
+      if (lower(e->path().filename().string()) == want) {
+        at = e->path(), found = true;
+        break;
+      }
+    if (!found) return as_written.string();
+  }
+  return at.string();
+}
+
 }  // namespace
 
 Scene load_obj(const std::string& path) {
@@ -244,7 +280,7 @@ Scene load_obj(const std::string& path) {
       std::string name = line_text.substr(6);
       name.erase(0, name.find_first_not_of(" \t"));
       while (!name.empty() && (name.back() == '\r' || name.back() == ' ')) name.pop_back();
-      const std::string mtl_path = (dir / name).string();
+      const std::string mtl_path = name.empty() ? dir.string() : resolve_file_name(dir, name);
       struct stat st {};
       if (name.empty() || ::stat(mtl_path.c_str(), &st) != 0) {
         warnings.push_back(fmt::format(
@@ -289,7 +325,7 @@ Scene load_obj(const std::string& path) {
     auto [it, fresh] = texture_of.try_emplace(name, -1);
     if (fresh) {
       try {
-        scene.textures.push_back(load_texture((dir / name).string()));
+        scene.textures.push_back(load_texture(resolve_file_name(dir, name)));
         it->second = int(scene.textures.size() - 1);
       } catch (const Error& e) {
         scene.warnings.push_back(

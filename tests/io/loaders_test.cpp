@@ -126,6 +126,24 @@ TEST(Obj, MtlTexturesAreDecoded) {
   EXPECT_FALSE(s.meshes[0].uvs.empty());
 }
 
+// Texture names as Windows tools write them: backslashes and another letter case than the
+// files on disk (sub/tex.tga named as "SUB\\Tex.TGA") still find the file.
+TEST(Obj, TextureNamesWithBackslashesAndOtherCaseFindTheirFiles) {
+  const std::filesystem::path dir = test::test_temp_dir() / "winpaths";
+  std::filesystem::create_directories(dir / "sub");
+  std::string tga(18, '\0');
+  tga[2] = 2, tga[12] = 1, tga[14] = 1, tga[16] = 24, tga[17] = 0x20;
+  tga += std::string("\x10\x20\x30", 3);
+  std::ofstream(dir / "sub" / "tex.tga", std::ios::binary) << tga;
+  std::ofstream(dir / "w.mtl") << "newmtl m\nKd 1 1 1\nmap_Kd SUB\\Tex.TGA\n";
+  std::ofstream(dir / "w.obj") << "mtllib w.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nusemtl m\nf 1 2 3\n";
+  const Scene s = load_scene((dir / "w.obj").string());
+  ASSERT_EQ(s.textures.size(), 1u) << (s.warnings.empty() ? "" : s.warnings[0]);
+  EXPECT_EQ(s.textures[0].width, 1);
+  EXPECT_EQ(s.textures[0].rgba[0], 0x30);  // TGA stores BGR
+  EXPECT_TRUE(s.warnings.empty());
+}
+
 TEST(Obj, FanTriangulationFollowsFileOrder) {
   const std::string path = test::write_temp_file(
       "quad.obj", "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nv 0 0 1\nf 1 2 3 4\nf 1 2 5\n");
