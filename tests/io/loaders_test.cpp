@@ -33,6 +33,21 @@ void expect_mentions(const Error& e, const std::string& text) {
       << "'" << e.what() << "' lacks '" << text << "'";
 }
 
+// A glTF file of one triangle whose primitive uses material 0 of `materials` (a JSON array);
+// `extra`: more top-level members, each followed by a comma.
+std::string one_triangle_gltf(const std::string& name, const std::string& materials,
+                              const std::string& extra = "") {
+  return test::write_temp_file(name, R"({
+    "asset": {"version": "2.0"}, "scene": 0, "scenes": [{"nodes": [0]}], "nodes": [{"mesh": 0}],
+    "meshes": [{"primitives": [{"attributes": {"POSITION": 0}, "material": 0}]}], )" +
+                                         extra + R"("materials": )" + materials + R"(,
+    "buffers": [{"byteLength": 36,
+                 "uri": "data:application/octet-stream;base64,AAAAAAAAAAAAAAAAAACAPwAAAAAAAAAAAAAAAAAAgD8AAAAA"}],
+    "bufferViews": [{"buffer": 0, "byteOffset": 0, "byteLength": 36}],
+    "accessors": [{"bufferView": 0, "componentType": 5126, "count": 3, "type": "VEC3",
+                   "min": [0, 0, 0], "max": [1, 1, 0]}]})");
+}
+
 struct SceneCount {
   const char* rel;
   size_t triangles;
@@ -259,22 +274,15 @@ TEST(Scene, ProceduralBuiltinsAreValidAndRepeatable) {
 // coat. (scripts/denoise/gltf_scene.py writes the MTL's Ks this way; families_smoke.sh renders
 // both files and asks for the same frames.)
 TEST(Gltf, SpecularExtensionSetsTheCoatWeight) {
-  const std::string path = test::write_temp_file("specular.gltf", R"({
-    "asset": {"version": "2.0"}, "scene": 0, "scenes": [{"nodes": [0]}], "nodes": [{"mesh": 0}],
-    "meshes": [{"primitives": [{"attributes": {"POSITION": 0}, "material": 0}]}],
-    "extensionsUsed": ["KHR_materials_specular"],
-    "materials": [
+  const std::string path = one_triangle_gltf("specular.gltf", R"([
       {"name": "plain"},
       {"name": "lambert", "extensions": {"KHR_materials_specular": {"specularFactor": 0}}},
       {"name": "tinted", "extensions": {"KHR_materials_specular":
           {"specularFactor": 0.5, "specularColorFactor": [0.2, 0.8, 0.4]}}},
       {"name": "loud", "extensions": {"KHR_materials_specular": {"specularFactor": 3}}},
-      {"name": "default_factor", "extensions": {"KHR_materials_specular": {}}}],
-    "buffers": [{"byteLength": 36,
-                 "uri": "data:application/octet-stream;base64,AAAAAAAAAAAAAAAAAACAPwAAAAAAAAAAAAAAAAAAgD8AAAAA"}],
-    "bufferViews": [{"buffer": 0, "byteOffset": 0, "byteLength": 36}],
-    "accessors": [{"bufferView": 0, "componentType": 5126, "count": 3, "type": "VEC3",
-                   "min": [0, 0, 0], "max": [1, 1, 0]}]})");
+      {"name": "default_factor", "extensions": {"KHR_materials_specular": {}}}]
+)",
+                                             R"("extensionsUsed": ["KHR_materials_specular"],)");
   const Scene s = load_scene(path);
   ASSERT_GE(s.materials.size(), 5u);
   EXPECT_EQ(s.materials[0].specular, 1.0f);
@@ -288,19 +296,12 @@ TEST(Gltf, SpecularExtensionSetsTheCoatWeight) {
 // base colour texture's A channel); MTL's d (or Tr) and map_d (a mask: its A channel, or its
 // grey level when the image has no alpha).
 TEST(Gltf, AlphaModesAreRead) {
-  const std::string path = test::write_temp_file("alpha.gltf", R"({
-    "asset": {"version": "2.0"}, "scene": 0, "scenes": [{"nodes": [0]}], "nodes": [{"mesh": 0}],
-    "meshes": [{"primitives": [{"attributes": {"POSITION": 0}, "material": 0}]}],
-    "materials": [
+  const std::string path = one_triangle_gltf("alpha.gltf", R"([
       {"name": "plain", "pbrMetallicRoughness": {"baseColorFactor": [1, 1, 1, 0.3]}},
       {"name": "leaf", "alphaMode": "MASK", "alphaCutoff": 0.25},
       {"name": "glass", "alphaMode": "BLEND",
-       "pbrMetallicRoughness": {"baseColorFactor": [1, 1, 1, 0.3]}}],
-    "buffers": [{"byteLength": 36,
-                 "uri": "data:application/octet-stream;base64,AAAAAAAAAAAAAAAAAACAPwAAAAAAAAAAAAAAAAAAgD8AAAAA"}],
-    "bufferViews": [{"buffer": 0, "byteOffset": 0, "byteLength": 36}],
-    "accessors": [{"bufferView": 0, "componentType": 5126, "count": 3, "type": "VEC3",
-                   "min": [0, 0, 0], "max": [1, 1, 0]}]})");
+       "pbrMetallicRoughness": {"baseColorFactor": [1, 1, 1, 0.3]}}]
+)");
   const Scene s = load_scene(path);
   ASSERT_GE(s.materials.size(), 3u);
   EXPECT_EQ(s.materials[0].alpha_mode, Material::AlphaMode::opaque);  // OPAQUE ignores alpha
