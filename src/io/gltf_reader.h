@@ -235,24 +235,28 @@ struct GltfReader {
     if (m) apply_texture_transform(*m, uvs);
   }
 
+  // A material's texture slots in the order kestrel takes their coordinates from (base colour,
+  // emissive, metallic-roughness, normal): each one's texCoord (-1 without a texture) and its
+  // textureInfo's extensions.
+  struct TextureSlot {
+    int set;
+    const tinygltf::ExtensionMap* extensions;
+  };
+  static std::array<TextureSlot, 4> texture_slots(const tinygltf::Material& m) {
+    auto slot = [](const auto& info) {
+      return TextureSlot{info.index >= 0 ? info.texCoord : -1, &info.extensions};
+    };
+    return {slot(m.pbrMetallicRoughness.baseColorTexture), slot(m.emissiveTexture),
+            slot(m.pbrMetallicRoughness.metallicRoughnessTexture), slot(m.normalTexture)};
+  }
+
   // The texture coordinate set a material's maps read (kestrel's materials have one): the base
   // colour texture's texCoord (or its KHR_texture_transform's), else the emissive,
   // metallic-roughness or normal texture's, whichever the material has first; 0 without one.
   static int texcoord_set(const tinygltf::Material& m) {
-    const std::pair<int, const tinygltf::ExtensionMap*> maps[] = {
-        {m.pbrMetallicRoughness.baseColorTexture.index >= 0
-             ? m.pbrMetallicRoughness.baseColorTexture.texCoord
-             : -1,
-         &m.pbrMetallicRoughness.baseColorTexture.extensions},
-        {m.emissiveTexture.index >= 0 ? m.emissiveTexture.texCoord : -1,
-         &m.emissiveTexture.extensions},
-        {m.pbrMetallicRoughness.metallicRoughnessTexture.index >= 0
-             ? m.pbrMetallicRoughness.metallicRoughnessTexture.texCoord
-             : -1,
-         &m.pbrMetallicRoughness.metallicRoughnessTexture.extensions},
-        {m.normalTexture.index >= 0 ? m.normalTexture.texCoord : -1, &m.normalTexture.extensions}};
+    const std::array<TextureSlot, 4> maps = texture_slots(m);
     for (const auto& [set, ext] : maps) {
-      if (set < 0) continue;
+      if (set < 0) continue;  // no texture in this slot
       if (const auto it = ext->find("KHR_texture_transform");
           it != ext->end() && it->second.Has("texCoord") && it->second.Get("texCoord").IsInt())
         return std::clamp(it->second.Get("texCoord").GetNumberAsInt(), 0, 7);
@@ -266,10 +270,7 @@ struct GltfReader {
   // else of the emissive, metallic-roughness or normal texture, whichever has one first. The
   // extension's matrix: uv' = offset + R(rotation) (scale * uv), with R = [cos -sin; sin cos].
   void apply_texture_transform(const tinygltf::Material& m, std::vector<Vec2>& uvs) const {
-    const tinygltf::ExtensionMap* maps[] = {
-        &m.pbrMetallicRoughness.baseColorTexture.extensions, &m.emissiveTexture.extensions,
-        &m.pbrMetallicRoughness.metallicRoughnessTexture.extensions, &m.normalTexture.extensions};
-    for (const tinygltf::ExtensionMap* ext : maps) {
+    for (const auto& [set, ext] : texture_slots(m)) {
       const auto it = ext->find("KHR_texture_transform");
       if (it == ext->end() || !it->second.IsObject()) continue;
       const tinygltf::Value& v = it->second;
