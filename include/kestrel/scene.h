@@ -40,6 +40,19 @@ struct Material {
   float alpha_cutoff = 0.5f;    ///< mask: glTF alphaCutoff
   int alpha_texture = -1;       ///< multiplies alpha: its A channel (R with alpha_from_red)
   bool alpha_from_red = false;  ///< an MTL map_d without an alpha channel: a grey mask
+  /// Glass (glTF KHR_materials_transmission, MTL illum 4, 6, 7, 9): the share of the
+  /// non-metallic part that is a smooth or rough (roughness) dielectric interface letting light
+  /// through, tinted by the base colour, instead of the diffuse base. [0, 1]
+  float transmission = 0;
+  float ior = 1.5f;  ///< index of refraction (glTF KHR_materials_ior, MTL Ni), >= 1
+  /// Glass: a sheet (light goes straight through: a window pane; glTF's default without
+  /// KHR_materials_volume) rather than the surface of a solid that refracts (the front face,
+  /// counter-clockwise, outside).
+  bool thin_walled = false;
+  /// Glass that absorbs (glTF KHR_materials_volume): light crossing the solid keeps
+  /// attenuation_color after attenuation_distance (Beer-Lambert); infinite = clear.
+  Vec3 attenuation_color{1, 1, 1};
+  float attenuation_distance = INFINITY;
 };
 
 /// A punctual light (glTF KHR_lights_punctual): a point, a spot or a directional light, in

@@ -301,11 +301,21 @@ void bind_geometry(py::module_& m) {
       .def(
           "add_material",
           [](Scene& s, const std::string& name, py::handle base_color, float metallic,
-             float roughness, float specular, py::handle emission, float alpha) {
+             float roughness, float specular, py::handle emission, float alpha, float transmission,
+             float ior, bool thin_walled) {
             Material mat{.name = name};
             if (!(alpha >= 0 && alpha <= 1))
               throw py::value_error(
                   fmt::format("material '{}': alpha {} is not in [0, 1]", name, alpha));
+            if (!(transmission >= 0 && transmission <= 1))
+              throw py::value_error(fmt::format("material '{}': transmission {} is not in [0, 1]",
+                                                name, transmission));
+            if (!(ior >= 1) || !std::isfinite(ior))
+              throw py::value_error(fmt::format(
+                  "material '{}': ior {} is not a finite index of refraction >= 1", name, ior));
+            mat.transmission = transmission;
+            mat.ior = ior;
+            mat.thin_walled = thin_walled;
             mat.alpha = alpha;
             if (alpha < 1) mat.alpha_mode = Material::AlphaMode::blend;
             mat.base_color = vec3_from(base_color, "base_color");
@@ -328,9 +338,12 @@ void bind_geometry(py::module_& m) {
           py::arg("name"), py::arg("base_color") = py::make_tuple(0.8, 0.8, 0.8),
           py::arg("metallic") = 0.0f, py::arg("roughness") = 1.0f, py::arg("specular") = 0.0f,
           py::arg("emission") = py::make_tuple(0, 0, 0), py::arg("alpha") = 1.0f,
+          py::arg("transmission") = 0.0f, py::arg("ior") = 1.5f, py::arg("thin_walled") = false,
           "Appends a metallic-roughness material; returns its index for add_mesh(material=...). "
           "alpha < 1: a surface that a fraction alpha of the rays meeting it sees (stochastic "
-          "transparency).")
+          "transparency). transmission > 0: glass (smooth or rough by roughness, tinted by "
+          "base_color) refracting at ior, the mesh a solid whose counter-clockwise faces are "
+          "its outside; thin_walled: a sheet light goes straight through.")
       .def_readonly("source", &Scene::source)
       .def_readonly("warnings", &Scene::warnings)
       .def_property_readonly("triangle_count", &Scene::triangle_count)

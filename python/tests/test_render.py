@@ -106,6 +106,25 @@ def test_translucent_material_is_seen_by_alpha_of_the_rays():
         scene.add_material("bad", alpha=1.5)
 
 
+def test_glass_pane_passes_its_tint_and_reflects_fresnel():
+    # A smooth thin glass pane seen head-on in a uniform environment of 1: F0 = 0.04 of the
+    # environment behind the camera plus 0.96 of the tint; a bad ior or transmission is refused.
+    scene = kestrel.Scene()
+    tint = (0.2, 0.5, 0.9)
+    pane = scene.add_material("pane", base_color=tint, roughness=0.0, specular=1.0,
+                              transmission=1.0, ior=1.5, thin_walled=True)
+    quad = np.array([[-5, -5, 0], [5, -5, 0], [5, 5, 0], [-5, 5, 0]], np.float32)
+    scene.add_mesh(quad, np.array([[0, 1, 2], [0, 2, 3]], np.uint32), material=pane)
+    r = kestrel.Renderer(scene, environment="constant:1,1,1")
+    frame = r.render(kestrel.Camera((0, 0, -3), (0, 0, 0), 1), spp=1024, res=(2, 2))
+    for k in range(3):
+        assert frame["color"][..., k].mean() == pytest.approx(0.04 + 0.96 * tint[k], abs=0.02)
+    with pytest.raises(ValueError, match="ior"):
+        scene.add_material("bad", transmission=1.0, ior=0.5)
+    with pytest.raises(ValueError, match="transmission"):
+        scene.add_material("bad", transmission=2.0)
+
+
 def test_render_arguments_are_checked(cornell):
     r = kestrel.Renderer(cornell)
     cam = kestrel.view(cornell)

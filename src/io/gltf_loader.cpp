@@ -212,6 +212,33 @@ Material convert_material(const tinygltf::Material& m, const tinygltf::Model& mo
     }
     out.specular = std::isfinite(weight) ? std::clamp(float(weight), 0.0f, 1.0f) : float(weight);
   }
+  // Glass: KHR_materials_transmission's factor (a transmissionTexture is not read: the factor
+  // holds everywhere), KHR_materials_ior (0, the extension's "F0 = 1", as a very large IOR),
+  // KHR_materials_volume: a thickness > 0 makes the mesh a solid that refracts, with its
+  // attenuation; otherwise a thin sheet (glTF's rule). Non-finite values are kept, so that
+  // the material is refused by name when the scene is rendered.
+  auto number = [&](const char* extension, const char* key, double fallback) {
+    const auto it = m.extensions.find(extension);
+    if (it == m.extensions.end() || !it->second.Has(key)) return fallback;
+    const tinygltf::Value& v = it->second.Get(key);
+    return v.IsNumber() ? v.GetNumberAsDouble() : fallback;
+  };
+  const double transmission = number("KHR_materials_transmission", "transmissionFactor", 0);
+  out.transmission = std::isfinite(transmission) ? std::clamp(float(transmission), 0.0f, 1.0f)
+                                                 : float(transmission);
+  const double ior = number("KHR_materials_ior", "ior", 1.5);
+  out.ior = ior == 0 ? 1e4f : float(ior);
+  out.thin_walled = !(number("KHR_materials_volume", "thicknessFactor", 0) > 0);
+  if (!out.thin_walled) {
+    out.attenuation_distance =
+        float(number("KHR_materials_volume", "attenuationDistance", double(INFINITY)));
+    if (const auto it = m.extensions.find("KHR_materials_volume");
+        it->second.Has("attenuationColor") && it->second.Get("attenuationColor").IsArray()) {
+      const tinygltf::Value& c = it->second.Get("attenuationColor");
+      for (int i = 0; i < int(std::min<size_t>(c.ArrayLen(), 3)); ++i)
+        out.attenuation_color[i] = float(c.Get(i).GetNumberAsDouble());
+    }
+  }
   float strength = 1.0f;
   auto ext = m.extensions.find("KHR_materials_emissive_strength");
   if (ext != m.extensions.end() && ext->second.Has("emissiveStrength"))
@@ -336,8 +363,10 @@ tinygltf::Model load_model(const std::string& path) {
   }
   // A required extension changes what the file's data mean (compressed meshes, transformed
   // texture coordinates...): glTF asks a loader that does not read it to refuse the file.
-  static const char* const readable[] = {"KHR_lights_punctual", "KHR_materials_emissive_strength",
-                                         "KHR_materials_specular", "KHR_texture_transform"};
+  static const char* const readable[] = {
+      "KHR_lights_punctual",    "KHR_materials_emissive_strength", "KHR_materials_ior",
+      "KHR_materials_specular", "KHR_materials_transmission",      "KHR_materials_volume",
+      "KHR_texture_transform"};
   for (const std::string& ext : model.extensionsRequired)
     if (std::find(std::begin(readable), std::end(readable), ext) == std::end(readable))
       throw Error(ErrorCode::unsupported,

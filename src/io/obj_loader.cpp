@@ -351,6 +351,18 @@ Scene load_obj(const std::string& path) {
     } else if (m.dissolve < 1.0f) {
       material.alpha_mode = Material::AlphaMode::blend;
     }
+    // Glass (illum 4, 6, 7, 9: the MTL models with refraction or glass): a solid refracting
+    // at Ni (1.5 where not above 1: tinyobj reads a missing Ni as 1), tinted by Tf (white
+    // where Tf is black or missing); its transparency is the glass's, not a cut-out's.
+    if (m.illum == 4 || m.illum == 6 || m.illum == 7 || m.illum == 9) {
+      material.transmission = 1;
+      material.ior = m.ior > 1.0f ? m.ior : 1.5f;
+      const Vec3 tf{m.transmittance[0], m.transmittance[1], m.transmittance[2]};
+      material.base_color = tf.x > 0 || tf.y > 0 || tf.z > 0 ? tf : Vec3{1, 1, 1};
+      material.alpha_mode = Material::AlphaMode::opaque;
+      material.alpha = 1;
+      material.alpha_texture = -1;
+    }
     scene.materials.push_back(material);
   }
   const uint32_t default_material = uint32_t(scene.materials.size());

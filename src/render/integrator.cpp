@@ -28,7 +28,8 @@ struct alignas(64) PathState {
   // Whether NEE at the vertex this ray left could pick the environment (env_left_to_bsdf):
   // the MIS weights of what the ray hits use that vertex's light choice.
   bool env_nee = true;
-  bool restir = false;  // the first hit's direct light came from ReSTIR: BSDF rays skip it
+  bool restir = false;   // the first hit's direct light came from ReSTIR: BSDF rays skip it
+  bool through = false;  // went through glass (NEE draws nothing below): MIS weight 1
   // Radiance cache: a training path never stops at the cache; rough: the surface the last
   // bounce left may use it; cache_key: the first bounce's cell (its CacheVertex holds the
   // path's radiance and throughput there).
@@ -59,6 +60,15 @@ bool cache_sample(const PathState& ps, const CacheVertex& cv, float clamp, Vec3&
   if (!is_finite(out)) return false;
   out = clamped(max(out, Vec3{0, 0, 0}), clamp);
   return true;
+}
+
+// What a solid's medium (Material::attenuation_*) lets through along a distance t inside it.
+Vec3 absorption(const Material& m, float t) {  // (t > 0; a colour of 0 keeps nothing)
+  Vec3 out;
+  for (int k = 0; k < 3; ++k)
+    out[k] =
+        std::exp(std::log(std::min(m.attenuation_color[k], 1.0f)) / m.attenuation_distance * t);
+  return out;
 }
 
 }  // namespace
@@ -161,6 +171,7 @@ void Renderer::Impl::TilePaths::shade(const Impl& r, int depth, std::span<const 
   // lp with which NEE at the vertex it left could have sampled it; after a first hit whose
   // direct light was ReSTIR's, what ReSTIR could sample it has (weight 0).
   const auto bsdf_weight = [depth](const PathState& ps, float lp) {
+    if (ps.through) return 1.0f;
     return ps.restir && depth == 1
                ? (lp > 0 ? 0.0f : 1.0f)
                : ps.bsdf_pdf * ps.bsdf_pdf / (ps.bsdf_pdf * ps.bsdf_pdf + lp * lp);
@@ -262,6 +273,9 @@ void Renderer::Impl::TilePaths::shade(const Impl& r, int depth, std::span<const 
     const Vec3 &p = sf.p, &ng = sf.ng, &ns = sf.ns, &wo = sf.wo;
     const Material& mat = *sf.mat;
     const BsdfParams& bp = sf.bp;
+    // A ray that reached a solid glass's far side crossed it: its absorption (Beer-Lambert).
+    if (bp.transmission > 0 && sf.cos_hit < 0 && !bp.thin && mat.attenuation_distance < INFINITY)
+      ps.throughput = ps.throughput * absorption(mat, h.t);
     if (depth == 0) {
       out.depth = dot(p - cam.eye, cam.forward);
       const Vec3 p_prev = is.identity ? p : is.prev_xf.point(sf.p_obj);
@@ -277,7 +291,8 @@ void Renderer::Impl::TilePaths::shade(const Impl& r, int depth, std::span<const 
         rprev[i] = int32_t((y0 + int(i) / (x1 - x0)) * s.width + x0 + int(i) % (x1 - x0));
       }
     }
-    const bool specular_surface = bp.metallic >= 0.5f && bp.alpha < specular_alpha;
+    const bool specular_surface =
+        (bp.metallic >= 0.5f || bp.transmission >= 0.5f) && bp.alpha < specular_alpha;
     if (ps.aov_pending) {
       out.albedo = bp.base;
       out.normal = ns;
@@ -300,7 +315,8 @@ void Renderer::Impl::TilePaths::shade(const Impl& r, int depth, std::span<const 
     // Radiance cache at the first bounce's surface: stop there with its cell's radiance
     // (when the bounce is longer than a cell: contact light needs the path), or note the
     // vertex so this path teaches the cell what it measures from here on.
-    if (cache_records && depth == 1 && ps.rough && bp.alpha >= cache_alpha_second) {
+    if (cache_records && depth == 1 && ps.rough && bp.alpha >= cache_alpha_second &&
+        !(bp.transmission > 0)) {
       const RadianceCache::Cell cell =  // found ahead where the cache was to answer
           cells[k].key != 0 ? cells[k] : r.radiance_cache.cell(p, ng);
       Vec3 lc;
@@ -361,19 +377,21 @@ void Renderer::Impl::TilePaths::shade(const Impl& r, int depth, std::span<const 
       if (!bsdf.sample(u0, u1, u2, nullptr, bs)) continue;
     }
     const Vec3 wi = frame.to_world(bs.wi);
-    if (dot(wi, ng) <= 0) continue;
+    const bool through = bs.wi.z < 0;  // through glass: on the far side of the surface
+    if (through ? !(dot(wi, ng) < 0) : !(dot(wi, ng) > 0)) continue;
     ps.throughput = ps.throughput * bs.weight;
     ps.bsdf_pdf = bs.pdf;
     ps.prev_normal = ns;
     ps.env_nee = env_nee;
-    ps.rough = bp.alpha >= cache_alpha_first;
+    ps.through = through;
+    ps.rough = bp.alpha >= cache_alpha_first && !(bp.transmission > 0);
     if (depth + 1 >= s.rr_depth) {
       const float q =
           std::min(0.95f, std::max({ps.throughput.x, ps.throughput.y, ps.throughput.z}));
       if (!(rng.uniform() < q)) continue;
       ps.throughput = ps.throughput * (1.0f / q);
     }
-    next_rays.push_back(Ray{origin, wi, 0.0f, INFINITY});
+    next_rays.push_back(Ray{through ? offset_origin(p, -ng) : origin, wi, 0.0f, INFINITY});
     next_active.push_back(active[k]);
   }
 }

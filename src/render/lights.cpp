@@ -21,14 +21,21 @@ void Renderer::Impl::check_materials(const std::string& source) {
   if (materials.empty() || materials.back().name != "default")
     materials.push_back(Material{.name = "default"});
   for (size_t i = 0; i < materials.size(); ++i) {
-    const Material& m = materials[i];
+    Material& m = materials[i];
     if (!is_finite(m.base_color) || !is_finite(m.emission) || !std::isfinite(m.metallic) ||
         !std::isfinite(m.roughness) || !std::isfinite(m.specular) || !std::isfinite(m.alpha) ||
         !std::isfinite(m.normal_scale) || !std::isfinite(m.alpha_cutoff) || m.emission.x < 0 ||
-        m.emission.y < 0 || m.emission.z < 0)
+        m.emission.y < 0 || m.emission.z < 0 || !std::isfinite(m.transmission) ||
+        !std::isfinite(m.ior) || !is_finite(m.attenuation_color) || m.attenuation_color.x < 0 ||
+        m.attenuation_color.y < 0 || m.attenuation_color.z < 0 || !(m.attenuation_distance > 0))
       throw Error(ErrorCode::invalid_argument,
                   fmt::format("{}: material {} '{}': a non-finite or negative parameter", source, i,
                               m.name));
+    if (!(m.ior >= 1))
+      throw Error(ErrorCode::invalid_argument,
+                  fmt::format("{}: material {} '{}': index of refraction {} (at least 1)", source,
+                              i, m.name, m.ior));
+    m.transmission = std::clamp(m.transmission, 0.0f, 1.0f);  // shading reads it as it is
   }
 }
 

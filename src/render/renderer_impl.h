@@ -498,7 +498,8 @@ struct Renderer::Impl {
   // the local lights alone and the BSDF sample carries the environment (MIS weight 1): the
   // sun is never missed for a sky sample. Both stay unbiased.
   bool env_left_to_bsdf(const BsdfParams& bp) const {
-    return env_cosine && p_env > 0 && p_env <= p_sun && bp.metallic <= 0 && bp.specular <= 0;
+    return env_cosine && p_env > 0 && p_env <= p_sun && bp.metallic <= 0 && bp.specular <= 0 &&
+           bp.transmission <= 0;
   }
   // The factor on the sun's and the local lights' pick probabilities where NEE left the
   // environment out (env false).

@@ -45,7 +45,8 @@ bool stream(Reservoir& out, const Reservoir& r, float p_hat, Rng& rng) {
 }  // namespace
 
 bool Renderer::Impl::restir_eligible(const Surface& sf) const {
-  return sf.bp.alpha >= min_restir_alpha && (p_env > 0 || p_sun > 0 || local_light_count() > 0);
+  return sf.bp.alpha >= min_restir_alpha && !(sf.bp.transmission > 0) &&
+         (p_env > 0 || p_sun > 0 || local_light_count() > 0);
 }
 
 // What y sends towards the surface: its direction wi (and dir, the shadow ray's direction

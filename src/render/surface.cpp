@@ -187,6 +187,14 @@ void Renderer::Impl::surface_material(Surface& sf, const float* texel) const {
       mat, [uv] { return uv; }, bp.metallic);
   bp.alpha = std::max(roughness * roughness, min_alpha);
   bp.specular = std::clamp(mat.specular, 0.0f, 1.0f);
+  bp.transmission = mat.transmission;  // in [0, 1] (check_materials)
+  if (bp.transmission > 0) {
+    // Glass: a solid's faces bend light (eta by the side the ray is on: the front face is the
+    // outside); an IOR of ~1 bends none, the same as a sheet.
+    const float ior = std::max(mat.ior, 1.0f);
+    bp.thin = mat.thin_walled || ior < 1.001f;
+    bp.eta = bp.thin || sf.cos_hit >= 0 ? ior : 1.0f / ior;
+  }
   sf.roughness = roughness;
 }
 
@@ -298,15 +306,15 @@ const SurfaceRowsKernels& render::surface_rows_kernels(Isa isa) {
 // ---- the radiance cache's early answer ------------------------------------------------------
 
 // The radiance cache's answer at a path's second vertex, ahead of the full shading: the
-// cell's mean where the shading below would stop the path there (a rough, non-emissive
-// surface, a bounce longer than the cell, a cell with enough samples), without the shading
+// cell's mean where the shading below would stop the path there (a rough, non-emissive,
+// opaque surface, a bounce longer than the cell, a cell with enough samples), without the shading
 // normal and base colour texel that such a path never uses. The same cell, the same test.
 // `cell`: the hit's cell (cache_cell), found a few hits ahead so its slot is prefetched.
 bool Renderer::Impl::cache_answer(const SurfaceHit& h, const RadianceCache::Cell& cell,
                                   Vec3& lc) const {
   const TriangleMesh& mesh = *instances[h.instance_id].mesh;
   const Material& mat = material_of(mesh, h.prim_id);
-  if (luminance(mat.emission) > 0) return false;
+  if (luminance(mat.emission) > 0 || mat.transmission > 0) return false;
   float metallic;
   const float roughness = roughness_at(
       mat, [&] { return uv_at(mesh, h.prim_id, h.u, h.v); }, metallic);

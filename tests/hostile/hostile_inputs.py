@@ -137,6 +137,15 @@ def main():
                  os.path.join(os.path.dirname(path), "draco.exr")],
                  ["draco.gltf", "KHR_draco_mesh_compression"])
 
+    for label, glass in (("negative index of refraction", {"KHR_materials_ior": {"ior": -2}}),
+                         ("zero attenuation distance",
+                          {"KHR_materials_volume": {"thicknessFactor": 1, "attenuationDistance": 0}})):
+        extra = {"materials": [{"name": "crystal", "extensions": glass}],
+                 "meshes": [{"primitives": [{"attributes": {"POSITION": 0}, "material": 0}]}]}
+        path = gltf_with([ok_acc], views, tri, extra, "glassy.gltf")
+        expect_error("glTF glass with a " + label, ["render", path, "--res", "8x8", "-o",
+                     os.path.join(os.path.dirname(path), "glassy.exr")], ["glassy.gltf", "crystal"])
+
     # --- Images whose headers claim far more than the file holds.
     path = write("huge.pfm", b"PF\n16000 16000\n-1.0\n" + b"\0" * 64)
     expect_error("84-byte PFM claiming 16k x 16k", ["render", "builtin:cornell_box", "--env", path, "--res", "8x8",

@@ -312,6 +312,58 @@ TEST(Gltf, AlphaModesAreRead) {
   EXPECT_FLOAT_EQ(s.materials[2].alpha, 0.3f);
 }
 
+// Glass: KHR_materials_transmission's factor, KHR_materials_ior (0: the extension's F0 = 1),
+// KHR_materials_volume (a thickness makes a refracting solid with its attenuation; none, a thin
+// sheet); required, they load. MTL: illum 4, 6, 7 and 9 with Ni and Tf.
+TEST(Gltf, TransmissionIorAndVolumeAreRead) {
+  const std::string path = one_triangle_gltf("glass.gltf", R"([
+      {"name": "pane", "extensions": {"KHR_materials_transmission": {"transmissionFactor": 0.9}}},
+      {"name": "water", "extensions": {"KHR_materials_transmission": {"transmissionFactor": 1},
+          "KHR_materials_ior": {"ior": 1.33},
+          "KHR_materials_volume": {"thicknessFactor": 0.5, "attenuationDistance": 2,
+                                   "attenuationColor": [0.5, 0.9, 1]}}},
+      {"name": "mirror_ior", "extensions": {"KHR_materials_ior": {"ior": 0}}},
+      {"name": "loud", "extensions": {"KHR_materials_transmission": {"transmissionFactor": 4}}}]
+)",
+                                             R"("extensionsRequired": ["KHR_materials_transmission",
+        "KHR_materials_ior", "KHR_materials_volume"],
+    "extensionsUsed": ["KHR_materials_transmission", "KHR_materials_ior", "KHR_materials_volume"],)");
+  const Scene s = load_scene(path);
+  ASSERT_GE(s.materials.size(), 4u);
+  EXPECT_FLOAT_EQ(s.materials[0].transmission, 0.9f);
+  EXPECT_TRUE(s.materials[0].thin_walled);
+  EXPECT_FLOAT_EQ(s.materials[0].ior, 1.5f);
+  EXPECT_EQ(s.materials[1].transmission, 1.0f);
+  EXPECT_FALSE(s.materials[1].thin_walled);
+  EXPECT_FLOAT_EQ(s.materials[1].ior, 1.33f);
+  EXPECT_FLOAT_EQ(s.materials[1].attenuation_distance, 2.0f);
+  EXPECT_FLOAT_EQ(s.materials[1].attenuation_color.x, 0.5f);
+  EXPECT_EQ(s.materials[2].transmission, 0.0f);
+  EXPECT_GT(s.materials[2].ior, 1000.0f);
+  EXPECT_EQ(s.materials[3].transmission, 1.0f);
+}
+
+TEST(Obj, GlassIllumModelsAreRead) {
+  const std::filesystem::path dir = test::test_temp_dir();
+  std::ofstream(dir / "glass.mtl")
+      << "newmtl plastic\nKd 1 1 1\nillum 2\nNi 1.4\n"
+         "newmtl window\nKd 0 0 0\nillum 4\nd 0.2\n"
+         "newmtl bottle\nKd 0.1 0.1 0.1\nTf 0.6 0.9 0.7\nNi 1.52\nillum 7\n";
+  std::ofstream(dir / "glass.obj") << "mtllib glass.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\n"
+                                      "usemtl plastic\nf 1 2 3\nusemtl window\nf 1 2 3\n"
+                                      "usemtl bottle\nf 1 2 3\n";
+  const Scene s = load_scene((dir / "glass.obj").string());
+  ASSERT_GE(s.materials.size(), 3u);
+  EXPECT_EQ(s.materials[0].transmission, 0.0f);
+  EXPECT_EQ(s.materials[1].transmission, 1.0f);
+  EXPECT_FLOAT_EQ(s.materials[1].ior, 1.5f);  // no Ni
+  EXPECT_EQ(s.materials[1].alpha_mode,
+            Material::AlphaMode::opaque);              // the glass is the transparency
+  EXPECT_FLOAT_EQ(s.materials[1].base_color.y, 1.0f);  // no Tf: clear
+  EXPECT_FLOAT_EQ(s.materials[2].ior, 1.52f);
+  EXPECT_FLOAT_EQ(s.materials[2].base_color.y, 0.9f);
+}
+
 TEST(Obj, DissolveAndAlphaMapsAreRead) {
   const std::filesystem::path dir = test::test_temp_dir();
   // 2 x 2 uncompressed true-colour TGAs: 24 bits (no alpha: the mask is its grey level) and
