@@ -353,10 +353,12 @@ Scene load_obj(const std::string& path) {
     }
     // Glass (illum 4, 6, 7, 9: the MTL models with refraction or glass): a solid refracting
     // at Ni (1.5 where not above 1: tinyobj reads a missing Ni as 1), tinted by Tf (white
-    // where Tf is black or missing); its transparency is the glass's, not a cut-out's.
+    // where Tf is black or missing), smooth unless Ns or Pr say otherwise; its transparency
+    // is the glass's, not a cut-out's.
     if (m.illum == 4 || m.illum == 6 || m.illum == 7 || m.illum == 9) {
       material.transmission = 1;
       material.ior = m.ior > 1.0f ? m.ior : 1.5f;
+      if (!(m.roughness > 0) && !(m.shininess > 1)) material.roughness = 0;  // (tinyobj: Ns 1)
       const Vec3 tf{m.transmittance[0], m.transmittance[1], m.transmittance[2]};
       material.base_color = tf.x > 0 || tf.y > 0 || tf.z > 0 ? tf : Vec3{1, 1, 1};
       material.alpha_mode = Material::AlphaMode::opaque;
