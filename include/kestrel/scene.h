@@ -86,6 +86,9 @@ struct TriangleMesh {
       uvs;  ///< glTF convention: (0, 0) is the top-left of a texture (OBJ v is flipped on load)
   std::vector<uint32_t> indices;
   std::vector<uint32_t> material_ids;  ///< one per triangle (index into Scene::materials)
+  /// Per vertex (same count as positions) or empty: linear RGB in [0, 1] multiplying the
+  /// material's base colour (glTF COLOR_0, OBJ "v x y z r g b").
+  std::vector<Vec3> colors;
   size_t triangle_count() const { return indices.size() / 3; }
 };
 

@@ -156,7 +156,7 @@ BuildConfig build_config(const std::optional<std::string>& builder,
 // file: nothing to skip silently); non-finite vertices follow nan_policy.
 TriangleMesh mesh_from_arrays(py::handle vertices, py::handle indices, py::handle normals,
                               py::handle uvs, const std::string& name,
-                              const std::string& nan_policy, uint32_t material) {
+                              const std::string& nan_policy, uint32_t material, py::handle colors) {
   if (nan_policy != "warn" && nan_policy != "raise" && nan_policy != "ignore")
     throw py::value_error(fmt::format("nan_policy: '{}' is not warn, raise or ignore", nan_policy));
   auto v = input_array<float>(vertices, "vertices", {-1, 3});
@@ -183,6 +183,14 @@ TriangleMesh mesh_from_arrays(py::handle vertices, py::handle indices, py::handl
     auto t = input_array<float>(uvs, "uvs", {py::ssize_t(vertex_count), 2});
     mesh.uvs.resize(vertex_count);
     std::memcpy(static_cast<void*>(mesh.uvs.data()), t.data(), vertex_count * sizeof(Vec2));
+  }
+  if (!colors.is_none()) {  // linear RGB in [0, 1] per vertex
+    auto c = input_array<float>(colors, "colors", {py::ssize_t(vertex_count), 3});
+    mesh.colors.resize(vertex_count);
+    std::memcpy(static_cast<void*>(mesh.colors.data()), c.data(), vertex_count * sizeof(Vec3));
+    for (const Vec3& x : mesh.colors)
+      if (!(x.x >= 0 && x.x <= 1 && x.y >= 0 && x.y <= 1 && x.z >= 0 && x.z <= 1))
+        throw py::value_error("colors: every value must be in [0, 1]");
   }
   mesh.material_ids.assign(triangle_count, material);
   if (nan_policy != "ignore") {
@@ -285,19 +293,22 @@ void bind_geometry(py::module_& m) {
       .def(
           "add_mesh",
           [](Scene& s, py::handle vertices, py::handle indices, py::handle normals, py::handle uvs,
-             const std::string& name, int material, const std::string& nan_policy) {
+             const std::string& name, int material, const std::string& nan_policy,
+             py::handle colors) {
             if (s.materials.empty()) s.materials.push_back(Material{.name = "default"});
             if (material < 0 || size_t(material) >= s.materials.size())
               throw py::value_error(fmt::format("material: {} is not a material index (0..{})",
                                                 material, s.materials.size() - 1));
             s.meshes.push_back(mesh_from_arrays(vertices, indices, normals, uvs, name, nan_policy,
-                                                uint32_t(material)));
+                                                uint32_t(material), colors));
             return s.meshes.size() - 1;
           },
           py::arg("vertices"), py::arg("indices"), py::arg("normals") = py::none(),
           py::arg("uvs") = py::none(), py::arg("name") = "mesh", py::arg("material") = 0,
-          py::arg("nan_policy") = "warn",
-          "Appends a mesh (prim ids continue after the previous meshes'); returns its index.")
+          py::arg("nan_policy") = "warn", py::arg("colors") = py::none(),
+          "Appends a mesh (prim ids continue after the previous meshes'); returns its index. "
+          "colors: (N, 3) linear RGB in [0, 1] per vertex, multiplying the material's base "
+          "colour.")
       .def(
           "add_material",
           [](Scene& s, const std::string& name, py::handle base_color, float metallic,

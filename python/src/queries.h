@@ -25,7 +25,8 @@ py::dict fields_of(const py::array& records);
 /// A mesh from numpy arrays (ValueError for bad shapes, indices, NaN per nan_policy).
 TriangleMesh mesh_from_arrays(py::handle vertices, py::handle indices, py::handle normals,
                               py::handle uvs, const std::string& name,
-                              const std::string& nan_policy, uint32_t material);
+                              const std::string& nan_policy, uint32_t material,
+                              py::handle colors = py::none());
 const TriangleMesh& mesh_at(const Scene& s, size_t mesh);
 /// A (3, 4) or (4, 4) transform; ValueError naming `name` otherwise.
 Affine3 affine_from(py::handle object, const char* name);

@@ -125,6 +125,23 @@ def test_glass_pane_passes_its_tint_and_reflects_fresnel():
         scene.add_material("bad", transmission=2.0)
 
 
+def test_vertex_colors_multiply_the_base_colour():
+    # A quad whose four corners are one colour, seen straight down: the albedo AOV is the
+    # base colour times it; colours outside [0, 1] or of the wrong shape are refused.
+    scene = kestrel.Scene()
+    grey = scene.add_material("grey", base_color=(0.5, 0.5, 0.5))
+    quad = np.array([[-1, 0, -1], [1, 0, -1], [1, 0, 1], [-1, 0, 1]], np.float32)
+    tris = np.array([[0, 2, 1], [0, 3, 2]], np.uint32)
+    colors = np.tile(np.float32([0.2, 0.6, 1.0]), (4, 1))
+    scene.add_mesh(quad, tris, material=grey, colors=colors)
+    frame = kestrel.Renderer(scene).render(kestrel.Camera((0, 8, 0.01), (0, 0, 0), 5), spp=1, res=(4, 4))
+    assert frame["albedo"][..., :3].mean(axis=(0, 1)) == pytest.approx([0.1, 0.3, 0.5], abs=1e-4)
+    with pytest.raises(ValueError, match="colors"):
+        scene.add_mesh(quad, tris, colors=colors * 2)
+    with pytest.raises(ValueError, match="colors"):
+        scene.add_mesh(quad, tris, colors=colors[:3])
+
+
 def test_render_arguments_are_checked(cornell):
     r = kestrel.Renderer(cornell)
     cam = kestrel.view(cornell)

@@ -71,7 +71,9 @@ Scene load_gltf(const std::string& path) {
         reader.read_normals_uvs(prim, positions.size(), normals, uvs);
         all_normals &= normals.size() == positions.size();
         const uint32_t base = uint32_t(mesh.positions.size());
-        add_uvs(mesh.uvs, base, uvs, positions.size());
+        add_per_vertex(mesh.uvs, base, uvs, positions.size(), Vec2{0, 0});
+        add_per_vertex(mesh.colors, base, reader.read_colors(prim, positions.size()),
+                       positions.size(), Vec3{1, 1, 1});
         for (Vec3 p : positions) mesh.positions.push_back(transform_point(world, p));
         if (all_normals)
           for (Vec3 n : normals) mesh.normals.push_back(transform_normal(world, n));

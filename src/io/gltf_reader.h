@@ -126,18 +126,20 @@ inline bool place_light(Light& l, const Mat4& world) {
 std::optional<Light> node_light(const std::string& path, const tinygltf::Model& model,
                                 int node_index, const Mat4& world);
 
-// Appends a primitive's texture coordinates to a mesh's whose first `before` vertices came
-// from earlier primitives: a primitive without them gets (0, 0) once another has them (so one
-// primitive without coordinates no longer strips the textures of the mesh's others), and
-// the earlier ones are filled the same way when the first primitive with them comes.
-inline void add_uvs(std::vector<Vec2>& mesh_uvs, size_t before, const std::vector<Vec2>& uvs,
-                    size_t count) {
-  if (uvs.empty() && mesh_uvs.empty()) return;
-  mesh_uvs.resize(before, Vec2{0, 0});
-  if (uvs.empty())
-    mesh_uvs.resize(before + count, Vec2{0, 0});
+// Appends a primitive's per-vertex values (texture coordinates, colours) to a mesh's whose
+// first `before` vertices came from earlier primitives: a primitive without them gets `fill`
+// once another has them (so one primitive without coordinates no longer strips the textures
+// of the mesh's others), and the earlier ones are filled the same way when the first
+// primitive with them comes.
+template <class T>
+void add_per_vertex(std::vector<T>& mesh_values, size_t before, const std::vector<T>& values,
+                    size_t count, T fill) {
+  if (values.empty() && mesh_values.empty()) return;
+  mesh_values.resize(before, fill);
+  if (values.empty())
+    mesh_values.resize(before + count, fill);
   else
-    mesh_uvs.insert(mesh_uvs.end(), uvs.begin(), uvs.end());
+    mesh_values.insert(mesh_values.end(), values.begin(), values.end());
 }
 
 struct GltfReader {
@@ -233,6 +235,42 @@ struct GltfReader {
     if (normals.size() != vertex_count) normals.clear();
     if (uvs.size() != vertex_count) uvs.clear();
     if (m) apply_texture_transform(*m, uvs);
+  }
+
+  // A primitive's COLOR_0 (VEC3 or VEC4, its alpha not read; floats or normalised unsigned
+  // bytes or shorts) clamped to [0, 1] (NaN as 0); empty unless it has one per vertex.
+  std::vector<Vec3> read_colors(const tinygltf::Primitive& prim, size_t vertex_count) const {
+    const auto it = prim.attributes.find("COLOR_0");
+    if (it == prim.attributes.end()) return {};
+    const int index = it->second;
+    const int components =
+        index >= 0 && size_t(index) < model.accessors.size()
+            ? tinygltf::GetNumComponentsInType(uint32_t(model.accessors[size_t(index)].type))
+            : 3;  // (view() names the missing accessor)
+    size_t count, stride;
+    int type;
+    const unsigned char* p = view(index, components == 4 ? 4 : 3, count, stride, type);
+    if (type != TINYGLTF_COMPONENT_TYPE_FLOAT && type != TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE &&
+        type != TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT)
+      fail(fmt::format("accessor {} (COLOR_0) must hold floats, bytes or shorts", index));
+    std::vector<Vec3> out(count);
+    for (size_t i = 0; i < count; ++i)
+      for (int k = 0; k < 3; ++k) {
+        const unsigned char* q = p + i * stride;
+        float v;
+        if (type == TINYGLTF_COMPONENT_TYPE_FLOAT) {
+          std::memcpy(&v, q + 4 * k, 4);
+        } else if (type == TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE) {
+          v = float(q[k]) / 255.0f;
+        } else {
+          uint16_t u;
+          std::memcpy(&u, q + 2 * k, 2);
+          v = float(u) / 65535.0f;
+        }
+        out[i][k] = v >= 0 ? std::min(v, 1.0f) : 0.0f;
+      }
+    if (out.size() != vertex_count) out.clear();
+    return out;
   }
 
   // A material's texture slots in the order kestrel takes their coordinates from (base colour,

@@ -375,10 +375,22 @@ Scene load_obj(const std::string& path) {
   const size_t vertex_count = vertices.size() / 3;
   const bool has_extra = !attrib.normals.empty() || !attrib.texcoords.empty();
   std::unordered_map<CornerKey, uint32_t, CornerHash> corner_of;
+  // Vertex colours ("v x y z r g b" on every vertex: tinyobj keeps none otherwise) are display
+  // colours, as MeshLab and Blender write them: sRGB-decoded, clamped to [0, 1] (NaN as 0).
+  std::vector<Vec3> colors;
+  if (attrib.colors.size() == 3 * vertex_count) {
+    colors.resize(vertex_count);
+    for (size_t i = 0; i < 3 * vertex_count; ++i) {
+      const float c = attrib.colors[i] >= 0 ? std::min(attrib.colors[i], 1.0f) : 0.0f;
+      colors[i / 3][int(i % 3)] =
+          c <= 0.04045f ? c / 12.92f : std::pow((c + 0.055f) / 1.055f, 2.4f);
+    }
+  }
   if (!has_extra) {
     mesh.positions.resize(vertex_count);
     for (size_t i = 0; i < vertex_count; ++i)
       mesh.positions[i] = {vertices[3 * i], vertices[3 * i + 1], vertices[3 * i + 2]};
+    mesh.colors = colors;
   }
   // Out-of-range corners map to an index past the vertex array: validation counts them.
   const uint32_t bad_index = 0xFFFFFFFFu;
@@ -400,6 +412,7 @@ Scene load_obj(const std::string& path) {
                 ? Vec3{attrib.normals[3 * n], attrib.normals[3 * n + 1], attrib.normals[3 * n + 2]}
                 : Vec3{0, 0, 0});
       }
+      if (!colors.empty()) mesh.colors.push_back(colors[v]);
       if (!attrib.texcoords.empty()) {
         const size_t t = c.texcoord_index >= 0 ? size_t(c.texcoord_index) : SIZE_MAX / 4;
         mesh.uvs.push_back(2 * t + 1 < attrib.texcoords.size()
@@ -428,6 +441,7 @@ Scene load_obj(const std::string& path) {
   }
   if (!mesh.normals.empty() && mesh.normals.size() != mesh.positions.size()) mesh.normals.clear();
   if (!mesh.uvs.empty() && mesh.uvs.size() != mesh.positions.size()) mesh.uvs.clear();
+  if (!mesh.colors.empty() && mesh.colors.size() != mesh.positions.size()) mesh.colors.clear();
   scene.meshes.push_back(std::move(mesh));
   return scene;
 }

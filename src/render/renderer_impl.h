@@ -406,6 +406,8 @@ struct Renderer::Impl {
   };
   Surface surface_at(const SurfaceHit& h, const Ray& ray) const;
   void normal_map(const SurfaceHit& h, Surface& sf) const;
+  // The mesh's vertex colours at the hit times the base colour (after surface_material).
+  void vertex_colors(const SurfaceHit& h, Surface& sf) const;
   // surface_at's first part: p, p_obj, wo, ng (facing wo), cos_hit, the material.
   void surface_geometry(const SurfaceHit& h, const Ray& ray, Surface& sf) const;
   // surface_at of a hit from its entry j of SIMD rows (render/surface_rows.h: the same

@@ -105,6 +105,7 @@ Renderer::Impl::Surface Renderer::Impl::surface_at(const SurfaceHit& h, const Ra
   sf.ns = ns;
   normal_map(h, sf);
   surface_material(sf);
+  if (!mesh.colors.empty()) vertex_colors(h, sf);
   return sf;
 }
 
@@ -164,7 +165,17 @@ Renderer::Impl::Surface Renderer::Impl::surface_from_rows(const SurfaceRows& row
   normal_map(h, sf);
   const float texel[3] = {rows.tr[j], rows.tg[j], rows.tb[j]};
   surface_material(sf, (rows.texel >> j) & 1u ? texel : nullptr);
+  if (!instances[h.instance_id].mesh->colors.empty()) vertex_colors(h, sf);
   return sf;
+}
+
+void Renderer::Impl::vertex_colors(const SurfaceHit& h, Surface& sf) const {
+  const TriangleMesh& m = *instances[h.instance_id].mesh;
+  if (m.colors.size() != m.positions.size()) return;  // (a mesh built wrong: not read)
+  const uint32_t* idx = &m.indices[3 * size_t(h.prim_id)];
+  const Vec3 c =
+      m.colors[idx[0]] * (1 - h.u - h.v) + m.colors[idx[1]] * h.u + m.colors[idx[2]] * h.v;
+  sf.bp.base = min(max(sf.bp.base * c, Vec3{0, 0, 0}), Vec3{1, 1, 1});
 }
 
 // surface_at's last part: the material's BSDF parameters at sf.uv (`texel`: its base

@@ -204,7 +204,11 @@ GltfInstances GltfInstances::load(const std::string& path, size_t clip) {
       all_normals &= normals.size() == positions.size();
       if (all_normals)
         mm.base.normals.insert(mm.base.normals.end(), normals.begin(), normals.end());
-      gltf::add_uvs(mm.base.uvs, mm.base.positions.size(), uvs, positions.size());
+      gltf::add_per_vertex(mm.base.uvs, mm.base.positions.size(), uvs, positions.size(),
+                           Vec2{0, 0});
+      gltf::add_per_vertex(mm.base.colors, mm.base.positions.size(),
+                           reader.read_colors(prim, positions.size()), positions.size(),
+                           Vec3{1, 1, 1});
       const uint32_t material = prim.material >= 0 && size_t(prim.material) < model.materials.size()
                                     ? uint32_t(prim.material)
                                     : default_material;
