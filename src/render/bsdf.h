@@ -8,10 +8,10 @@
 //             / (cos_o |cos_i| (wi.h + wo.h / eta)^2 eta^2) below the surface (radiance),
 //             or, thin-walled, base (1 - F_r) times the reflection lobe mirrored below
 //             (light goes straight on); F_r the exact dielectric Fresnel at eta
-// with F = k (1 - t) s Schlick(0.04) + metallic Schlick(base) (dielectric coat / rough
-// conductor), D the GGX (Trowbridge-Reitz) distribution, G2 the height-correlated Smith term.
-// The specular and glass lobes are sampled with Heitz 2018's visible normals, the diffuse lobe
-// with a cosine; one pdf covers all (the mixture), so eval/pdf/sample agree (tests/render).
+// with F = k (1 - t) s Schlick(F0) + metallic Schlick(base) (F0 = 0.04 at IOR 1.5) (dielectric coat
+// / rough conductor), D the GGX (Trowbridge-Reitz) distribution, G2 the height-correlated Smith
+// term. The specular and glass lobes are sampled with Heitz 2018's visible normals, the diffuse
+// lobe with a cosine; one pdf covers all (the mixture), so eval/pdf/sample agree (tests/render).
 #pragma once
 #include <algorithm>
 #include <cmath>
@@ -29,6 +29,7 @@ struct BsdfParams {
   float metallic = 0;
   float alpha = 1;     ///< GGX alpha = perceptual roughness^2, at least min_alpha
   float specular = 0;  ///< dielectric coat weight
+  float f0 = 0.04f;    ///< the coat's reflectance at normal incidence, ((ior - 1) / (ior + 1))^2
   /// Glass: the weight of the dielectric interface within the non-metallic part, instead of the
   /// coated diffuse base. 0 leaves the BSDF a reflection (nothing below the surface).
   float transmission = 0;
@@ -79,7 +80,7 @@ inline Vec3 sample_ggx_vndf(float alpha, Vec3 wo, float u1, float u2) {
 
 inline Vec3 fresnel(const BsdfParams& p, float cos_theta) {
   const float w = schlick_weight(cos_theta);
-  const float dielectric = p.specular * (0.04f + 0.96f * w);
+  const float dielectric = p.specular * (p.f0 + (1.0f - p.f0) * w);
   const Vec3 conductor = p.base + (Vec3{1, 1, 1} - p.base) * w;
   return Vec3{dielectric, dielectric, dielectric} *
              ((1.0f - p.metallic) * (1.0f - p.transmission)) +
@@ -101,7 +102,7 @@ inline float fresnel_dielectric(float cos_i, float eta) {
 inline float specular_probability(const BsdfParams& p, Vec3 wo) {
   const float ws = luminance(fresnel(p, wo.z));
   const float wd = (1.0f - p.metallic) * (1.0f - p.transmission) * luminance(p.base) *
-                   (1.0f - p.specular * (0.04f + 0.96f * schlick_weight(wo.z)));
+                   (1.0f - p.specular * (p.f0 + (1.0f - p.f0) * schlick_weight(wo.z)));
   if (ws <= 0) return 0.0f;
   if (wd <= 0) return 1.0f;
   return std::clamp(ws / (ws + wd), 0.1f, 0.9f);
@@ -117,7 +118,7 @@ inline float specular_probability(const BsdfParams& p, Vec3 wo) {
   float w[3] = {luminance(fresnel(p, wo.z)),
                 k * p.transmission * (fg + (1.0f - fg) * luminance(p.base)),
                 k * (1.0f - p.transmission) * luminance(p.base) *
-                    (1.0f - p.specular * (0.04f + 0.96f * schlick_weight(wo.z)))};
+                    (1.0f - p.specular * (p.f0 + (1.0f - p.f0) * schlick_weight(wo.z)))};
   const float total = w[0] + w[1] + w[2];
   if (!(total > 0)) {
     ps = 0, pg = 1;
@@ -154,7 +155,7 @@ struct BsdfAt {
   BsdfAt(const BsdfParams& params, Vec3 w, bool with_pdf = true) : p(params), wo(w) {
     above = !(wo.z <= 0);
     if (!above) return;
-    fd_o = 1.0f - p.specular * (0.04f + 0.96f * schlick_weight(wo.z));
+    fd_o = 1.0f - p.specular * (p.f0 + (1.0f - p.f0) * schlick_weight(wo.z));
     kd = (1.0f - p.metallic) * (1.0f - p.transmission);
     glossy = p.metallic > 0 || p.specular > 0;
     glass = p.transmission > 0 && p.metallic < 1;
@@ -215,7 +216,7 @@ struct BsdfAt {
       return;
     }
     if (p.metallic < 1.0f) {
-      const float fd = (1.0f - p.specular * (0.04f + 0.96f * schlick_weight(wi.z))) * fd_o;
+      const float fd = (1.0f - p.specular * (p.f0 + (1.0f - p.f0) * schlick_weight(wi.z))) * fd_o;
       f = p.base * (kd * fd / pi * wi.z);
     }
     if (pdf) *pdf = (1.0f - ps - pg) * wi.z / pi;

@@ -39,7 +39,7 @@ float blend_draw(const Ray& r, uint32_t instance, uint32_t prim) {
 
 // The few, scattered rays traced again: single rays, which keeps them out of the scene's
 // timed choice of packets for the batches it is given (a camera batch's choice).
-const TraceOptions single_rays{.packets = false, .stream = false};
+const TraceOptions single_rays{.isa = std::nullopt, .packets = false, .stream = false};
 
 // Indices of the rays whose flag is set, in order.
 std::vector<uint32_t> flagged(const std::vector<uint8_t>& flags) {

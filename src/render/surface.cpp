@@ -198,6 +198,10 @@ void Renderer::Impl::surface_material(Surface& sf, const float* texel) const {
       mat, [uv] { return uv; }, bp.metallic);
   bp.alpha = std::max(roughness * roughness, min_alpha);
   bp.specular = std::clamp(mat.specular, 0.0f, 1.0f);
+  if (mat.ior != 1.5f) {  // (glTF's IOR: F0 = 0.04 exactly)
+    const float r = (mat.ior - 1.0f) / (mat.ior + 1.0f);
+    bp.f0 = r * r;
+  }
   bp.transmission = mat.transmission;  // in [0, 1] (check_materials)
   if (bp.transmission > 0) {
     // Glass: a solid's faces bend light (eta by the side the ray is on: the front face is the

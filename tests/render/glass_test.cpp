@@ -398,6 +398,28 @@ TEST(GlassRender, PaneSeenHeadOnIsFresnelPlusItsTint) {
     EXPECT_NEAR(f[Aov::color].pixels[size_t(k)], 0.04 + 0.96 * tint[k], 0.01) << "channel " << k;
 }
 
+// The opaque dielectric coat's reflectance follows the IOR too (glTF KHR_materials_ior): a
+// black, smooth coated quad seen head-on in a uniform environment is ((ior - 1) / (ior + 1))^2.
+TEST(GlassRender, CoatReflectsFresnelOfItsIor) {
+  for (const float ior : {1.5f, 2.0f, 1.33f}) {
+    Scene s;
+    s.source = "test:coat_ior";
+    s.materials = {Material{
+        .name = "lacquer", .base_color = {0, 0, 0}, .roughness = 0, .specular = 1, .ior = ior}};
+    TriangleMesh m;
+    m.positions = {{-5, -5, 0}, {5, -5, 0}, {5, 5, 0}, {-5, 5, 0}};
+    m.indices = {0, 1, 2, 0, 2, 3};
+    m.material_ids = {0, 0};
+    s.meshes.push_back(m);
+    SceneRenderer r(std::move(s), Environment::parse("constant:1,1,1"));
+    RenderSettings rs;
+    rs.width = rs.height = 1, rs.spp = 256, rs.max_depth = 4, rs.jitter = false;
+    const Frame f = r.render(Camera{{0, 0, -3}, {0, 0, 0}, 1}, rs);
+    const double r0 = (ior - 1.0) / (ior + 1.0);
+    EXPECT_NEAR(f[Aov::color].pixels[1], r0 * r0, 0.002) << "ior " << ior;
+  }
+}
+
 TEST(GlassRender, AbsorbingSlabLetsThroughExpOfMinusSigmaD) {
   // A 2-thick slab of glass keeping (0.5, 0.8, 1) per unit length, seen head-on against a
   // uniform environment: what comes through is T^2 / (1 - R^2 a^2) x a (the slab's inner
