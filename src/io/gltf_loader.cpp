@@ -366,9 +366,10 @@ tinygltf::Model load_model(const std::string& path) {
   // A required extension changes what the file's data mean (compressed meshes, transformed
   // texture coordinates...): glTF asks a loader that does not read it to refuse the file.
   static const char* const readable[] = {
-      "KHR_lights_punctual",    "KHR_materials_emissive_strength", "KHR_materials_ior",
-      "KHR_materials_specular", "KHR_materials_transmission",      "KHR_materials_volume",
-      "KHR_texture_transform"};
+      "KHR_lights_punctual",        "KHR_materials_emissive_strength",
+      "KHR_materials_ior",          "KHR_materials_specular",
+      "KHR_materials_transmission", "KHR_materials_volume",
+      "KHR_mesh_quantization",      "KHR_texture_transform"};
   for (const std::string& ext : model.extensionsRequired)
     if (std::find(std::begin(readable), std::end(readable), ext) == std::end(readable))
       throw Error(ErrorCode::unsupported,

@@ -189,16 +189,60 @@ struct GltfReader {
     return buf.data.data() + begin;
   }
 
-  // Float accessor of `components` per element (SCALAR, VEC3, VEC4...), as a flat array.
+  // An accessor of `components` per element (SCALAR, VEC3, VEC4...) as floats, flat: float
+  // components as they are, integer ones (core glTF's texture coordinates, colours and
+  // animation outputs; KHR_mesh_quantization's positions, normals, texture coordinates and
+  // morph deltas) as their value, or normalised where the accessor says so (unsigned c / max,
+  // signed max(c / max, -1)).
   std::vector<float> read_floats(int accessor_index, int components) const {
     size_t count, stride;
     int type;
     const unsigned char* p = view(accessor_index, components, count, stride, type);
-    if (type != TINYGLTF_COMPONENT_TYPE_FLOAT)
-      fail(fmt::format("accessor {} must hold floats", accessor_index));
+    const bool normalized = model.accessors[size_t(accessor_index)].normalized;
+    size_t size = 4;
+    float scale = 1;
+    switch (type) {
+      case TINYGLTF_COMPONENT_TYPE_FLOAT:
+        break;
+      case TINYGLTF_COMPONENT_TYPE_BYTE:
+        size = 1, scale = 127;
+        break;
+      case TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE:
+        size = 1, scale = 255;
+        break;
+      case TINYGLTF_COMPONENT_TYPE_SHORT:
+        size = 2, scale = 32767;
+        break;
+      case TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT:
+        size = 2, scale = 65535;
+        break;
+      default:
+        fail(fmt::format("accessor {}: component type {} is not a float, byte or short",
+                         accessor_index, type));
+    }
     std::vector<float> out(count * size_t(components));  // view() bounded count by the buffer
     for (size_t i = 0; i < count; ++i)
-      std::memcpy(&out[i * components], p + i * stride, sizeof(float) * size_t(components));
+      for (int k = 0; k < components; ++k) {
+        const unsigned char* e = p + i * stride + size_t(k) * size;
+        float v;
+        if (type == TINYGLTF_COMPONENT_TYPE_FLOAT) {
+          std::memcpy(&v, e, 4);
+        } else if (type == TINYGLTF_COMPONENT_TYPE_BYTE) {
+          v = float(int8_t(e[0]));
+        } else if (type == TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE) {
+          v = float(e[0]);
+        } else if (type == TINYGLTF_COMPONENT_TYPE_SHORT) {
+          int16_t c;
+          std::memcpy(&c, e, 2);
+          v = float(c);
+        } else {
+          uint16_t c;
+          std::memcpy(&c, e, 2);
+          v = float(c);
+        }
+        if (normalized && type != TINYGLTF_COMPONENT_TYPE_FLOAT) v = std::max(v / scale, -1.0f);
+        out[i * size_t(components) + size_t(k)] = v;
+      }
     return out;
   }
 
@@ -244,29 +288,15 @@ struct GltfReader {
     if (it == prim.attributes.end()) return {};
     const int index = it->second;
     const int components =
-        index >= 0 && size_t(index) < model.accessors.size()
-            ? tinygltf::GetNumComponentsInType(uint32_t(model.accessors[size_t(index)].type))
-            : 3;  // (view() names the missing accessor)
-    size_t count, stride;
-    int type;
-    const unsigned char* p = view(index, components == 4 ? 4 : 3, count, stride, type);
-    if (type != TINYGLTF_COMPONENT_TYPE_FLOAT && type != TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE &&
-        type != TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT)
-      fail(fmt::format("accessor {} (COLOR_0) must hold floats, bytes or shorts", index));
-    std::vector<Vec3> out(count);
-    for (size_t i = 0; i < count; ++i)
+        index >= 0 && size_t(index) < model.accessors.size() &&
+                tinygltf::GetNumComponentsInType(uint32_t(model.accessors[size_t(index)].type)) == 4
+            ? 4
+            : 3;  // (view() names a missing accessor or another type)
+    const std::vector<float> f = read_floats(index, components);
+    std::vector<Vec3> out(f.size() / size_t(components));
+    for (size_t i = 0; i < out.size(); ++i)
       for (int k = 0; k < 3; ++k) {
-        const unsigned char* q = p + i * stride;
-        float v;
-        if (type == TINYGLTF_COMPONENT_TYPE_FLOAT) {
-          std::memcpy(&v, q + 4 * k, 4);
-        } else if (type == TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE) {
-          v = float(q[k]) / 255.0f;
-        } else {
-          uint16_t u;
-          std::memcpy(&u, q + 2 * k, 2);
-          v = float(u) / 65535.0f;
-        }
+        const float v = f[i * size_t(components) + size_t(k)];
         out[i][k] = v >= 0 ? std::min(v, 1.0f) : 0.0f;
       }
     if (out.size() != vertex_count) out.clear();
@@ -334,36 +364,16 @@ struct GltfReader {
   }
 
   std::vector<Vec3> read_vec3(int accessor_index) const {
-    size_t count, stride;
-    int type;
-    const unsigned char* p = view(accessor_index, 3, count, stride, type);
-    if (type != TINYGLTF_COMPONENT_TYPE_FLOAT)
-      fail(fmt::format("accessor {} must be float vec3", accessor_index));
-    std::vector<Vec3> out(count);
-    for (size_t i = 0; i < count; ++i) std::memcpy(&out[i], p + i * stride, sizeof(Vec3));
+    const std::vector<float> f = read_floats(accessor_index, 3);
+    std::vector<Vec3> out(f.size() / 3);
+    std::memcpy(static_cast<void*>(out.data()), f.data(), f.size() * sizeof(float));
     return out;
   }
 
   std::vector<Vec2> read_vec2(int accessor_index) const {
-    size_t count, stride;
-    int type;
-    const unsigned char* p = view(accessor_index, 2, count, stride, type);
-    std::vector<Vec2> out(count);
-    for (size_t i = 0; i < count; ++i) {
-      const unsigned char* e = p + i * stride;
-      if (type == TINYGLTF_COMPONENT_TYPE_FLOAT) {
-        std::memcpy(&out[i], e, sizeof(Vec2));
-      } else if (type == TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE) {
-        out[i] = {e[0] / 255.0f, e[1] / 255.0f};
-      } else if (type == TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT) {
-        uint16_t v[2];
-        std::memcpy(v, e, 4);
-        out[i] = {v[0] / 65535.0f, v[1] / 65535.0f};
-      } else {
-        fail(fmt::format("accessor {}: unsupported texcoord component type {}", accessor_index,
-                         type));
-      }
-    }
+    const std::vector<float> f = read_floats(accessor_index, 2);
+    std::vector<Vec2> out(f.size() / 2);
+    std::memcpy(static_cast<void*>(out.data()), f.data(), f.size() * sizeof(float));
     return out;
   }
 

@@ -146,6 +146,10 @@ def main():
         expect_error("glTF glass with a " + label, ["render", path, "--res", "8x8", "-o",
                      os.path.join(os.path.dirname(path), "glassy.exr")], ["glassy.gltf", "crystal"])
 
+    int_acc = dict(ok_acc, componentType=5125)  # UNSIGNED_INT positions: no glTF allows them
+    path = gltf_with([int_acc], views, tri, None, "int_positions.gltf")
+    expect_error("glTF positions as 32-bit integers", ["bvh", path], ["int_positions.gltf", "component type"])
+
     # --- Images whose headers claim far more than the file holds.
     path = write("huge.pfm", b"PF\n16000 16000\n-1.0\n" + b"\0" * 64)
     expect_error("84-byte PFM claiming 16k x 16k", ["render", "builtin:cornell_box", "--env", path, "--res", "8x8",

@@ -1,6 +1,7 @@
 // Vertex colours: glTF COLOR_0 (normalised bytes, floats) and OBJ "v x y z r g b" (sRGB) as
-// loaded, and in the renderer the base colour times the colour interpolated at the hit (the
-// albedo AOV against the linear gradient written on a quad's corners).
+// loaded (and glTF's quantised attributes, read by the same accessor code), and in the renderer the
+// base colour times the colour interpolated at the hit (the albedo AOV against the linear gradient
+// written on a quad's corners).
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -36,6 +37,35 @@ TEST(VertexColors, GltfColor0IsRead) {
     EXPECT_EQ(m.colors[0].y, 0.0f);
     EXPECT_EQ(m.colors[1].y, 1.0f);
     EXPECT_NEAR(m.colors[2].z, 128.0f / 255.0f, 1e-6f);
+  }
+}
+
+// KHR_mesh_quantization (what gltfpack writes): positions as unnormalised shorts (stride 8),
+// normals as normalised bytes; a file that requires it loads.
+TEST(VertexColors, QuantizedGltfAttributesAreRead) {
+  const std::string path = test::write_temp_file("quantized.gltf", R"({
+    "asset": {"version": "2.0"}, "scene": 0, "scenes": [{"nodes": [0]}], "nodes": [{"mesh": 0}],
+    "extensionsUsed": ["KHR_mesh_quantization"], "extensionsRequired": ["KHR_mesh_quantization"],
+    "meshes": [{"primitives": [{"attributes": {"POSITION": 0, "NORMAL": 1}}]}],
+    "buffers": [{"byteLength": 36,
+                 "uri": "data:application/octet-stream;base64,AAAAAAAAAABkAAAAAAAAAAAAOP8AAAAAAAB/AAAAgQAAfwAA"}],
+    "bufferViews": [{"buffer": 0, "byteOffset": 0, "byteLength": 24, "byteStride": 8},
+                    {"buffer": 0, "byteOffset": 24, "byteLength": 12, "byteStride": 4}],
+    "accessors": [{"bufferView": 0, "componentType": 5122, "count": 3, "type": "VEC3",
+                   "min": [0, -200, 0], "max": [100, 0, 0]},
+                  {"bufferView": 1, "componentType": 5120, "normalized": true, "count": 3,
+                   "type": "VEC3"}]})");
+  for (const bool instanced : {false, true}) {
+    const Scene s = instanced ? Asset::load(path).scene().flatten() : load_scene(path);
+    ASSERT_EQ(s.meshes.size(), 1u);
+    const TriangleMesh& m = s.meshes[0];
+    ASSERT_EQ(m.positions.size(), 3u);
+    EXPECT_EQ(m.positions[1].x, 100.0f);
+    EXPECT_EQ(m.positions[2].y, -200.0f);
+    ASSERT_EQ(m.normals.size(), 3u) << instanced;
+    EXPECT_EQ(m.normals[0].z, 1.0f);
+    EXPECT_EQ(m.normals[1].z, -1.0f);
+    EXPECT_EQ(m.normals[2].y, 1.0f);
   }
 }
 
