@@ -83,8 +83,9 @@ class InstancedScene {
   void set_transform(InstanceId instance, const Affine3& transform);
   void set_mask(InstanceId instance, uint32_t mask);
   /// New vertex positions for a mesh (same count; the triangles are kept): refit or rebuild
-  /// at the next commit().
-  void update_vertices(MeshId mesh, std::span<const Vec3> positions);
+  /// at the next commit(). `normals`: new vertex normals too (where the mesh has as many).
+  void update_vertices(MeshId mesh, std::span<const Vec3> positions,
+                       std::span<const Vec3> normals = {});
   void remove_instance(InstanceId instance);
   /// Throws Error while an instance still uses the mesh.
   void remove_mesh(MeshId mesh);

@@ -1,6 +1,7 @@
 // glTF 2.0 as a two-level scene: meshes once, nodes as instances, animations sampled per
 // frame (node TRS channels and morph-target weights).
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <map>
 
@@ -14,17 +15,30 @@ namespace {
 
 using gltf::Mat4;
 
+// A vertex's four joints and weights (JOINTS_0, WEIGHTS_0), the weights normalised to sum 1
+// (all 0: the vertex is not moved by the skin).
+struct SkinVertex {
+  std::array<uint32_t, 4> joint{};
+  std::array<float, 4> weight{};
+};
+
 struct MorphMesh {
   TriangleMesh base;
   std::vector<std::vector<Vec3>> targets;  // per target: one delta per base position
   std::vector<float> weights;              // default weights
+  std::vector<SkinVertex> skin;            // one per base position, or empty
+};
+
+struct Skin {
+  std::vector<int> joints;         // nodes
+  std::vector<Mat4> inverse_bind;  // one per joint
 };
 
 struct Node {
   double t[3] = {0, 0, 0}, r[4] = {0, 0, 0, 1}, s[3] = {1, 1, 1};
   bool has_matrix = false;
   Mat4 matrix{};
-  int mesh = -1;
+  int mesh = -1, skin = -1;
   std::vector<int> children;
   std::vector<float> weights;
 };
@@ -129,9 +143,72 @@ void sample(const Channel& ch, double t, double* out) {
 
 }  // namespace
 
+// A primitive's JOINTS_0 and WEIGHTS_0 (bytes or shorts; floats or normalised bytes or
+// shorts), or none when it lacks either. Weights that are negative or not finite are an error
+// naming the mesh.
+std::vector<SkinVertex> read_skin_vertices(const gltf::GltfReader& reader,
+                                           const tinygltf::Primitive& prim, size_t count,
+                                           const std::string& mesh) {
+  const auto j = prim.attributes.find("JOINTS_0"), w = prim.attributes.find("WEIGHTS_0");
+  if (j == prim.attributes.end() || w == prim.attributes.end()) return {};
+  const std::vector<float> joints = reader.read_floats(j->second, 4),
+                           weights = reader.read_floats(w->second, 4);
+  if (joints.size() != 4 * count || weights.size() != 4 * count)
+    reader.fail(
+        fmt::format("mesh '{}': JOINTS_0 / WEIGHTS_0 do not have one entry per vertex", mesh));
+  std::vector<SkinVertex> out(count);
+  for (size_t i = 0; i < count; ++i) {
+    float sum = 0;
+    for (size_t k = 0; k < 4; ++k) {
+      const float x = weights[4 * i + k];
+      if (!(x >= 0) || !std::isfinite(x))
+        reader.fail(fmt::format("mesh '{}': vertex {} has skin weight {}", mesh, i, x));
+      out[i].joint[k] = uint32_t(joints[4 * i + k]);
+      out[i].weight[k] = x;
+      sum += x;
+    }
+    for (float& x : out[i].weight) x = sum > 0 ? x / sum : 0.0f;
+  }
+  return out;
+}
+
+// Linear blend skinning: each vertex moved by its joints' world matrices times their inverse
+// bind matrices, weighted (joints outside the skin are left out); normals by the blended 3x3,
+// renormalised. Vertices without weights stay where they are.
+void skin_vertices(const Skin& sk, const std::vector<Mat4>& world, const MorphMesh& mm,
+                   std::vector<Vec3>& p, std::vector<Vec3>& n) {
+  std::vector<Mat4> jm(sk.joints.size());
+  for (size_t j = 0; j < jm.size(); ++j)
+    jm[j] = gltf::mul(world[size_t(sk.joints[j])], sk.inverse_bind[j]);
+  const bool normals = mm.base.normals.size() == p.size();
+  if (normals) n = mm.base.normals;
+  for (size_t i = 0; i < p.size() && i < mm.skin.size(); ++i) {
+    const SkinVertex& v = mm.skin[i];
+    Mat4 m{};
+    double total = 0;
+    for (size_t k = 0; k < 4; ++k) {
+      if (!(v.weight[k] > 0) || v.joint[k] >= jm.size()) continue;
+      for (size_t e = 0; e < 16; ++e) m[e] += v.weight[k] * jm[v.joint[k]][e];
+      total += v.weight[k];
+    }
+    if (!(total > 0)) continue;
+    m[15] = 1;
+    p[i] = gltf::transform_point(m, p[i]);
+    if (normals) {
+      const Vec3 a = n[i];
+      const Vec3 b{float(m[0] * a.x + m[4] * a.y + m[8] * a.z),
+                   float(m[1] * a.x + m[5] * a.y + m[9] * a.z),
+                   float(m[2] * a.x + m[6] * a.y + m[10] * a.z)};
+      const float len = length(b);
+      n[i] = len > 0 && std::isfinite(len) ? b * (1.0f / len) : a;
+    }
+  }
+}
+
 struct GltfInstances::Impl {
   std::string path;
   std::vector<MorphMesh> meshes;
+  std::vector<Skin> skins;
   std::vector<Node> nodes;
   std::vector<int> roots;
   std::vector<Channel> channels;
@@ -206,6 +283,9 @@ GltfInstances GltfInstances::load(const std::string& path, size_t clip) {
         mm.base.normals.insert(mm.base.normals.end(), normals.begin(), normals.end());
       gltf::add_per_vertex(mm.base.uvs, mm.base.positions.size(), uvs, positions.size(),
                            Vec2{0, 0});
+      gltf::add_per_vertex(mm.skin, mm.base.positions.size(),
+                           read_skin_vertices(reader, prim, positions.size(), gm.name),
+                           positions.size(), SkinVertex{});
       gltf::add_per_vertex(mm.base.colors, mm.base.positions.size(),
                            reader.read_colors(prim, positions.size()), positions.size(),
                            Vec3{1, 1, 1});
@@ -239,6 +319,24 @@ GltfInstances GltfInstances::load(const std::string& path, size_t clip) {
       mm.weights[k] = float(gm.weights[k]);
     g.meshes.push_back(std::move(mm));
   }
+  for (const tinygltf::Skin& s : model.skins) {
+    Skin skin;
+    for (int j : s.joints) {
+      if (j < 0 || size_t(j) >= model.nodes.size())
+        reader.fail(fmt::format("skin '{}' names missing joint node {}", s.name, j));
+      skin.joints.push_back(j);
+    }
+    skin.inverse_bind.assign(skin.joints.size(), gltf::identity());
+    if (s.inverseBindMatrices >= 0) {
+      const std::vector<float> m = reader.read_floats(s.inverseBindMatrices, 16);
+      if (m.size() < 16 * skin.joints.size())
+        reader.fail(fmt::format("skin '{}': {} inverse bind matrices for {} joints", s.name,
+                                m.size() / 16, skin.joints.size()));
+      for (size_t j = 0; j < skin.joints.size(); ++j)
+        for (size_t k = 0; k < 16; ++k) skin.inverse_bind[j][k] = m[16 * j + k];
+    }
+    g.skins.push_back(std::move(skin));
+  }
   for (size_t i = 0; i < model.nodes.size(); ++i) {
     const tinygltf::Node& n = model.nodes[i];
     Node node;
@@ -252,6 +350,9 @@ GltfInstances GltfInstances::load(const std::string& path, size_t clip) {
     if (n.mesh >= 0 && size_t(n.mesh) >= model.meshes.size())
       reader.fail(fmt::format("node {} names missing mesh {}", i, n.mesh));
     node.mesh = n.mesh;
+    if (n.skin >= 0 && size_t(n.skin) >= model.skins.size())
+      reader.fail(fmt::format("node {} names missing skin {}", i, n.skin));
+    node.skin = n.mesh >= 0 && !g.meshes[size_t(n.mesh)].skin.empty() ? n.skin : -1;
     for (int c : n.children) {
       if (c < 0 || size_t(c) >= model.nodes.size())
         reader.fail(fmt::format("node {} names missing child {}", i, c));
@@ -372,7 +473,9 @@ void GltfInstances::add_to(InstancedScene& scene) {
   g.hidden.assign(g.node_instances.size(), 0);
   for (size_t k = 0; k < g.node_instances.size(); ++k) {
     auto& [node, id] = g.node_instances[k];
-    Affine3 a = to_affine(world[size_t(node)]);
+    // A skinned mesh's vertices are placed by its joints alone (glTF): its node's own
+    // transform is not used.
+    Affine3 a = g.nodes[size_t(node)].skin >= 0 ? Affine3{} : to_affine(world[size_t(node)]);
     const bool singular = !transform_problem(a).empty();
     if (singular) a = Affine3{};
     id = scene.add_instance(g.mesh_ids[size_t(g.nodes[size_t(node)].mesh)], a,
@@ -413,7 +516,8 @@ void GltfInstances::set_time(InstancedScene& scene, double t) {
   g.pose_lights(world);
   for (size_t k = 0; k < g.node_instances.size(); ++k) {
     const auto [node, id] = g.node_instances[k];
-    const Affine3 a = to_affine(world[size_t(node)]);
+    const Node& pn = posed[size_t(node)];
+    const Affine3 a = pn.skin >= 0 ? Affine3{} : to_affine(world[size_t(node)]);
     const bool singular = !transform_problem(a).empty();
     if (singular) {
       if (!g.hidden[k]) scene.set_mask(id, 0), g.hidden[k] = 1;
@@ -421,20 +525,21 @@ void GltfInstances::set_time(InstancedScene& scene, double t) {
     }
     scene.set_transform(id, a);
     if (g.hidden[k]) scene.set_mask(id, 0xFFFFFFFFu), g.hidden[k] = 0;
-    // Morph targets: the mesh follows its (first) node's weights.
-    const int mesh = posed[size_t(node)].mesh;
+    // Morph targets, then the skin: the mesh follows its (first) node's weights and joints.
+    const int mesh = pn.mesh;
     const MorphMesh& mm = g.meshes[size_t(mesh)];
-    if (mm.targets.empty() || posed[size_t(node)].weights == g.posed_weights[size_t(mesh)])
-      continue;
-    std::vector<Vec3> p = mm.base.positions;
-    const std::vector<float>& w = posed[size_t(node)].weights;
+    const bool skinned = pn.skin >= 0;
+    if (!skinned && (mm.targets.empty() || pn.weights == g.posed_weights[size_t(mesh)])) continue;
+    std::vector<Vec3> p = mm.base.positions, n;
+    const std::vector<float>& w = pn.weights;
     for (size_t j = 0; j < mm.targets.size(); ++j) {
       if (w[j] == 0.0f) continue;
       for (size_t i = 0; i < p.size(); ++i)
         p[i] = {p[i].x + w[j] * mm.targets[j][i].x, p[i].y + w[j] * mm.targets[j][i].y,
                 p[i].z + w[j] * mm.targets[j][i].z};
     }
-    scene.update_vertices(g.mesh_ids[size_t(mesh)], p);
+    if (skinned) skin_vertices(g.skins[size_t(pn.skin)], world, mm, p, n);
+    scene.update_vertices(g.mesh_ids[size_t(mesh)], p, n);
     g.posed_weights[size_t(mesh)] = w;
   }
 }

@@ -145,7 +145,8 @@ void InstancedScene::set_mask(InstanceId id, uint32_t mask) {
   impl_->instance(id, "set_mask").mask = mask;
 }
 
-void InstancedScene::update_vertices(MeshId id, std::span<const Vec3> positions) {
+void InstancedScene::update_vertices(MeshId id, std::span<const Vec3> positions,
+                                     std::span<const Vec3> normals) {
   Impl::MeshSlot& m = impl_->mesh(id, "update_vertices");
   std::vector<Vec3>& p = m.scene.meshes[0].positions;
   if (positions.size() != p.size())
@@ -153,6 +154,9 @@ void InstancedScene::update_vertices(MeshId id, std::span<const Vec3> positions)
                 fmt::format("update_vertices: mesh {} has {} vertices, got {}", id, p.size(),
                             positions.size()));
   std::copy(positions.begin(), positions.end(), p.begin());
+  std::vector<Vec3>& n = m.scene.meshes[0].normals;
+  if (!normals.empty() && normals.size() == n.size())
+    std::copy(normals.begin(), normals.end(), n.begin());
   m.dirty = true;
 }
 

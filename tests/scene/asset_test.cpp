@@ -148,6 +148,64 @@ TEST(GltfInstances, SyntheticAnimatedFileFollowsItsClip) {
   EXPECT_NEAR(asset.bounds().hi.y, bounds_of(flat1).hi.y, 1e-5f);
 }
 
+// Skinning (glTF skins, linear blend): a triangle on two joints, the second 1 along x and
+// turned 90 degrees about z by the clip from t = 1 on (keys at 0, 1, 2). Vertex 1 (on joint 1) goes
+// from (2, 0, 0) to (1, 1, 0); vertex 2, weighted 1/4 and 3/4, to 1/4 (2, 1, 0) + 3/4 (0, 1, 0);
+// the skinned mesh's own node (moved 5 along x) does not place it.
+TEST(GltfInstances, SkinnedTriangleFollowsItsJoints) {
+  const std::string path = test::write_temp_file(
+      "skinned.gltf",
+      R"({
+    "asset": {"version": "2.0"}, "scene": 0, "scenes": [{"nodes": [0, 1]}],
+    "nodes": [{"mesh": 0, "skin": 0, "translation": [5, 0, 0]}, {"children": [2]},
+              {"translation": [1, 0, 0]}],
+    "skins": [{"joints": [1, 2], "inverseBindMatrices": 3}],
+    "meshes": [{"primitives": [{"attributes": {"POSITION": 0, "JOINTS_0": 1, "WEIGHTS_0": 2}}]}],
+    "animations": [{"channels": [{"sampler": 0, "target": {"node": 2, "path": "rotation"}}],
+                    "samplers": [{"input": 4, "output": 5}]}],
+    "buffers": [{"byteLength": 284, "uri": "data:application/octet-stream;base64,)" +
+          std::string(
+              "AAAAAAAAAAAAAAAAAAAAQAAAAAAAAAAAAAAAQAAAgD8AAAAAAAAAAAEAAAAAAQAAAACAPwAAAAAAAAAAAAAA"
+              "AAAAgD8AAAAAAAAAAAAAAAAAAIA+AABAPwAAAAAAAAAAAACAPwAAAAAAAAAAAAAAAAAAAAAAAIA/"
+              "AAAAAAAAAAAAAAAAAAAAAAAAgD8AAAAAAAAAAAAAAAAAAAAAAACAPwAAgD8AAAAAAAAAAAAAAAAAAAAAAACA"
+              "PwAAAAAAAAAAAAAAAAAAAAAAAIA/"
+              "AAAAAAAAgL8AAAAAAAAAAAAAgD8AAAAAAACAPwAAAEAAAAAAAAAAAAAAAAAAAIA/AAAAAAAAAADzBDU/"
+              "8wQ1PwAAAAAAAAAA8wQ1P/MENT8=") +
+          R"("}],
+    "bufferViews": [{"buffer": 0, "byteOffset": 0, "byteLength": 36},
+                    {"buffer": 0, "byteOffset": 36, "byteLength": 12},
+                    {"buffer": 0, "byteOffset": 48, "byteLength": 48},
+                    {"buffer": 0, "byteOffset": 96, "byteLength": 128},
+                    {"buffer": 0, "byteOffset": 224, "byteLength": 12},
+                    {"buffer": 0, "byteOffset": 236, "byteLength": 48}],
+    "accessors": [{"bufferView": 0, "componentType": 5126, "count": 3, "type": "VEC3",
+                   "min": [0, 0, 0], "max": [2, 1, 0]},
+                  {"bufferView": 1, "componentType": 5121, "count": 3, "type": "VEC4"},
+                  {"bufferView": 2, "componentType": 5126, "count": 3, "type": "VEC4"},
+                  {"bufferView": 3, "componentType": 5126, "count": 2, "type": "MAT4"},
+                  {"bufferView": 4, "componentType": 5126, "count": 3, "type": "SCALAR",
+                   "min": [0], "max": [2]},
+                  {"bufferView": 5, "componentType": 5126, "count": 3, "type": "VEC4"}]})");
+  Asset asset = Asset::load(path);
+  EXPECT_TRUE(asset.animated());
+  auto expect_at = [&](double t, std::initializer_list<Vec3> want) {
+    asset.update(t);
+    const Scene flat = asset.scene().flatten();
+    ASSERT_EQ(flat.meshes.size(), 1u);
+    size_t i = 0;
+    for (const Vec3& w : want) {
+      const Vec3 p = flat.meshes[0].positions[i++];
+      EXPECT_NEAR(p.x, w.x, 1e-5f) << "t " << t << " vertex " << i - 1;
+      EXPECT_NEAR(p.y, w.y, 1e-5f) << "t " << t << " vertex " << i - 1;
+      EXPECT_NEAR(p.z, w.z, 1e-5f) << "t " << t << " vertex " << i - 1;
+    }
+  };
+  expect_at(0.0, {{0, 0, 0}, {2, 0, 0}, {2, 1, 0}});
+  expect_at(1.0, {{0, 0, 0}, {1, 1, 0}, {0.5f, 1, 0}});
+  const float c = std::sqrt(0.5f);  // halfway: 45 degrees (slerp)
+  expect_at(0.5, {{0, 0, 0}, {1 + c, c, 0}, {1.25f, 0.25f + 1.5f * c, 0}});
+}
+
 // The instances file format on a file made here (the bunny grid's test needs the shared
 // scenes): one mesh, sixteen transforms, flattened as the transforms say.
 TEST(Instances, SyntheticInstancesFilePlacesOneMeshSixteenTimes) {
