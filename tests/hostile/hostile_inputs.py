@@ -146,6 +146,10 @@ def main():
         expect_error("glTF glass with a " + label, ["render", path, "--res", "8x8", "-o",
                      os.path.join(os.path.dirname(path), "glassy.exr")], ["glassy.gltf", "crystal"])
 
+    extra = {"skins": [{"joints": [99]}], "nodes": [{"mesh": 0, "skin": 0}]}
+    path = gltf_with([ok_acc], views, tri, extra, "skin.gltf")
+    expect_error("glTF skin naming a missing joint", ["render", path, "--res", "8x8", "-o",
+                 os.path.join(os.path.dirname(path), "skin.exr")], ["skin.gltf", "joint"])
     int_acc = dict(ok_acc, componentType=5125)  # UNSIGNED_INT positions: no glTF allows them
     path = gltf_with([int_acc], views, tri, None, "int_positions.gltf")
     expect_error("glTF positions as 32-bit integers", ["bvh", path], ["int_positions.gltf", "component type"])
