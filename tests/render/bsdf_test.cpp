@@ -3,6 +3,8 @@
 // reciprocity, the GGX "weak white furnace" (D and G1 normalised) and energy bounds.
 #include <gtest/gtest.h>
 
+#include <fmt/format.h>
+
 #include <algorithm>
 #include <bit>
 #include <cmath>
@@ -10,21 +12,12 @@
 #include <random>
 #include <vector>
 
-#include "render/bsdf.h"
+#include "render/bsdf_sampling.h"
 #include "render/fast_math.h"
+#include "support/oracles.h"
 
 namespace kestrel::render {
 namespace {
-
-Vec3 dir(float theta, float phi) {
-  return {std::sin(theta) * std::cos(phi), std::sin(theta) * std::sin(phi), std::cos(theta)};
-}
-
-// Upper-tail p-value of chi-square with k degrees of freedom (Wilson-Hilferty).
-double chi2_p_value(double chi2, int k) {
-  const double z = (std::cbrt(chi2 / k) - (1.0 - 2.0 / (9.0 * k))) / std::sqrt(2.0 / (9.0 * k));
-  return 0.5 * std::erfc(z / std::sqrt(2.0));
-}
 
 struct Case {
   const char* name;
@@ -52,56 +45,9 @@ TEST_P(BsdfCase, SamplingMatchesPdfChiSquare) {
   const auto [index, cos_o] = GetParam();
   const Case c = cases()[size_t(index)];
   const Vec3 wo{std::sqrt(1 - cos_o * cos_o), 0, cos_o};
-  constexpr int nt = 24, np = 48, sub = 10;
-  constexpr int samples = 1'000'000;
-  std::vector<double> expected(nt * np, 0.0), observed(nt * np + 1, 0.0);
-  const double dt = (pi / 2) / nt, dp = 2 * pi / np;
-  double total = 0;
-  for (int i = 0; i < nt; ++i)
-    for (int j = 0; j < np; ++j) {
-      double e = 0;
-      for (int a = 0; a < sub; ++a)
-        for (int b = 0; b < sub; ++b) {
-          const double t = (i + (a + 0.5) / sub) * dt, ph = (j + (b + 0.5) / sub) * dp;
-          e += bsdf_pdf(c.p, wo, dir(float(t), float(ph))) * std::sin(t) * (dt / sub) * (dp / sub);
-        }
-      expected[size_t(i * np + j)] = e * samples;
-      total += e;
-    }
-  EXPECT_LE(total, 1.001) << c.name << ": the pdf integrates to more than 1";
-  std::mt19937 gen(1234 + index);
-  std::uniform_real_distribution<float> u(0.0f, 0x1.fffffep-1f);
-  for (int s = 0; s < samples; ++s) {
-    BsdfSample bs;
-    if (!bsdf_sample(c.p, wo, u(gen), u(gen), u(gen), bs)) {
-      observed[nt * np] += 1;
-      continue;
-    }
-    const float t = std::acos(std::clamp(bs.wi.z, 0.0f, 1.0f));
-    float ph = std::atan2(bs.wi.y, bs.wi.x);
-    if (ph < 0) ph += 2 * pi;
-    const int i = std::min(nt - 1, int(t / dt)), j = std::min(np - 1, int(ph / dp));
-    observed[size_t(i * np + j)] += 1;
-  }
-  expected.push_back(std::max(0.0, (1.0 - total) * samples));
-  // Pool cells expected below 5 into one.
-  double chi2 = 0, pool_o = 0, pool_e = 0;
-  int cells = 0;
-  for (size_t k = 0; k < expected.size(); ++k) {
-    if (expected[k] < 5) {
-      pool_o += observed[k], pool_e += expected[k];
-      continue;
-    }
-    chi2 += (observed[k] - expected[k]) * (observed[k] - expected[k]) / expected[k];
-    ++cells;
-  }
-  if (pool_e >= 5)
-    chi2 += (pool_o - pool_e) * (pool_o - pool_e) / pool_e, ++cells;
-  else
-    EXPECT_LT(pool_o, 30) << c.name << ": samples where the pdf is ~0";
-  const double p = chi2_p_value(chi2, cells - 1);
-  EXPECT_GT(p, 1e-4) << c.name << " cos_o " << cos_o << ": chi2 " << chi2 << " over " << cells
-                     << " cells";
+  const SamplingCheck r = expect_sampling_matches_pdf(c.p, wo, false, 10, 1234u + unsigned(index),
+                                                      fmt::format("{} cos_o {}", c.name, cos_o));
+  EXPECT_LE(r.total, 1.001) << c.name << ": the pdf integrates to more than 1";
 }
 
 TEST_P(BsdfCase, EvalPdfAndSampleAgree) {

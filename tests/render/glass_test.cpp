@@ -7,30 +7,22 @@
 // F0 + (1 - F0) x its tint, and a slab of absorbing glass lets exp(-sigma d) through.
 #include <gtest/gtest.h>
 
+#include <fmt/format.h>
+
 #include <algorithm>
 #include <cmath>
 #include <random>
 #include <vector>
 
 #include "kestrel/kestrel.h"
-#include "render/bsdf.h"
+#include "render/bsdf_sampling.h"
+#include "support/oracles.h"
 #include "support/scene_renderer.h"
 
 namespace kestrel::render {
 namespace {
 
 using test::SceneRenderer;
-
-Vec3 dir(double theta, double phi) {
-  return {float(std::sin(theta) * std::cos(phi)), float(std::sin(theta) * std::sin(phi)),
-          float(std::cos(theta))};
-}
-
-// Upper-tail p-value of chi-square with k degrees of freedom (Wilson-Hilferty).
-double chi2_p_value(double chi2, int k) {
-  const double z = (std::cbrt(chi2 / k) - (1.0 - 2.0 / (9.0 * k))) / std::sqrt(2.0 / (9.0 * k));
-  return 0.5 * std::erfc(z / std::sqrt(2.0));
-}
 
 // Fresnel reflectance of unpolarised light, in double precision: n1 on the incident side.
 double fresnel_reference(double cos_i, double n1, double n2) {
@@ -68,59 +60,11 @@ TEST_P(GlassCase, SamplingMatchesPdfOverTheSphere) {
   const auto [index, cos_o] = GetParam();
   const Case c = cases()[size_t(index)];
   const Vec3 wo{std::sqrt(1 - cos_o * cos_o), 0, cos_o};
-  constexpr int nt = 48, np = 48, sub = 16;
-  constexpr int samples = 1'000'000;
-  std::vector<double> expected(nt * np, 0.0), observed(nt * np + 1, 0.0);
-  const double dt = pi / nt, dp = 2 * pi / np;
-  double total = 0;
-  for (int i = 0; i < nt; ++i)
-    for (int j = 0; j < np; ++j) {
-      double e = 0;
-      for (int a = 0; a < sub; ++a)
-        for (int b = 0; b < sub; ++b) {
-          const double t = (i + (a + 0.5) / sub) * dt, ph = (j + (b + 0.5) / sub) * dp;
-          e += bsdf_pdf(c.p, wo, dir(t, ph)) * std::sin(t) * (dt / sub) * (dp / sub);
-        }
-      expected[size_t(i * np + j)] = e * samples;
-      total += e;
-    }
-  EXPECT_LE(total, 1.002) << c.name << ": the pdf integrates to more than 1";
-  EXPECT_GE(total, 0.9) << c.name << ": the pdf misses directions the sampling reaches";
-  std::mt19937 gen(4321 + index);
-  std::uniform_real_distribution<float> u(0.0f, 0x1.fffffep-1f);
-  int below = 0;
-  for (int s = 0; s < samples; ++s) {
-    BsdfSample bs;
-    if (!bsdf_sample(c.p, wo, u(gen), u(gen), u(gen), bs)) {
-      observed[nt * np] += 1;
-      continue;
-    }
-    below += bs.wi.z < 0;
-    const double t = std::acos(std::clamp(double(bs.wi.z), -1.0, 1.0));
-    double ph = std::atan2(double(bs.wi.y), double(bs.wi.x));
-    if (ph < 0) ph += 2 * pi;
-    const int i = std::min(nt - 1, int(t / dt)), j = std::min(np - 1, int(ph / dp));
-    observed[size_t(i * np + j)] += 1;
-  }
-  EXPECT_GT(below, c.p.eta > 1 ? samples / 10 : samples / 50) << c.name << ": little goes through";
-  expected.push_back(std::max(0.0, (1.0 - total) * samples));
-  double chi2 = 0, pool_o = 0, pool_e = 0;
-  int cells = 0;
-  for (size_t k = 0; k < expected.size(); ++k) {
-    if (expected[k] < 5) {
-      pool_o += observed[k], pool_e += expected[k];
-      continue;
-    }
-    chi2 += (observed[k] - expected[k]) * (observed[k] - expected[k]) / expected[k];
-    ++cells;
-  }
-  if (pool_e >= 5)
-    chi2 += (pool_o - pool_e) * (pool_o - pool_e) / pool_e, ++cells;
-  else
-    EXPECT_LT(pool_o, 30) << c.name << ": samples where the pdf is ~0";
-  const double p = chi2_p_value(chi2, cells - 1);
-  EXPECT_GT(p, 1e-4) << c.name << " cos_o " << cos_o << ": chi2 " << chi2 << " over " << cells
-                     << " cells";
+  const SamplingCheck r = expect_sampling_matches_pdf(c.p, wo, true, 16, 4321u + unsigned(index),
+                                                      fmt::format("{} cos_o {}", c.name, cos_o));
+  EXPECT_LE(r.total, 1.002) << c.name << ": the pdf integrates to more than 1";
+  EXPECT_GE(r.total, 0.9) << c.name << ": the pdf misses directions the sampling reaches";
+  EXPECT_GT(r.below, c.p.eta > 1 ? 100'000 : 20'000) << c.name << ": little goes through";
 }
 
 TEST_P(GlassCase, EvalPdfAndSampleAgree) {
@@ -374,17 +318,12 @@ TEST(GlassRender, BallLensMatchesAnExactRayTracer) {
   EXPECT_GT(spread / n, 0.1);  // the image has contrast to get wrong
 }
 
-TEST(GlassRender, PaneSeenHeadOnIsFresnelPlusItsTint) {
-  const Vec3 tint{0.2f, 0.5f, 0.9f};
+// A 10 x 10 quad at z = 0 of one material seen head-on from (0, 0, -3) in a uniform
+// environment of 1: the one pixel's colour.
+Vec3 head_on(const Material& material, int spp) {
   Scene s;
-  s.source = "test:glass_pane";
-  s.materials = {Material{.name = "pane",
-                          .base_color = tint,
-                          .roughness = 0,
-                          .specular = 1,
-                          .transmission = 1,
-                          .ior = 1.5f,
-                          .thin_walled = true}};
+  s.source = "test:head_on";
+  s.materials = {material};
   TriangleMesh m;
   m.positions = {{-5, -5, 0}, {5, -5, 0}, {5, 5, 0}, {-5, 5, 0}};
   m.indices = {0, 1, 2, 0, 2, 3};
@@ -392,31 +331,35 @@ TEST(GlassRender, PaneSeenHeadOnIsFresnelPlusItsTint) {
   s.meshes.push_back(m);
   SceneRenderer r(std::move(s), Environment::parse("constant:1,1,1"));
   RenderSettings rs;
-  rs.width = rs.height = 1, rs.spp = 4096, rs.max_depth = 8, rs.jitter = false;
+  rs.width = rs.height = 1, rs.spp = spp, rs.max_depth = 8, rs.jitter = false;
   const Frame f = r.render(Camera{{0, 0, -3}, {0, 0, 0}, 1}, rs);
+  return {f[Aov::color].pixels[0], f[Aov::color].pixels[1], f[Aov::color].pixels[2]};
+}
+
+TEST(GlassRender, PaneSeenHeadOnIsFresnelPlusItsTint) {
+  const Vec3 tint{0.2f, 0.5f, 0.9f};
+  const Vec3 c = head_on(Material{.name = "pane",
+                                  .base_color = tint,
+                                  .roughness = 0,
+                                  .specular = 1,
+                                  .transmission = 1,
+                                  .ior = 1.5f,
+                                  .thin_walled = true},
+                         4096);
   for (int k = 0; k < 3; ++k)  // F0 = 0.04 reflects the environment behind the camera
-    EXPECT_NEAR(f[Aov::color].pixels[size_t(k)], 0.04 + 0.96 * tint[k], 0.01) << "channel " << k;
+    EXPECT_NEAR(c[k], 0.04 + 0.96 * tint[k], 0.01) << "channel " << k;
 }
 
 // The opaque dielectric coat's reflectance follows the IOR too (glTF KHR_materials_ior): a
 // black, smooth coated quad seen head-on in a uniform environment is ((ior - 1) / (ior + 1))^2.
 TEST(GlassRender, CoatReflectsFresnelOfItsIor) {
   for (const float ior : {1.5f, 2.0f, 1.33f}) {
-    Scene s;
-    s.source = "test:coat_ior";
-    s.materials = {Material{
-        .name = "lacquer", .base_color = {0, 0, 0}, .roughness = 0, .specular = 1, .ior = ior}};
-    TriangleMesh m;
-    m.positions = {{-5, -5, 0}, {5, -5, 0}, {5, 5, 0}, {-5, 5, 0}};
-    m.indices = {0, 1, 2, 0, 2, 3};
-    m.material_ids = {0, 0};
-    s.meshes.push_back(m);
-    SceneRenderer r(std::move(s), Environment::parse("constant:1,1,1"));
-    RenderSettings rs;
-    rs.width = rs.height = 1, rs.spp = 256, rs.max_depth = 4, rs.jitter = false;
-    const Frame f = r.render(Camera{{0, 0, -3}, {0, 0, 0}, 1}, rs);
+    const Vec3 c = head_on(
+        Material{
+            .name = "lacquer", .base_color = {0, 0, 0}, .roughness = 0, .specular = 1, .ior = ior},
+        256);
     const double r0 = (ior - 1.0) / (ior + 1.0);
-    EXPECT_NEAR(f[Aov::color].pixels[1], r0 * r0, 0.002) << "ior " << ior;
+    EXPECT_NEAR(c.y, r0 * r0, 0.002) << "ior " << ior;
   }
 }
 

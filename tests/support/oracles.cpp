@@ -322,4 +322,24 @@ ImageMatch match_images(const FloatImage& out, const FloatImage& expected) {
   return m;
 }
 
+ChiSquare chi_square(const std::vector<double>& expected, const std::vector<double>& observed) {
+  ChiSquare r;
+  for (size_t k = 0; k < expected.size() && k < observed.size(); ++k) {
+    if (expected[k] < 5) {
+      r.pool_observed += observed[k], r.pool_expected += expected[k];
+      continue;
+    }
+    r.chi2 += (observed[k] - expected[k]) * (observed[k] - expected[k]) / expected[k];
+    ++r.cells;
+  }
+  if (r.pool_expected >= 5) {
+    const double d = r.pool_observed - r.pool_expected;
+    r.chi2 += d * d / r.pool_expected, ++r.cells;
+  }
+  const int k = std::max(1, r.cells - 1);
+  const double z = (std::cbrt(r.chi2 / k) - (1.0 - 2.0 / (9.0 * k))) / std::sqrt(2.0 / (9.0 * k));
+  r.p = 0.5 * std::erfc(z / std::sqrt(2.0));
+  return r;
+}
+
 }  // namespace kestrel::test

@@ -84,6 +84,17 @@ std::filesystem::path test_temp_dir();
 /// Writes text to a fresh file under the test temp dir and returns its path.
 std::string write_temp_file(const std::string& name, const std::string& contents);
 
+/// Pearson's chi-square of observed against expected counts (one entry per cell), the cells
+/// expected below 5 pooled into one (a cell itself when its expectation reaches 5): the
+/// p-value (Wilson-Hilferty's approximation), the statistic, the cells counted, and the pooled
+/// cells' observed count and expectation.
+struct ChiSquare {
+  double p = 1, chi2 = 0;
+  int cells = 0;
+  double pool_observed = 0, pool_expected = 0;
+};
+ChiSquare chi_square(const std::vector<double>& expected, const std::vector<double>& observed);
+
 /// An output against a framework's (PyTorch's) expected image of the same size: the worst
 /// error relative to |expected| + 0.01, and the PSNR (peak 1). Sizes that differ are a test
 /// failure (and a worst of +inf, a PSNR of -inf).
