@@ -53,6 +53,7 @@ void Renderer::Impl::sync() {
     InstanceShade& is = instances[i];
     is.mesh = &s.mesh(s.instance_mesh(i));
     const TriangleMesh& m = *is.mesh;
+    is.colors = !m.colors.empty() && m.colors.size() == m.positions.size();
     if (!m.material_ids.empty() && m.material_ids.size() != m.triangle_count())
       throw Error(ErrorCode::invalid_argument,
                   fmt::format("{}: mesh '{}' has {} material ids for {} triangles", source(),

@@ -206,6 +206,7 @@ struct Renderer::Impl {
     const TriangleMesh* mesh = nullptr;
     uint32_t mesh_key = 0;  // index into emissive_rank
     bool identity = true;
+    bool colors = false;  // the mesh has a colour per vertex
     Affine3 xf, prev_xf;
     float nrm[9] = {1, 0, 0, 0, 1, 0, 0, 0, 1};  // inverse transpose of xf's linear part
     uint32_t light_base = 0;

@@ -105,7 +105,7 @@ Renderer::Impl::Surface Renderer::Impl::surface_at(const SurfaceHit& h, const Ra
   sf.ns = ns;
   normal_map(h, sf);
   surface_material(sf);
-  if (!mesh.colors.empty()) vertex_colors(h, sf);
+  if (is.colors) vertex_colors(h, sf);
   return sf;
 }
 
@@ -159,19 +159,19 @@ Renderer::Impl::Surface Renderer::Impl::surface_from_rows(const SurfaceRows& row
   sf.wo = -ray.dir;
   sf.ng = {rows.gx[j], rows.gy[j], rows.gz[j]};
   sf.cos_hit = rows.cos_hit[j];
-  sf.mat = &material_of(*instances[h.instance_id].mesh, h.prim_id);
+  const InstanceShade& is = instances[h.instance_id];
+  sf.mat = &material_of(*is.mesh, h.prim_id);
   sf.ns = {rows.nx[j], rows.ny[j], rows.nz[j]};
   sf.uv = {rows.u[j], rows.v[j]};
   normal_map(h, sf);
   const float texel[3] = {rows.tr[j], rows.tg[j], rows.tb[j]};
   surface_material(sf, (rows.texel >> j) & 1u ? texel : nullptr);
-  if (!instances[h.instance_id].mesh->colors.empty()) vertex_colors(h, sf);
+  if (is.colors) vertex_colors(h, sf);
   return sf;
 }
 
 void Renderer::Impl::vertex_colors(const SurfaceHit& h, Surface& sf) const {
-  const TriangleMesh& m = *instances[h.instance_id].mesh;
-  if (m.colors.size() != m.positions.size()) return;  // (a mesh built wrong: not read)
+  const TriangleMesh& m = *instances[h.instance_id].mesh;  // (InstanceShade::colors: it has them)
   const uint32_t* idx = &m.indices[3 * size_t(h.prim_id)];
   const Vec3 c =
       m.colors[idx[0]] * (1 - h.u - h.v) + m.colors[idx[1]] * h.u + m.colors[idx[2]] * h.v;
