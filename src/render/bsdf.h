@@ -206,7 +206,7 @@ struct BsdfAt {
   }
 
   /// f(wo, wi) * cos(wi) and, when `pdf` is given, the pdf of sampling wi (the mixture of the
-  /// cosine and the visible-normal lobes); zero below the surface.
+  /// cosine and the visible-normal lobes); below the surface, the glass lobe's transmission alone.
   void eval(Vec3 wi, Vec3& f, float* pdf) const {
     f = {0, 0, 0};
     if (pdf) *pdf = 0;
@@ -233,7 +233,7 @@ struct BsdfAt {
     if (glass) eval_glass(wi, f, pdf);
   }
 
-  /// Samples wi; false when the sample leaves no contribution (below the surface).
+  /// Samples wi; false when the sample leaves no contribution (below the surface, but for glass).
   /// `cosine`: the cosine lobe's direction for (u1, u2) where the caller has it (the lines
   /// below give it; render::PathDraws makes it ahead), or null.
   bool sample(float u0, float u1, float u2, const Vec3* cosine, BsdfSample& s) const {
@@ -275,7 +275,7 @@ struct BsdfAt {
   }
 };
 
-/// f(wo, wi) * cos(wi); zero below the surface.
+/// f(wo, wi) * |cos(wi)|; zero below the surface unless the material is glass.
 inline Vec3 bsdf_eval(const BsdfParams& p, Vec3 wo, Vec3 wi) {
   Vec3 f;
   BsdfAt(p, wo, false).eval(wi, f, nullptr);
@@ -289,7 +289,7 @@ inline float bsdf_pdf(const BsdfParams& p, Vec3 wo, Vec3 wi) {
   return pdf;
 }
 
-/// Samples wi; false when the sample leaves no contribution (below the surface).
+/// Samples wi; false when the sample leaves no contribution (below the surface, but for glass).
 inline bool bsdf_sample(const BsdfParams& p, Vec3 wo, float u0, float u1, float u2, BsdfSample& s) {
   return BsdfAt(p, wo).sample(u0, u1, u2, nullptr, s);
 }
