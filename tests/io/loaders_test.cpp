@@ -360,7 +360,7 @@ TEST(Obj, GlassIllumModelsAreRead) {
   EXPECT_EQ(s.materials[1].alpha_mode,
             Material::AlphaMode::opaque);              // the glass is the transparency
   EXPECT_FLOAT_EQ(s.materials[1].base_color.y, 1.0f);  // no Tf: clear
-  EXPECT_EQ(s.materials[1].roughness, 0.0f);  // no Ns or Pr: polished
+  EXPECT_EQ(s.materials[1].roughness, 0.0f);           // no Ns or Pr: polished
   EXPECT_FLOAT_EQ(s.materials[2].ior, 1.52f);
   EXPECT_FLOAT_EQ(s.materials[2].base_color.y, 0.9f);
 }
