@@ -22,6 +22,7 @@
 
 #include <sys/stat.h>
 
+#include "core/color.h"
 #include "core/file_io.h"
 #include "io/loaders.h"
 #include "kestrel/error.h"
@@ -206,6 +207,10 @@ struct CornerHash {
   }
 };
 
+bool is_glass(const tinyobj::material_t& m) {
+  return m.illum == 4 || m.illum == 6 || m.illum == 7 || m.illum == 9;
+}
+
 Material convert_material(const tinyobj::material_t& m) {
   Material out;
   out.name = m.name;
@@ -218,6 +223,17 @@ Material convert_material(const tinyobj::material_t& m) {
     out.metallic = m.metallic;
   } else if (m.shininess > 0.0f) {
     out.roughness = std::clamp(std::sqrt(2.0f / (m.shininess + 2.0f)), 0.0f, 1.0f);
+  }
+  // Glass (illum 4, 6, 7, 9: the MTL models with refraction or glass): a solid refracting
+  // at Ni (1.5 where not above 1: tinyobj reads a missing Ni as 1), tinted by Tf (white
+  // where Tf is black or missing), smooth unless Ns or Pr say otherwise; its transparency
+  // is the glass's (load_obj reads no cut-out for it).
+  if (is_glass(m)) {
+    out.transmission = 1;
+    out.ior = m.ior > 1.0f ? m.ior : 1.5f;
+    if (!(m.roughness > 0) && !(m.shininess > 1)) out.roughness = 0;  // (tinyobj: Ns 1)
+    const Vec3 tf{m.transmittance[0], m.transmittance[1], m.transmittance[2]};
+    out.base_color = tf.x > 0 || tf.y > 0 || tf.z > 0 ? tf : Vec3{1, 1, 1};
   }
   return out;
 }
@@ -340,6 +356,11 @@ Scene load_obj(const std::string& path) {
     material.emission_texture = texture(m.emissive_texname);
     // map_d: a cut-out mask (its A channel, or its grey level when it has no alpha); d < 1
     // alone (or Tr > 0): a surface that lets the rest of the light through, stochastically.
+    // Glass has neither: its d is the glass's transparency (convert_material).
+    if (is_glass(m)) {
+      scene.materials.push_back(material);
+      continue;
+    }
     material.alpha = m.dissolve;
     if (const int mask = texture(m.alpha_texname); mask >= 0) {
       const std::vector<uint8_t>& rgba = scene.textures[size_t(mask)].rgba;
@@ -350,20 +371,6 @@ Scene load_obj(const std::string& path) {
       material.alpha_from_red = !has_alpha;
     } else if (m.dissolve < 1.0f) {
       material.alpha_mode = Material::AlphaMode::blend;
-    }
-    // Glass (illum 4, 6, 7, 9: the MTL models with refraction or glass): a solid refracting
-    // at Ni (1.5 where not above 1: tinyobj reads a missing Ni as 1), tinted by Tf (white
-    // where Tf is black or missing), smooth unless Ns or Pr say otherwise; its transparency
-    // is the glass's, not a cut-out's.
-    if (m.illum == 4 || m.illum == 6 || m.illum == 7 || m.illum == 9) {
-      material.transmission = 1;
-      material.ior = m.ior > 1.0f ? m.ior : 1.5f;
-      if (!(m.roughness > 0) && !(m.shininess > 1)) material.roughness = 0;  // (tinyobj: Ns 1)
-      const Vec3 tf{m.transmittance[0], m.transmittance[1], m.transmittance[2]};
-      material.base_color = tf.x > 0 || tf.y > 0 || tf.z > 0 ? tf : Vec3{1, 1, 1};
-      material.alpha_mode = Material::AlphaMode::opaque;
-      material.alpha = 1;
-      material.alpha_texture = -1;
     }
     scene.materials.push_back(material);
   }
@@ -382,8 +389,7 @@ Scene load_obj(const std::string& path) {
     colors.resize(vertex_count);
     for (size_t i = 0; i < 3 * vertex_count; ++i) {
       const float c = attrib.colors[i] >= 0 ? std::min(attrib.colors[i], 1.0f) : 0.0f;
-      colors[i / 3][int(i % 3)] =
-          c <= 0.04045f ? c / 12.92f : std::pow((c + 0.055f) / 1.055f, 2.4f);
+      colors[i / 3][int(i % 3)] = srgb_to_linear(c);
     }
   }
   if (!has_extra) {

@@ -20,6 +20,7 @@
 #include <cstring>
 #include <memory>
 
+#include "core/color.h"
 #include "core/file_io.h"
 #include "io/loaders.h"
 #include "kestrel/error.h"
@@ -206,7 +207,7 @@ FloatImage load_float_image_stb(const std::string& path) {
   image = FloatImage(w, h, 3);
   for (size_t i = 0; i < image.pixels.size(); ++i) {
     const float c = px.get()[i] / 255.0f;  // sRGB decode
-    image.pixels[i] = c <= 0.04045f ? c / 12.92f : std::pow((c + 0.055f) / 1.055f, 2.4f);
+    image.pixels[i] = srgb_to_linear(c);
   }
   return image;
 }

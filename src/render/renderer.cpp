@@ -210,10 +210,12 @@ void Renderer::Impl::render_passes(const Camera& camera, const RenderSettings& s
   // The materials' textures, resolved for this render: the scene's textures are replaced
   // by set_materials at once, its materials (our copy) at the next commit.
   maps.assign(materials.size(), MaterialMaps{});
-  for (size_t i = 0; i < materials.size(); ++i)
-    maps[i] = {texture(materials[i].base_color_texture),
-               texture(materials[i].metallic_roughness_texture),
-               texture(materials[i].emission_texture)};
+  for (size_t i = 0; i < materials.size(); ++i) {
+    const Material& m = materials[i];
+    const float r = (m.ior - 1.0f) / (m.ior + 1.0f);
+    maps[i] = {texture(m.base_color_texture), texture(m.metallic_roughness_texture),
+               texture(m.emission_texture), m.ior == 1.5f ? 0.04f : r * r};
+  }
   const CameraModel cam(camera, s.width, s.height);
   const CameraModel prev(prev_camera ? *prev_camera : camera, s.width, s.height);
   const int tiles_x = (s.width + tile_size - 1) / tile_size;

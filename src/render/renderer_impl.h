@@ -230,8 +230,10 @@ struct Renderer::Impl {
   std::vector<Material> materials;        // the scene's, plus a trailing "default"
   // Per material, its textures resolved (nullptr: none or unusable), so shading a hit does
   // not look them up: base colour, metallic-roughness, emission.
+  // A material's textures, and its coat's F0 from its IOR, resolved once per render.
   struct MaterialMaps {
     const Texture *base = nullptr, *metallic_roughness = nullptr, *emission = nullptr;
+    float f0 = 0.04f;  // ((ior - 1) / (ior + 1))^2; 0.04 exactly at glTF's IOR 1.5
   };
   std::vector<MaterialMaps> maps;  // maps[i] of materials[i] (each render_passes)
   const MaterialMaps& maps_of(const Material& m) const {

@@ -198,15 +198,12 @@ void Renderer::Impl::surface_material(Surface& sf, const float* texel) const {
       mat, [uv] { return uv; }, bp.metallic);
   bp.alpha = std::max(roughness * roughness, min_alpha);
   bp.specular = std::clamp(mat.specular, 0.0f, 1.0f);
-  if (mat.ior != 1.5f) {  // (glTF's IOR: F0 = 0.04 exactly)
-    const float r = (mat.ior - 1.0f) / (mat.ior + 1.0f);
-    bp.f0 = r * r;
-  }
+  bp.f0 = maps_of(mat).f0;
   bp.transmission = mat.transmission;  // in [0, 1] (check_materials)
   if (bp.transmission > 0) {
     // Glass: a solid's faces bend light (eta by the side the ray is on: the front face is the
-    // outside); an IOR of ~1 bends none, the same as a sheet.
-    const float ior = std::max(mat.ior, 1.0f);
+    // outside); an IOR of ~1 bends none, the same as a sheet. (ior >= 1: check_materials.)
+    const float ior = mat.ior;
     bp.thin = mat.thin_walled || ior < 1.001f;
     bp.eta = bp.thin || sf.cos_hit >= 0 ? ior : 1.0f / ior;
   }

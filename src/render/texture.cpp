@@ -2,16 +2,13 @@
 #include <algorithm>
 #include <cmath>
 
+#include "core/color.h"
 #include "render/fast_math.h"
 #include "render/renderer_impl.h"
 
 namespace kestrel::render {
 
 namespace {
-float srgb_to_linear(float c) {
-  return c <= 0.04045f ? c / 12.92f : std::pow((c + 0.055f) / 1.055f, 2.4f);
-}
-
 struct SrgbTable {
   float v[256];
   SrgbTable() {
